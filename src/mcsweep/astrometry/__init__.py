@@ -1,0 +1,1 @@
+"""astrometry stage (see docs/architecture.md)."""

@@ -1,0 +1,1 @@
+"""population stage (see docs/architecture.md)."""

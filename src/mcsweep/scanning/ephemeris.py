@@ -1,0 +1,90 @@
+"""Barycentric position of the observer (Gaia near the Sun-Earth L2 point).
+
+L2 model adopted here: Gaia sits on the line from the Sun through the Earth-Moon
+barycentre (EMB), 1.01 times as far from the Sun as the EMB. L2 lies about 1.5e6 km
+(0.01 au) beyond the Earth (de Bruijne 2012, Ap&SS 341, 31, Sect. 2); the real Lissajous
+orbit around L2 (amplitude ~ 3e5 km, i.e. a 2e-3 au offset) is ignored: for a star at
+1 kpc it shifts the parallax displacement by < 2 microarcsec and it is invisible in
+the paper's statistics.
+
+The Sun and EMB come from astropy's built-in ephemeris (ERFA ``epv00``), so no
+download is needed. They are evaluated once on a regular grid and interpolated with
+cubic splines; every star and every transit then reads the same tabulation instead of
+calling the ephemeris again.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+from astropy import units as u
+from astropy.coordinates import get_body_barycentric, solar_system_ephemeris
+from astropy.time import Time
+from scipy.interpolate import CubicSpline
+
+from ..errors import UserInputError
+
+__all__ = [
+    "L2_DISTANCE_FACTOR",
+    "TABLE_START_JD_TCB",
+    "TABLE_END_JD_TCB",
+    "gaia_position_au",
+    "sun_position_au",
+]
+
+#: Gaia's heliocentric distance in units of the EMB's heliocentric distance (see module notes).
+L2_DISTANCE_FACTOR = 1.01
+
+# Tabulation span (TCB Julian dates): 2013-01-01 to 2031-01-01 covers launch, the
+# nominal and the extended missions. Step 0.25 d: the cubic-spline error on the EMB
+# orbit is then ~1e-10 au, far below what parallax factors need (1e-4 au = 1 muas at 1 kpc).
+TABLE_START_JD_TCB = 2456293.5
+TABLE_END_JD_TCB = 2462867.5
+_STEP_DAYS = 0.25
+
+
+@lru_cache(maxsize=1)
+def _splines() -> tuple[CubicSpline, CubicSpline]:
+    jd = np.arange(TABLE_START_JD_TCB, TABLE_END_JD_TCB + _STEP_DAYS, _STEP_DAYS)
+    t = Time(jd, format="jd", scale="tcb")
+    with solar_system_ephemeris.set("builtin"):
+        sun = get_body_barycentric("sun", t).xyz.to_value(u.au).T
+        emb = get_body_barycentric("earth-moon-barycenter", t).xyz.to_value(u.au).T
+    gaia = sun + L2_DISTANCE_FACTOR * (emb - sun)
+    return CubicSpline(jd, gaia, axis=0), CubicSpline(jd, sun, axis=0)
+
+
+def _as_tcb_jd(t) -> np.ndarray:
+    if isinstance(t, Time):
+        jd = np.asarray(t.tcb.jd, dtype=float)
+    else:
+        jd = np.asarray(t, dtype=float)
+    if jd.size and (np.nanmin(jd) < TABLE_START_JD_TCB or np.nanmax(jd) > TABLE_END_JD_TCB):
+        raise UserInputError(
+            f"epoch JD(TCB) {np.nanmin(jd):.1f}..{np.nanmax(jd):.1f} is outside the observer "
+            f"ephemeris table; accepted: {TABLE_START_JD_TCB}..{TABLE_END_JD_TCB} (2013-2031)"
+        )
+    return jd
+
+
+def gaia_position_au(t) -> np.ndarray:
+    """Barycentric (BCRS, ICRS axes) position of Gaia in au.
+
+    Parameters
+    ----------
+    t : astropy.time.Time or array_like
+        Epochs; plain numbers are Julian dates in TCB.
+
+    Returns
+    -------
+    ndarray, shape ``t.shape + (3,)``
+    """
+    jd = _as_tcb_jd(t)
+    return _splines()[0](jd)
+
+
+def sun_position_au(t) -> np.ndarray:
+    """Barycentric position of the Sun in au (same conventions as :func:`gaia_position_au`)."""
+    jd = _as_tcb_jd(t)
+    return _splines()[1](jd)

@@ -1,0 +1,1 @@
+"""sweep stage (see docs/architecture.md)."""

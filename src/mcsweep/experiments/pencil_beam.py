@@ -1,0 +1,256 @@
+"""One pencil-beam cell: the sigma_F90 search of paper Sects. 3.2-3.4.
+
+For one direction and one G bin: draw the stars of the beam, take the direction's
+field-of-view transits, and for each observation case (Fig. 3: 1, 2, 2 diluted, 4 and
+8 distinct transits) simulate AL/AC measurements and solve with every prior of a log
+grid (Eqs. 9-13, 18). Per prior the cell records the fraction of actual position
+errors inside the P-confidence ellipse (Sect. 2.4), the P-th percentile of the actual
+errors and the median semi-major axis (Figs. 1 and 3). sigma_F90 is the smallest prior
+whose fraction reaches P in the two-transit case (Sect. 3.3); every case is then also
+evaluated at that prior, as in Fig. 3.
+
+All stars of a cell are observed with the transits of the beam's centre (the beam is
+1 deg wide; bright cells may be widened, see :func:`beam_radius`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from ..astrometry.confidence import ellipse_semi_axes, error_percentile, inside
+from ..astrometry.design import design_matrix, reference_epoch
+from ..astrometry.measurements import simulate
+from ..astrometry.noise import NoiseModel
+from ..astrometry.solve import normal_equations, solve_with_prior
+
+__all__ = [
+    "CellSettings",
+    "CaseGeometry",
+    "beam_radius",
+    "case_geometry",
+    "prior_curve",
+    "sigma_f90_from_curve",
+    "run_cell",
+    "CURVE_COLUMNS",
+]
+
+JULIAN_YEAR_DAYS = 365.25
+
+#: Columns of a cell's result table (one row per case x prior).
+CURVE_COLUMNS = [
+    "cell_id", "l_deg", "b_deg", "ra_deg", "dec_deg", "g_min", "g_max", "case",
+    "sigma_prior_mas", "at_f90", "fraction_inside", "p_error_mas", "median_semi_major_mas",
+    "n_stars", "n_in_cone", "radius_deg", "n_groups", "sigma_f90_mas", "f90_flag",
+]
+
+
+@dataclass(frozen=True)
+class CellSettings:
+    """Everything a cell needs besides its identity (picklable, shared by all cells)."""
+
+    prior_grid_mas: tuple[float, ...]
+    cases: dict[str, tuple[int, ...]]
+    f90_case: str
+    confidence: float
+    ratio_R: float
+    beam_radius_deg: float
+    max_stars: int
+    min_stars: int
+    max_radius_deg: float
+    interpolation: str
+    reference_epoch: str
+    fixed_epoch_tcb_jd: float
+    noise: NoiseModel
+    seed: int
+    #: Priors at which to keep every star's error and covariance (Fig. 2); F90 is added.
+    scatter_priors_mas: tuple[float, ...] = field(default=())
+
+
+@dataclass(frozen=True)
+class CaseGeometry:
+    """The transits of one observation case at the beam centre."""
+
+    tcb_jd: np.ndarray
+    psi_deg: np.ndarray
+    obs_au: np.ndarray  # (k, 3)
+
+
+def _cap_area(radius_deg: float) -> float:
+    return 2.0 * math.pi * (1.0 - math.cos(math.radians(radius_deg)))
+
+
+def beam_radius(source, l_deg, b_deg, g_min, g_max, s: CellSettings) -> tuple[float, float]:
+    """Radius reaching ``min_stars`` expected stars, and that expected count.
+
+    The 1 deg beam of Table 1 holds only ~10-80 stars at G < 10, too few to measure a
+    90 % fraction, so the beam is widened around the same centre (solid angle scaled by
+    the deficit, re-evaluated twice because the density changes across a wide beam).
+    """
+    radius = s.beam_radius_deg
+    expected = float(source.expected_count(l_deg, b_deg, radius, g_min, g_max))
+    for _ in range(3):
+        if expected >= s.min_stars or radius >= s.max_radius_deg:
+            break
+        if expected <= 0:
+            radius = s.max_radius_deg
+        else:
+            area = _cap_area(radius) * s.min_stars / expected * 1.05
+            cos_r = max(1.0 - area / (2.0 * math.pi), math.cos(math.radians(s.max_radius_deg)))
+            radius = min(math.degrees(math.acos(cos_r)), s.max_radius_deg)
+        expected = float(source.expected_count(l_deg, b_deg, radius, g_min, g_max))
+    return radius, expected
+
+
+def case_geometry(transits: pd.DataFrame, groups: tuple[int, ...]) -> CaseGeometry | None:
+    """Transits of the requested distinct-transit groups (negative = from the last).
+
+    Returns None when the direction has fewer groups than the case asks for.
+    """
+    available = np.unique(transits["group"].to_numpy())
+    try:
+        chosen = available[list(groups)]
+    except IndexError:
+        return None
+    if len(np.unique(chosen)) < len(groups):
+        return None  # e.g. "first and last" with a single group
+    sel = transits[transits["group"].isin(chosen)].sort_values("tcb_jd")
+    return CaseGeometry(
+        tcb_jd=sel["tcb_jd"].to_numpy(float),
+        psi_deg=sel["scan_angle_deg"].to_numpy(float),
+        obs_au=sel[["obs_x_au", "obs_y_au", "obs_z_au"]].to_numpy(float),
+    )
+
+
+def _normal_equations(geom: CaseGeometry, ra_deg, dec_deg, stars: pd.DataFrame,
+                      s: CellSettings, rng: np.random.Generator):
+    n, k = len(stars), len(geom.tcb_jd)
+    tcb = np.broadcast_to(geom.tcb_jd, (n, k))
+    mask = np.ones((n, k), dtype=bool)
+    if s.reference_epoch == "mean":
+        t_ep = reference_epoch(tcb, mask)  # Sect. 2.1: mean epoch of observation
+    else:
+        t_ep = np.full(n, s.fixed_epoch_tcb_jd)
+    t_yr = (tcb - t_ep[:, None]) / JULIAN_YEAR_DAYS
+    g = stars["phot_g_mean_mag"].to_numpy(float)
+    sig_al = np.broadcast_to(s.noise.sigma_al_mas(g)[:, None], (n, k))
+    sig_ac = np.broadcast_to(s.noise.sigma_ac_mas(g)[:, None], (n, k)) if s.noise.use_ac else None
+    a = design_matrix(
+        np.full(n, ra_deg), np.full(n, dec_deg), t_yr, np.broadcast_to(geom.psi_deg, (n, k)),
+        np.broadcast_to(geom.obs_au, (n, k, 3)), sigma_al_mas=sig_al, sigma_ac_mas=sig_ac, mask=mask,
+    )
+    x_true = np.column_stack([np.zeros(n), np.zeros(n), stars["parallax"].to_numpy(float),
+                              stars["pmra"].to_numpy(float), stars["pmdec"].to_numpy(float)])
+    h = simulate(a, x_true, rng)
+    return normal_equations(a, h)
+
+
+def _evaluate(n0, b0, sigma_mas: float, s: CellSettings):
+    sol = solve_with_prior(n0, b0, sigma_mas, ratio_R=s.ratio_R)
+    # True position offsets are zero at the reference epoch, so x[:, :2] are the
+    # actual position errors (estimated minus true), Sect. 3.2.
+    dpos = sol.x[:, :2]
+    cov2 = sol.cov[:, :2, :2]
+    return dpos, cov2
+
+
+def prior_curve(n0, b0, priors_mas, s: CellSettings) -> pd.DataFrame:
+    """Fraction inside, P-th percentile error and median semi-major axis per prior."""
+    rows = []
+    for sigma in priors_mas:
+        dpos, cov2 = _evaluate(n0, b0, float(sigma), s)
+        semi_major, _ = ellipse_semi_axes(cov2, s.confidence)
+        rows.append((float(sigma), float(np.mean(inside(dpos, cov2, s.confidence))),
+                     float(error_percentile(dpos, 100.0 * s.confidence)), float(np.median(semi_major))))
+    return pd.DataFrame(rows, columns=["sigma_prior_mas", "fraction_inside", "p_error_mas",
+                                       "median_semi_major_mas"])
+
+
+def sigma_f90_from_curve(priors_mas, fraction, p: float, interpolation: str = "log") -> tuple[float, str]:
+    """Smallest prior whose fraction inside reaches ``p`` (Sect. 3.3), and a flag.
+
+    Flags: 'ok'; 'below_grid' (the tightest prior already reaches p: the value is the
+    grid's lower end, an upper limit); 'never_reached' (NaN).
+    """
+    priors = np.asarray(priors_mas, float)
+    frac = np.asarray(fraction, float)
+    hits = np.flatnonzero(frac >= p)
+    if hits.size == 0:
+        return float("nan"), "never_reached"
+    i = int(hits[0])
+    if i == 0:
+        return float(priors[0]), "below_grid"
+    if interpolation == "none":
+        return float(priors[i]), "ok"
+    # Linear in log(sigma) between the grid points that bracket the crossing.
+    f0, f1 = frac[i - 1], frac[i]
+    w = (p - f0) / (f1 - f0) if f1 > f0 else 1.0
+    log_s = (1 - w) * math.log(priors[i - 1]) + w * math.log(priors[i])
+    return float(math.exp(log_s)), "ok"
+
+
+def run_cell(cell, transits: pd.DataFrame, source, s: CellSettings,
+             *, keep_scatter: bool = False) -> tuple[pd.DataFrame, pd.DataFrame | None]:
+    """Run one cell; returns its curve table and (optionally) per-star errors (Fig. 2).
+
+    ``cell`` is a :class:`mcsweep.sweep.cells.Cell`; ``transits`` the FoV transits of
+    its direction (columns of :func:`mcsweep.scanning.find_transits`).
+    """
+    d = cell.direction
+    ss = np.random.SeedSequence(s.seed, spawn_key=cell.key)
+    star_ss, noise_ss = ss.spawn(2)
+    radius, _ = beam_radius(source, d.l_deg, d.b_deg, cell.g_min, cell.g_max, s)
+    stars = source.sample_cone(d.l_deg, d.b_deg, radius, cell.g_min, cell.g_max,
+                               np.random.default_rng(star_ss), max_stars=s.max_stars)
+    n_in_cone = int(stars.attrs.get("n_in_cone", len(stars)))
+    n_groups = int(transits["group"].nunique()) if len(transits) else 0
+    grid = np.asarray(s.prior_grid_mas, float)
+
+    base = dict(cell_id=cell.cell_id, l_deg=d.l_deg, b_deg=d.b_deg, ra_deg=d.ra_deg,
+                dec_deg=d.dec_deg, g_min=cell.g_min, g_max=cell.g_max, n_stars=len(stars),
+                n_in_cone=n_in_cone, radius_deg=radius, n_groups=n_groups)
+    normals = {}
+    for case_rng_ss, (case, groups) in zip(noise_ss.spawn(len(s.cases)), s.cases.items()):
+        geom = case_geometry(transits, tuple(groups))
+        if geom is not None and len(stars) > 0:
+            normals[case] = _normal_equations(geom, d.ra_deg, d.dec_deg, stars, s,
+                                              np.random.default_rng(case_rng_ss))
+
+    curves = {case: prior_curve(*normals[case], grid, s) for case in normals}
+    if s.f90_case in curves:
+        f90, flag = sigma_f90_from_curve(grid, curves[s.f90_case]["fraction_inside"],
+                                         s.confidence, s.interpolation)
+    else:
+        f90, flag = float("nan"), "no_transits" if len(stars) else "no_stars"
+
+    frames = []
+    for case in s.cases:
+        if case in curves:
+            c = curves[case].assign(at_f90=False)
+            if math.isfinite(f90):
+                c = pd.concat([c, prior_curve(*normals[case], [f90], s).assign(at_f90=True)],
+                              ignore_index=True)
+        else:
+            c = pd.DataFrame({"sigma_prior_mas": grid, "fraction_inside": np.nan, "p_error_mas": np.nan,
+                              "median_semi_major_mas": np.nan, "at_f90": False})
+        frames.append(c.assign(case=case))
+    table = pd.concat(frames, ignore_index=True).assign(**base, sigma_f90_mas=f90, f90_flag=flag)
+    table = table[CURVE_COLUMNS]
+
+    scatter = None
+    if keep_scatter and s.f90_case in normals:
+        priors = list(s.scatter_priors_mas) + ([f90] if math.isfinite(f90) else [])
+        labels = [f"{p:g} mas" for p in s.scatter_priors_mas] + (["F90"] if math.isfinite(f90) else [])
+        parts = []
+        for label, sigma in zip(labels, priors):
+            dpos, cov2 = _evaluate(*normals[s.f90_case], float(sigma), s)
+            parts.append(pd.DataFrame({
+                "prior": label, "sigma_prior_mas": float(sigma),
+                "dra_mas": dpos[:, 0], "ddec_mas": dpos[:, 1],
+                "cov_aa": cov2[:, 0, 0], "cov_ad": cov2[:, 0, 1], "cov_dd": cov2[:, 1, 1],
+                "parallax": stars["parallax"].to_numpy(float)}))
+        scatter = pd.concat(parts, ignore_index=True).assign(case=s.f90_case)
+    return table, scatter

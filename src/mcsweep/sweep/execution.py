@@ -1,0 +1,75 @@
+"""Where tasks run: joblib on local processes, or a Dask cluster through joblib.
+
+One code path for every backend: tasks go through :class:`joblib.Parallel` inside
+``joblib.parallel_config(backend=...)``; for ``dask`` a ``distributed.Client`` is
+connected to the configured scheduler (or to a new local cluster of worker processes).
+Tasks are seeded from their own identity, so results never depend on the backend,
+the number of workers or the completion order.
+"""
+
+from __future__ import annotations
+
+import os
+from contextlib import contextmanager
+from typing import Callable, Iterable, Iterator
+
+from joblib import Parallel, delayed, parallel_config
+
+from ..errors import UserInputError
+from .schema import ExecutionConf
+
+__all__ = ["executor"]
+
+# BLAS threads per worker: the workers already use every core (Hydra/joblib trap:
+# oversubscribing 2 cores with n_jobs x BLAS threads).
+_THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+@contextmanager
+def _dask_client(conf: ExecutionConf):
+    try:
+        from dask.distributed import Client, LocalCluster
+    except ImportError:
+        raise UserInputError(
+            "execution.backend='dask' needs dask.distributed; install it with pip install 'mcsweep[dask]'"
+        ) from None
+    if conf.scheduler_address:
+        try:
+            client = Client(conf.scheduler_address, timeout="20s")
+        except (OSError, TimeoutError) as exc:
+            raise UserInputError(f"execution.scheduler_address={conf.scheduler_address!r} is not reachable "
+                                 f"({type(exc).__name__}); expected a running Dask scheduler") from None
+        cluster = None
+    else:
+        cluster = LocalCluster(n_workers=conf.n_jobs, threads_per_worker=1, processes=True,
+                               dashboard_address=None, env={v: "1" for v in _THREAD_VARS})
+        client = Client(cluster)
+    try:
+        yield client
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+@contextmanager
+def executor(conf: ExecutionConf) -> Iterator[Callable[[Callable, Iterable], Iterator]]:
+    """Context giving ``run(fn, items)``: an iterator of ``fn(item)`` in completion order."""
+    for v in _THREAD_VARS:
+        os.environ.setdefault(v, "1")
+
+    def make_run(backend: str, n_jobs: int):
+        def run(fn, items):
+            items = list(items)
+            if backend == "sequential" or (n_jobs == 1 and backend != "dask"):
+                yield from (fn(item) for item in items)
+                return
+            with parallel_config(backend=backend, n_jobs=n_jobs):
+                yield from Parallel(return_as="generator_unordered")(delayed(fn)(i) for i in items)
+        return run
+
+    if conf.backend == "dask":
+        with _dask_client(conf):
+            yield make_run("dask", -1)
+    else:
+        yield make_run(conf.backend, conf.n_jobs)

@@ -1,0 +1,171 @@
+"""Run the sigma_F90 sweep: every cell once, resumably, on the configured backend.
+
+Stages (each timed in the provenance): population source, transits of every
+direction (one scanning-law evaluation for all directions, in this process), the cells
+(in worker processes, each written atomically as soon as it is done, so an
+interrupted sweep resumes where it stopped), the single-direction showcase (Figs. 1-3),
+aggregation into ``cells.parquet``, and the report.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from astropy.time import Time
+from tqdm.auto import tqdm
+
+from ..astrometry.noise import NoiseModel
+from ..experiments.pencil_beam import CellSettings, run_cell
+from ..population import make_source
+from ..scanning import ScanningLaw, find_transits
+from .cells import Cell, Direction, enumerate_cells, sky_directions
+from .execution import executor
+from .provenance import Provenance
+from .schema import Config
+from .store import CellStore
+
+__all__ = ["build_settings", "run_sweep", "showcase_cell", "CELLS_DIR", "SHOWCASE_DIR"]
+
+CELLS_DIR = "cells"
+SHOWCASE_DIR = "showcase"
+
+
+def _tcb_jd(iso: str) -> float:
+    return float(Time(iso, scale="tcb").jd)
+
+
+def build_settings(config: Config) -> CellSettings:
+    g = config.prior_grid
+    grid = tuple(float(v) for v in np.geomspace(g.min_mas, g.max_mas, g.n))
+    obs, cell, sc = config.observations, config.cell, config.experiment.showcase
+    return CellSettings(
+        prior_grid_mas=grid,
+        cases={k: tuple(int(i) for i in v) for k, v in obs.cases.items()},
+        f90_case=obs.f90_case,
+        confidence=config.confidence,
+        ratio_R=config.ratio_R,
+        beam_radius_deg=cell.beam_radius_deg,
+        max_stars=cell.max_stars,
+        min_stars=cell.min_stars,
+        max_radius_deg=cell.max_radius_deg,
+        interpolation=cell.interpolation,
+        reference_epoch=obs.reference_epoch,
+        fixed_epoch_tcb_jd=_tcb_jd(obs.fixed_epoch),
+        noise=NoiseModel(al_scale=config.noise.al_scale, ac_scale=config.noise.ac_scale,
+                         use_ac=config.noise.use_ac),
+        seed=config.seed,
+        scatter_priors_mas=(sc.tight_prior_mas, sc.loose_prior_mas),
+    )
+
+
+def showcase_cell(config: Config) -> Cell:
+    sc = config.experiment.showcase
+    from .schema import SkyConf
+
+    d = sky_directions(SkyConf(name="showcase", kind="list", frame="icrs",
+                               directions=[[sc.ra_deg, sc.dec_deg]]))[0]
+    return Cell(dataclasses.replace(d, index=-1), sc.g_min, sc.g_max)
+
+
+def direction_transits(config: Config, directions: list[Direction]) -> dict[int, pd.DataFrame]:
+    """FoV transits of every direction, keyed by Direction.index."""
+    if not directions:
+        return {}
+    law = ScanningLaw.from_config(config.scanning.params)
+    ra = np.array([d.ra_deg for d in directions])
+    dec = np.array([d.dec_deg for d in directions])
+    start = Time(config.observations.start, scale="tcb")
+    end = Time(config.observations.end, scale="tcb")
+    tr = find_transits(ra, dec, start, end, law=law)
+    out = {}
+    for i, d in enumerate(directions):
+        out[d.index] = tr[tr["source_index"] == i].reset_index(drop=True)
+    return out
+
+
+@lru_cache(maxsize=4)
+def _source(pop_items: tuple):
+    # One population source per worker process and config (catalogues are read once).
+    return make_source(dict(pop_items))
+
+
+def _freeze(d: dict) -> tuple:
+    return tuple(sorted((k, _freeze(v) if isinstance(v, dict) else tuple(v) if isinstance(v, list) else v)
+                        for k, v in d.items()))
+
+
+def _pop_dict(config: Config) -> dict:
+    return dataclasses.asdict(config.population)
+
+
+def _cell_task(job):
+    cell, transits, pop_frozen, settings, store_dir, chash, keep_scatter = job
+    source = _source(pop_frozen)
+    table, scatter = run_cell(cell, transits, source, settings, keep_scatter=keep_scatter)
+    store = CellStore(store_dir, chash)
+    if scatter is not None:
+        CellStore(store_dir, chash).write(cell.cell_id + "_scatter", scatter)
+    store.write(cell.cell_id, table)
+    return cell.cell_id
+
+
+def run_sweep(config: Config, raw_cfg: dict, run_dir: Path, *, prov: Provenance | None = None) -> Path:
+    """Run (or resume) the sweep in ``run_dir``; returns the path of ``cells.parquet``."""
+    run_dir = Path(run_dir)
+    prov = prov or Provenance(run_dir, raw_cfg, kind="f90_sweep")
+    prov.check_compatible()
+    with prov.stage("population_source"):
+        # Built here first so a bad catalogue fails before any file is written.
+        _source(_freeze(_pop_dict(config)))
+    settings = build_settings(config)
+    cells = enumerate_cells(config.sky, config.magnitudes)
+    store = CellStore(run_dir / CELLS_DIR, prov.hash)
+    show = showcase_cell(config) if config.experiment.showcase.enabled else None
+    show_store = CellStore(run_dir / SHOWCASE_DIR, prov.hash)
+
+    todo = [c for c in cells if store.read(c.cell_id) is None]
+    show_todo = show is not None and (show_store.read(show.cell_id) is None
+                                      or show_store.read(show.cell_id + "_scatter") is None)
+    dirs = {c.direction.index: c.direction for c in todo}
+    if show_todo:
+        dirs[show.direction.index] = show.direction
+    with prov.stage("transits"):
+        transits = direction_transits(config, list(dirs.values()))
+
+    pop = _freeze(_pop_dict(config))
+    jobs = [(c, transits[c.direction.index], pop, settings, run_dir / CELLS_DIR, prov.hash, False)
+            for c in todo]
+    if show_todo:
+        jobs.insert(0, (show, transits[show.direction.index], pop, settings, run_dir / SHOWCASE_DIR,
+                        prov.hash, True))
+    with prov.stage("cells"), executor(config.execution) as run:
+        bar = tqdm(total=len(cells) + (show is not None), initial=len(cells) + (show is not None) - len(jobs),
+                   desc="cells", unit="cell", disable=not config.execution.progress)
+        for _ in run(_cell_task, jobs):
+            bar.update(1)
+        bar.close()
+
+    with prov.stage("aggregate"):
+        tables = [store.read(c.cell_id) for c in cells]
+        missing = [c.cell_id for c, t in zip(cells, tables) if t is None]
+        if missing:  # pragma: no cover - would mean a worker wrote a bad file
+            raise RuntimeError(f"{len(missing)} cells have no valid result, e.g. {missing[0]}")
+        allcells = pd.concat(tables, ignore_index=True)
+        out = run_dir / "cells.parquet"
+        allcells.to_parquet(out, index=False)
+        prov.seeds["cells"] = "SeedSequence(seed, spawn_key=cell key: (l*1e4, (b+90)*1e4, 100*g_min, 100*g_max))"
+    return out
+
+
+def f90_table(cells: pd.DataFrame) -> pd.DataFrame:
+    """One row per cell: its sigma_F90, flag and the fraction of each case at sigma_F90."""
+    base = cells.drop_duplicates("cell_id")[["cell_id", "l_deg", "b_deg", "ra_deg", "dec_deg", "g_min",
+                                             "g_max", "n_stars", "n_in_cone", "radius_deg", "n_groups",
+                                             "sigma_f90_mas", "f90_flag"]]
+    at = cells[cells["at_f90"]].pivot_table(index="cell_id", columns="case", values="fraction_inside")
+    at.columns = [f"fraction_at_f90_{c}" for c in at.columns]
+    return base.merge(at, left_on="cell_id", right_index=True, how="left").reset_index(drop=True)

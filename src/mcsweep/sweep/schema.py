@@ -1,0 +1,318 @@
+"""Typed schemas of the configuration (Hydra structured configs).
+
+The dataclasses are registered in Hydra's ConfigStore as ``base_config`` and named
+first in ``conf/config.yaml``'s defaults list, so a value of the wrong type or an
+unknown key fails at compose time. Ranges are checked in ``__post_init__``, which
+runs when the composed config is turned into objects with
+:func:`omegaconf.OmegaConf.to_object` (see :func:`mcsweep.sweep.validate.to_config`);
+each check raises :class:`mcsweep.errors.UserInputError` with one line naming the key,
+the value and what is accepted.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Dict, List, Optional
+
+from hydra.core.config_store import ConfigStore
+
+from ..errors import UserInputError
+
+__all__ = [
+    "SkyConf",
+    "MagnitudesConf",
+    "PriorGridConf",
+    "ObservationsConf",
+    "NoiseConf",
+    "PopulationConf",
+    "ScanningConf",
+    "CellConf",
+    "ShowcaseConf",
+    "SecondaryConf",
+    "ExperimentConf",
+    "ExecutionConf",
+    "Config",
+    "register_configs",
+]
+
+
+def _require(ok: bool, key: str, value: Any, accepted: str) -> None:
+    if not ok:
+        raise UserInputError(f"{key}={value!r} is not accepted; expected {accepted}")
+
+
+@dataclass
+class SkyConf:
+    """Directions of the pencil beams (Sect. 3.4: 48 directions uniform on the sky)."""
+
+    name: str = "healpix48"
+    #: 'healpix' (pixel centres) or 'list' (explicit directions).
+    kind: str = "healpix"
+    nside: int = 2
+    #: HEALPix pixel ordering: 'nested' or 'ring'.
+    order: str = "nested"
+    #: Frame of the HEALPix grid or of the listed directions: 'galactic' or 'icrs'.
+    frame: str = "galactic"
+    #: Explicit directions as [lon, lat] pairs in degrees (frame above), kind='list'.
+    directions: List[Any] = field(default_factory=list)
+
+    def __post_init__(self):
+        _require(self.kind in ("healpix", "list"), "sky.kind", self.kind, "'healpix' or 'list'")
+        _require(self.frame in ("galactic", "icrs"), "sky.frame", self.frame, "'galactic' or 'icrs'")
+        if self.kind == "healpix":
+            _require(self.nside >= 1 and (self.nside & (self.nside - 1)) == 0,
+                     "sky.nside", self.nside, "a power of two >= 1")
+            _require(self.order in ("nested", "ring"), "sky.order", self.order, "'nested' or 'ring'")
+        else:
+            _require(len(self.directions) > 0, "sky.directions", self.directions,
+                     "a non-empty list of [lon_deg, lat_deg] pairs")
+            for d in self.directions:
+                ok = isinstance(d, (list, tuple)) and len(d) == 2 and all(
+                    isinstance(v, (int, float)) and not isinstance(v, bool) for v in d)
+                _require(ok and 0.0 <= d[0] <= 360.0 and -90.0 <= d[1] <= 90.0, "sky.directions",
+                         list(d) if isinstance(d, (list, tuple)) else d,
+                         "[lon_deg in 0..360, lat_deg in -90..90] pairs")
+            self.directions = [[float(v) for v in d] for d in self.directions]
+
+
+@dataclass
+class MagnitudesConf:
+    """G-magnitude bin edges (paper Fig. 4: G = 6-20 in 1 mag bins)."""
+
+    name: str = "g6_20"
+    edges: List[float] = field(default_factory=lambda: [float(g) for g in range(6, 21)])
+
+    def __post_init__(self):
+        e = list(self.edges)
+        _require(len(e) >= 2, "magnitudes.edges", e, "at least two bin edges")
+        _require(all(0.0 <= g <= 25.0 for g in e), "magnitudes.edges", e, "G values within 0..25 mag")
+        _require(all(b > a for a, b in zip(e[:-1], e[1:])), "magnitudes.edges", e,
+                 "strictly increasing edges (non-empty bins)")
+
+
+@dataclass
+class PriorGridConf:
+    """Logarithmic grid of parallax prior sigmas sigma_plx_p [mas] (Sect. 3.2-3.3)."""
+
+    name: str = "default"
+    min_mas: float = 0.01
+    max_mas: float = 1000.0
+    n: int = 41
+
+    def __post_init__(self):
+        _require(self.min_mas > 0, "prior_grid.min_mas", self.min_mas, "a positive prior sigma in mas")
+        _require(self.max_mas > self.min_mas, "prior_grid.max_mas", self.max_mas,
+                 f"a value larger than prior_grid.min_mas={self.min_mas}")
+        _require(self.n >= 2, "prior_grid.n", self.n, "at least 2 grid values")
+
+
+@dataclass
+class ObservationsConf:
+    """Which FoV transits a pencil-beam cell uses (paper Table 1 and Fig. 3)."""
+
+    name: str = "paper"
+    #: Interval of scanning-law transits, ISO dates in TCB (Sect. 3.1: Oct 2014 - end 2015).
+    start: str = "2014-10-01T00:00:00"
+    end: str = "2016-01-01T00:00:00"
+    #: Observation cases: name -> list of 0-based distinct-transit groups; negative
+    #: indices count from the last group ("two_diluted" = first and last, Fig. 3).
+    cases: Dict[str, List[int]] = field(default_factory=lambda: {
+        "one": [0], "two": [0, 1], "two_diluted": [0, -1],
+        "four": [0, 1, 2, 3], "eight": [0, 1, 2, 3, 4, 5, 6, 7]})
+    #: The case that fixes sigma_F90 (Sect. 3.3: two distinct consecutive transits).
+    f90_case: str = "two"
+    #: 'mean' = each star's mean epoch of the observations used (Sect. 2.1), or 'fixed'.
+    reference_epoch: str = "mean"
+    #: Reference epoch (ISO, TCB) when reference_epoch='fixed'.
+    fixed_epoch: str = "2015-06-01T00:00:00"
+
+    def __post_init__(self):
+        _require(len(self.cases) > 0, "observations.cases", dict(self.cases), "at least one case")
+        for k, v in self.cases.items():
+            _require(len(v) > 0, f"observations.cases.{k}", list(v), "a non-empty list of group indices")
+        _require(self.f90_case in self.cases, "observations.f90_case", self.f90_case,
+                 f"one of the cases {sorted(self.cases)}")
+        _require(self.reference_epoch in ("mean", "fixed"), "observations.reference_epoch",
+                 self.reference_epoch, "'mean' or 'fixed'")
+
+
+@dataclass
+class NoiseConf:
+    """Per-FoV-transit measurement precision (see mcsweep.astrometry.noise)."""
+
+    name: str = "gaia"
+    #: Multiplies the along-scan precision of the published model.
+    al_scale: float = 1.0
+    #: Multiplies the across-scan precision of the published model.
+    ac_scale: float = 1.0
+    #: Whether AC measurements enter the solution (they matter for G < 10).
+    use_ac: bool = True
+
+    def __post_init__(self):
+        _require(self.al_scale > 0, "noise.al_scale", self.al_scale, "a positive factor")
+        _require(self.ac_scale > 0, "noise.ac_scale", self.ac_scale, "a positive factor")
+
+
+@dataclass
+class PopulationConf:
+    """Source of 'true' stars: the built-in galaxy model or a catalogue file."""
+
+    name: str = "galaxy_model"
+    #: Catalogue file (FITS, VOTable, CSV or Parquet) when name='catalogue'.
+    path: Optional[str] = None
+    #: Catalogue format override ('auto', 'fits', 'votable', 'csv', 'parquet').
+    format: str = "auto"
+    #: Catalogue column mapping, ours -> theirs (e.g. {parallax: plx}).
+    columns: Dict[str, str] = field(default_factory=dict)
+    #: Galaxy-model parameters passed to GalaxyModel(**params).
+    params: Dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self):
+        _require(self.name in ("galaxy_model", "catalogue"), "population", self.name,
+                 "'galaxy_model' or 'catalogue'")
+        if self.name == "catalogue":
+            _require(bool(self.path), "population.path", self.path, "the path of a catalogue file")
+
+
+@dataclass
+class ScanningConf:
+    """Scanning law (see mcsweep.scanning.ScanningLaw for the meaning of each key)."""
+
+    name: str = "flown"
+    params: Dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass
+class CellConf:
+    """Pencil-beam cell procedure (Sect. 3.2-3.4); each value changes the answer."""
+
+    #: Radius of the pencil beam (Table 1: 1 deg).
+    beam_radius_deg: float = 1.0
+    #: Cap on the stars drawn per cell (an unbiased subsample of the cone).
+    max_stars: int = 2000
+    #: Bright cells hold few stars: widen the beam around the same centre until this
+    #: many stars are expected (all observed with the centre's transits).
+    min_stars: int = 1000
+    #: Largest radius the widening may reach.
+    max_radius_deg: float = 20.0
+    #: Interpolation of sigma_F90 between grid points: 'log' (in log sigma) or 'none'.
+    interpolation: str = "log"
+
+    def __post_init__(self):
+        _require(0 < self.beam_radius_deg <= 90, "cell.beam_radius_deg", self.beam_radius_deg,
+                 "a radius in (0, 90] deg")
+        _require(self.max_stars > 0, "cell.max_stars", self.max_stars, "a positive number of stars")
+        _require(self.min_stars > 0, "cell.min_stars", self.min_stars, "a positive number of stars")
+        _require(self.max_radius_deg >= self.beam_radius_deg, "cell.max_radius_deg",
+                 self.max_radius_deg, f">= cell.beam_radius_deg={self.beam_radius_deg}")
+        _require(self.interpolation in ("log", "none"), "cell.interpolation", self.interpolation,
+                 "'log' or 'none'")
+
+
+@dataclass
+class ShowcaseConf:
+    """The single-direction experiment of the paper's Figs. 1-3 (Table 1 beam)."""
+
+    enabled: bool = True
+    ra_deg: float = 157.5
+    dec_deg: float = 0.0
+    g_min: float = 14.5
+    g_max: float = 15.5
+    #: Very tight and very loose priors of Fig. 2 (A and C), mas.
+    tight_prior_mas: float = 0.01
+    loose_prior_mas: float = 1000.0
+
+    def __post_init__(self):
+        _require(0 <= self.ra_deg < 360, "experiment.showcase.ra_deg", self.ra_deg, "0..360 deg")
+        _require(-90 <= self.dec_deg <= 90, "experiment.showcase.dec_deg", self.dec_deg, "-90..90 deg")
+        _require(0 <= self.g_min < self.g_max <= 25, "experiment.showcase.g_min/g_max",
+                 (self.g_min, self.g_max), "0 <= g_min < g_max <= 25")
+        _require(self.tight_prior_mas > 0 and self.loose_prior_mas > self.tight_prior_mas,
+                 "experiment.showcase priors", (self.tight_prior_mas, self.loose_prior_mas),
+                 "0 < tight_prior_mas < loose_prior_mas")
+
+
+@dataclass
+class SecondaryConf:
+    """Whole-sky secondary solution of Sect. 4.1 (Table 2)."""
+
+    #: Stars per magnitude class: the brightest ones fainter than each of g_classes.
+    class_size: int = 500_000
+    g_classes: List[float] = field(default_factory=lambda: [11.0, 15.0, 19.0])
+    #: Probability that a FoV transit is removed (Sect. 4.1: 95 %).
+    dilution: float = 0.95
+    mission_years: float = 5.0
+    mission_start: str = "2014-07-25T10:30:00"
+    #: 'paper' (Eqs. 14-17) or the path of a run directory's coefficients.csv.
+    f90_formula: str = "paper"
+    chunk_stars: int = 50_000
+
+    def __post_init__(self):
+        _require(self.class_size > 0, "experiment.secondary.class_size", self.class_size, "a positive number")
+        _require(len(self.g_classes) > 0 and all(0 <= g < 25 for g in self.g_classes),
+                 "experiment.secondary.g_classes", list(self.g_classes), "G values within 0..25")
+        _require(0 <= self.dilution < 1, "experiment.secondary.dilution", self.dilution, "a probability in [0, 1)")
+        _require(0 < self.mission_years <= 10, "experiment.secondary.mission_years", self.mission_years,
+                 "a length in (0, 10] years")
+        _require(self.chunk_stars > 0, "experiment.secondary.chunk_stars", self.chunk_stars, "a positive number")
+
+
+@dataclass
+class ExperimentConf:
+    #: 'f90_sweep' (Sect. 3, main job) or 'secondary' (Sect. 4.1).
+    name: str = "f90_sweep"
+    showcase: ShowcaseConf = field(default_factory=ShowcaseConf)
+    secondary: SecondaryConf = field(default_factory=SecondaryConf)
+
+    def __post_init__(self):
+        _require(self.name in ("f90_sweep", "secondary"), "experiment", self.name,
+                 "'f90_sweep' or 'secondary'")
+
+
+@dataclass
+class ExecutionConf:
+    #: joblib backend: 'loky' (processes), 'threading', 'sequential' or 'dask'.
+    backend: str = "loky"
+    n_jobs: int = 2
+    #: Dask scheduler address (tcp://host:port); None starts a local cluster.
+    scheduler_address: Optional[str] = None
+    #: Show a progress bar.
+    progress: bool = True
+
+    def __post_init__(self):
+        _require(self.backend in ("loky", "threading", "sequential", "dask"), "execution.backend",
+                 self.backend, "'loky', 'threading', 'sequential' or 'dask'")
+        _require(self.n_jobs >= 1, "execution.n_jobs", self.n_jobs, "a positive number of workers")
+
+
+@dataclass
+class Config:
+    sky: SkyConf = field(default_factory=SkyConf)
+    magnitudes: MagnitudesConf = field(default_factory=MagnitudesConf)
+    prior_grid: PriorGridConf = field(default_factory=PriorGridConf)
+    observations: ObservationsConf = field(default_factory=ObservationsConf)
+    noise: NoiseConf = field(default_factory=NoiseConf)
+    population: PopulationConf = field(default_factory=PopulationConf)
+    scanning: ScanningConf = field(default_factory=ScanningConf)
+    cell: CellConf = field(default_factory=CellConf)
+    experiment: ExperimentConf = field(default_factory=ExperimentConf)
+    execution: ExecutionConf = field(default_factory=ExecutionConf)
+    #: Master seed; every cell derives its own stream from (seed, cell identity).
+    seed: int = 20150821
+    #: Confidence level P of the ellipses (Sect. 2.4: 0.9).
+    confidence: float = 0.9
+    #: R = sigma_mu_p / sigma_plx_p in 1/yr (Eq. 18: 10 /yr).
+    ratio_R: float = 10.0
+
+    def __post_init__(self):
+        _require(0.0 < self.confidence < 1.0 and math.isfinite(self.confidence), "confidence",
+                 self.confidence, "a probability strictly between 0 and 1")
+        _require(self.ratio_R > 0, "ratio_R", self.ratio_R, "a positive ratio in 1/yr")
+        _require(self.seed >= 0, "seed", self.seed, "a non-negative integer")
+
+
+def register_configs() -> None:
+    """Register the schema so ``conf/config.yaml`` can name ``base_config`` first."""
+    cs = ConfigStore.instance()
+    cs.store(name="base_config", node=Config)

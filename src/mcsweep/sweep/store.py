@@ -1,0 +1,99 @@
+"""Cell results on disk: atomic Parquet files that prove they are complete.
+
+A cell file is written to a temporary name in the same directory, flushed and
+renamed over the final name (``os.replace`` is atomic on POSIX), so a killed worker
+leaves either no file or a whole one. A file counts as finished only if it parses as
+Parquet, carries this run's config hash and the cell's identity in its metadata, and
+its table checksum matches; anything else (truncated, foreign, from another config)
+is recomputed with a warning.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import tempfile
+import warnings
+from pathlib import Path
+
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+__all__ = ["CellStore", "atomic_write_bytes", "table_checksum"]
+
+_META_KEY = b"mcsweep"
+
+
+def table_checksum(df: pd.DataFrame) -> str:
+    """SHA-256 over the table's values (row order and column names included)."""
+    h = hashlib.sha256()
+    h.update(json.dumps(list(map(str, df.columns))).encode())
+    h.update(pd.util.hash_pandas_object(df, index=False).values.tobytes())
+    return h.hexdigest()
+
+
+def atomic_write_bytes(path: Path, data: bytes) -> None:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+class CellStore:
+    """Directory of per-cell Parquet files for one config (identified by its hash)."""
+
+    def __init__(self, directory: Path, config_hash: str):
+        self.directory = Path(directory)
+        self.config_hash = config_hash
+
+    def path(self, cell_id: str) -> Path:
+        return self.directory / f"{cell_id}.parquet"
+
+    def write(self, cell_id: str, df: pd.DataFrame) -> Path:
+        df = df.reset_index(drop=True)
+        meta = {"config_hash": self.config_hash, "cell_id": cell_id,
+                "checksum": table_checksum(df), "n_rows": len(df)}
+        table = pa.Table.from_pandas(df, preserve_index=False)
+        table = table.replace_schema_metadata({**(table.schema.metadata or {}),
+                                               _META_KEY: json.dumps(meta).encode()})
+        sink = pa.BufferOutputStream()
+        pq.write_table(table, sink)
+        path = self.path(cell_id)
+        atomic_write_bytes(path, sink.getvalue().to_pybytes())
+        return path
+
+    def read(self, cell_id: str) -> pd.DataFrame | None:
+        """The finished cell's table, or None (with a warning if a bad file was there)."""
+        path = self.path(cell_id)
+        if not path.exists():
+            return None
+        try:
+            table = pq.read_table(path)
+            meta = json.loads((table.schema.metadata or {})[_META_KEY])
+            df = table.to_pandas()
+            problem = None
+            if meta.get("cell_id") != cell_id:
+                problem = f"it belongs to cell {meta.get('cell_id')!r}"
+            elif meta.get("config_hash") != self.config_hash:
+                problem = "it was computed with a different config"
+            elif meta.get("n_rows") != len(df) or meta.get("checksum") != table_checksum(df):
+                problem = "its checksum does not match its content"
+        except Exception as exc:  # truncated, not Parquet, no metadata
+            problem = f"it is unreadable ({type(exc).__name__})"
+        if problem:
+            warnings.warn(f"recomputing {path.name}: {problem}", stacklevel=2)
+            return None
+        return df
+
+    def is_done(self, cell_id: str) -> bool:
+        return self.read(cell_id) is not None

@@ -1,0 +1,131 @@
+"""Turn composed configs into checked objects, and vet command lines before Hydra runs.
+
+Hydra reports a bad override with a multi-line message and exit status 1, after it
+has created the run directory. :func:`preflight` composes every job of a command line
+first (each combination of a multirun sweep), so a bad value ends the command with one
+line and exit status 2 before any output exists.
+"""
+
+from __future__ import annotations
+
+import itertools
+import re
+from typing import Iterable
+
+from omegaconf import DictConfig, OmegaConf
+from omegaconf.errors import OmegaConfBaseException
+
+from ..errors import UserInputError
+from .schema import Config, register_configs
+
+__all__ = ["to_config", "compose_config", "preflight", "CONFIG_MODULE"]
+
+CONFIG_MODULE = "mcsweep.conf"
+# Hydra command-line flags that take a value as the next token.
+_FLAGS_WITH_VALUE = {"--config-path", "-cp", "--config-name", "-cn", "--config-dir", "-cd",
+                     "--experimental-rerun", "--package", "-p", "--info", "-i"}
+
+
+def _one_line(exc: BaseException) -> str:
+    text = " ".join(str(exc).split())
+    # OmegaConf appends "full_key: ... object_type=..." context: keep the key only.
+    m = re.search(r"full_key: ([\w.\[\]]+)", str(exc))
+    msg = text.split(" full_key:")[0]
+    return f"{msg} (key: {m.group(1)})" if m else msg
+
+
+def to_config(cfg: DictConfig) -> Config:
+    """Typed, range-checked :class:`Config` from a composed Hydra config."""
+    try:
+        obj = OmegaConf.to_object(cfg)
+    except UserInputError:
+        raise
+    except OmegaConfBaseException as exc:
+        cause = exc.__cause__ or exc.__context__
+        if isinstance(cause, UserInputError):
+            raise cause from None
+        raise UserInputError(f"invalid config: {_one_line(exc)}") from None
+    if not isinstance(obj, Config):  # pragma: no cover - base_config missing from defaults
+        raise UserInputError("config is not based on base_config; expected conf/config.yaml's defaults")
+    return obj
+
+
+def _unknown_option_message(exc: BaseException) -> str:
+    text = str(exc)
+    m = re.search(r"Could not find '([^']+)/([^']+)'", text)
+    if m:
+        group, option = m.groups()
+        opts = re.findall(r"^\s+(\S+)\s*$", text.split("Available options", 1)[-1], flags=re.M)
+        accepted = ", ".join(opts) if opts else "an option of that group"
+        return f"unknown {group} '{option}'; accepted: {accepted}"
+    return _one_line(exc)
+
+
+def compose_config(overrides: Iterable[str] = ()) -> DictConfig:
+    """Compose ``conf/config.yaml`` with overrides (as Hydra would), outside a run."""
+    from hydra import compose, initialize_config_module
+    from hydra.core.global_hydra import GlobalHydra
+
+    register_configs()
+    GlobalHydra.instance().clear()
+    try:
+        with initialize_config_module(config_module=CONFIG_MODULE, version_base="1.3"):
+            return compose(config_name="config", overrides=list(overrides))
+    except UserInputError:
+        raise
+    except Exception as exc:  # hydra's MissingConfigException, ConfigCompositionException, ...
+        cause = exc.__cause__
+        if isinstance(cause, UserInputError):
+            raise cause from None
+        msg = _unknown_option_message(exc)
+        if isinstance(cause, OmegaConfBaseException):
+            msg = f"{msg}: {_one_line(cause)}"
+        raise UserInputError(msg) from None
+    finally:
+        GlobalHydra.instance().clear()
+
+
+def _split_argv(argv: list[str]) -> list[str]:
+    overrides, skip = [], False
+    for tok in argv:
+        if skip:
+            skip = False
+            continue
+        if tok in _FLAGS_WITH_VALUE:
+            skip = True
+            continue
+        if tok.startswith("-"):
+            continue
+        if tok.startswith(("hydra.", "hydra/", "+hydra", "~hydra")):
+            continue
+        overrides.append(tok)
+    return overrides
+
+
+def _expand_sweeps(overrides: list[str]) -> list[list[str]]:
+    """Every job of a multirun command line (cartesian product of sweep overrides)."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    try:
+        parsed = OverridesParser.create().parse_overrides(overrides)
+    except Exception as exc:
+        raise UserInputError(f"cannot parse overrides {overrides}: {_one_line(exc)}") from None
+    choices = []
+    for ov in parsed:
+        if ov.is_sweep_override():
+            key = ov.get_key_element()
+            choices.append([f"{key}={v}" for v in ov.sweep_string_iterator()])
+        else:
+            choices.append([ov.input_line])
+    return [list(combo) for combo in itertools.product(*choices)] or [[]]
+
+
+def preflight(argv: list[str]) -> list[Config]:
+    """Compose and check every job of a command line; raise UserInputError on the first bad one."""
+    if any(a in ("--help", "-h", "--hydra-help", "--cfg", "-c", "--info", "-i", "--shell-completion", "-sc")
+           for a in argv):
+        return []
+    configs = []
+    for job in _expand_sweeps(_split_argv(argv)):
+        configs.append(to_config(compose_config(job)))
+    return configs

@@ -161,11 +161,3 @@ def run_sweep(config: Config, raw_cfg: dict, run_dir: Path, *, prov: Provenance 
     return out
 
 
-def f90_table(cells: pd.DataFrame) -> pd.DataFrame:
-    """One row per cell: its sigma_F90, flag and the fraction of each case at sigma_F90."""
-    base = cells.drop_duplicates("cell_id")[["cell_id", "l_deg", "b_deg", "ra_deg", "dec_deg", "g_min",
-                                             "g_max", "n_stars", "n_in_cone", "radius_deg", "n_groups",
-                                             "sigma_f90_mas", "f90_flag"]]
-    at = cells[cells["at_f90"]].pivot_table(index="cell_id", columns="case", values="fraction_inside")
-    at.columns = [f"fraction_at_f90_{c}" for c in at.columns]
-    return base.merge(at, left_on="cell_id", right_index=True, how="left").reset_index(drop=True)

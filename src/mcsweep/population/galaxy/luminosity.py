@@ -1,0 +1,239 @@
+"""Luminosity functions in absolute G magnitude, one per stellar component.
+
+Method (a justified simplification of the Besancon population synthesis):
+
+1. The local luminosity function phi(M_V) of all stars near the Sun (Wielen 1974 as
+   tabulated in Allen's Astrophysical Quantities; ``data/lf_wielen_allen.ecsv``) fixes
+   the number of stars per magnitude at the Sun. Bins with M_V <= 1 are giants, the
+   fainter ones main-sequence dwarfs (see :data:`.parameters.GIANT_MV_MAX`).
+2. The local stars of each magnitude bin are shared among the components present at
+   the Sun in proportion to the weight
+
+   * dwarfs:  w_p(M) = rho_p / mu_p * xi_p(m(M)) * s_p(M),
+   * giants:  w_p    = rho_p / mu_p * < xi_p(m_TO(t)) |dm_TO/dt| >_ages,
+
+   where rho_p is the component's mass density at its reference point (Robin et al.
+   2003), xi_p its IMF, mu_p = int m xi_p dm the living mass per unit IMF normalisation,
+   m(M) the mass of a dwarf of magnitude M (Pecaut & Mamajek 2013 sequence), s_p the
+   fraction of the component's ages at which that dwarf is still on the main sequence,
+   and m_TO(t) the turn-off mass at age t (t_MS ~ m^-2.5). The giant weight is the rate
+   at which stars leave the main sequence, so old populations get fewer giants per unit
+   mass than young ones. Because the common factor |dm/dM| cancels, the components'
+   luminosity functions add up exactly to phi(M_V) at the Sun.
+3. The bulge, absent at the Sun, gets the same weights with its central density.
+4. M_V becomes M_G with the dwarf sequence's G - V (Mamajek's table) and G - V = -0.31
+   for giants. The dwarfs of the old metal-poor thick disc and halo are shifted so their
+   turn-off lies at M_V = 4.0 (globular-cluster turn-offs, Newby et al. 2011).
+
+Data files are read lazily on first use via :mod:`importlib.resources`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+from importlib import resources
+
+import numpy as np
+from astropy.table import Table
+
+from . import parameters as P
+
+__all__ = [
+    "LuminosityTable",
+    "load_local_lf",
+    "load_dwarf_sequence",
+    "imf",
+    "turnoff_mass",
+    "build_luminosity_table",
+]
+
+_DATA = "mcsweep.population.data"
+#: Spacing of the absolute-magnitude grid of the tabulated CDFs, mag.
+MG_STEP = 0.05
+MG_MIN, MG_MAX = -9.0, 22.0
+
+
+@lru_cache(maxsize=1)
+def load_local_lf():
+    """Local luminosity function: (M_V bin centres [mag], phi [stars pc^-3 mag^-1])."""
+    with resources.files(_DATA).joinpath("lf_wielen_allen.ecsv").open("r") as fh:
+        t = Table.read(fh.read(), format="ascii.ecsv")
+    return np.asarray(t["M_V"], float), np.asarray(t["phi"], float) * 1e-4
+
+
+@lru_cache(maxsize=1)
+def load_dwarf_sequence():
+    """Dwarf sequence: (M_V [mag], G - V [mag], mass [Msun]), M_V increasing."""
+    with resources.files(_DATA).joinpath("dwarf_sequence_mamajek.ecsv").open("r") as fh:
+        t = Table.read(fh.read(), format="ascii.ecsv")
+    return (np.asarray(t["M_V"], float), np.asarray(t["G_minus_V"], float),
+            np.asarray(t["mass"], float))
+
+
+def imf(m, pieces):
+    """Broken power-law IMF dN/dm, continuous at the breaks and equal to 1 at 1 Msun.
+
+    Parameters
+    ----------
+    m : array_like
+        Mass, Msun.
+    pieces : tuple of (m_break, alpha)
+        dN/dm ~ m^-alpha below each break (breaks increasing, the last one ``inf``).
+
+    Returns
+    -------
+    ndarray
+        dN/dm in units of its value at 1 Msun.
+    """
+    m = np.asarray(m, float)
+    edges = [0.0] + [b for b, _ in pieces]
+    logc = [0.0]
+    for i in range(1, len(pieces)):
+        m_b = pieces[i - 1][0]
+        logc.append(logc[-1] + (pieces[i][1] - pieces[i - 1][1]) * np.log(m_b))
+    i_one = next(i for i in range(len(pieces)) if edges[i] <= 1.0 < edges[i + 1])
+    out = np.zeros_like(m)
+    for i, (_, alpha) in enumerate(pieces):
+        sel = (m >= edges[i]) & (m < edges[i + 1])
+        out[sel] = np.exp(logc[i] - logc[i_one]) * m[sel] ** (-alpha)
+    return out
+
+
+def turnoff_mass(age_gyr):
+    """Main-sequence turn-off mass (Msun) at a given age (Gyr)."""
+    return (np.asarray(age_gyr, float) / P.MS_LIFETIME_SUN_GYR) ** (-1.0 / P.MS_LIFETIME_SLOPE)
+
+
+def _mass_integrals(comp, m_up):
+    m = np.geomspace(P.MASS_MIN_MSUN, m_up, 4001)
+    xi = imf(m, comp.imf)
+    number = np.trapezoid(xi, m)
+    mass = np.trapezoid(m * xi, m)
+    return number, mass
+
+
+def _ages(comp, n=400):
+    a, b = comp.age_gyr
+    if b <= a:
+        return np.array([a])
+    return np.linspace(max(a, 0.02), b, n)
+
+
+def _mass_of_mv(mv):
+    seq_mv, _, seq_m = load_dwarf_sequence()
+    return 10.0 ** np.interp(mv, seq_mv, np.log10(seq_m))
+
+
+def _g_minus_v(mv):
+    seq_mv, seq_gv, _ = load_dwarf_sequence()
+    return np.interp(mv, seq_mv, seq_gv)
+
+
+def _mv_of_mass(m):
+    seq_mv, _, seq_m = load_dwarf_sequence()
+    # mass decreases with M_V: interpolate on the reversed arrays
+    return np.interp(np.log10(m), np.log10(seq_m[::-1]), seq_mv[::-1])
+
+
+def _weights(comp, dwarf_mv, n_sub=20):
+    """(dwarf weights per bin, giant weight, rho/mu) of one component."""
+    ages = _ages(comp)
+    m_up = float(turnoff_mass(np.mean(ages)))
+    number, mass = _mass_integrals(comp, m_up)
+    if comp.law == "bulge":
+        rho_over_mu = P.BULGE_N0_PER_PC3 / number
+    else:
+        rho_over_mu = comp.rho_ref / mass
+    # dwarfs: average over sub-points of each 1-mag bin
+    sub = dwarf_mv[:, None] + (np.arange(n_sub) + 0.5)[None, :] / n_sub - 0.5
+    m_sub = _mass_of_mv(sub)
+    t_ms = P.MS_LIFETIME_SUN_GYR * m_sub ** (-P.MS_LIFETIME_SLOPE)
+    alive = (t_ms[..., None] > ages[None, None, :]).mean(axis=-1)
+    w_dwarf = rho_over_mu * (imf(m_sub, comp.imf) * alive).mean(axis=1)
+    # giants: rate at which stars leave the main sequence, averaged over ages
+    m_to = turnoff_mass(ages)
+    rate = imf(m_to, comp.imf) * m_to / (P.MS_LIFETIME_SLOPE * ages)
+    w_giant = rho_over_mu * float(np.mean(rate))
+    return w_dwarf, w_giant
+
+
+@dataclass(frozen=True)
+class LuminosityTable:
+    """Cumulative luminosity functions in M_G of all components at their reference point.
+
+    Attributes
+    ----------
+    names : tuple of str
+        Component names, in the order of the rows of ``cdf``.
+    mg : ndarray, shape (K,)
+        Absolute G magnitude grid, mag (increasing, spacing :data:`MG_STEP`).
+    cdf : ndarray, shape (n_comp, K)
+        Number of stars per pc^3 brighter than ``mg`` at the reference point.
+    """
+
+    names: tuple
+    mg: np.ndarray
+    cdf: np.ndarray
+
+    def total(self):
+        """Stars per pc^3 of each component at its reference point."""
+        return self.cdf[:, -1]
+
+    def density(self):
+        """Luminosity function per unit M_G on the grid midpoints, stars pc^-3 mag^-1."""
+        return np.diff(self.cdf, axis=1) / MG_STEP
+
+
+def build_luminosity_table(components, *, local=None):
+    """Luminosity functions in M_G of ``components`` (see module notes).
+
+    Parameters
+    ----------
+    components : sequence of parameters.Component
+        Components to tabulate.
+    local : sequence of parameters.Component, optional
+        Components present at the Sun that share the local luminosity function; by
+        default all components except the bulge. Passing the full model's list keeps a
+        component's LF independent of which components are switched off.
+
+    Returns
+    -------
+    LuminosityTable
+    """
+    if local is None:
+        local = [c for c in components if c.law != "bulge"]
+    mv, phi = load_local_lf()
+    dwarf = mv > P.GIANT_MV_MAX
+    dwarf_mv, dwarf_phi = mv[dwarf], phi[dwarf]
+    giant_mv, giant_phi = mv[~dwarf], phi[~dwarf]
+
+    w_local_d = np.zeros(dwarf_mv.size)
+    w_local_g = 0.0
+    for c in local:
+        wd, wg = _weights(c, dwarf_mv)
+        w_local_d += wd
+        w_local_g += wg
+
+    mg = np.arange(MG_MIN, MG_MAX + 0.5 * MG_STEP, MG_STEP)
+    lo_v, hi_v = dwarf_mv - 0.5, dwarf_mv + 0.5
+    lo_g_sol = lo_v + _g_minus_v(lo_v)
+    hi_g_sol = hi_v + _g_minus_v(hi_v)
+    glo = giant_mv - 0.5 + P.GIANT_G_MINUS_V
+    ghi = giant_mv + 0.5 + P.GIANT_G_MINUS_V
+
+    cdf = np.zeros((len(components), mg.size))
+    for k, c in enumerate(components):
+        wd, wg = _weights(c, dwarf_mv)
+        n_dwarf = dwarf_phi * np.divide(wd, w_local_d, out=np.zeros_like(wd),
+                                        where=w_local_d > 0)
+        n_giant = giant_phi * (wg / w_local_g)
+        shift = 0.0
+        if c.metal_poor:
+            shift = float(_mv_of_mass(turnoff_mass(c.age_gyr[1]))) - P.OLD_METAL_POOR_TURNOFF_MV
+        lo = np.concatenate([lo_g_sol - shift, glo])
+        hi = np.concatenate([hi_g_sol - shift, ghi])
+        n = np.concatenate([n_dwarf, n_giant])
+        frac = np.clip((mg[None, :] - lo[:, None]) / (hi - lo)[:, None], 0.0, 1.0)
+        cdf[k] = (n[:, None] * frac).sum(axis=0)
+    return LuminosityTable(names=tuple(c.name for c in components), mg=mg, cdf=cdf)

@@ -1,0 +1,327 @@
+"""The built-in galaxy model: exact expected counts and fast unbiased sampling.
+
+For a cone, the model tabulates on a grid of distance moduli (step 0.05 mag) and on
+sky cells (:mod:`mcsweep.population.sky`) the expected number of stars of each component
+per grid cell, ``dn = rho_shape * dV * Omega``, and the extinction A_G. For a G range
+the expected number in each (sky cell, component, distance cell) is ``dn`` times the
+fraction of the component's luminosity function that falls in the range at that
+distance and extinction; their sum is :meth:`GalaxyModel.expected_count`.
+
+Sampling draws the number of stars from a Poisson distribution (GUMS is one
+realisation), then each star independently: a grid cell from the tabulated weights, a
+distance with density ~ d^2 inside the cell, an absolute magnitude from the luminosity
+function restricted to the G range at that distance (inverse CDF), a uniform position in
+the sky cell, and a velocity from the component's ellipsoid. Capping the number drawn
+(``max_stars``) therefore keeps the sample unbiased.
+
+Randomness comes only from the ``rng`` passed in: it gives the count and one root seed;
+stars are drawn in fixed blocks of :data:`BLOCK_STARS`, block ``i`` from
+``SeedSequence(root, spawn_key=(i,))``, so the result does not depend on how blocks are
+grouped into chunks (``chunk_stars``) and memory stays flat.
+"""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from ...errors import UserInputError
+from .. import sky
+from ..query import COLUMNS, POPULATION_CATEGORIES, ConeQuery
+from . import parameters as P
+from .density import component_shape, heliocentric_to_galactocentric
+from .extinction import AG_OVER_AV, AV_PER_KPC, DUST_SCALE_HEIGHT_PC, DUST_SCALE_LENGTH_KPC, DustModel
+from .kinematics import AstrometryTransform, draw_velocities, mean_lag_kms
+from .luminosity import build_luminosity_table
+
+__all__ = ["GalaxyModel", "DEFAULT_PARAMS", "BLOCK_STARS"]
+
+#: Stars per independently seeded block.
+BLOCK_STARS = 65536
+#: Distance-modulus grid: 2.5 pc to 79 kpc in steps of 0.05 mag (2.3 % in distance).
+MU_MIN, MU_MAX, MU_STEP = -3.0, 19.5, 0.05
+#: Largest sky cell, deg (whole-sky tables).
+MAX_CELL_DEG = 5.0
+_CACHE_SIZE = 64
+
+#: User-adjustable parameters and their defaults (see ``conf/population/galaxy_model.yaml``).
+DEFAULT_PARAMS = {
+    "r0_kpc": P.R0_KPC,
+    "z_sun_pc": P.Z_SUN_PC,
+    "v_circ_kms": P.V_CIRC_KMS,
+    "thin_disc_scale_height_factor": 1.0,
+    "extinction": True,
+    "dust_av_per_kpc": AV_PER_KPC,
+    "dust_scale_length_kpc": DUST_SCALE_LENGTH_KPC,
+    "dust_scale_height_pc": DUST_SCALE_HEIGHT_PC,
+    "ag_over_av": AG_OVER_AV,
+    "components": list(POPULATION_CATEGORIES),
+    "count": "poisson",
+}
+
+_POSITIVE = ("r0_kpc", "v_circ_kms", "thin_disc_scale_height_factor", "dust_scale_length_kpc",
+             "dust_scale_height_pc", "ag_over_av")
+
+
+def _check_params(p):
+    unknown = sorted(set(p) - set(DEFAULT_PARAMS))
+    if unknown:
+        raise UserInputError(f"galaxy_model: unknown parameter(s) {unknown}; "
+                             f"expected some of {sorted(DEFAULT_PARAMS)}")
+    for key in _POSITIVE + ("z_sun_pc", "dust_av_per_kpc"):
+        try:
+            v = float(p[key])
+        except (TypeError, ValueError):
+            raise UserInputError(f"galaxy_model: {key}={p[key]!r} is not accepted; "
+                                 "expected a number") from None
+        if not np.isfinite(v) or (key in _POSITIVE and v <= 0) or (key == "dust_av_per_kpc" and v < 0):
+            raise UserInputError(f"galaxy_model: {key}={p[key]!r} is not accepted; expected a "
+                                 f"{'positive' if key in _POSITIVE else 'finite'} number")
+    if not isinstance(p["extinction"], (bool, np.bool_)):
+        raise UserInputError(f"galaxy_model: extinction={p['extinction']!r} is not accepted; "
+                             "expected true or false")
+    comps = p["components"]
+    if isinstance(comps, str) or not comps or any(c not in POPULATION_CATEGORIES for c in comps):
+        raise UserInputError(f"galaxy_model: components={comps!r} is not accepted; expected a "
+                             f"non-empty list drawn from {list(POPULATION_CATEGORIES)}")
+    if p["count"] not in ("poisson", "expected"):
+        raise UserInputError(f"galaxy_model: count={p['count']!r} is not accepted; "
+                             "expected 'poisson' or 'expected'")
+
+
+@dataclass(frozen=True)
+class _LineOfSight:
+    grid: sky.CellGrid
+    mu_edges: np.ndarray      # (J+1,)
+    d3_edges: np.ndarray      # (J+1,) distance^3 in pc^3
+    mu_mid: np.ndarray        # (J,)
+    dn: np.ndarray            # (cells, comps, J) expected stars of all magnitudes
+    a_nodes: np.ndarray       # (cells, J+1) A_G at mu_edges
+    a_mid: np.ndarray         # (cells, J)
+
+
+class GalaxyModel:
+    """Besancon-like model of the Galaxy's stars (thin disc, thick disc, halo, bulge).
+
+    Parameters
+    ----------
+    params : mapping, optional
+        Model parameters (keys of :data:`DEFAULT_PARAMS`); keyword arguments override it.
+    **kwargs
+        Same keys as ``params``.
+
+    Raises
+    ------
+    mcsweep.errors.UserInputError
+        For unknown keys or values out of range.
+
+    Notes
+    -----
+    Every number comes from a published source named in :mod:`.parameters`,
+    :mod:`.luminosity`, :mod:`.extinction` and :mod:`.kinematics`.
+    """
+
+    def __init__(self, params=None, **kwargs):
+        p = dict(DEFAULT_PARAMS)
+        p.update(dict(params or {}))
+        p.update(kwargs)
+        if "components" in p and not isinstance(p["components"], str):
+            p["components"] = list(p["components"])
+        _check_params(p)
+        self.params = p
+        self.chunk_stars = 4 * BLOCK_STARS
+        keep = set(p["components"])
+        self.components = tuple(c for c in P.COMPONENTS if c.label in keep)
+        local = [c for c in P.COMPONENTS if c.law != "bulge"]
+        self.lf = build_luminosity_table(self.components, local=local)
+        self.dust = DustModel(
+            av_per_kpc=p["dust_av_per_kpc"] if p["extinction"] else 0.0,
+            scale_length_kpc=p["dust_scale_length_kpc"], scale_height_pc=p["dust_scale_height_pc"],
+            ag_over_av=p["ag_over_av"], r0_kpc=p["r0_kpc"], z_sun_pc=p["z_sun_pc"])
+        u, v, w = P.SOLAR_PECULIAR_KMS
+        self.transform = AstrometryTransform(r0_kpc=p["r0_kpc"], z_sun_pc=p["z_sun_pc"],
+                                             v_sun_kms=(u, p["v_circ_kms"] + v, w))
+        eps = p["thin_disc_scale_height_factor"]
+        self.lag_kms = np.array([mean_lag_kms(c, r0_kpc=p["r0_kpc"], z_sun_pc=p["z_sun_pc"],
+                                              v_circ_kms=p["v_circ_kms"], eps_factor=eps)
+                                 for c in self.components])
+        self.sigma_uvw = np.array([c.sigma_uvw for c in self.components], float)
+        self.label_codes = np.array([POPULATION_CATEGORIES.index(c.label) for c in self.components])
+        self._cache = OrderedDict()
+
+    def __repr__(self):
+        changed = {k: v for k, v in self.params.items() if v != DEFAULT_PARAMS[k]}
+        return f"GalaxyModel({changed})"
+
+    # ----------------------------------------------------------------- tabulation
+    def _line_of_sight(self, l_deg, b_deg, radius_deg):
+        key = (round(l_deg, 9), round(b_deg, 9), min(radius_deg, sky.WHOLE_SKY_DEG))
+        if key in self._cache:
+            self._cache.move_to_end(key)
+            return self._cache[key]
+        p = self.params
+        cell = min(max(radius_deg / 2.0, 0.05), MAX_CELL_DEG)
+        grid = sky.cone_cells(l_deg, b_deg, radius_deg, cell)
+        mu_edges = np.arange(MU_MIN, MU_MAX + 0.5 * MU_STEP, MU_STEP)
+        d_edges_pc = 10.0 ** (0.2 * mu_edges + 1.0)
+        mu_mid = 0.5 * (mu_edges[1:] + mu_edges[:-1])
+        d_mid_kpc = 10.0 ** (0.2 * mu_mid - 2.0)
+        geo = dict(r0_kpc=p["r0_kpc"], z_sun_pc=p["z_sun_pc"])
+        x, y, z = heliocentric_to_galactocentric(grid.l_deg[:, None], grid.b_deg[:, None],
+                                                 d_mid_kpc[None, :], **geo)
+        shell_pc3 = (d_edges_pc[1:] ** 3 - d_edges_pc[:-1] ** 3) / 3.0
+        dn = np.empty((grid.l_deg.size, len(self.components), mu_mid.size))
+        for k, comp in enumerate(self.components):
+            dn[:, k, :] = component_shape(comp, x, y, z, eps_factor=p["thin_disc_scale_height_factor"],
+                                          **geo)
+        dn *= shell_pc3[None, None, :] * grid.solid_angle_sr[:, None, None]
+        xe, ye, ze = heliocentric_to_galactocentric(grid.l_deg[:, None], grid.b_deg[:, None],
+                                                    d_edges_pc[None, :] * 1e-3, **geo)
+        a_nodes = self.dust.a_g(xe, ye, ze, d_edges_pc * 1e-3)
+        los = _LineOfSight(grid, mu_edges, d_edges_pc ** 3, mu_mid, dn, a_nodes,
+                           0.5 * (a_nodes[:, 1:] + a_nodes[:, :-1]))
+        self._cache[key] = los
+        if len(self._cache) > _CACHE_SIZE:
+            self._cache.popitem(last=False)
+        return los
+
+    def _weights(self, los, g_min, g_max):
+        shift = los.mu_mid[None, :] + los.a_mid
+        w = np.empty_like(los.dn)
+        for k in range(len(self.components)):
+            cdf = self.lf.cdf[k]
+            w[:, k, :] = los.dn[:, k, :] * (np.interp(g_max - shift, self.lf.mg, cdf)
+                                            - np.interp(g_min - shift, self.lf.mg, cdf))
+        return w
+
+    # ----------------------------------------------------------------- public API
+    def expected_count(self, l_deg, b_deg, radius_deg, g_min, g_max):
+        """Expected number of stars in a cone and G range.
+
+        Parameters
+        ----------
+        l_deg, b_deg : float
+            Cone centre, Galactic coordinates, deg.
+        radius_deg : float
+            Cone radius, deg (>= 180: whole sky).
+        g_min, g_max : float
+            Apparent G range, mag (g_min <= G < g_max).
+
+        Returns
+        -------
+        float
+            Expected number of stars.
+        """
+        q = ConeQuery.make(l_deg, b_deg, radius_deg, g_min, g_max)
+        return float(self._weights(self._line_of_sight(q.l_deg, q.b_deg, q.radius_deg),
+                                   q.g_min, q.g_max).sum())
+
+    def expected_count_by_population(self, l_deg, b_deg, radius_deg, g_min, g_max):
+        """Expected number of stars per population label (dict label -> float)."""
+        q = ConeQuery.make(l_deg, b_deg, radius_deg, g_min, g_max)
+        w = self._weights(self._line_of_sight(q.l_deg, q.b_deg, q.radius_deg), q.g_min, q.g_max)
+        per = w.sum(axis=(0, 2))
+        out = {}
+        for k, comp in enumerate(self.components):
+            out[comp.label] = out.get(comp.label, 0.0) + float(per[k])
+        return out
+
+    def sample_cone(self, l_deg, b_deg, radius_deg, g_min, g_max, rng, max_stars=None):
+        """Draw the stars of a cone and G range.
+
+        Parameters
+        ----------
+        l_deg, b_deg : float
+            Cone centre, Galactic coordinates, deg.
+        radius_deg : float
+            Cone radius, deg (>= 180: whole sky).
+        g_min, g_max : float
+            Apparent G range, mag.
+        rng : numpy.random.Generator
+            Source of randomness.
+        max_stars : int, optional
+            Cap on the number of stars returned; the kept stars are an unbiased sample.
+
+        Returns
+        -------
+        pandas.DataFrame
+            Columns ``ra, dec, l, b`` [deg], ``parallax`` [mas], ``pmra, pmdec`` [mas/yr],
+            ``phot_g_mean_mag`` [mag], ``distance_pc`` [pc], ``population`` (categorical).
+            ``attrs["n_in_cone"]`` is the number of stars in the cone (before the cap) and
+            ``attrs["expected_count"]`` its expectation.
+        """
+        if not isinstance(rng, np.random.Generator):
+            raise UserInputError(f"rng={rng!r} is not accepted; expected a numpy.random.Generator")
+        q = ConeQuery.make(l_deg, b_deg, radius_deg, g_min, g_max, max_stars)
+        los = self._line_of_sight(q.l_deg, q.b_deg, q.radius_deg)
+        w = self._weights(los, q.g_min, q.g_max)
+        total = float(w.sum())
+        n_in = int(rng.poisson(total)) if self.params["count"] == "poisson" else int(round(total))
+        n = n_in if q.max_stars is None else min(n_in, q.max_stars)
+        root = int(rng.integers(0, 2 ** 63 - 1))
+        df = self._draw(los, w, q.g_min, q.g_max, n, root)
+        df.attrs["n_in_cone"] = n_in
+        df.attrs["expected_count"] = total
+        return df
+
+    def sample_sky(self, g_min, g_max, rng, max_stars=None):
+        """Draw stars over the whole sky (see :meth:`sample_cone`)."""
+        return self.sample_cone(0.0, 90.0, sky.WHOLE_SKY_DEG, g_min, g_max, rng, max_stars)
+
+    # ----------------------------------------------------------------- drawing
+    def _draw(self, los, w, g_min, g_max, n, root):
+        cum = np.cumsum(w.ravel())
+        parts = []
+        n_blocks = -(-n // BLOCK_STARS)
+        per_chunk = max(1, self.chunk_stars // BLOCK_STARS)
+        for first in range(0, n_blocks, per_chunk):
+            blocks = range(first, min(first + per_chunk, n_blocks))
+            uni, nor = [], []
+            for i in blocks:
+                m = min(BLOCK_STARS, n - i * BLOCK_STARS)
+                gen = np.random.default_rng(np.random.SeedSequence(root, spawn_key=(i,)))
+                uni.append(gen.random((5, m)))
+                nor.append(gen.standard_normal((3, m)))
+            parts.append(self._stars(los, w.shape, cum, g_min, g_max,
+                                     np.concatenate(uni, axis=1), np.concatenate(nor, axis=1)))
+        if not parts:
+            return self._frame({c: np.empty(0) for c in COLUMNS[:-1]}, np.empty(0, int))
+        cols = {c: np.concatenate([p[0][c] for p in parts]) for c in parts[0][0]}
+        return self._frame(cols, np.concatenate([p[1] for p in parts]))
+
+    def _stars(self, los, shape, cum, g_min, g_max, uni, normals):
+        idx = np.minimum(np.searchsorted(cum, uni[0] * cum[-1], side="right"), cum.size - 1)
+        cell, k, j = np.unravel_index(idx, shape)
+        d3 = los.d3_edges[j] + uni[1] * (los.d3_edges[j + 1] - los.d3_edges[j])
+        d_pc = np.cbrt(d3)
+        mu = 5.0 * np.log10(d_pc) - 5.0
+        frac = (mu - los.mu_edges[j]) / MU_STEP
+        a_g = los.a_nodes[cell, j] + frac * (los.a_nodes[cell, j + 1] - los.a_nodes[cell, j])
+        m_g = np.empty(mu.size)
+        for kk in np.unique(k):
+            sel = k == kk
+            cdf = self.lf.cdf[kk]
+            off = mu[sel] + a_g[sel]
+            c_lo = np.interp(g_min - off, self.lf.mg, cdf)
+            c_hi = np.interp(g_max - off, self.lf.mg, cdf)
+            m_g[sel] = np.interp(c_lo + uni[2][sel] * (c_hi - c_lo), cdf, self.lf.mg)
+        g = np.clip(m_g + mu + a_g, g_min, np.nextafter(g_max, -np.inf))
+        l, b = los.grid.sample(cell, uni[3], uni[4])
+        d_kpc = d_pc * 1e-3
+        x, y, _ = heliocentric_to_galactocentric(l, b, d_kpc, r0_kpc=self.params["r0_kpc"],
+                                                 z_sun_pc=self.params["z_sun_pc"])
+        v = draw_velocities(x, y, self.lag_kms[k], self.sigma_uvw[k], normals,
+                            v_circ_kms=self.params["v_circ_kms"])
+        ra, dec, pmra, pmdec = self.transform.astrometry(l, b, d_kpc, v)
+        cols = {"ra": ra, "dec": dec, "l": l, "b": b, "parallax": 1000.0 / d_pc,
+                "pmra": pmra, "pmdec": pmdec, "phot_g_mean_mag": g, "distance_pc": d_pc}
+        return cols, self.label_codes[k]
+
+    @staticmethod
+    def _frame(cols, codes):
+        data = dict(cols)
+        data["population"] = pd.Categorical.from_codes(codes, categories=POPULATION_CATEGORIES)
+        return pd.DataFrame(data, columns=list(COLUMNS))

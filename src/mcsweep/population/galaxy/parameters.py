@@ -1,0 +1,203 @@
+"""Published parameters of the built-in galaxy model, each with its provenance.
+
+The model follows the Besancon Galaxy Model as described by Robin, Reyle, Derriere &
+Picaud (2003, A&A 409, 523; "R03"), the model behind GUMS (Robin et al. 2012, A&A 543,
+A100). Tags in the comments say how well each number was checked:
+[V] read in the cited paper or table; [C] read in public code or data files that cite
+the paper (two independent ones where noted); [M] standard textbook value.
+
+Only numbers live here; the laws that use them are in :mod:`.density`, :mod:`.luminosity`,
+:mod:`.extinction` and :mod:`.kinematics`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+__all__ = [
+    "Component",
+    "COMPONENTS",
+    "THIN_DISC",
+    "POPULATION_LABELS",
+    "R0_KPC",
+    "Z_SUN_PC",
+    "V_CIRC_KMS",
+    "SOLAR_PECULIAR_KMS",
+    "DISC_CUTOFF_KPC",
+    "THICK_DISC",
+    "HALO",
+    "BULGE",
+    "MS_LIFETIME_SUN_GYR",
+    "MS_LIFETIME_SLOPE",
+    "OLD_METAL_POOR_TURNOFF_MV",
+    "GIANT_G_MINUS_V",
+    "GIANT_MV_MAX",
+    "MASS_MIN_MSUN",
+]
+
+# --- Sun and rotation ------------------------------------------------------------------
+#: Galactocentric distance of the Sun, kpc (R03 Sect. 2: 8.5 kpc) [C].
+R0_KPC = 8.5
+#: Height of the Sun above the Galactic plane, pc (R03: 15 pc) [C].
+Z_SUN_PC = 15.0
+#: Circular velocity, flat rotation curve, km/s (Besancon model: 226 km/s; the same value
+#: is the halo's lag in public Besancon/GUMS model files) [C].
+V_CIRC_KMS = 226.0
+#: Solar motion relative to the LSR (U toward the Galactic centre, V, W), km/s
+#: (Schoenrich, Binney & Dehnen 2010, MNRAS 403, 1829) [V].
+SOLAR_PECULIAR_KMS = (11.1, 12.24, 7.25)
+#: Outer edge of the thin and thick discs, kpc (R03 Sect. 2.1: disc cut at 14 kpc) [C].
+DISC_CUTOFF_KPC = 14.0
+
+# --- stellar evolution used for ages -----------------------------------------------------
+#: Main-sequence lifetime t_MS = MS_LIFETIME_SUN_GYR * (m / Msun) ** -MS_LIFETIME_SLOPE
+#: (textbook scaling t ~ M/L with L ~ M^3.5; e.g. Carroll & Ostlie, Sect. 13.1) [M].
+MS_LIFETIME_SUN_GYR = 10.0
+MS_LIFETIME_SLOPE = 2.5
+#: Lowest stellar mass, Msun (hydrogen-burning limit) [M].
+MASS_MIN_MSUN = 0.08
+#: Absolute V magnitude of the main-sequence turn-off of old metal-poor populations
+#: (thick disc, halo). Newby et al. (2011, ApJ 743, 187): turn-off stars of eleven halo
+#: globular clusters peak at M_g = 4.18 [V]; V = g - 0.59 (g - r) - 0.01 (Jester et al.
+#: 2005, AJ 130, 873) [M] at the turn-off colour g - r ~ 0.25 gives M_V ~ 4.0. The solar-
+#: metallicity dwarf sequence would put an 11-14 Gyr turn-off at M_V ~ 5-6; metal-poor
+#: dwarfs of the same mass are brighter, so their luminosity function is shifted.
+OLD_METAL_POOR_TURNOFF_MV = 4.0
+#: Luminosity-function bins with M_V <= GIANT_MV_MAX are treated as giants: they hold
+#: 4.3e-4 stars/pc^3, close to the local giant density 3.9e-4 pc^-3 of Bovy (2017,
+#: MNRAS 470, 1360) [V abstract].
+GIANT_MV_MAX = 1.0
+#: G - V of giants: the dwarf-sequence G - V at BP - RP = 1.19 (K3V row of Mamajek's
+#: table [V]); red-clump and red-giant-branch stars have BP - RP ~ 1.1-1.3 [M].
+GIANT_G_MINUS_V = -0.31
+
+POPULATION_LABELS = ("thin_disc", "thick_disc", "halo", "bulge")
+
+
+@dataclass(frozen=True)
+class Component:
+    """One stellar component (a thin-disc age bin, the thick disc, the halo or the bulge).
+
+    Attributes
+    ----------
+    name : str
+        Unique name, e.g. ``"thin_disc_3"``.
+    label : str
+        Population label written to the catalogue (one of :data:`POPULATION_LABELS`).
+    law : str
+        Density law: ``"einasto_young"``, ``"einasto"``, ``"thick"``, ``"halo"`` or
+        ``"bulge"`` (see :mod:`.density`).
+    rho_ref : float
+        Mass density at the reference point, Msun/pc^3 (the Sun; the Galactic centre for
+        the bulge).
+    age_gyr : tuple of float
+        Age range (min, max) in Gyr; a single age has min == max.
+    imf : tuple of (float, float) pairs
+        Broken power-law IMF dN/dm ~ m^-alpha as ((m_break, alpha_below), ..., (inf, alpha))
+        with breaks in Msun.
+    sigma_uvw : tuple of float
+        Velocity dispersions (U radial, V azimuthal, W vertical), km/s.
+    eps : float
+        Axis ratio of the disc Einasto law (thin disc) or of the halo.
+    metal_poor : bool
+        Whether the luminosity function is shifted to the metal-poor turn-off
+        (:data:`OLD_METAL_POOR_TURNOFF_MV`).
+    lag_kms : float or None
+        Mean lag behind circular rotation, km/s; ``None`` computes the asymmetric drift
+        from the Jeans equation (thin disc).
+    rotates : bool
+        False for components without net rotation (lag = circular velocity).
+    """
+
+    name: str
+    label: str
+    law: str
+    rho_ref: float
+    age_gyr: tuple
+    imf: tuple
+    sigma_uvw: tuple
+    eps: float = 1.0
+    metal_poor: bool = False
+    lag_kms: float | None = None
+    rotates: bool = True
+
+
+# IMFs of R03 Table 1 [C: public GUMS/Besancon model files agree]:
+# thin disc dN/dm ~ m^-1.6 below 1 Msun, m^-3.0 above; thick disc and halo m^-0.5;
+# bulge m^-2.35.
+_IMF_THIN = ((1.0, 1.6), (float("inf"), 3.0))
+_IMF_OLD = ((float("inf"), 0.5),)
+_IMF_BULGE = ((float("inf"), 2.35),)
+
+# Thin disc, seven age bins (R03 Tables 2 and 4) [C, two independent public codes]:
+# age range (Gyr), local mass density (Msun/pc^3), Einasto axis ratio eps,
+# velocity dispersions (U, V, W) in km/s. One public file gives sigma_V = 13.7 for the
+# 3-5 Gyr bin; every other bin has sigma_V / sigma_U = 0.645, so 23.7 is adopted.
+_THIN = (
+    ((0.0, 0.15), 4.0e-3, 0.0140, (16.7, 10.8, 6.0)),
+    ((0.15, 1.0), 7.9e-3, 0.0268, (19.8, 12.8, 8.0)),
+    ((1.0, 2.0), 6.2e-3, 0.0375, (27.2, 17.6, 10.0)),
+    ((2.0, 3.0), 4.0e-3, 0.0551, (30.2, 19.5, 13.2)),
+    ((3.0, 5.0), 5.8e-3, 0.0696, (36.7, 23.7, 15.8)),
+    ((5.0, 7.0), 4.9e-3, 0.0785, (43.1, 27.8, 17.4)),
+    ((7.0, 10.0), 6.6e-3, 0.0791, (43.1, 27.8, 17.5)),
+)
+THIN_DISC = tuple(
+    Component(
+        name=f"thin_disc_{i + 1}", label="thin_disc",
+        law="einasto_young" if i == 0 else "einasto",
+        rho_ref=rho, age_gyr=age, imf=_IMF_THIN, sigma_uvw=sig, eps=eps,
+    )
+    for i, (age, rho, eps, sig) in enumerate(_THIN)
+)
+
+#: Thick disc (R03 Tables 2-4) [C]: 1.34e-3 Msun/pc^3, 11 Gyr, sigma (67, 51, 42) km/s.
+#: Lag 46 km/s behind the LSR: Bensby et al. (2003, A&A 410, 527) Table 1 [V].
+#: (Public GUMS model files give 1.64e-3, hR 4 kpc, hz 1.2 kpc instead [C, unverified].)
+THICK_DISC = Component(
+    name="thick_disc", label="thick_disc", law="thick", rho_ref=1.34e-3,
+    age_gyr=(11.0, 11.0), imf=_IMF_OLD, sigma_uvw=(67.0, 51.0, 42.0),
+    metal_poor=True, lag_kms=46.0,
+)
+#: Thick-disc shape (R03 Table 3) [C]: scale length 2.5 kpc, scale height 0.8 kpc,
+#: parabolic below 0.4 kpc.
+THICK_DISC_HR_KPC = 2.5
+THICK_DISC_HZ_KPC = 0.8
+THICK_DISC_XL_KPC = 0.4
+
+#: Stellar halo (R03 Tables 2-4) [C, two codes]: 9.32e-6 Msun/pc^3, axis ratio 0.76,
+#: power law a^-2.44 with a core of 0.5 kpc, 14 Gyr, sigma (131, 106, 85) km/s,
+#: no net rotation (lag = V_CIRC_KMS).
+HALO = Component(
+    name="halo", label="halo", law="halo", rho_ref=9.32e-6, age_gyr=(14.0, 14.0),
+    imf=_IMF_OLD, sigma_uvw=(131.0, 106.0, 85.0), eps=0.76, metal_poor=True,
+    rotates=False,
+)
+HALO_POWER = 2.44
+HALO_CORE_KPC = 0.5
+
+#: Bulge/bar, Dwek et al. (1995) G2 law as fitted by R03 Table 5 [C, two codes]:
+#: central density 13.70 stars/pc^3, scale lengths x0 = 1.59, y0 = z0 = 0.424 kpc,
+#: cut-off radius 2.54 kpc, major axis at 90 - 78.9 = 11.1 deg from the Sun-centre line
+#: (tilt 3.6 and roll 91.3 deg neglected); 10 Gyr; sigma (113, 115, 100) km/s.
+#: The central density counts stars; it is turned into a mass density with the mean
+#: stellar mass of the bulge IMF (see :mod:`.luminosity`). Bar rotation is neglected.
+BULGE_N0_PER_PC3 = 13.70
+BULGE_X0_KPC = 1.59
+BULGE_Y0_KPC = 0.424
+BULGE_Z0_KPC = 0.424
+BULGE_RC_KPC = 2.54
+BULGE_ANGLE_DEG = 11.1
+#: Width of the Gaussian taper beyond the cut-off radius, kpc (R03 Table 3 form) [C].
+BULGE_TAPER_KPC = 0.5
+BULGE = Component(
+    name="bulge", label="bulge", law="bulge", rho_ref=float("nan"), age_gyr=(10.0, 10.0),
+    imf=_IMF_BULGE, sigma_uvw=(113.0, 115.0, 100.0), rotates=False,
+)
+
+#: Einasto scale radii (R03 Table 3) [C]: youngest bin h+ = 5.0, h- = 3.0 kpc;
+#: older bins h+ = 2.53, h- = 1.32 kpc.
+EINASTO_YOUNG_H_KPC = (5.0, 3.0)
+EINASTO_OLD_H_KPC = (2.53, 1.32)
+
+COMPONENTS = THIN_DISC + (THICK_DISC, HALO, BULGE)

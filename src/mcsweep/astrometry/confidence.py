@@ -1,0 +1,146 @@
+"""Confidence regions of the estimated position and the statistics of actual errors.
+
+A Gaussian position estimate with 2 x 2 covariance ``C`` has the confidence region
+``Q = dpos' C^-1 dpos < k(P)`` where ``k(P)`` is the P-quantile of the chi-square
+distribution with 2 degrees of freedom, ``k = -2 ln(1 - P)`` (4.605 for P = 0.9;
+paper Sect. 2.4). The region is an ellipse whose semi-axes are ``sqrt(k)`` times the
+square roots of the eigenvalues of ``C`` (Press et al. 2007, Numerical Recipes,
+Sect. 15.6). The paper's criterion (Sect. 3.3) compares the fraction of stars whose
+true position lies inside the ellipse with P, and the P-th percentile of the actual
+position errors with the ellipse size.
+
+The confidence level P is a parameter of every function (0 < P < 1).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import stats
+
+from ..errors import UserInputError
+
+__all__ = [
+    "check_probability",
+    "chi2_threshold",
+    "mahalanobis_sq",
+    "inside",
+    "fraction_inside",
+    "ellipse_semi_axes",
+    "error_percentile",
+]
+
+
+def check_probability(P) -> float:
+    """Return ``P`` as a float, or raise UserInputError unless 0 < P < 1."""
+    try:
+        p = float(P)
+    except (TypeError, ValueError):
+        raise UserInputError(f"confidence level P={P!r} is not accepted; expected a number strictly between 0 and 1")
+    if not (0.0 < p < 1.0):
+        raise UserInputError(f"confidence level P={P!r} is not accepted; expected a number strictly between 0 and 1")
+    return p
+
+
+def chi2_threshold(P, dof: int = 2) -> float:
+    """Quantile ``k`` with ``Prob(chi2_dof < k) = P``; ``-2 ln(1 - P)`` for 2 dof.
+
+    Parameters
+    ----------
+    P : float
+        Confidence level, 0 < P < 1.
+    dof : int
+        Degrees of freedom (2 for a position).
+    """
+    p = check_probability(P)
+    if int(dof) != dof or dof < 1:
+        raise UserInputError(f"dof={dof!r} is not accepted; expected a positive integer")
+    return float(stats.chi2.ppf(p, int(dof)))
+
+
+def mahalanobis_sq(dpos, cov2) -> np.ndarray:
+    """``Q = dpos' C^-1 dpos`` for every star.
+
+    Parameters
+    ----------
+    dpos : array_like, shape (n, 2)
+        Position error (estimated minus true), mas.
+    cov2 : array_like, shape (n, 2, 2)
+        Positional covariance, mas^2.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        NaN where the covariance is not positive definite or contains NaN.
+    """
+    d = np.asarray(dpos, dtype=float)
+    c = np.asarray(cov2, dtype=float)
+    if d.ndim != 2 or d.shape[1] != 2 or c.shape != (d.shape[0], 2, 2):
+        raise ValueError(f"dpos must be (n, 2) and cov2 (n, 2, 2); got {d.shape} and {c.shape}")
+    a, b, e = c[:, 0, 0], 0.5 * (c[:, 0, 1] + c[:, 1, 0]), c[:, 1, 1]
+    det = a * e - b * b
+    with np.errstate(invalid="ignore", divide="ignore"):
+        q = (e * d[:, 0] ** 2 - 2.0 * b * d[:, 0] * d[:, 1] + a * d[:, 1] ** 2) / det
+    q[~((det > 0) & (a > 0))] = np.nan
+    return q
+
+
+def inside(dpos, cov2, P) -> np.ndarray:
+    """True where the true position lies inside the P confidence ellipse (``Q < k(P)``).
+
+    Stars with a NaN error or an invalid covariance count as outside.
+    """
+    k = chi2_threshold(P, 2)
+    q = mahalanobis_sq(dpos, cov2)
+    with np.errstate(invalid="ignore"):
+        return q < k
+
+
+def fraction_inside(dpos, cov2, P) -> float:
+    """Fraction of stars inside their P confidence ellipse.
+
+    Stars whose ``Q`` is not finite (flagged solutions, NaN) are left out of both the
+    numerator and the denominator; NaN if no star is left.
+    """
+    k = chi2_threshold(P, 2)
+    q = mahalanobis_sq(dpos, cov2)
+    q = q[np.isfinite(q)]
+    return float(np.mean(q < k)) if q.size else float("nan")
+
+
+def ellipse_semi_axes(cov2, P) -> tuple[np.ndarray, np.ndarray]:
+    """Semi-major and semi-minor axes (mas) of the P confidence ellipse.
+
+    ``sqrt(k(P) * lambda)`` for the two eigenvalues ``lambda`` of each 2 x 2
+    covariance, semi-major first.
+    """
+    k = chi2_threshold(P, 2)
+    c = np.asarray(cov2, dtype=float)
+    if c.ndim != 3 or c.shape[1:] != (2, 2):
+        raise ValueError(f"cov2 must have shape (n, 2, 2), got {c.shape}")
+    a, b, e = c[:, 0, 0], 0.5 * (c[:, 0, 1] + c[:, 1, 0]), c[:, 1, 1]
+    half_trace = 0.5 * (a + e)
+    radius = np.hypot(0.5 * (a - e), b)
+    lam_max = half_trace + radius
+    # lambda_min = det / lambda_max avoids cancellation for very elongated ellipses.
+    with np.errstate(invalid="ignore", divide="ignore"):
+        lam_min = (a * e - b * b) / lam_max
+    return np.sqrt(k * lam_max), np.sqrt(k * np.clip(lam_min, 0.0, None))
+
+
+def error_percentile(dpos, q) -> float:
+    """The q-th percentile (0 <= q <= 100) of the actual position errors ``|dpos|``, mas.
+
+    Rows with a NaN error are left out; NaN if none is left.
+    """
+    try:
+        qf = float(q)
+    except (TypeError, ValueError):
+        raise UserInputError(f"percentile q={q!r} is not accepted; expected a number between 0 and 100")
+    if not (0.0 <= qf <= 100.0):
+        raise UserInputError(f"percentile q={q!r} is not accepted; expected a number between 0 and 100")
+    d = np.asarray(dpos, dtype=float)
+    if d.ndim != 2 or d.shape[1] != 2:
+        raise ValueError(f"dpos must have shape (n, 2), got {d.shape}")
+    r = np.hypot(d[:, 0], d[:, 1])
+    r = r[np.isfinite(r)]
+    return float(np.percentile(r, qf)) if r.size else float("nan")

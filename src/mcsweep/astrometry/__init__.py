@@ -1,1 +1,69 @@
-"""astrometry stage (see docs/architecture.md)."""
+"""astrometry stage: Eq. 1 design matrix, simulated measurements, and the batched
+least-squares / Bayesian solutions of Michalik et al. (2015, Sect. 2) for many stars.
+
+Modules
+-------
+design
+    Normalised AL/AC design-matrix rows of FoV transits (Eq. 1), reference epoch.
+noise
+    Per-FoV-transit AL/AC uncertainties as functions of G (published Gaia figures).
+measurements
+    Simulated normalised measurements ``h = A x_true + N(0, 1)``.
+solve
+    Normal equations, prior solutions (Eqs. 9-13, 18), position-only and no-prior
+    solutions (:class:`Solution`).
+linalg
+    Batched Cholesky solver for stacks of small SPD matrices.
+confidence
+    Confidence ellipses, fraction inside, percentiles of actual errors (P a parameter).
+
+Arrays are padded per star, ``n`` stars x ``k`` transits with a boolean mask; see
+``docs/architecture.md``.
+"""
+
+from .confidence import (
+    chi2_threshold,
+    ellipse_semi_axes,
+    error_percentile,
+    fraction_inside,
+    inside,
+    mahalanobis_sq,
+)
+from .design import JULIAN_YEAR_DAYS, PARAMETER_NAMES, design_matrix, reference_epoch, tangent_triad, years_since
+from .measurements import simulate
+from .noise import NoiseModel
+from .solve import (
+    DEFAULT_MAX_CONDITION,
+    DEFAULT_RATIO_R,
+    Solution,
+    normal_equations,
+    prior_diagonal,
+    solve_no_prior,
+    solve_position_only,
+    solve_with_prior,
+)
+
+__all__ = [
+    "JULIAN_YEAR_DAYS",
+    "PARAMETER_NAMES",
+    "design_matrix",
+    "reference_epoch",
+    "tangent_triad",
+    "years_since",
+    "NoiseModel",
+    "simulate",
+    "DEFAULT_MAX_CONDITION",
+    "DEFAULT_RATIO_R",
+    "Solution",
+    "normal_equations",
+    "prior_diagonal",
+    "solve_with_prior",
+    "solve_position_only",
+    "solve_no_prior",
+    "chi2_threshold",
+    "mahalanobis_sq",
+    "inside",
+    "fraction_inside",
+    "ellipse_semi_axes",
+    "error_percentile",
+]

@@ -252,7 +252,7 @@ class CatalogueSource:
         data = {c: np.asarray(cols[c], float) for c in COLUMNS[:-1]}
         data["l"] = data["l"] % 360.0
         data["population"] = pop
-        return pd.DataFrame(data, columns=list(COLUMNS))
+        return pd.DataFrame(data, columns=list(COLUMNS), copy=False)
 
     # ----------------------------------------------------------------- queries
     def _select(self, q):

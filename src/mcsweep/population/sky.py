@@ -63,13 +63,16 @@ class CellGrid:
     axes: np.ndarray
 
     def _to_lb(self, cos_t, psi):
+        return self._vectors(cos_t, psi)[:2]
+
+    def _vectors(self, cos_t, psi):
         sin_t = np.sqrt(np.clip(1.0 - cos_t * cos_t, 0.0, None))
         v = self.axes @ np.stack([sin_t * np.cos(psi), sin_t * np.sin(psi), cos_t])
         l = np.degrees(np.arctan2(v[1], v[0])) % 360.0
         b = np.degrees(np.arcsin(np.clip(v[2], -1.0, 1.0)))
-        return l, b
+        return l, b, v
 
-    def sample(self, cell, u_cos, u_psi):
+    def sample(self, cell, u_cos, u_psi, *, with_vectors=False):
         """Uniform positions inside the given cells.
 
         Parameters
@@ -78,14 +81,18 @@ class CellGrid:
             Cell index of each point.
         u_cos, u_psi : ndarray, shape (n,)
             Uniform deviates in [0, 1).
+        with_vectors : bool
+            Also return the Galactic Cartesian unit vectors, shape (3, n).
 
         Returns
         -------
         l_deg, b_deg : ndarray, shape (n,)
+            (and the unit vectors if ``with_vectors``)
         """
         cos_t = self.cos_lo[cell] + u_cos * (self.cos_hi[cell] - self.cos_lo[cell])
         psi = self.psi_lo[cell] + u_psi * self.psi_width[cell]
-        return self._to_lb(cos_t, psi)
+        out = self._vectors(cos_t, psi)
+        return out if with_vectors else out[:2]
 
 
 def cone_cells(l_deg, b_deg, radius_deg, cell_deg):

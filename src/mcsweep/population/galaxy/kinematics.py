@@ -114,13 +114,15 @@ class AstrometryTransform:
         """Galactocentric Cartesian position (3, n), kpc, as astropy computes it."""
         return self.icrs_to_gc @ (self.icrs_unit(l_deg, b_deg) * d_kpc) + self.offset_kpc[:, None]
 
-    def astrometry(self, l_deg, b_deg, d_kpc, v_gc_kms):
+    def astrometry(self, l_deg, b_deg, d_kpc, v_gc_kms, *, gal_unit=None):
         """ICRS position and proper motion of stars.
 
         Parameters
         ----------
         l_deg, b_deg : ndarray, shape (n,)
             Galactic coordinates, deg.
+        gal_unit : ndarray, shape (3, n), optional
+            Galactic Cartesian unit vectors of the same directions (saves recomputing them).
         d_kpc : ndarray, shape (n,)
             Distance from the Sun, kpc.
         v_gc_kms : ndarray, shape (3, n)
@@ -131,7 +133,7 @@ class AstrometryTransform:
         ra_deg, dec_deg, pmra_masyr, pmdec_masyr : ndarray
             ``pmra`` includes the cos(dec) factor (Gaia convention).
         """
-        n = self.icrs_unit(l_deg, b_deg)
+        n = self.icrs_unit(l_deg, b_deg) if gal_unit is None else self.gal_to_icrs @ gal_unit
         ra = np.arctan2(n[1], n[0])
         dec = np.arcsin(np.clip(n[2], -1.0, 1.0))
         v = self.icrs_to_gc.T @ (v_gc_kms - self.v_sun_kms[:, None])

@@ -46,6 +46,8 @@ MU_MIN, MU_MAX, MU_STEP = -3.0, 19.5, 0.05
 #: Largest sky cell, deg (whole-sky tables).
 MAX_CELL_DEG = 5.0
 _CACHE_SIZE = 64
+#: Cumulative weights kept for this many recent (cone, G range) queries.
+_WEIGHT_CACHE_SIZE = 8
 
 #: User-adjustable parameters and their defaults (see ``conf/population/galaxy_model.yaml``).
 DEFAULT_PARAMS = {
@@ -151,6 +153,7 @@ class GalaxyModel:
         self.sigma_uvw = np.array([c.sigma_uvw for c in self.components], float)
         self.label_codes = np.array([POPULATION_CATEGORIES.index(c.label) for c in self.components])
         self._cache = OrderedDict()
+        self._wcache = OrderedDict()
 
     def __repr__(self):
         changed = {k: v for k, v in self.params.items() if v != DEFAULT_PARAMS[k]}
@@ -197,6 +200,21 @@ class GalaxyModel:
                                             - np.interp(g_min - shift, self.lf.mg, cdf))
         return w
 
+    def _cumulative(self, q):
+        """(line of sight, weight-array shape, cumulative weights) of a query, cached."""
+        los = self._line_of_sight(q.l_deg, q.b_deg, q.radius_deg)
+        key = (id(los), q.g_min, q.g_max)
+        hit = self._wcache.get(key)
+        if hit is not None and hit[0] is los:
+            self._wcache.move_to_end(key)
+            return hit
+        w = self._weights(los, q.g_min, q.g_max)
+        entry = (los, w.shape, np.cumsum(w.ravel()))
+        self._wcache[key] = entry
+        if len(self._wcache) > _WEIGHT_CACHE_SIZE:
+            self._wcache.popitem(last=False)
+        return entry
+
     # ----------------------------------------------------------------- public API
     def expected_count(self, l_deg, b_deg, radius_deg, g_min, g_max):
         """Expected number of stars in a cone and G range.
@@ -216,8 +234,7 @@ class GalaxyModel:
             Expected number of stars.
         """
         q = ConeQuery.make(l_deg, b_deg, radius_deg, g_min, g_max)
-        return float(self._weights(self._line_of_sight(q.l_deg, q.b_deg, q.radius_deg),
-                                   q.g_min, q.g_max).sum())
+        return float(self._cumulative(q)[2][-1])
 
     def expected_count_by_population(self, l_deg, b_deg, radius_deg, g_min, g_max):
         """Expected number of stars per population label (dict label -> float)."""
@@ -256,13 +273,12 @@ class GalaxyModel:
         if not isinstance(rng, np.random.Generator):
             raise UserInputError(f"rng={rng!r} is not accepted; expected a numpy.random.Generator")
         q = ConeQuery.make(l_deg, b_deg, radius_deg, g_min, g_max, max_stars)
-        los = self._line_of_sight(q.l_deg, q.b_deg, q.radius_deg)
-        w = self._weights(los, q.g_min, q.g_max)
-        total = float(w.sum())
+        los, shape, cum = self._cumulative(q)
+        total = float(cum[-1])
         n_in = int(rng.poisson(total)) if self.params["count"] == "poisson" else int(round(total))
         n = n_in if q.max_stars is None else min(n_in, q.max_stars)
         root = int(rng.integers(0, 2 ** 63 - 1))
-        df = self._draw(los, w, q.g_min, q.g_max, n, root)
+        df = self._draw(los, shape, cum, q.g_min, q.g_max, n, root)
         df.attrs["n_in_cone"] = n_in
         df.attrs["expected_count"] = total
         return df
@@ -272,28 +288,35 @@ class GalaxyModel:
         return self.sample_cone(0.0, 90.0, sky.WHOLE_SKY_DEG, g_min, g_max, rng, max_stars)
 
     # ----------------------------------------------------------------- drawing
-    def _draw(self, los, w, g_min, g_max, n, root):
-        cum = np.cumsum(w.ravel())
-        parts = []
+    def _draw(self, los, shape, cum, g_min, g_max, n, root):
+        cols = {c: np.empty(n) for c in COLUMNS[:-1]}
+        codes = np.empty(n, dtype=np.int64)
         n_blocks = -(-n // BLOCK_STARS)
         per_chunk = max(1, self.chunk_stars // BLOCK_STARS)
         for first in range(0, n_blocks, per_chunk):
-            blocks = range(first, min(first + per_chunk, n_blocks))
-            uni, nor = [], []
-            for i in blocks:
+            start = first * BLOCK_STARS
+            stop = min(n, (first + per_chunk) * BLOCK_STARS)
+            uni = np.empty((5, stop - start))
+            nor = np.empty((3, stop - start))
+            for i in range(first, min(first + per_chunk, n_blocks)):
+                a = i * BLOCK_STARS - start
                 m = min(BLOCK_STARS, n - i * BLOCK_STARS)
                 gen = np.random.default_rng(np.random.SeedSequence(root, spawn_key=(i,)))
-                uni.append(gen.random((5, m)))
-                nor.append(gen.standard_normal((3, m)))
-            parts.append(self._stars(los, w.shape, cum, g_min, g_max,
-                                     np.concatenate(uni, axis=1), np.concatenate(nor, axis=1)))
-        if not parts:
-            return self._frame({c: np.empty(0) for c in COLUMNS[:-1]}, np.empty(0, int))
-        cols = {c: np.concatenate([p[0][c] for p in parts]) for c in parts[0][0]}
-        return self._frame(cols, np.concatenate([p[1] for p in parts]))
+                uni[:, a:a + m] = gen.random((5, m))
+                nor[:, a:a + m] = gen.standard_normal((3, m))
+            part, part_codes = self._stars(los, shape, cum, g_min, g_max, uni, nor)
+            for c, v in part.items():
+                cols[c][start:stop] = v
+            codes[start:stop] = part_codes
+        return self._frame(cols, codes)
 
     def _stars(self, los, shape, cum, g_min, g_max, uni, normals):
-        idx = np.minimum(np.searchsorted(cum, uni[0] * cum[-1], side="right"), cum.size - 1)
+        # searchsorted is much faster on sorted queries (cache); the result is unchanged
+        target = uni[0] * cum[-1]
+        order = np.argsort(target)
+        idx = np.empty(target.size, dtype=np.intp)
+        idx[order] = np.searchsorted(cum, target[order], side="right")
+        np.minimum(idx, cum.size - 1, out=idx)
         cell, k, j = np.unravel_index(idx, shape)
         d3 = los.d3_edges[j] + uni[1] * (los.d3_edges[j + 1] - los.d3_edges[j])
         d_pc = np.cbrt(d3)
@@ -309,13 +332,13 @@ class GalaxyModel:
             c_hi = np.interp(g_max - off, self.lf.mg, cdf)
             m_g[sel] = np.interp(c_lo + uni[2][sel] * (c_hi - c_lo), cdf, self.lf.mg)
         g = np.clip(m_g + mu + a_g, g_min, np.nextafter(g_max, -np.inf))
-        l, b = los.grid.sample(cell, uni[3], uni[4])
+        l, b, n_gal = los.grid.sample(cell, uni[3], uni[4], with_vectors=True)
         d_kpc = d_pc * 1e-3
-        x, y, _ = heliocentric_to_galactocentric(l, b, d_kpc, r0_kpc=self.params["r0_kpc"],
-                                                 z_sun_pc=self.params["z_sun_pc"])
+        x = d_kpc * n_gal[0] - self.params["r0_kpc"]      # same geometry as density.py
+        y = d_kpc * n_gal[1]
         v = draw_velocities(x, y, self.lag_kms[k], self.sigma_uvw[k], normals,
                             v_circ_kms=self.params["v_circ_kms"])
-        ra, dec, pmra, pmdec = self.transform.astrometry(l, b, d_kpc, v)
+        ra, dec, pmra, pmdec = self.transform.astrometry(l, b, d_kpc, v, gal_unit=n_gal)
         cols = {"ra": ra, "dec": dec, "l": l, "b": b, "parallax": 1000.0 / d_pc,
                 "pmra": pmra, "pmdec": pmdec, "phot_g_mean_mag": g, "distance_pc": d_pc}
         return cols, self.label_codes[k]
@@ -324,4 +347,4 @@ class GalaxyModel:
     def _frame(cols, codes):
         data = dict(cols)
         data["population"] = pd.Categorical.from_codes(codes, categories=POPULATION_CATEGORIES)
-        return pd.DataFrame(data, columns=list(COLUMNS))
+        return pd.DataFrame(data, columns=list(COLUMNS), copy=False)

@@ -2,7 +2,7 @@
 
 With the normalised design matrix ``A`` and measurements ``h`` of Eq. 1,
 
-* the normal equations are ``N0 x0 = b0`` with ``N0 = A'A``, ``b0 = A'h`` (Eqs. 2-4);
+* the normal equations are ``N0 x0 = b0`` with ``N0 = A'A``, ``b0 = A'h`` (Eqs. 2-3);
 * a Gaussian prior with mean ``x_p`` and normal matrix ``N_p = C_p^-1`` (Eqs. 8-9) gives
   the posterior mean from ``(N0 + N_p) x = b0 + b_p``, ``b_p = N_p x_p`` (Eqs. 11-12),
   and the posterior covariance ``C = (N0 + N_p)^-1`` (Eq. 13);
@@ -50,6 +50,9 @@ DEFAULT_RATIO_R = 10.0
 #: never suffice; three suffice if AL and AC are both used).
 DEFAULT_MAX_CONDITION = 1e6
 
+# Stars per block when forming normal equations (measured fastest on a 512 kB L2 cache).
+_NORMAL_BLOCK = 8192
+
 
 @dataclass(frozen=True)
 class Solution:
@@ -89,7 +92,7 @@ class Solution:
 
 
 def normal_equations(A, h) -> tuple[np.ndarray, np.ndarray]:
-    """Normal matrix ``N0 = A'A`` and right-hand side ``b0 = A'h`` (Eqs. 2-4).
+    """Normal matrix ``N0 = A'A`` and right-hand side ``b0 = A'h`` (Eqs. 2-3).
 
     Parameters
     ----------
@@ -111,16 +114,23 @@ def normal_equations(A, h) -> tuple[np.ndarray, np.ndarray]:
     if h.shape != A.shape[:2]:
         raise ValueError(f"h must have shape {A.shape[:2]}, got {h.shape}")
     n, _, p = A.shape
-    # Star-last views: (5, m, n) and (m, n); copies only for other layouts.
-    At = np.ascontiguousarray(A.transpose(2, 1, 0))
-    ht = np.ascontiguousarray(h.T)
+    # Star-last views (5, m, n) and (m, n): no copy for arrays from design_matrix and
+    # simulate. Blocks of stars keep the operands in cache.
+    At = A.transpose(2, 1, 0)
+    ht = h.T
+    if not (At.flags.c_contiguous and ht.flags.c_contiguous):
+        At, ht = np.ascontiguousarray(At), np.ascontiguousarray(ht)
     N0 = np.empty((p, p, n))
+    b0 = np.empty((p, n))
+    for start in range(0, n, _NORMAL_BLOCK):
+        sl = slice(start, min(start + _NORMAL_BLOCK, n))
+        for i in range(p):
+            for j in range(i + 1):
+                np.einsum("rn,rn->n", At[i, :, sl], At[j, :, sl], out=N0[i, j, sl])
+        np.einsum("irn,rn->in", At[:, :, sl], ht[:, sl], out=b0[:, sl])
     for i in range(p):
-        for j in range(i + 1):
-            np.einsum("rn,rn->n", At[i], At[j], out=N0[i, j])
-            if j != i:
-                N0[j, i] = N0[i, j]
-    b0 = np.einsum("irn,rn->in", At, ht)
+        for j in range(i):
+            N0[j, i] = N0[i, j]
     return np.moveaxis(N0, -1, 0), b0.T
 
 
@@ -207,7 +217,7 @@ def solve_position_only(N0, b0) -> Solution:
 
 
 def solve_no_prior(N0, b0, max_condition=DEFAULT_MAX_CONDITION) -> Solution:
-    """Five-parameter least-squares solution without prior (Eqs. 2-4).
+    """Five-parameter least-squares solution without prior (Eqs. 2-3).
 
     Stars whose normal matrix is singular, or whose condition number (1-norm, after
     scaling to unit diagonal) exceeds ``max_condition``, get ``ok = False`` and NaN

@@ -122,8 +122,9 @@ def ellipse_semi_axes(cov2, P) -> tuple[np.ndarray, np.ndarray]:
     radius = np.hypot(0.5 * (a - e), b)
     lam_max = half_trace + radius
     # lambda_min = det / lambda_max avoids cancellation for very elongated ellipses.
+    # Clipped to [0, lambda_max] against rounding (circular and degenerate cases).
     with np.errstate(invalid="ignore", divide="ignore"):
-        lam_min = (a * e - b * b) / lam_max
+        lam_min = np.minimum((a * e - b * b) / lam_max, lam_max)
     return np.sqrt(k * lam_max), np.sqrt(k * np.clip(lam_min, 0.0, None))
 
 

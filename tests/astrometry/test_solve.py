@@ -170,7 +170,7 @@ def test_scatter_of_solutions_matches_predicted_covariance(table1):
     C0 = np.linalg.inv(N0[0])
 
     free = solve_no_prior(N0, b0)
-    _mc_check(free.x, x_true, C0)  # unbiased, covariance N0^-1 (Eqs. 3-5)
+    _mc_check(free.x, x_true, C0)  # unbiased, covariance C0 = N0^-1 (Sect. 2.3)
 
     sigma_p = 1.0
     prior = solve_with_prior(N0, b0, sigma_p)

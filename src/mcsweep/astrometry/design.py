@@ -9,7 +9,7 @@ time ``t`` (counted from the reference epoch, Sect. 2.1) is, in the tangent plan
 
 with ``b(t)`` the observer's barycentric position in au, ``p`` and ``q`` the unit
 vectors towards local east and north at the star (the "normal triad", e.g. Lindegren
-et al. 2012, A&A 538, A78, Eq. 5), and parallax in mas so that ``plx * (au)`` is a
+et al. 2012, A&A 538, A78), and parallax in mas so that ``plx * (au)`` is a
 displacement in mas. A measurement projects ``d`` on the AL direction
 ``(sin psi, cos psi)`` or the AC direction ``(-cos psi, sin psi)`` in (east, north),
 with ``psi`` the scan position angle (paper Table 1: the direction in which the FoV

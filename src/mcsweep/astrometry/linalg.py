@@ -54,7 +54,7 @@ def spd_solve(N, b, *, add_diagonal=None, with_condition: bool = False):
         Right-hand sides.
     add_diagonal : array_like, shape (p,) or (n, p), optional, keyword-only
         Added to the diagonal of every matrix before solving (a prior normal matrix,
-        Eq. 11), without copying ``N``.
+        Eqs. 11 and 18), without copying ``N``.
     with_condition : bool, keyword-only
         Also compute the 1-norm condition number of the scaled matrices.
 

@@ -62,6 +62,7 @@ DEFAULT_PARAMS = {
     "ag_over_av": AG_OVER_AV,
     "components": list(POPULATION_CATEGORIES),
     "count": "poisson",
+    "multiplicity_frequency": P.MULTIPLICITY_FREQUENCY,
 }
 
 _POSITIVE = ("r0_kpc", "v_circ_kms", "thin_disc_scale_height_factor", "dust_scale_length_kpc",
@@ -73,13 +74,14 @@ def _check_params(p):
     if unknown:
         raise UserInputError(f"galaxy_model: unknown parameter(s) {unknown}; "
                              f"expected some of {sorted(DEFAULT_PARAMS)}")
-    for key in _POSITIVE + ("z_sun_pc", "dust_av_per_kpc"):
+    for key in _POSITIVE + ("z_sun_pc", "dust_av_per_kpc", "multiplicity_frequency"):
         try:
             v = float(p[key])
         except (TypeError, ValueError):
             raise UserInputError(f"galaxy_model: {key}={p[key]!r} is not accepted; "
                                  "expected a number") from None
-        if not np.isfinite(v) or (key in _POSITIVE and v <= 0) or (key == "dust_av_per_kpc" and v < 0):
+        if not np.isfinite(v) or (key in _POSITIVE and v <= 0) or (
+                key in ("dust_av_per_kpc", "multiplicity_frequency") and v < 0):
             raise UserInputError(f"galaxy_model: {key}={p[key]!r} is not accepted; expected a "
                                  f"{'positive' if key in _POSITIVE else 'finite'} number")
     if not isinstance(p["extinction"], (bool, np.bool_)):
@@ -124,6 +126,12 @@ class GalaxyModel:
     -----
     Every number comes from a published source named in :mod:`.parameters`,
     :mod:`.luminosity`, :mod:`.extinction` and :mod:`.kinematics`.
+
+    The model counts *sources*: the local luminosity function (component stars) is
+    divided by 1 + ``multiplicity_frequency`` so that an unresolved multiple system counts
+    once, as in Gaia and GUMS. The correction is uniform in magnitude, a simplification:
+    companions are mostly faint M dwarfs, so it removes slightly too many bright sources
+    and too few faint ones. Set ``multiplicity_frequency=0`` to count stars.
     """
 
     def __init__(self, params=None, **kwargs):
@@ -138,7 +146,9 @@ class GalaxyModel:
         keep = set(p["components"])
         self.components = tuple(c for c in P.COMPONENTS if c.label in keep)
         local = [c for c in P.COMPONENTS if c.law != "bulge"]
-        self.lf = build_luminosity_table(self.components, local=local)
+        lf = build_luminosity_table(self.components, local=local)
+        # sources (single stars and unresolved systems) per component star
+        self.lf = type(lf)(lf.names, lf.mg, lf.cdf / (1.0 + float(p["multiplicity_frequency"])))
         self.dust = DustModel(
             av_per_kpc=p["dust_av_per_kpc"] if p["extinction"] else 0.0,
             scale_length_kpc=p["dust_scale_length_kpc"], scale_height_pc=p["dust_scale_height_pc"],

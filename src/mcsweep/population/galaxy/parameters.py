@@ -33,6 +33,7 @@ __all__ = [
     "GIANT_G_MINUS_V",
     "GIANT_MV_MAX",
     "MASS_MIN_MSUN",
+    "MULTIPLICITY_FREQUENCY",
 ]
 
 # --- Sun and rotation ------------------------------------------------------------------
@@ -70,6 +71,15 @@ GIANT_MV_MAX = 1.0
 #: G - V of giants: the dwarf-sequence G - V at BP - RP = 1.19 (K3V row of Mamajek's
 #: table [V]); red-clump and red-giant-branch stars have BP - RP ~ 1.1-1.3 [M].
 GIANT_G_MINUS_V = -0.31
+
+#: Fraction of stellar systems that are multiple in the 10-pc census ("multiplicity
+#: frequency of around 27 %", 540 objects in 339 systems): Reyle et al. (2021, A&A 650,
+#: A201) [V abstract]. Gaia and GUMS count an unresolved system as one source ("1.1
+#: billion stars (single stars or systems)", Robin et al. 2012), whereas the local
+#: luminosity function counts component stars; the model turns stars into sources with
+#: 1 / (1 + f) sources per star (each multiple system holding at least two stars),
+#: uniformly in magnitude (see :mod:`.model`).
+MULTIPLICITY_FREQUENCY = 0.27
 
 POPULATION_LABELS = ("thin_disc", "thick_disc", "halo", "bulge")
 

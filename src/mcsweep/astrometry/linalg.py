@@ -79,12 +79,15 @@ def spd_solve(N, b, *, add_diagonal=None, with_condition: bool = False):
     n, p, _ = N.shape
     if b.shape != (n, p):
         raise ValueError(f"b must have shape {(n, p)}, got {b.shape}")
+    add_t = None
     if add_diagonal is not None:
         add_diagonal = np.asarray(add_diagonal, dtype=float)
         if add_diagonal.shape == (p,):
-            add_diagonal = add_diagonal[None, :]
+            add_diagonal = np.broadcast_to(add_diagonal, (n, p))
         elif add_diagonal.shape != (n, p):
             raise ValueError(f"add_diagonal must have shape {(p,)} or {(n, p)}, got {add_diagonal.shape}")
+        add_t = np.ascontiguousarray(add_diagonal.T)  # (p, n); zero rows are skipped below
+        add_rows = [i for i in range(p) if np.any(add_t[i] != 0.0)]
     # Star-last output buffers: element (i, j) of every matrix is one contiguous vector.
     x_buf = np.empty((p, n))
     cov_buf = np.empty((p, p, n))
@@ -92,11 +95,9 @@ def spd_solve(N, b, *, add_diagonal=None, with_condition: bool = False):
     condition = np.empty(n) if with_condition else None
     for start in range(0, n, BLOCK_SIZE):
         sl = slice(start, min(start + BLOCK_SIZE, n))
-        add = None
-        if add_diagonal is not None:
-            add = add_diagonal.T if add_diagonal.shape[0] == 1 else add_diagonal[sl].T
         W = cov_buf[:, :, sl]
         W[...] = np.moveaxis(N[sl], 0, -1)
+        add = None if add_t is None else [(i, add_t[i, sl]) for i in add_rows]
         B = x_buf[:, sl]
         B[...] = b[sl].T
         # Non-finite or singular input is flagged through ok; silence its arithmetic.
@@ -116,11 +117,15 @@ def spd_solve(N, b, *, add_diagonal=None, with_condition: bool = False):
 
 
 def _solve_block(W, B, add, with_condition):
-    """Factorise, solve and invert in place: W (p, p, m) becomes the inverse, B the solution."""
+    """Factorise, solve and invert in place: W (p, p, m) becomes the inverse, B the solution.
+
+    ``add`` is None or a list of ``(i, vector)`` pairs added to the diagonal element i.
+    Returns ``(ok, condition or None)`` for the block.
+    """
     p, _, m = W.shape
     if add is not None:
-        for i in range(p):
-            W[i, i] += add[i]
+        for i, a in add:
+            W[i, i] += a
     tmp = np.empty(m)
     diag = np.stack([W[i, i] for i in range(p)])  # (p, m) copy of the diagonal
     ok = (diag > 0.0).all(axis=0)  # False for NaN too

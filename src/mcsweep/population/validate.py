@@ -1,0 +1,271 @@
+"""Validation report of the built-in galaxy model against the paper and published counts.
+
+Run ``python -m mcsweep.population.validate --out results/population_validation``.
+Writes ``report.md``, ``ratio_cells.csv``, ``counts.csv`` and three PNG figures.
+
+Checks (issue #4):
+
+1. Table 1 beam: 1 deg around (l, b) = (245.7, 46.5) deg, G = 15 +- 0.5 holds 458 GUMS
+   stars; the model should give 458 within +-25 %.
+2. Median proper motion / parallax at G = 15: about 10 /yr in GUMS (paper Sect. 3.1);
+   accepted range 6-15 /yr.
+3. The paper's footnote (Sect. 3.4): sigma_F90(l, b, G) of Eqs. 14-17 is about 0.5-0.8
+   times the 90th percentile of the parallaxes. The ratio is tabulated over the 48
+   HEALPix nside = 2 pixel centres (Galactic frame, nested order: "48 directions
+   uniformly distributed on the sky") x G = 6..20 (1-mag bins centred on G). Beams start
+   at 1 deg and widen until 1000 stars are expected (at most 20 deg), as the sweep's cells
+   do; up to 2000 stars are drawn per cell.
+4. All-sky counts per G magnitude against the published totals cited in the report.
+
+sigma_F90 is evaluated here from Eqs. 14-17 (the population stage does not import the
+prior module, which sits downstream of it).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from .galaxy import GalaxyModel
+
+__all__ = ["sigma_f90_paper", "healpix48_centres", "ratio_table", "main"]
+
+#: Paper Table 1 beam and its GUMS count.
+BEAM = dict(l_deg=245.7, b_deg=46.5, radius_deg=1.0, g_min=14.5, g_max=15.5)
+GUMS_BEAM_COUNT = 458
+BEAM_TOLERANCE = 0.25
+MU_PLX_RANGE = (6.0, 15.0)       # 1/yr
+RATIO_RANGE = (0.4, 1.0)         # accepted range of sigma_F90 / p90 (issue)
+FOOTNOTE_RANGE = (0.5, 0.8)      # the paper's footnote
+MIN_STARS, MAX_STARS, MAX_RADIUS_DEG = 1000, 2000, 20.0
+#: Published all-sky numbers. [V] read in the cited place, [M] from memory.
+PUBLISHED = [
+    ("GUMS-10, G < 20 (Robin et al. 2012, A&A 543, A100; CDS VI/137) [V]", None, 20.0, 1.1e9),
+    ("Gaia DR3 sources with G, G <~ 21, incomplete beyond G ~ 19-20 "
+     "(Gaia Collaboration, Vallenari et al. 2023) [V]", None, 21.0, 1_811_709_771),
+    ("Gaia DR2 sources, G <~ 21 (Gaia Collaboration, Brown et al. 2018) [V]", None, 21.0,
+     1_692_919_135),
+    ("Yale Bright Star Catalogue, V < 6.5 (Hoffleit & Jaschek 1991; model: G < 6.3) [M]",
+     None, 6.3, 9110),
+]
+
+
+def sigma_f90_paper(l_deg, b_deg, g):
+    """sigma_F90 in mas from the paper's Eqs. 14-17."""
+    g = np.asarray(g, float)
+    s0 = 2.187 - 0.2547 * g + 0.006382 * g ** 2
+    s1 = 0.114 - 0.0579 * g + 0.01369 * g ** 2 - 0.000506 * g ** 3
+    s2 = 0.031 - 0.0062 * g
+    l, b = np.radians(l_deg), np.radians(b_deg)
+    return 10.0 ** (s0 + s1 * np.abs(np.sin(b)) + s2 * np.cos(b) * np.cos(l))
+
+
+def healpix48_centres():
+    """Galactic (l, b) in deg of the 48 HEALPix nside = 2 pixel centres, nested order."""
+    from astropy.coordinates import Galactic
+    from astropy_healpix import HEALPix
+    hp = HEALPix(nside=2, order="nested", frame=Galactic())
+    c = hp.healpix_to_skycoord(np.arange(hp.npix))
+    return c.l.deg, c.b.deg
+
+
+def _radius_for(model, l, b, g0, g1):
+    r = 1.0
+    n = model.expected_count(l, b, r, g0, g1)
+    while n < MIN_STARS and r < MAX_RADIUS_DEG:
+        r = min(MAX_RADIUS_DEG, r * np.sqrt(MIN_STARS / max(n, 1e-3)) * 1.05)
+        n = model.expected_count(l, b, r, g0, g1)
+    return r, n
+
+
+def ratio_table(model, rng, g_centres=range(6, 21)):
+    """sigma_F90 / p90(parallax) over the 48 directions x G bins (DataFrame)."""
+    rows = []
+    for pix, (l, b) in enumerate(zip(*healpix48_centres())):
+        for g in g_centres:
+            g0, g1 = g - 0.5, g + 0.5
+            r, n = _radius_for(model, l, b, g0, g1)
+            df = model.sample_cone(l, b, r, g0, g1, rng, max_stars=MAX_STARS)
+            p90 = float(np.percentile(df.parallax, 90)) if len(df) else np.nan
+            mu_plx = float(np.median(np.hypot(df.pmra, df.pmdec) / df.parallax)) if len(df) else np.nan
+            s = float(sigma_f90_paper(l, b, g))
+            rows.append(dict(pixel=pix, l_deg=l, b_deg=b, G=g, radius_deg=r, n_expected=n,
+                             n_drawn=len(df), p90_parallax_mas=p90, sigma_f90_mas=s,
+                             ratio=s / p90, median_mu_over_plx=mu_plx))
+    return pd.DataFrame(rows)
+
+
+def _beam_section(model, rng):
+    exp = model.expected_count(**BEAM)
+    by_pop = model.expected_count_by_population(**BEAM)
+    df = model.sample_cone(**BEAM, rng=rng)
+    mu_plx = float(np.median(np.hypot(df.pmra, df.pmdec) / df.parallax))
+    variants = {
+        "default": exp,
+        "counting stars, not systems (multiplicity_frequency=0)":
+            GalaxyModel(multiplicity_frequency=0.0).expected_count(**BEAM),
+        "thin_disc_scale_height_factor=0.8": GalaxyModel(thin_disc_scale_height_factor=0.8).expected_count(**BEAM),
+        "thin_disc_scale_height_factor=1.25": GalaxyModel(thin_disc_scale_height_factor=1.25).expected_count(**BEAM),
+        "extinction=false": GalaxyModel(extinction=False).expected_count(**BEAM),
+    }
+    return exp, by_pop, len(df), mu_plx, variants
+
+
+def _sky_section(model, rng, n_sky):
+    rows = []
+    for g in range(3, 21):
+        by = model.expected_count_by_population(0, 90, 180, g, g + 1)
+        rows.append(dict(G_min=g, G_max=g + 1, total=sum(by.values()), **by))
+    counts = pd.DataFrame(rows)
+    counts["cumulative"] = counts["total"].cumsum() + model.expected_count(0, 90, 180, -5, 3)
+    sky = model.sample_sky(14.5, 15.5, rng, max_stars=n_sky)
+    mu_plx_sky = float(np.median(np.hypot(sky.pmra, sky.pmdec) / sky.parallax))
+    published = [(name, cut, value, model.expected_count(0, 90, 180, -5, cut))
+                 for name, _, cut, value in PUBLISHED]
+    return counts, mu_plx_sky, published
+
+
+def _figures(out, cells, counts, published, model):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(1, 2, figsize=(12, 4.5))
+    piv = cells.pivot(index="pixel", columns="G", values="ratio")
+    im = ax[0].imshow(np.log10(piv.to_numpy()), aspect="auto", cmap="coolwarm", vmin=-0.6, vmax=0.6,
+                      extent=(5.5, 20.5, 47.5, -0.5))
+    ax[0].set_xlabel("G [mag]")
+    ax[0].set_ylabel("HEALPix nside=2 pixel (Galactic, nested)")
+    ax[0].set_title("log10(sigma_F90 / p90 parallax)")
+    fig.colorbar(im, ax=ax[0])
+    ax[1].hist(cells["ratio"], bins=np.geomspace(0.1, 5, 50), color="0.5")
+    for x in RATIO_RANGE:
+        ax[1].axvline(x, color="k", ls="--")
+    for x in FOOTNOTE_RANGE:
+        ax[1].axvline(x, color="tab:red", ls=":")
+    ax[1].set_xscale("log")
+    ax[1].set_xlabel("sigma_F90 / p90 parallax (dashed: 0.4-1.0, dotted: footnote 0.5-0.8)")
+    ax[1].set_ylabel("cells")
+    fig.tight_layout()
+    fig.savefig(out / "ratio_sigma_f90_p90.png", dpi=110)
+    plt.close(fig)
+
+    fig, ax = plt.subplots(1, 2, figsize=(12, 4.5))
+    g = counts["G_min"] + 0.5
+    for pop in ("thin_disc", "thick_disc", "halo", "bulge"):
+        if pop in counts:
+            ax[0].semilogy(g, counts[pop], "o-", ms=3, label=pop)
+    ax[0].semilogy(g, counts["total"], "k-", lw=2, label="total")
+    ax[0].set_ylim(0.1, None)
+    ax[0].set_xlabel("G [mag] (1-mag bins)")
+    ax[0].set_ylabel("stars on the whole sky per mag")
+    ax[0].legend()
+    ax[1].semilogy(counts["G_max"], counts["cumulative"], "k-", label="model N(<G)")
+    for i, (name, cut, value, mod) in enumerate(published):
+        ax[1].semilogy([cut], [value], "s", label=name.split(" (")[0] + f" ({value:.3g})")
+    ax[1].set_xlabel("G limit [mag]")
+    ax[1].set_ylabel("N(< G), whole sky")
+    ax[1].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(out / "allsky_counts.png", dpi=110)
+    plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(6, 4.5))
+    dens = model.lf.density()
+    mg = model.lf.mg[:-1] + 0.5 * (model.lf.mg[1] - model.lf.mg[0])
+    for k, name in enumerate(model.lf.names):
+        if name != "bulge":
+            ax.semilogy(mg, np.where(dens[k] > 0, dens[k], np.nan), lw=1, label=name)
+    ax.semilogy(mg, dens[[i for i, n in enumerate(model.lf.names) if n != "bulge"]].sum(0), "k", lw=2,
+                label="sum at the Sun")
+    ax.set_xlabel("M_G [mag]")
+    ax.set_ylabel("sources pc^-3 mag^-1 at the Sun")
+    ax.set_ylim(1e-8, 1e-1)
+    ax.legend(fontsize=6)
+    fig.tight_layout()
+    fig.savefig(out / "luminosity_functions.png", dpi=110)
+    plt.close(fig)
+
+
+def _report(out, beam, mu_plx_sky, cells, counts, published):
+    exp, by_pop, n_drawn, mu_plx, variants = beam
+    lo, hi = GUMS_BEAM_COUNT * (1 - BEAM_TOLERANCE), GUMS_BEAM_COUNT * (1 + BEAM_TOLERANCE)
+    r = cells["ratio"]
+    frac = float(((r >= RATIO_RANGE[0]) & (r <= RATIO_RANGE[1])).mean())
+    frac_fn = float(((r >= FOOTNOTE_RANGE[0]) & (r <= FOOTNOTE_RANGE[1])).mean())
+    worst = cells.assign(dev=np.abs(np.log10(r / 0.65))).nlargest(10, "dev")
+    ok = lambda c: "PASS" if c else "FAIL"  # noqa: E731
+    lines = [
+        "# Validation of the built-in galaxy model", "",
+        "Generated by `python -m mcsweep.population.validate`. Model parameters: defaults "
+        "(`conf/population/galaxy_model.yaml`).", "",
+        "## 1. Paper Table 1 beam (l, b) = (245.7, +46.5) deg, r = 1 deg, G = 15 +- 0.5", "",
+        f"- expected sources: **{exp:.0f}** (GUMS: {GUMS_BEAM_COUNT}; accepted {lo:.0f}-{hi:.0f}) "
+        f"-> {ok(lo <= exp <= hi)} ({100 * (exp / GUMS_BEAM_COUNT - 1):+.0f} %)",
+        "- by population: " + ", ".join(f"{k} {v:.0f}" for k, v in by_pop.items()),
+        f"- one Poisson draw: {n_drawn} stars", "",
+        "| variant | expected |", "|---|---|",
+        *[f"| {k} | {v:.0f} |" for k, v in variants.items()], "",
+        "## 2. Median proper motion / parallax at G = 15", "",
+        f"- Table 1 beam: **{mu_plx:.1f} /yr**; whole sky, G = 14.5-15.5: **{mu_plx_sky:.1f} /yr** "
+        f"(GUMS about 10 /yr; accepted {MU_PLX_RANGE[0]:g}-{MU_PLX_RANGE[1]:g}) -> "
+        f"{ok(MU_PLX_RANGE[0] <= mu_plx <= MU_PLX_RANGE[1] and MU_PLX_RANGE[0] <= mu_plx_sky <= MU_PLX_RANGE[1])}", "",
+        "## 3. sigma_F90 / 90th percentile of parallax (48 HEALPix nside=2 galactic nested "
+        "centres x G = 6..20)", "",
+        f"- fraction of the {len(cells)} cells with ratio in {RATIO_RANGE[0]}-{RATIO_RANGE[1]}: "
+        f"**{frac:.2f}**; in the footnote's {FOOTNOTE_RANGE[0]}-{FOOTNOTE_RANGE[1]}: **{frac_fn:.2f}**",
+        f"- median ratio {r.median():.2f}; 10-90 % range {r.quantile(0.1):.2f}-{r.quantile(0.9):.2f}",
+        "- median ratio per G: " + ", ".join(f"{g}: {v:.2f}" for g, v in cells.groupby("G")["ratio"].median().items()),
+        "", "Worst cells (largest |log10(ratio / 0.65)|):", "",
+        "| l | b | G | radius | p90 [mas] | sigma_F90 [mas] | ratio |", "|---|---|---|---|---|---|---|",
+        *[f"| {w.l_deg:.1f} | {w.b_deg:.1f} | {w.G} | {w.radius_deg:.1f} | {w.p90_parallax_mas:.3g} | "
+          f"{w.sigma_f90_mas:.3g} | {w.ratio:.2f} |" for w in worst.itertuples()], "",
+        "![ratio](ratio_sigma_f90_p90.png)", "",
+        "## 4. All-sky counts", "",
+        "| G bin | model sources | thin | thick | halo | bulge |", "|---|---|---|---|---|---|",
+        *[f"| {c.G_min}-{c.G_max} | {c.total:.3g} | {c.thin_disc:.3g} | {c.thick_disc:.3g} | "
+          f"{c.halo:.3g} | {c.bulge:.3g} |" for c in counts.itertuples()], "",
+        "| published | value | model | model / published |", "|---|---|---|---|",
+        *[f"| {name} | {value:.4g} | {mod:.4g} | {mod / value:.2f} |" for name, cut, value, mod in published],
+        "", "Gaia DR3 and DR2 totals include sources fainter than G = 20 where the catalogues "
+        "are incomplete (EDR3 is essentially complete for 12 < G < 17) and non-stellar "
+        "sources; GUMS-10 is the closer comparison for the paper.", "",
+        "![counts](allsky_counts.png)", "", "![lf](luminosity_functions.png)", "",
+    ]
+    (out / "report.md").write_text("\n".join(lines))
+    return frac, frac_fn
+
+
+def main(argv=None):
+    """Command-line entry point (see the module docstring)."""
+    ap = argparse.ArgumentParser(description="Validate mcsweep's built-in galaxy model.")
+    ap.add_argument("--out", default="results/population_validation", help="output directory")
+    ap.add_argument("--seed", type=int, default=20150821)
+    ap.add_argument("--sky-stars", type=int, default=200_000,
+                    help="stars drawn over the whole sky for the median mu/parallax")
+    args = ap.parse_args(argv)
+    os.environ.setdefault("MPLBACKEND", "Agg")
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    rng = np.random.default_rng(args.seed)
+    model = GalaxyModel()
+    beam = _beam_section(model, rng)
+    counts, mu_plx_sky, published = _sky_section(model, rng, args.sky_stars)
+    cells = ratio_table(model, rng)
+    cells.to_csv(out / "ratio_cells.csv", index=False)
+    counts.to_csv(out / "counts.csv", index=False)
+    _figures(out, cells, counts, published, model)
+    frac, frac_fn = _report(out, beam, mu_plx_sky, cells, counts, published)
+    print(f"Table 1 beam: {beam[0]:.0f} expected (GUMS {GUMS_BEAM_COUNT}); "
+          f"median mu/plx beam {beam[3]:.1f}, sky {mu_plx_sky:.1f} /yr; "
+          f"ratio in {RATIO_RANGE}: {frac:.2f} of cells (footnote range: {frac_fn:.2f}); "
+          f"report: {out / 'report.md'}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -13,16 +13,18 @@ the post-commissioning performance assessment:
 i.e. photon noise of one CCD transit averaged over the 9 astrometric-field CCDs of a
 FoV transit, plus attitude and calibration errors. Numbers: 0.034 mas at G <= 12,
 0.042 mas at G = 13, 0.082 mas at G = 15, 0.25 mas at G = 17.5, 0.97 mas at G = 20.
-Provenance and accuracy: the formula was taken from two transcriptions in public code
-(bmorris3/mrspoc, ``mrspoc/gaia.py``, citing "Perryman et al. 2014, Eqn. 1-3"); the
-value at G <= 12 (34.23 uas) matches a number used independently in another public
-code. The paper itself could not be consulted here. The model is a prediction made
-before DR1, good to a factor ~1.5: it ignores the calibration-limited floor of the
+Provenance and accuracy: the formula was taken from a transcription in public code
+(bmorris3/mrspoc, ``mrspoc/gaia.py``, two versions, citing "Perryman et al. 2014,
+Eqn. 1-3"); the value at G <= 12 (34.23 uas) matches a number used in an unrelated
+public code (a Gaia/TESS Fisher-matrix script). The paper itself could not be
+consulted here, so the equation numbers are as cited there. The model is a
+prediction made before DR1, good to a factor ~2: it ignores the calibration-limited floor of the
 real bright-star data and the extra noise of crowded fields. As a cross-check, the
-test-suite verifies that it reproduces the Gaia (E)DR3 sky-averaged parallax
-uncertainty relation (Lindegren et al. 2021, A&A 649, A2; the Gaia science-performance
-pages) within a factor 2 for 13 <= G <= 20 when ~40 FoV transits are accumulated over
-34 months.
+test-suite compares it with the Gaia (E)DR3 sky-averaged parallax uncertainty
+relation (Lindegren et al. 2021, A&A 649, A2; the Gaia science-performance pages):
+with ~35 FoV transits spread over the 34 months of EDR3, the model's parallax
+uncertainty is 1.0 times the EDR3 value at G = 13, 0.8 at G = 17 and 0.5 at G = 20,
+i.e. the model is optimistic for faint stars by up to a factor 2 (use ``al_scale``).
 
 Across scan (AC)
 ----------------

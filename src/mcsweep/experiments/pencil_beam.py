@@ -21,8 +21,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from ..astrometry.confidence import ellipse_semi_axes, error_percentile, inside
-from ..astrometry.design import design_matrix, reference_epoch
+from ..astrometry.confidence import ellipse_semi_axes, error_percentile, fraction_inside
+from ..astrometry.design import JULIAN_YEAR_DAYS, design_matrix, reference_epoch
 from ..astrometry.measurements import simulate
 from ..astrometry.noise import NoiseModel
 from ..astrometry.solve import normal_equations, solve_with_prior
@@ -37,8 +37,6 @@ __all__ = [
     "run_cell",
     "CURVE_COLUMNS",
 ]
-
-JULIAN_YEAR_DAYS = 365.25
 
 #: Columns of a cell's result table (one row per case x prior).
 CURVE_COLUMNS = [
@@ -163,7 +161,7 @@ def prior_curve(n0, b0, priors_mas, s: CellSettings) -> pd.DataFrame:
     for sigma in priors_mas:
         dpos, cov2 = _evaluate(n0, b0, float(sigma), s)
         semi_major, _ = ellipse_semi_axes(cov2, s.confidence)
-        rows.append((float(sigma), float(np.mean(inside(dpos, cov2, s.confidence))),
+        rows.append((float(sigma), fraction_inside(dpos, cov2, s.confidence),
                      float(error_percentile(dpos, 100.0 * s.confidence)), float(np.median(semi_major))))
     return pd.DataFrame(rows, columns=["sigma_prior_mas", "fraction_inside", "p_error_mas",
                                        "median_semi_major_mas"])

@@ -13,6 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from ..prior import PAPER_COEFFICIENTS, sigma_from_coefficients
+
 __all__ = [
     "POLY_DEGREES",
     "PAPER_COEFFICIENTS",
@@ -29,14 +31,6 @@ __all__ = [
 
 #: Polynomial degree in G of s0, s1, s2 (Eqs. 15-17).
 POLY_DEGREES = {"s0": 2, "s1": 3, "s2": 1}
-
-#: Eqs. 15-17, coefficients in increasing power of G.
-PAPER_COEFFICIENTS = {
-    "s0": (2.187, -0.2547, 0.006382),
-    "s1": (0.114, -0.0579, 0.01369, -0.000506),
-    "s2": (0.031, -0.0062),
-}
-
 
 def direction_design(l_deg, b_deg) -> np.ndarray:
     """Columns of Eq. 14: 1, |sin b|, cos b cos l."""
@@ -75,11 +69,7 @@ def fit_polynomials(terms: pd.DataFrame) -> dict[str, np.ndarray]:
 
 def evaluate_formula(coefficients, l_deg, b_deg, g) -> np.ndarray:
     """sigma_F90 [mas] from Eqs. 14-17 with the given coefficients (no clamping in G)."""
-    pv = np.polynomial.polynomial.polyval
-    g = np.asarray(g, float)
-    s0, s1, s2 = (pv(g, np.asarray(coefficients[k], float)) for k in ("s0", "s1", "s2"))
-    l_rad, b_rad = np.radians(l_deg), np.radians(b_deg)
-    return 10.0 ** (s0 + s1 * np.abs(np.sin(b_rad)) + s2 * np.cos(b_rad) * np.cos(l_rad))
+    return sigma_from_coefficients(l_deg, b_deg, g, coefficients)
 
 
 def coefficient_table(fitted: dict[str, np.ndarray]) -> pd.DataFrame:

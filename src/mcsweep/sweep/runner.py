@@ -75,7 +75,7 @@ def direction_transits(config: Config, directions: list[Direction]) -> dict[int,
     """FoV transits of every direction, keyed by Direction.index."""
     if not directions:
         return {}
-    law = ScanningLaw.from_config(config.scanning.params)
+    law = ScanningLaw.from_config(dataclasses.asdict(config.scanning))
     ra = np.array([d.ra_deg for d in directions])
     dec = np.array([d.dec_deg for d in directions])
     start = Time(config.observations.start, scale="tcb")

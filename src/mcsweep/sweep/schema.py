@@ -177,10 +177,32 @@ class PopulationConf:
 
 @dataclass
 class ScanningConf:
-    """Scanning law (see mcsweep.scanning.ScanningLaw for the meaning of each key)."""
+    """Scanning law; fields of mcsweep.scanning.ScanningLaw (Sect. 3.1; conf/scanning/)."""
 
     name: str = "flown"
-    params: Dict[str, Any] = field(default_factory=dict)
+    spin_rate_arcsec_s: float = 59.960499
+    solar_aspect_deg: float = 45.0
+    precession_S: float = 4.220747
+    ref_epoch_tcb: str = "2015-01-01T00:00:00"
+    nu_ref_deg: float = 323.3708
+    omega_ref_deg: float = 95.1324
+    basic_angle_deg: float = 106.5
+    ac_limits_p_deg: List[float] = field(default_factory=lambda: [-0.41, 0.285])
+    ac_limits_f_deg: List[float] = field(default_factory=lambda: [-0.285, 0.41])
+
+    def __post_init__(self):
+        _require(self.spin_rate_arcsec_s > 0, "scanning.spin_rate_arcsec_s", self.spin_rate_arcsec_s,
+                 "a positive spin rate in arcsec/s")
+        _require(0 < self.solar_aspect_deg < 90, "scanning.solar_aspect_deg", self.solar_aspect_deg,
+                 "an angle in (0, 90) deg")
+        _require(self.precession_S > 1, "scanning.precession_S", self.precession_S,
+                 "a precession constant > 1 (the NSL needs S > |cos nu|)")
+        _require(0 < self.basic_angle_deg < 180, "scanning.basic_angle_deg", self.basic_angle_deg,
+                 "an angle in (0, 180) deg")
+        for key in ("ac_limits_p_deg", "ac_limits_f_deg"):
+            v = list(getattr(self, key))
+            _require(len(v) == 2 and v[0] < v[1] and all(abs(x) < 5 for x in v), f"scanning.{key}", v,
+                     "[low, high] across-scan limits in deg with low < high")
 
 
 @dataclass

@@ -45,6 +45,22 @@ def _plain(value):
     return value
 
 
+def _unset(value):
+    return value is None or (isinstance(value, (dict, list, tuple)) and len(value) == 0)
+
+
+def _mapping(value):
+    """A plain dict from a mapping, a sequence of (key, value) pairs or None."""
+    if _unset(value):
+        return {}
+    if isinstance(value, Mapping):
+        return dict(value)
+    try:
+        return {k: v for k, v in value}
+    except (TypeError, ValueError):
+        raise UserInputError(f"population: {value!r} is not accepted; expected a mapping") from None
+
+
 def make_source(cfg):
     """Build the population source described by a config mapping.
 
@@ -72,14 +88,20 @@ def make_source(cfg):
     cfg = {k: _plain(v) for k, v in cfg.items()}
     name = cfg.pop("name", None)
     if name == "galaxy_model":
-        params = dict(cfg.pop("params", None) or {})
+        params = _mapping(cfg.pop("params", None))
         for k in CATALOGUE_KEYS:  # tolerate a schema that carries every key, unset
-            if cfg.get(k) in (None, {}, "auto", "error"):
+            if _unset(cfg.get(k)) or cfg.get(k) in ("auto", "error"):
                 cfg.pop(k, None)
         params.update({k: v for k, v in cfg.items() if v is not None})
         return GalaxyModel(params)
     if name == "catalogue":
-        cfg.pop("params", None)
+        if not _mapping(cfg.pop("params", None)) == {}:
+            raise UserInputError("population.params is not accepted with population=catalogue; "
+                                 "expected catalogue keys " + str(list(CATALOGUE_KEYS)))
+        cfg = {k: v for k, v in cfg.items() if not _unset(v)}
+        for k in ("columns", "units"):
+            if k in cfg:
+                cfg[k] = _mapping(cfg[k])
         unknown = sorted(k for k in set(cfg) - set(CATALOGUE_KEYS) if cfg[k] is not None)
         if unknown:
             raise UserInputError(f"population: unknown catalogue key(s) {unknown}; "

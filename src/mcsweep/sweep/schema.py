@@ -165,12 +165,18 @@ class PopulationConf:
     format: str = "auto"
     #: Catalogue column mapping, ours -> theirs (e.g. {parallax: plx}).
     columns: Dict[str, str] = field(default_factory=dict)
+    #: Catalogue units that differ from ours, ours -> unit (e.g. {parallax: arcsec}).
+    units: Dict[str, str] = field(default_factory=dict)
+    #: Catalogue rows with NaN in a needed column: 'error' or 'drop'.
+    on_missing: str = "error"
     #: Galaxy-model parameters passed to GalaxyModel(**params).
     params: Dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self):
         _require(self.name in ("galaxy_model", "catalogue"), "population", self.name,
                  "'galaxy_model' or 'catalogue'")
+        _require(self.on_missing in ("error", "drop"), "population.on_missing", self.on_missing,
+                 "'error' or 'drop'")
         if self.name == "catalogue":
             _require(bool(self.path), "population.path", self.path, "the path of a catalogue file")
 

@@ -103,6 +103,8 @@ def test_sample_sky_and_empty_draw(model):
     assert len(df) == 3000
     # all sky: both hemispheres and a spread of latitudes
     assert (df.b > 30).any() and (df.b < -30).any()
+    with pytest.raises(UserInputError, match="max_stars"):
+        model.sample_sky(0, 21, np.random.default_rng(8))
     none = model.sample_cone(*BEAM, 4.0, 4.001, np.random.default_rng(9))
     assert len(none) == 0 and list(none.columns) == list(COLUMNS)
 

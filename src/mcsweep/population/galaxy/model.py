@@ -43,6 +43,8 @@ __all__ = ["GalaxyModel", "DEFAULT_PARAMS", "BLOCK_STARS"]
 BLOCK_STARS = 65536
 #: Distance-modulus grid: 2.5 pc to 79 kpc in steps of 0.05 mag (2.3 % in distance).
 MU_MIN, MU_MAX, MU_STEP = -3.0, 19.5, 0.05
+#: Largest number of stars drawn in one call (memory: ~80 bytes per star).
+MAX_DRAW = 50_000_000
 #: Largest sky cell, deg (whole-sky tables).
 MAX_CELL_DEG = 5.0
 _CACHE_SIZE = 64
@@ -287,6 +289,10 @@ class GalaxyModel:
         total = float(cum[-1])
         n_in = int(rng.poisson(total)) if self.params["count"] == "poisson" else int(round(total))
         n = n_in if q.max_stars is None else min(n_in, q.max_stars)
+        if n > MAX_DRAW:
+            raise UserInputError(f"the query holds {n_in} stars, more than {MAX_DRAW} can be drawn "
+                                 "at once; expected max_stars (an unbiased subsample) or a "
+                                 "smaller cone / G range")
         root = int(rng.integers(0, 2 ** 63 - 1))
         df = self._draw(los, shape, cum, q.g_min, q.g_max, n, root)
         df.attrs["n_in_cone"] = n_in

@@ -33,7 +33,7 @@ def test_galaxy_model_yaml_lists_every_parameter_at_its_default():
 
 def test_catalogue_yaml_keys_and_required_path(tmp_path):
     cfg = _group("catalogue")
-    assert set(cfg) - {"name"} <= set(CATALOGUE_KEYS)
+    assert set(cfg) - {"name"} == set(CATALOGUE_KEYS)
     assert OmegaConf.is_missing(cfg, "path")
     path = tmp_path / "s.csv"
     pd.DataFrame({"ra": [157.5], "dec": [0.0], "parallax": [1.0], "pmra": [1.0], "pmdec": [2.0],

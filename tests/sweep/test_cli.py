@@ -12,7 +12,6 @@ SMALL = [
     "sky=custom", "sky.directions=[[245.7,46.5],[30,-20],[120,5],[300,60]]",
     "magnitudes.edges=[13,14,15,16,17]", "prior_grid.n=13",
     "cell.max_stars=300", "cell.min_stars=150", "execution.progress=false",
-    "observations.cases={one:[0],two:[0,1],four:[0,1,2,3]}",
 ]
 
 
@@ -38,7 +37,7 @@ def test_small_sweep_writes_cells_coefficients_and_report(small_run):
     coef = pd.read_csv(small_run / "coefficients.csv")
     assert list(coef.columns) == ["term", "fitted", "paper", "difference"] and len(coef) == 9
     table = pd.read_parquet(small_run / "cells.parquet")
-    assert set(table["case"]) == {"one", "two", "four"}
+    assert set(table["case"]) == {"one", "two", "two_diluted", "four", "eight"}
     assert table["fraction_inside"].between(0, 1).all()
     assert "Provenance" in (small_run / "report.md").read_text()
 

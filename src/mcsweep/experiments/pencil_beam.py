@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from ..astrometry.confidence import ellipse_semi_axes, error_percentile, fraction_inside
+from ..astrometry.confidence import chi2_threshold, ellipse_semi_axes, mahalanobis_sq
 from ..astrometry.design import JULIAN_YEAR_DAYS, design_matrix, reference_epoch
 from ..astrometry.measurements import simulate
 from ..astrometry.noise import NoiseModel
@@ -156,15 +156,32 @@ def _evaluate(n0, b0, sigma_mas: float, s: CellSettings):
 
 
 def prior_curve(n0, b0, priors_mas, s: CellSettings) -> pd.DataFrame:
-    """Fraction inside, P-th percentile error and median semi-major axis per prior."""
-    rows = []
-    for sigma in priors_mas:
-        dpos, cov2 = _evaluate(n0, b0, float(sigma), s)
-        semi_major, _ = ellipse_semi_axes(cov2, s.confidence)
-        rows.append((float(sigma), fraction_inside(dpos, cov2, s.confidence),
-                     float(error_percentile(dpos, 100.0 * s.confidence)), float(np.median(semi_major))))
-    return pd.DataFrame(rows, columns=["sigma_prior_mas", "fraction_inside", "p_error_mas",
-                                       "median_semi_major_mas"])
+    """Fraction inside, P-th percentile error and median semi-major axis per prior.
+
+    All priors are solved in one batch (the stars' normal equations repeated once per
+    prior), which is several times faster than one call per prior for ~10^3 stars.
+    """
+    priors = np.asarray(priors_mas, float)
+    m, n = len(priors), n0.shape[0]
+    sol = solve_with_prior(np.tile(n0, (m, 1, 1)), np.tile(b0, (m, 1)), np.repeat(priors, n),
+                           ratio_R=s.ratio_R)
+    # True position offsets are zero at the reference epoch (Sect. 3.2).
+    dpos, cov2 = np.ascontiguousarray(sol.x[:, :2]), np.ascontiguousarray(sol.cov[:, :2, :2])
+    q = mahalanobis_sq(dpos, cov2).reshape(m, n)
+    k = chi2_threshold(s.confidence, 2)
+    valid = np.isfinite(q)
+    with np.errstate(invalid="ignore"):
+        frac = np.sum((q < k) & valid, axis=1) / np.maximum(valid.sum(axis=1), 1)
+    err = np.hypot(dpos[:, 0], dpos[:, 1]).reshape(m, n)
+    semi_major = ellipse_semi_axes(cov2, s.confidence)[0].reshape(m, n)
+    # A prior always gives a solution; the NaN-aware reductions (10x slower) only if not.
+    pct, med = (np.percentile, np.median) if valid.all() else (np.nanpercentile, np.nanmedian)
+    return pd.DataFrame({
+        "sigma_prior_mas": priors,
+        "fraction_inside": np.where(valid.any(axis=1), frac, np.nan),
+        "p_error_mas": pct(err, 100.0 * s.confidence, axis=1),
+        "median_semi_major_mas": med(semi_major, axis=1),
+    })
 
 
 def sigma_f90_from_curve(priors_mas, fraction, p: float, interpolation: str = "log") -> tuple[float, str]:

@@ -19,6 +19,7 @@ from ..errors import UserInputError
 from . import figures
 from .document import Document
 from .fit import fit_all
+from .secondary_section import secondary_section
 
 __all__ = ["build_report", "SECTION_BUILDERS", "sweep_section", "provenance_section"]
 
@@ -54,6 +55,10 @@ def sweep_section(doc: Document, run_dir: Path, prov: dict) -> None:
              f"{f90[['g_min', 'g_max']].drop_duplicates().shape[0]} G bins); sigma_F90 found in {n_ok} "
              f"(flags: {flags}). Confidence level P = {p:g}, R = {cfg.get('ratio_R')} /yr, "
              f"sigma_F90 fixed from the '{cfg.get('observations', {}).get('f90_case', 'two')}' case.")
+    n_bins = int(fit.terms["s0"].notna().sum())
+    if n_bins < 4:
+        doc.para(f"Only {n_bins} G bins have an Eq. 14 fit: the polynomials of Eqs. 15-17 need at least "
+                 "4 (s1 is cubic), so coefficients that cannot be determined are left empty.")
     doc.table(fit.coefficients, "Coefficients of Eqs. 15-17 (increasing powers of G): ours vs the paper's",
               {"fitted": ".5g", "paper": ".5g", "difference": "+.4g"})
     doc.table(fit.rms, "log10(sigma_F90 ours / paper formula) per G bin, cells with a valid sigma_F90",
@@ -132,7 +137,7 @@ def provenance_section(doc: Document, run_dir: Path, prov: dict) -> None:
 
 
 #: Extra sections by run kind; each takes (doc, run_dir, provenance dict).
-SECTION_BUILDERS: dict[str, list[Callable]] = {"f90_sweep": [sweep_section]}
+SECTION_BUILDERS: dict[str, list[Callable]] = {"f90_sweep": [sweep_section], "secondary": [secondary_section]}
 
 
 def build_report(run_dir) -> Path:

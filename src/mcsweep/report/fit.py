@@ -68,7 +68,12 @@ def fit_polynomials(terms: pd.DataFrame) -> dict[str, np.ndarray]:
 
 
 def evaluate_formula(coefficients, l_deg, b_deg, g) -> np.ndarray:
-    """sigma_F90 [mas] from Eqs. 14-17 with the given coefficients (no clamping in G)."""
+    """sigma_F90 [mas] from Eqs. 14-17 with the given coefficients (no clamping in G).
+
+    NaN where a polynomial could not be fitted (fewer G bins than its degree + 1).
+    """
+    if not all(np.all(np.isfinite(np.asarray(coefficients[k], float))) for k in ("s0", "s1", "s2")):
+        return np.full(np.broadcast(np.asarray(l_deg), np.asarray(b_deg), np.asarray(g)).shape, np.nan)
     return sigma_from_coefficients(l_deg, b_deg, g, coefficients)
 
 

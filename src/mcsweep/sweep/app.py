@@ -29,8 +29,22 @@ register_configs()
 
 
 def _remove_fresh_outputs(run_dir: Path) -> None:
-    """Undo what Hydra wrote into a run directory this job created (no partial output)."""
-    shutil.rmtree(run_dir / ".hydra", ignore_errors=True)
+    """Undo what this job and Hydra wrote into a run directory it created (no partial output)."""
+    from .runner import OUTPUTS
+
+    names = [".hydra", *OUTPUTS]
+    try:  # the secondary experiment declares its own outputs
+        from ..experiments import secondary
+
+        names += list(getattr(secondary, "OUTPUTS", ()))
+    except ImportError:
+        pass
+    for name in names:
+        p = run_dir / name
+        if p.is_dir():
+            shutil.rmtree(p, ignore_errors=True)
+        else:
+            p.unlink(missing_ok=True)
     for log in run_dir.glob("*.log"):
         log.unlink(missing_ok=True)
     try:

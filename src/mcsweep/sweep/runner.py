@@ -19,8 +19,9 @@ from astropy.time import Time
 from tqdm.auto import tqdm
 
 from ..astrometry.noise import NoiseModel
-from ..experiments.pencil_beam import CellSettings, run_cell
-from ..population import make_source
+from ..errors import UserInputError
+from ..experiments.pencil_beam import CellSettings, beam_radius, run_cell
+from ..population import CatalogueSource, make_source
 from ..scanning import ScanningLaw, find_transits
 from .cells import Cell, Direction, enumerate_cells, sky_directions
 from .execution import executor
@@ -28,10 +29,14 @@ from .provenance import Provenance
 from .schema import Config
 from .store import CellStore
 
-__all__ = ["build_settings", "run_sweep", "showcase_cell", "CELLS_DIR", "SHOWCASE_DIR"]
+__all__ = ["build_settings", "run_sweep", "showcase_cell", "CELLS_DIR", "SHOWCASE_DIR", "OUTPUTS"]
 
 CELLS_DIR = "cells"
 SHOWCASE_DIR = "showcase"
+#: Everything a sweep and its report write into a run directory (removed again when a
+#: fresh run stops on a user error, so that no partial output is left).
+OUTPUTS = (CELLS_DIR, SHOWCASE_DIR, "figures", "cells.parquet", "f90_cells.csv", "coefficients.csv",
+           "rms_dex.csv", "eq14_terms.csv", "report.md", "report.html", "provenance.json")
 
 
 def _tcb_jd(iso: str) -> float:
@@ -126,10 +131,26 @@ def run_sweep(config: Config, raw_cfg: dict, run_dir: Path, *, prov: Provenance 
     store = CellStore(run_dir / CELLS_DIR, prov.hash)
     show = showcase_cell(config) if config.experiment.showcase.enabled else None
     show_store = CellStore(run_dir / SHOWCASE_DIR, prov.hash)
+    for st in (store, show_store):  # run start: no other writer may be active in run_dir
+        st.remove_stale_temporaries()
 
     todo = [c for c in cells if store.read(c.cell_id) is None]
+    source = _source(_freeze(_pop_dict(config)))
+    if isinstance(source, CatalogueSource):
+        # A catalogue may not cover every cell: say so before any cell is computed.
+        for c in todo + ([show] if show is not None else []):
+            d = c.direction
+            radius, n = beam_radius(source, d.l_deg, d.b_deg, c.g_min, c.g_max, settings)
+            if n < 1:
+                raise UserInputError(
+                    f"catalogue {source.path.name}: no star within {radius:.3g} deg of (l, b) = "
+                    f"({d.l_deg:.2f}, {d.b_deg:.2f}) with {c.g_min:g} <= phot_g_mean_mag < {c.g_max:g}; "
+                    "expected a catalogue covering every cell of the sweep (choose sky/magnitudes to match)")
     show_todo = show is not None and (show_store.read(show.cell_id) is None
                                       or show_store.read(show.cell_id + "_scatter") is None)
+    # Inputs are valid: claim the run directory for this config before any cell is written,
+    # so a killed run is resumed (and guarded against other configs) like a finished one.
+    prov.write(with_manifest=False)
     dirs = {c.direction.index: c.direction for c in todo}
     if show_todo:
         dirs[show.direction.index] = show.direction

@@ -95,5 +95,13 @@ class CellStore:
             return None
         return df
 
+    def remove_stale_temporaries(self) -> int:
+        """Delete temporaries left by writes that were killed (never valid results)."""
+        n = 0
+        for p in self.directory.glob(".*.tmp") if self.directory.exists() else ():
+            p.unlink(missing_ok=True)
+            n += 1
+        return n
+
     def is_done(self, cell_id: str) -> bool:
         return self.read(cell_id) is not None

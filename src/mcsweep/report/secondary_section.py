@@ -1,0 +1,59 @@
+"""Report section of the secondary-solution experiment (paper Sect. 4.1, Table 2).
+
+Reads ``table2.csv``, ``no_prior.csv`` and ``secondary_summary.csv`` of a run
+directory (written by :func:`mcsweep.experiments.secondary.run_secondary`) and adds our
+Table 2 next to the paper's, the five-parameter solution without prior, and the
+per-class statistics of the diluted observation histories.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pandas as pd
+
+from ..experiments.secondary_table import table2_layout
+from .document import Document
+
+__all__ = ["secondary_section"]
+
+
+def secondary_section(doc: Document, run_dir: Path, prov: dict) -> None:
+    """Add the Table 2 section to ``doc`` (see module notes)."""
+    run_dir = Path(run_dir)
+    cfg = prov.get("config", {})
+    sec = cfg.get("experiment", {}).get("secondary", {})
+    p = float(cfg.get("confidence", 0.9))
+    table = pd.read_csv(run_dir / "table2.csv")
+    summary = pd.read_csv(run_dir / "secondary_summary.csv")
+    doc.heading("Secondary solution of stars with diluted histories (paper Sect. 4.1, Table 2)")
+    doc.para(
+        f"{len(summary)} magnitude classes of {int(summary['n_stars'].max())} stars each (the brightest "
+        f"over the whole sky fainter than G = {', '.join(map(str, summary['g_class']))}); "
+        f"{sec.get('mission_years')} years of FoV transits from {sec.get('mission_start')} (TCB) with the "
+        f"'{cfg.get('scanning', {}).get('name')}' scanning law, each transit removed with probability "
+        f"{sec.get('dilution')}; attitude known. Priors: sigma_F90 from '{sec.get('f90_formula')}', "
+        f"R = {cfg.get('ratio_R')} /yr. Fractions are inside the P = {p:g} confidence ellipse; errors are "
+        "the 90th percentile of |estimated - true position|. Each cell: ours (paper).")
+    for subset, df in table2_layout(table, p).items():
+        n = table[table["subset"] == subset].drop_duplicates("g_class")
+        counts = ", ".join(f"G~{g}: {int(v)}" for g, v in zip(n["g_class"], n["n_stars"]))
+        title = "<= 4" if subset == "<=4" else "> 4"
+        doc.table(df, f"Table 2, stars with {title} retained field-of-view transits ({counts} stars)")
+    no_prior_file = run_dir / "no_prior.csv"
+    if no_prior_file.exists():
+        doc.table(pd.read_csv(no_prior_file),
+                  "Five-parameter solution without prior: stars it cannot solve (singular or condition "
+                  "number > 1e6) and, for the others, fraction inside and 90th percentile [mas]",
+                  {"fraction_unsolved": ".3f", "fraction_inside": ".3f", "p90_error_mas": ".3g"})
+    cols = ["g_class", "n_stars", "g_faintest", "mean_transits_undiluted", "mean_fov_retained",
+            "mean_fov_retained_observed", "n_no_transit", "n_le4", "n_gt4", "median_sigma_f90_mas"]
+    doc.table(summary[[c for c in cols if c in summary]],
+              "Observation histories per class (paper: ~4.4 retained transits per star on average)",
+              {"g_faintest": ".4f", "mean_transits_undiluted": ".1f", "mean_fov_retained": ".2f",
+               "mean_fov_retained_observed": ".2f", "median_sigma_f90_mas": ".3g"})
+    unsolved = [c for c in summary.columns if c.startswith("n_unsolved_") and c != "n_unsolved_no_prior"]
+    bad = summary[unsolved].to_numpy().sum() if unsolved else 0
+    if bad:
+        doc.para(f"Warning: {int(bad)} prior or position-only solutions were singular and are left out of "
+                 "the fractions (columns n_unsolved_* of secondary_summary.csv).")

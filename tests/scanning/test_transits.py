@@ -21,6 +21,8 @@ REF_ANGLE_TOLERANCE_DEG = 1e-4  # deg (psi and zeta)
 PA_TOLERANCE_DEG = 1e-6  # deg, psi vs astropy's position angle
 FOV_LAG_TOLERANCE_S = 5.0  # s, deviation of the P -> F lag from Gamma / omega_z
 OBS_TOLERANCE_AU = 1e-12  # au
+CONVERGENCE_TIME_S = 1e-3  # s, residual of phi(t) = FoV azimuth at the returned time, as time
+CONVERGENCE_ZETA_DEG = 1e-8  # deg, returned zeta vs the attitude at the returned time
 MEAN_COUNT_RANGE_5YR = (85.0, 90.0)  # FoV transits per star over 5 years (issue #3)
 DILUTION_TOLERANCE = 0.005  # absolute, kept fraction (> 5 sigma for ~1e5 transits)
 DEAD_TIME_TOLERANCE = 0.03  # absolute, lost fraction of transits
@@ -90,6 +92,18 @@ def test_transits_lie_within_the_acceptance_and_at_the_fov_azimuth(sky_5yr):
         z = df.loc[df["fov"] == fov, "ac_offset_deg"]
         assert z.min() > lo and z.max() < hi
         assert z.min() < lo + 0.01 and z.max() > hi - 0.01  # the whole acceptance is used
+
+
+def test_every_transit_time_is_converged(sky_5yr):
+    # All ~350 000 transits: evaluate the attitude at the returned time (no search involved).
+    ra, dec, df = sky_5yr
+    law = ScanningLaw()
+    u_ecl = SkyCoord(ra=ra * u.deg, dec=dec * u.deg).cartesian.xyz.value.T @ ECLIPTIC_TO_ICRS
+    psi_w, z, omega = attitude_for(law).srs_components(u_ecl[df["source_index"]], df["tcb_jd"].to_numpy())
+    azimuth = np.where(df["fov"] == "P", 0.5, -0.5) * math.radians(law.basic_angle_deg)
+    resid = np.mod(psi_w - omega - azimuth + math.pi, 2 * math.pi) - math.pi
+    assert np.max(np.abs(resid)) / law.spin_rate_rad_day * 86400 < CONVERGENCE_TIME_S
+    assert np.max(np.abs(np.degrees(np.arcsin(z)) - df["ac_offset_deg"])) < CONVERGENCE_ZETA_DEG
 
 
 def test_scan_angle_is_astropy_position_angle_of_the_scan_direction(sky_5yr):

@@ -10,24 +10,26 @@ within ~0.4 deg of the scan great circle, i.e. for a few hours around each zero 
 
 Method (vectorised over stars in chunks, no loop over stars or transits):
 
-1. *Nodes.* z(t) is sampled every ~5.6 h (:data:`NODE_STEP_SPIN_FRACTION` of a spin
-   period, less twice :data:`PREDICTION_WINDOW_DAYS`) over the interval.
+1. *Nodes.* z(t) is sampled every ~0.98 day (:data:`NODE_STEP_SPIN_FRACTION` spin
+   periods, less twice :data:`PREDICTION_WINDOW_DAYS`) over the interval.
 2. *Cells.* For a chunk of stars, ``F = U Z^T`` (float32) gives f at every node. A
    cell ``[t_k, t_k+1)`` can hold an accepted transit only if f changes sign in it or
    ``min(|f_k|, |f_k+1|) <= sin(max |zeta|) + M2 dt**2 / 8``, where M2 bounds
    ``|f''| <= |z''|`` (linear-interpolation error bound). All other cells are dropped.
 3. *Candidates.* In a kept cell, the times at which phi passes each FoV azimuth are
-   predicted from the azimuth at the cell start and the inertial spin rate omega_z
-   (``d phi / dt = -omega_z`` up to terms ~ omega_precession * tan zeta), and f at those
-   times from the cubic Hermite interpolant of f and f' at the cell's nodes
-   (error < 1e-8). Candidates whose predicted zeta lies outside the acceptance by more
-   than :data:`PRUNE_MARGIN` are dropped.
-4. *Refinement.* Two Newton steps on ``phi(t) = FoV azimuth`` with the full attitude
-   (interpolated nu, closed-form Omega and lambda_s) give the transit time; the steps
-   shrink by a factor ~1e-4 each (the first is < 1 s), so the time is exact to far below
-   a microsecond. zeta and the scan angle are evaluated at the last iterate (< 1e-4 s
-   away). A transit is kept if zeta is accepted and its time lies in the cell that
-   proposed it, so each transit is found exactly once.
+   predicted from phi at the two nodes: ``phi + omega_z (t - t_k)`` varies slowly
+   (``d phi / dt = -omega_z`` up to terms ~ omega_precession * tan zeta) and is
+   interpolated linearly, which predicts the passages to ~1 s. f there comes from the
+   cubic Hermite interpolant of f and f' at the cell's nodes (error < 1e-6).
+   Candidates whose predicted sin(zeta) lies outside the acceptance by more than
+   :data:`PRUNE_MARGIN` are dropped.
+4. *Refinement.* One Newton step on ``phi(t) = FoV azimuth`` with the full attitude
+   (interpolated nu, closed-form Omega and lambda_s) at the predicted time. Since
+   ``d phi / dt`` differs from the interpolated rate by < 1e-4 relative, the step leaves
+   an error < 1e-4 s (checked in the tests). zeta is carried to the root with the
+   Hermite f'; the scan angle uses the spin axis at the final time. A transit is kept
+   if zeta is accepted and its time lies in the cell that proposed it, so each transit
+   is found exactly once.
 
 Transit times are TCB Julian dates at Gaia. The observer's barycentric position at
 each transit comes from :func:`mcsweep.scanning.ephemeris.gaia_position_au` (one
@@ -67,9 +69,10 @@ TRANSIT_COLUMNS = ("source_index", "tcb_jd", "fov", "scan_angle_deg", "ac_offset
 #: Candidates predicted up to this much outside their cell are still refined [day]
 #: (the prediction is good to ~1 s; this is 170 s).
 PREDICTION_WINDOW_DAYS = 0.002
-#: Spacing of the spin-axis nodes, as a fraction of the spin period minus twice the
-#: prediction window, so that a cell proposes at most one candidate per FoV.
-NODE_STEP_SPIN_FRACTION = 0.95
+#: Spacing of the spin-axis nodes in spin periods (minus twice the prediction window):
+#: ~0.98 day. Coarser nodes mean fewer cells to test per star but more candidates per
+#: cell; 3-8 spins are equally fast, 1 spin is ~1.8x slower.
+NODE_STEP_SPIN_FRACTION = 3.95
 #: Margin on sin(zeta) when pruning predicted candidates [rad]. The predicted f is good
 #: to < 1e-6 (Hermite error < 1e-8, transit-time prediction error ~1 s x |df/dt| < 0.15 rad/day).
 PRUNE_MARGIN = 1e-4
@@ -207,39 +210,45 @@ def _chunk_transits(u_ecl, north_ecl, east_ecl, first_index, nodes: _Nodes, att:
     t_k = nodes.t0 + nodes.step * cell
     f0, f1 = _dot(u, nodes.z[cell]), _dot(u, nodes.z[cell + 1])
     d0, d1 = _dot(u, nodes.z_dot[cell]) * nodes.step, _dot(u, nodes.z_dot[cell + 1]) * nodes.step
+    # Azimuth phi at both nodes; its slow part phi + omega_z (t - t_k) is interpolated linearly.
     phi0 = np.arctan2(_dot(u, nodes.b[cell]), _dot(u, nodes.a[cell])) - nodes.omega[cell]
+    phi1 = np.arctan2(_dot(u, nodes.b[cell + 1]), _dot(u, nodes.a[cell + 1])) - nodes.omega[cell + 1]
+    slow = np.mod(phi1 - phi0 + omega_z * nodes.step + math.pi, _TWO_PI) - math.pi
+    rate = omega_z - slow / nodes.step  # -d phi / dt across the cell [rad/day]
     # --- 3. candidates: predicted FoV passages and the Hermite-interpolated f there
     window = PREDICTION_WINDOW_DAYS
-    dphi_window = window * omega_z
-    n_j = math.ceil((nodes.step + 2.0 * window) * omega_z / _TWO_PI)
-    cand_pair, cand_fov, cand_t = [], [], []
+    n_j = math.ceil((nodes.step + 2.0 * window) * float(np.max(rate, initial=omega_z)) / _TWO_PI)
+    cand_pair, cand_fov, cand_t, cand_df = [], [], [], []
     for fov_code, azimuth, (lo, hi) in _fov_specs(law):
-        base = np.mod(phi0 - azimuth + dphi_window, _TWO_PI) - dphi_window
+        base = np.mod(phi0 - azimuth + rate * window, _TWO_PI) - rate * window
         s_lo, s_hi = math.sin(lo) - PRUNE_MARGIN, math.sin(hi) + PRUNE_MARGIN
         for j in range(n_j):
-            tc = t_k + (base + _TWO_PI * j) / omega_z
+            tc = t_k + (base + _TWO_PI * j) / rate
             tau = (tc - t_k) / nodes.step
             tau2, om = tau * tau, 1.0 - tau
             fc = ((1.0 + 2.0 * tau) * om * om * f0 + tau * om * om * d0
                   + tau2 * (3.0 - 2.0 * tau) * f1 + tau2 * (tau - 1.0) * d1)
             idx = np.flatnonzero((tc < t_k + nodes.step + window) & (fc >= s_lo) & (fc <= s_hi))
+            tau, tau2 = tau[idx], tau2[idx]
+            # df/dt of the Hermite interpolant, to carry zeta from the evaluation to the root
+            dfc = (6.0 * tau * (tau - 1.0) * (f0[idx] - f1[idx]) + (1.0 - 4.0 * tau + 3.0 * tau2) * d0[idx]
+                   + (3.0 * tau2 - 2.0 * tau) * d1[idx]) / nodes.step
             cand_pair.append(idx)
             cand_fov.append(np.full(idx.size, fov_code, dtype=np.int8))
             cand_t.append(tc[idx])
+            cand_df.append(dfc)
     pair = np.concatenate(cand_pair)
     fov = np.concatenate(cand_fov)
-    t = np.concatenate(cand_t)
-    # --- 4. refinement: two Newton steps on phi(t) = FoV azimuth, d phi / dt = -omega_z
+    t_eval = np.concatenate(cand_t)
+    f_rate = np.concatenate(cand_df)
+    # --- 4. refinement: one Newton step on phi(t) = FoV azimuth with the full attitude
     half = 0.5 * math.radians(law.basic_angle_deg)
     azimuth = np.where(fov == 1, -half, half)
-    uc = u[pair]
-    for _ in range(2):
-        lam, nu, omega = att.lam_nu_omega(t)
-        psi_w, zc = scan_frame_components(uc, lam, nu, xi)
-        resid = np.mod(psi_w - omega - azimuth + math.pi, _TWO_PI) - math.pi
-        t = t + resid / omega_z
-    # zeta, lam, nu are those of the last evaluation, < 1e-4 s before the returned t.
-    zeta = np.arcsin(np.clip(zc, -1.0, 1.0))
+    lam, nu, omega = att.lam_nu_omega(t_eval)
+    psi_w, zc = scan_frame_components(u[pair], lam, nu, xi)
+    resid = np.mod(psi_w - omega - azimuth + math.pi, _TWO_PI) - math.pi
+    t = t_eval + resid / rate[pair]
+    zeta = np.arcsin(np.clip(zc + f_rate * (t - t_eval), -1.0, 1.0))
     p_lo, p_hi = (math.radians(v) for v in law.ac_limits_p_deg)
     f_lo, f_hi = (math.radians(v) for v in law.ac_limits_f_deg)
     is_f = fov == 1
@@ -255,12 +264,14 @@ def _chunk_transits(u_ecl, north_ecl, east_ecl, first_index, nodes: _Nodes, att:
     local = star[pair[idx]]
     src, t, fov, zeta = src[idx], t[idx], fov[idx], zeta[idx]
     # scan position angle psi = atan2(d . north, d . east), d = z x u, = atan2(z . north, -z . east)
-    z_spin = spin_axis_from_angles(lam[idx], nu[idx], xi)
+    lam_t, nu_t, _ = att.lam_nu_omega(t)
+    z_spin = spin_axis_from_angles(lam_t, nu_t, xi)
     psi = np.mod(np.degrees(np.arctan2(_dot(z_spin, north_ecl[local]), -_dot(z_spin, east_ecl[local]))),
                  360.0)
-    order = np.lexsort((t, src))
+    # Pairs are in (star, time) order and every kept transit lies in its pair's cell.
+    order = np.argsort(pair[idx] + (t - t_k[pair[idx]]) / nodes.step, kind="stable")
     src, t, fov, psi, zeta = src[order], t[order], fov[order], psi[order], zeta[order]
-    int_t, flt_t = (np.int32, np.float32) if opts["compact"] else (np.int64, np.float64)
+    int_t, grp_t, flt_t = (np.int32, np.int16, np.float32) if opts["compact"] else (np.int64, np.int64, np.float64)
     obs = gaia_position_au(t) if t.size else np.empty((0, 3))
     return {
         "source_index": src.astype(int_t),
@@ -268,7 +279,7 @@ def _chunk_transits(u_ecl, north_ecl, east_ecl, first_index, nodes: _Nodes, att:
         "fov_code": fov,
         "scan_angle_deg": psi.astype(flt_t),
         "ac_offset_deg": np.degrees(zeta).astype(flt_t),
-        "group": assign_groups(src, t, fov == 1, lag_days=law.fov_lag_days).astype(int_t),
+        "group": assign_groups(src, t, fov == 1, lag_days=law.fov_lag_days).astype(grp_t),
         "obs_x_au": obs[:, 0].astype(flt_t),
         "obs_y_au": obs[:, 1].astype(flt_t),
         "obs_z_au": obs[:, 2].astype(flt_t),
@@ -335,9 +346,9 @@ def find_transits(ra_deg, dec_deg, start, end, *, law: ScanningLaw | None = None
     n_jobs : int, keyword-only
         Processes for joblib (1 = in process; -1 = all cores). Results do not depend on it.
     compact : bool, keyword-only
-        Store ``source_index`` and ``group`` as int32 and the angles and observer
-        coordinates as float32 (precision 1e-5 deg and 1e-7 au), to hold ~10^8 transits
-        in memory; ``tcb_jd`` stays float64.
+        Store ``source_index`` as int32, ``group`` as int16 and the angles and observer
+        coordinates as float32 (precision 1e-5 deg and 1e-7 au), 35 instead of 65 bytes
+        per transit, to hold ~10^8 transits in memory; ``tcb_jd`` stays float64.
 
     Returns
     -------

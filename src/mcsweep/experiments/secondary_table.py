@@ -1,0 +1,207 @@
+"""Table 2 of the paper: the layout, the published values, and ours from per-star results.
+
+Michalik, Lindegren, Hobbs & Butkevich (2015, A&A 583, A68), Table 2 ("Simulation
+results for stars with 95 % diluted five year observation histories"): for the
+subsets of stars with <= 4 and > 4 retained field-of-view transits, per prior and
+magnitude class (G ~ 11, 15, 19), the fraction of actual position errors inside the
+90 % confidence ellipse computed from the formal covariance, and the 90th percentile
+of the actual position errors (estimated minus true position) in mas.
+
+The per-star results (one row per star, written by :mod:`mcsweep.experiments.secondary`)
+carry, per solution, ``inside_<col>`` (1 inside the P ellipse, 0 outside, -1 no
+solution) and ``err_<col>_mas`` (|estimated - true position|, NaN without solution).
+"""
+
+from __future__ import annotations
+
+from types import MappingProxyType
+from typing import Mapping, Sequence
+
+import numpy as np
+import pandas as pd
+
+__all__ = [
+    "PRIORS",
+    "SOLUTION_COLUMNS",
+    "SUBSETS",
+    "SUBSET_SPLIT",
+    "PRIOR_LABELS",
+    "PAPER_G_CLASSES",
+    "PAPER_TABLE2",
+    "TABLE2_COLUMNS",
+    "NO_PRIOR_COLUMNS",
+    "PERCENTILE",
+    "paper_value",
+    "subset_masks",
+    "table2_rows",
+    "no_prior_rows",
+    "g_label",
+    "table2_layout",
+    "table2_markdown",
+]
+
+#: The rows of Table 2, in the paper's order (values of the ``prior`` column).
+PRIORS = ("none", "0.01mas", "F90", "10F90", "1000mas")
+#: Column stem of each solution in the per-star results ("5p" = five parameters, no prior).
+SOLUTION_COLUMNS: Mapping[str, str] = MappingProxyType({
+    "none": "none", "0.01mas": "tight", "F90": "f90", "10F90": "f90x10", "1000mas": "loose",
+    "5p": "no_prior"})
+#: Subsets by number of retained FoV transits (values of the ``subset`` column).
+SUBSETS = ("<=4", ">4")
+#: Largest number of FoV transits of the first subset.
+SUBSET_SPLIT = 4
+#: Row labels of the paper's first column.
+PRIOR_LABELS: Mapping[str, str] = MappingProxyType({
+    "none": "none (2 parameters)", "0.01mas": "0.01 mas", "F90": "sigma_F90",
+    "10F90": "10 sigma_F90", "1000mas": "1000 mas"})
+#: Percentile of the actual position errors reported in Table 2 (its columns 5-7).
+PERCENTILE = 90.0
+
+#: The magnitude classes of Table 2.
+PAPER_G_CLASSES = (11.0, 15.0, 19.0)
+#: Table 2 of the paper, transcribed from the LaTeX source: (subset, prior) ->
+#: (fraction in the 90 % ellipse in per cent for G ~ 11, 15, 19;
+#:  90th percentile of the actual position errors in mas for G ~ 11, 15, 19).
+PAPER_TABLE2: Mapping[tuple[str, str], tuple[tuple[float, ...], tuple[float, ...]]] = MappingProxyType({
+    ("<=4", "none"): ((0.5, 1.8, 13.5), (33.0, 16.3, 15.2)),
+    ("<=4", "0.01mas"): ((1.5, 3.5, 14.3), (21.8, 12.1, 14.8)),
+    ("<=4", "F90"): ((90.1, 91.4, 91.2), (7.6, 4.3, 7.6)),
+    ("<=4", "10F90"): ((92.7, 93.3, 94.4), (8.4, 5.2, 10.5)),
+    ("<=4", "1000mas"): ((92.5, 93.0, 93.3), (8.6, 7.4, 15.5)),
+    (">4", "none"): ((0.3, 0.8, 8.6), (21.0, 11.3, 9.7)),
+    (">4", "0.01mas"): ((3.1, 5.4, 10.4), (6.7, 5.0, 8.9)),
+    (">4", "F90"): ((89.4, 89.9, 90.3), (0.2, 0.3, 1.6)),
+    (">4", "10F90"): ((89.5, 89.8, 90.5), (0.2, 0.3, 2.0)),
+    (">4", "1000mas"): ((89.5, 89.8, 90.0), (0.2, 0.3, 2.2)),
+})
+
+#: Columns of ``table2.csv``, in order.
+TABLE2_COLUMNS = ("subset", "prior", "g_class", "n_stars", "fraction_inside", "p90_error_mas",
+                  "paper_fraction_inside", "paper_p90_error_mas")
+#: Columns of ``no_prior.csv`` (five-parameter solution without prior), in order.
+NO_PRIOR_COLUMNS = ("subset", "g_class", "n_stars", "n_unsolved", "fraction_unsolved",
+                    "fraction_inside", "p90_error_mas")
+
+# The paper's confidence level; its fractions are comparable only at this P.
+_PAPER_P = 0.9
+
+
+def g_label(g: float):
+    """A class's G as written in the tables: 11 rather than 11.0 for whole magnitudes."""
+    g = float(g)
+    return int(g) if g.is_integer() else g
+
+
+def paper_value(subset: str, prior: str, g_class: float, confidence: float) -> tuple[float, float]:
+    """(fraction inside, 90th percentile in mas) of the paper's Table 2, NaN where not comparable.
+
+    The fraction is given only when ``confidence`` is the paper's 0.9 and the class is one
+    of :data:`PAPER_G_CLASSES`; the percentile whenever the class is.
+    """
+    try:
+        i = PAPER_G_CLASSES.index(float(g_class))
+    except ValueError:
+        return float("nan"), float("nan")
+    frac_pct, p90 = PAPER_TABLE2[(subset, prior)]
+    frac = frac_pct[i] / 100.0 if abs(confidence - _PAPER_P) < 1e-12 else float("nan")
+    return frac, p90[i]
+
+
+def subset_masks(n_fov: np.ndarray) -> dict[str, np.ndarray]:
+    """Stars with 1..4 and with more than 4 retained FoV transits (none: not solved)."""
+    n_fov = np.asarray(n_fov)
+    return {"<=4": (n_fov >= 1) & (n_fov <= SUBSET_SPLIT), ">4": n_fov > SUBSET_SPLIT}
+
+
+def _stats(stars: pd.DataFrame, sel: np.ndarray, col: str) -> tuple[int, float, float]:
+    """(stars without solution, fraction inside, 90th percentile of errors) of a selection."""
+    inside = stars[f"inside_{col}"].to_numpy()[sel]
+    err = stars[f"err_{col}_mas"].to_numpy()[sel].astype(np.float64)
+    ok = inside >= 0
+    frac = float(np.mean(inside[ok] == 1)) if ok.any() else float("nan")
+    p90 = float(np.percentile(err[ok], PERCENTILE)) if ok.any() else float("nan")
+    return int((~ok).sum()), frac, p90
+
+
+def table2_rows(per_class: Sequence[tuple[float, pd.DataFrame]], confidence: float) -> pd.DataFrame:
+    """``table2.csv``: one row per subset x prior x class, in the paper's order.
+
+    Parameters
+    ----------
+    per_class : sequence of (g_class, per-star results)
+    confidence : float
+        Confidence level P of the ellipses the ``inside_*`` columns were computed with.
+    """
+    rows = []
+    masks = [(g, stars, subset_masks(stars["n_fov"].to_numpy())) for g, stars in per_class]
+    for subset in SUBSETS:
+        for prior in PRIORS:
+            for g, stars, m in masks:
+                _, frac, p90 = _stats(stars, m[subset], SOLUTION_COLUMNS[prior])
+                pf, pp = paper_value(subset, prior, g, confidence)
+                rows.append((subset, prior, g_label(g), int(m[subset].sum()), frac, p90, pf, pp))
+    return pd.DataFrame(rows, columns=list(TABLE2_COLUMNS))
+
+
+def no_prior_rows(per_class: Sequence[tuple[float, pd.DataFrame]]) -> pd.DataFrame:
+    """``no_prior.csv``: the five-parameter solution without prior, per subset and class."""
+    rows = []
+    for subset in SUBSETS:
+        for g, stars in per_class:
+            sel = subset_masks(stars["n_fov"].to_numpy())[subset]
+            n_bad, frac, p90 = _stats(stars, sel, SOLUTION_COLUMNS["5p"])
+            n = int(sel.sum())
+            rows.append((subset, g_label(g), n, n_bad, n_bad / n if n else float("nan"), frac, p90))
+    return pd.DataFrame(rows, columns=list(NO_PRIOR_COLUMNS))
+
+
+def _cell(ours: float, paper: float, fmt: str, scale: float = 1.0) -> str:
+    o = "–" if not np.isfinite(ours) else format(ours * scale, fmt)
+    return o if not np.isfinite(paper) else f"{o} ({format(paper * scale, fmt)})"
+
+
+def table2_layout(table: pd.DataFrame, confidence: float) -> dict[str, pd.DataFrame]:
+    """The paper's layout of ``table2.csv``: per subset, priors x (fraction | percentile) per class.
+
+    Every cell reads ``ours (paper)``; fractions in per cent, percentiles in mas.
+    """
+    classes = list(dict.fromkeys(table["g_class"]))
+    pct = f"{100 * confidence:g}"
+    out = {}
+    for subset in SUBSETS:
+        part = table[table["subset"] == subset]
+        rows = []
+        for prior in PRIORS:
+            r = part[part["prior"] == prior].set_index("g_class")
+            row = {"prior sigma_plx,p": PRIOR_LABELS[prior]}
+            for g in classes:
+                row[f"in {pct} % ellipse, G~{g} [%]"] = _cell(r.at[g, "fraction_inside"],
+                                                              r.at[g, "paper_fraction_inside"], ".1f", 100.0)
+            for g in classes:
+                row[f"p90 error, G~{g} [mas]"] = _cell(r.at[g, "p90_error_mas"], r.at[g, "paper_p90_error_mas"],
+                                                       ".3g")
+            rows.append(row)
+        out[subset] = pd.DataFrame(rows)
+    return out
+
+
+def _markdown_table(df: pd.DataFrame) -> list[str]:
+    cols = list(map(str, df.columns))
+    lines = ["| " + " | ".join(cols) + " |", "|" + "|".join("---" for _ in cols) + "|"]
+    lines += ["| " + " | ".join(map(str, row)) + " |" for row in df.itertuples(index=False)]
+    return lines
+
+
+def table2_markdown(table: pd.DataFrame, confidence: float, notes: Sequence[str] = ()) -> str:
+    """``table2.md``: our Table 2 next to the paper's (in parentheses), one table per subset."""
+    counts = table.drop_duplicates(["subset", "g_class"]).set_index(["subset", "g_class"])["n_stars"]
+    lines = ["# Table 2: stars with 95 % diluted observation histories (ours, paper in parentheses)", ""]
+    lines += [f"{n}" for n in notes]
+    if notes:
+        lines.append("")
+    for subset, df in table2_layout(table, confidence).items():
+        n = ", ".join(f"G~{g}: {int(v)}" for (s, g), v in counts.items() if s == subset)
+        title = "<= 4" if subset == "<=4" else "> 4"
+        lines += [f"## Subset of stars with {title} field-of-view transits ({n} stars)", ""]
+        lines += _markdown_table(df) + [""]
+    return "\n".join(lines)

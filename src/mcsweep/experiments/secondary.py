@@ -408,6 +408,7 @@ def run_secondary(config, raw_cfg: dict, run_dir, *, prov=None) -> Path:
                                                  np.random.default_rng(_seq(settings.seed, _POPULATION,
                                                                             class_key(g)))))
                    for g in sec.g_classes]
+        del source  # the galaxy model's whole-sky tables (~0.5 GB) are not needed any more
     chunk = BLOCK_STARS * math.ceil(sec.chunk_stars / BLOCK_STARS)
     store = CellStore(run_dir / CHUNKS_DIR, prov.hash)
     for tmp in store.directory.glob(".*.tmp"):  # left by a killed write, never a result

@@ -72,7 +72,7 @@ def plot_fig4_coefficients(fit: FitResult, path: Path) -> Path:
     ax.set_xlabel("G [mag]")
     ax.set_ylabel("coefficient [dex]")
     ax.set_title("Coefficients of Eq. 14 against G")
-    ax.legend(fontsize=7, ncol=3)
+    ax.legend(fontsize=7, ncol=3, loc="lower left")
     return _save(fig, path)
 
 

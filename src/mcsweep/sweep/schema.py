@@ -11,6 +11,7 @@ the value and what is accepted.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import Any, Dict, List, Optional
@@ -18,6 +19,7 @@ from typing import Any, Dict, List, Optional
 from hydra.core.config_store import ConfigStore
 
 from ..errors import UserInputError
+from ..scanning.law import ScanningLaw
 
 __all__ = [
     "SkyConf",
@@ -40,6 +42,21 @@ __all__ = [
 def _require(ok: bool, key: str, value: Any, accepted: str) -> None:
     if not ok:
         raise UserInputError(f"{key}={value!r} is not accepted; expected {accepted}")
+
+
+def _tcb_jd(key: str, iso: str) -> float:
+    """TCB Julian date of an ISO date inside the observer-ephemeris table, else a one-line error."""
+    from astropy.time import Time
+
+    from ..scanning.ephemeris import TABLE_END_JD_TCB, TABLE_START_JD_TCB
+
+    try:
+        jd = float(Time(str(iso), format="isot", scale="tcb").jd)
+    except ValueError:
+        raise UserInputError(f"{key}={iso!r} is not accepted; expected an ISO date such as "
+                             "'2015-01-01T00:00:00' (TCB)") from None
+    _require(TABLE_START_JD_TCB <= jd <= TABLE_END_JD_TCB, key, iso, "a date within 2013-2031 (TCB)")
+    return jd
 
 
 @dataclass
@@ -135,6 +152,9 @@ class ObservationsConf:
                  f"one of the cases {sorted(self.cases)}")
         _require(self.reference_epoch in ("mean", "fixed"), "observations.reference_epoch",
                  self.reference_epoch, "'mean' or 'fixed'")
+        start, end = (_tcb_jd(f"observations.{k}", getattr(self, k)) for k in ("start", "end"))
+        _tcb_jd("observations.fixed_epoch", self.fixed_epoch)
+        _require(end > start, "observations.end", self.end, f"a date after observations.start={self.start}")
 
 
 @dataclass
@@ -181,34 +201,29 @@ class PopulationConf:
             _require(bool(self.path), "population.path", self.path, "the path of a catalogue file")
 
 
+_LAW = ScanningLaw()
+
+
 @dataclass
 class ScanningConf:
-    """Scanning law; fields of mcsweep.scanning.ScanningLaw (Sect. 3.1; conf/scanning/)."""
+    """Scanning law; the fields of mcsweep.scanning.ScanningLaw (Sect. 3.1; conf/scanning/).
 
-    name: str = "flown"
-    spin_rate_arcsec_s: float = 59.960499
-    solar_aspect_deg: float = 45.0
-    precession_S: float = 4.220747
-    ref_epoch_tcb: str = "2015-01-01T00:00:00"
-    nu_ref_deg: float = 323.3708
-    omega_ref_deg: float = 95.1324
-    basic_angle_deg: float = 106.5
-    ac_limits_p_deg: List[float] = field(default_factory=lambda: [-0.41, 0.285])
-    ac_limits_f_deg: List[float] = field(default_factory=lambda: [-0.285, 0.41])
+    Defaults and range checks are ScanningLaw's own (the flown law).
+    """
+
+    name: str = _LAW.name
+    spin_rate_arcsec_s: float = _LAW.spin_rate_arcsec_s
+    solar_aspect_deg: float = _LAW.solar_aspect_deg
+    precession_S: float = _LAW.precession_S
+    ref_epoch_tcb: str = _LAW.ref_epoch_tcb
+    nu_ref_deg: float = _LAW.nu_ref_deg
+    omega_ref_deg: float = _LAW.omega_ref_deg
+    basic_angle_deg: float = _LAW.basic_angle_deg
+    ac_limits_p_deg: List[float] = field(default_factory=lambda: list(_LAW.ac_limits_p_deg))
+    ac_limits_f_deg: List[float] = field(default_factory=lambda: list(_LAW.ac_limits_f_deg))
 
     def __post_init__(self):
-        _require(self.spin_rate_arcsec_s > 0, "scanning.spin_rate_arcsec_s", self.spin_rate_arcsec_s,
-                 "a positive spin rate in arcsec/s")
-        _require(0 < self.solar_aspect_deg < 90, "scanning.solar_aspect_deg", self.solar_aspect_deg,
-                 "an angle in (0, 90) deg")
-        _require(self.precession_S > 1, "scanning.precession_S", self.precession_S,
-                 "a precession constant > 1 (the NSL needs S > |cos nu|)")
-        _require(0 < self.basic_angle_deg < 180, "scanning.basic_angle_deg", self.basic_angle_deg,
-                 "an angle in (0, 180) deg")
-        for key in ("ac_limits_p_deg", "ac_limits_f_deg"):
-            v = list(getattr(self, key))
-            _require(len(v) == 2 and v[0] < v[1] and all(abs(x) < 5 for x in v), f"scanning.{key}", v,
-                     "[low, high] across-scan limits in deg with low < high")
+        ScanningLaw.from_config(dataclasses.asdict(self))  # raises UserInputError
 
 
 @dataclass

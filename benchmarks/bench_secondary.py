@@ -89,7 +89,7 @@ def main(argv=None) -> int:
     ap.add_argument("--n-jobs", type=int, default=2)
     ap.add_argument("--interval", type=float, default=0.1, help="memory sampling interval [s]")
     ap.add_argument("--out", default=None, help="directory for the run directories (default: a temporary one)")
-    ap.add_argument("extra", nargs="*", help="further mcsweep overrides, e.g. experiment.secondary.chunk_stars=20000")
+    ap.add_argument("extra", nargs="*", help="further mcsweep overrides, e.g. execution.chunk_stars=20000")
     args = ap.parse_args(argv)
     sizes = [int(s) for s in args.sizes.split(",")]
     out = Path(args.out) if args.out else Path(tempfile.mkdtemp(prefix="bench_secondary_"))

@@ -18,6 +18,7 @@ from mcsweep.experiments.secondary_table import (NO_PRIOR_COLUMNS, PAPER_TABLE2,
 from mcsweep.population import CatalogueSource, GalaxyModel
 from mcsweep.prior import PAPER_COEFFICIENTS, sigma_f90
 from mcsweep.sweep.provenance import Provenance
+from mcsweep.sweep.secondary_runner import run_secondary
 from mcsweep.sweep.validate import compose_config, to_config
 
 BIN = Path(sys.executable).parent
@@ -100,9 +101,9 @@ def _per_star(run_dir: Path) -> pd.DataFrame:
 def test_same_results_whatever_the_chunk_size_and_n_jobs(cli_run, tmp_path):
     # In process, sequential, 1024-star chunks (3 per class) against the CLI's 2 workers
     # and one chunk per class.
-    config, raw = _config(["experiment.secondary.chunk_stars=1000", "execution.n_jobs=1"])
+    config, raw = _config(["execution.chunk_stars=1000", "execution.n_jobs=1"])
     out = tmp_path / "chunked"
-    S.run_secondary(config, raw, out, prov=Provenance(out, raw, kind="secondary"))
+    run_secondary(config, raw, out, prov=Provenance(out, raw, kind="secondary"))
     assert len(list((out / S.CHUNKS_DIR).glob("class*.parquet"))) == 3 * 3
     for name in ("table2.csv", "no_prior.csv", "secondary_summary.csv", "table2.md"):
         assert (out / name).read_bytes() == (cli_run / name).read_bytes(), name

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 from astropy import units as u
-from astropy.coordinates import ICRS, CartesianDifferential, SkyCoord
+from astropy.coordinates import ICRS, SkyCoord
 
 from mcsweep.population.galaxy import parameters as P
 from mcsweep.population.galaxy.density import component_shape, heliocentric_to_galactocentric

@@ -1,7 +1,6 @@
 """Pieces of the validation script that are cheap enough for the test suite."""
 
 import numpy as np
-import pytest
 
 from mcsweep.population import GalaxyModel
 from mcsweep.population.validate import healpix48_centres, ratio_table, sigma_f90_paper

@@ -57,13 +57,11 @@ from ..astrometry.measurements import simulate
 from ..astrometry.noise import G_MAX, NoiseModel
 from ..astrometry.solve import normal_equations, solve_no_prior, solve_position_only, solve_with_prior
 from ..errors import UserInputError
-from ..population import make_source
 from ..prior import G_FIT_MAX, PAPER_COEFFICIENTS, sigma_f90, sigma_from_coefficients
 from ..scanning import ScanningLaw, find_transits
 from ..scanning.ephemeris import TABLE_END_JD_TCB, TABLE_START_JD_TCB
 from ..scanning.timeline import dilution_key, keep_after_dilution
-from .secondary_table import (SOLUTION_COLUMNS, g_label, no_prior_rows, table2_markdown,
-                              table2_rows)
+from .secondary_table import SOLUTION_COLUMNS, g_label
 
 __all__ = [
     "BLOCK_STARS",
@@ -76,7 +74,6 @@ __all__ = [
     "select_class_stars",
     "solve_chunk",
     "class_summary",
-    "run_secondary",
 ]
 
 #: Stars per noise block: the unit of randomness, so chunking never changes results.
@@ -93,8 +90,9 @@ TIGHT_PRIOR_MAS, LOOSE_PRIOR_MAS, F90_FACTOR = 0.01, 1000.0, 10.0
 MARGIN_SIGMAS = 6.0
 
 _TAG = 41  # Sect. 4.1: first element of every spawn key of this experiment
-_POPULATION, _DILUTION, _NOISE = 0, 1, 2
-_STAR_COLUMNS = ("ra", "dec", "l", "b", "parallax", "pmra", "pmdec", "phot_g_mean_mag")
+#: Stream numbers of the spawn keys (population, dilution, noise).
+POPULATION_STREAM, DILUTION_STREAM, NOISE_STREAM = 0, 1, 2
+STAR_COLUMNS = ("ra", "dec", "l", "b", "parallax", "pmra", "pmdec", "phot_g_mean_mag")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -124,7 +122,7 @@ def class_key(g_class: float) -> int:
     return int(round(100.0 * g_class))
 
 
-def _seq(seed: int, stream: int, *key: int) -> np.random.SeedSequence:
+def stream_seed(seed: int, stream: int, *key: int) -> np.random.SeedSequence:
     return np.random.SeedSequence(seed, spawn_key=(_TAG, stream, *key))
 
 
@@ -299,7 +297,7 @@ def solve_chunk(settings: SecondarySettings, g_class: float, first: int, stars: 
     """
     if first % BLOCK_STARS:
         raise ValueError(f"first={first} must be a multiple of BLOCK_STARS={BLOCK_STARS}")
-    st = {c: np.asarray(stars[c], dtype=float) for c in _STAR_COLUMNS}
+    st = {c: np.asarray(stars[c], dtype=float) for c in STAR_COLUMNS}
     n = st["ra"].size
     ckey = class_key(g_class)
     tr = find_transits(st["ra"], st["dec"], settings.start_jd, settings.end_jd, law=settings.law,
@@ -307,7 +305,7 @@ def solve_chunk(settings: SecondarySettings, g_class: float, first: int, stars: 
     src = tr["source_index"].to_numpy().astype(np.int64)
     t = tr["tcb_jd"].to_numpy()
     n_transits = np.bincount(src, minlength=n)
-    key = dilution_key(np.random.default_rng(_seq(settings.seed, _DILUTION, ckey)))
+    key = dilution_key(np.random.default_rng(stream_seed(settings.seed, DILUTION_STREAM, ckey)))
     keep = keep_after_dilution(key, first + src, tr["fov"].cat.codes.to_numpy() == 1, t, settings.dilution)
     src, t = src[keep], t[keep]
     psi = tr["scan_angle_deg"].to_numpy()[keep].astype(float)
@@ -327,7 +325,7 @@ def solve_chunk(settings: SecondarySettings, g_class: float, first: int, stars: 
         compact = np.cumsum(n_fov[lo:hi] > 0) - 1
         rows = {"star": compact[star - lo], "col": np.arange(row0[lo], row0[hi]) - row0[star],
                 "t": t[rs], "psi": psi[rs], "obs": obs[rs]}
-        rng = np.random.default_rng(_seq(settings.seed, _NOISE, ckey, (first + lo) // BLOCK_STARS))
+        rng = np.random.default_rng(stream_seed(settings.seed, NOISE_STREAM, ckey, (first + lo) // BLOCK_STARS))
         normals.append(_block_normals(st, sel, rows, int(n_fov[sel].max()), settings, rng))
         solved.append(sel)
 
@@ -369,88 +367,3 @@ def class_summary(g_class: float, stars: pd.DataFrame, results: pd.DataFrame) ->
     for name, stem in SOLUTION_COLUMNS.items():
         row[f"n_unsolved_{stem}"] = int((results[f"inside_{stem}"].to_numpy()[seen] < 0).sum())
     return row
-
-
-# --------------------------------------------------------------------------- the run
-def _chunk_task(job):
-    from ..sweep.store import CellStore
-
-    settings, g_class, chunk_id, first, stars, store_dir, chash = job
-    CellStore(store_dir, chash).write(chunk_id, solve_chunk(settings, g_class, first, stars))
-    return chunk_id
-
-
-def _chunk_id(g_class: float, lo: int, hi: int) -> str:
-    return f"class{class_key(g_class):04d}_stars{lo:09d}-{hi:09d}"
-
-
-def run_secondary(config, raw_cfg: dict, run_dir, *, prov=None) -> Path:
-    """Run (or resume) the experiment in ``run_dir``; returns the path of ``table2.csv``.
-
-    Writes ``secondary_chunks/*.parquet`` (per-star results, one file per chunk) as it
-    goes, then ``table2.csv``, ``table2.md``, ``no_prior.csv`` and
-    ``secondary_summary.csv``.
-    """
-    from tqdm.auto import tqdm
-
-    from ..sweep.execution import executor
-    from ..sweep.provenance import Provenance
-    from ..sweep.store import CellStore, atomic_write_bytes
-
-    run_dir = Path(run_dir)
-    prov = prov or Provenance(run_dir, raw_cfg, kind="secondary")
-    prov.check_compatible()
-    sec = config.experiment.secondary
-    settings = build_settings(config)
-    with prov.stage("population"):
-        source = make_source(dataclasses.asdict(config.population))
-        classes = [(float(g), select_class_stars(source, float(g), sec.class_size,
-                                                 np.random.default_rng(_seq(settings.seed, _POPULATION,
-                                                                            class_key(g)))))
-                   for g in sec.g_classes]
-        del source  # the galaxy model's whole-sky tables (~0.5 GB) are not needed any more
-    chunk = BLOCK_STARS * math.ceil(sec.chunk_stars / BLOCK_STARS)
-    store = CellStore(run_dir / CHUNKS_DIR, prov.hash)
-    for tmp in store.directory.glob(".*.tmp"):  # left by a killed write, never a result
-        tmp.unlink(missing_ok=True)
-    plan = [(g, stars, _chunk_id(g, lo, min(lo + chunk, len(stars))), lo, min(lo + chunk, len(stars)))
-            for g, stars in classes for lo in range(0, len(stars), chunk)]
-    jobs = [(settings, g, cid, lo, {c: stars[c].to_numpy()[lo:hi] for c in _STAR_COLUMNS},
-             run_dir / CHUNKS_DIR, prov.hash)
-            for g, stars, cid, lo, hi in plan if store.read(cid) is None]
-    with prov.stage("chunks"), executor(config.execution) as run:
-        bar = tqdm(total=len(plan), initial=len(plan) - len(jobs), desc="secondary chunks", unit="chunk",
-                   disable=not config.execution.progress)
-        for _ in run(_chunk_task, jobs):
-            bar.update(1)
-        bar.close()
-
-    with prov.stage("aggregate"):
-        per_class, summary = [], []
-        for g, stars in classes:
-            parts = [store.read(cid) for gg, _, cid, _, _ in plan if gg == g]
-            if any(p is None for p in parts):  # pragma: no cover - a worker wrote a bad file
-                raise RuntimeError(f"a chunk of class G >= {g:g} has no valid result")
-            results = pd.concat(parts, ignore_index=True)
-            per_class.append((g, results))
-            summary.append(class_summary(g, stars, results))
-        table = table2_rows(per_class, settings.confidence)
-        no_prior = no_prior_rows(per_class)
-        summary = pd.DataFrame(summary)
-        notes = [f"Confidence P = {settings.confidence:g}; dilution {sec.dilution:g}; "
-                 f"{sec.mission_years:g} years from {sec.mission_start} (TCB); scanning law "
-                 f"'{config.scanning.name}'; sigma_F90: {sec.f90_formula}; R = {settings.ratio_R:g} /yr.",
-                 "Stars per class: " + ", ".join(f"G >= {r['g_class']}: {r['n_stars']} (mean retained "
-                                                 f"FoV transits {r['mean_fov_retained']:.2f})"
-                                                 for r in summary.to_dict("records")) + "."]
-        outputs = {"table2.csv": table.to_csv(index=False), "no_prior.csv": no_prior.to_csv(index=False),
-                   "secondary_summary.csv": summary.to_csv(index=False),
-                   "table2.md": table2_markdown(table, settings.confidence, notes)}
-        for name, text in outputs.items():
-            atomic_write_bytes(run_dir / name, text.encode())
-    prov.seeds["secondary"] = {
-        "population": "SeedSequence(seed, spawn_key=(41, 0, round(100*G0)))",
-        "dilution": "key from SeedSequence(seed, spawn_key=(41, 1, round(100*G0))), hashed with the star index",
-        "noise": f"SeedSequence(seed, spawn_key=(41, 2, round(100*G0), star index // {BLOCK_STARS}))",
-    }
-    return run_dir / "table2.csv"

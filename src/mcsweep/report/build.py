@@ -12,7 +12,6 @@ import json
 from pathlib import Path
 from typing import Callable
 
-import numpy as np
 import pandas as pd
 
 from ..errors import UserInputError

@@ -1,7 +1,7 @@
 """Report section of the secondary-solution experiment (paper Sect. 4.1, Table 2).
 
 Reads ``table2.csv``, ``no_prior.csv`` and ``secondary_summary.csv`` of a run
-directory (written by :func:`mcsweep.experiments.secondary.run_secondary`) and adds our
+directory (written by :func:`mcsweep.sweep.secondary_runner.run_secondary`) and adds our
 Table 2 next to the paper's, the five-parameter solution without prior, and the
 per-class statistics of the diluted observation histories.
 """

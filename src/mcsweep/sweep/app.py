@@ -69,7 +69,7 @@ def run_job(cfg: DictConfig, run_dir: Path) -> Path:
         with prov.stage("report"):
             report = build_report(run_dir)
     else:
-        from ..experiments.secondary import run_secondary
+        from .secondary_runner import run_secondary
         from ..report.build import build_report
 
         run_secondary(config, raw, run_dir, prov=prov)

@@ -289,7 +289,6 @@ class SecondaryConf:
     mission_start: str = "2014-07-25T10:30:00"
     #: 'paper' (Eqs. 14-17) or the path of a run directory's coefficients.csv.
     f90_formula: str = "paper"
-    chunk_stars: int = 50_000
 
     def __post_init__(self):
         _require(self.class_size > 0, "experiment.secondary.class_size", self.class_size, "a positive number")
@@ -298,7 +297,6 @@ class SecondaryConf:
         _require(0 <= self.dilution < 1, "experiment.secondary.dilution", self.dilution, "a probability in [0, 1)")
         _require(0 < self.mission_years <= 10, "experiment.secondary.mission_years", self.mission_years,
                  "a length in (0, 10] years")
-        _require(self.chunk_stars > 0, "experiment.secondary.chunk_stars", self.chunk_stars, "a positive number")
 
 
 @dataclass
@@ -322,11 +320,15 @@ class ExecutionConf:
     scheduler_address: Optional[str] = None
     #: Show a progress bar.
     progress: bool = True
+    #: Stars per task of the whole-sky experiments (memory per worker; results do not
+    #: depend on it, so it is not part of the config hash).
+    chunk_stars: int = 50_000
 
     def __post_init__(self):
         _require(self.backend in ("loky", "threading", "sequential", "dask"), "execution.backend",
                  self.backend, "'loky', 'threading', 'sequential' or 'dask'")
         _require(self.n_jobs >= 1, "execution.n_jobs", self.n_jobs, "a positive number of workers")
+        _require(self.chunk_stars > 0, "execution.chunk_stars", self.chunk_stars, "a positive number of stars")
 
 
 @dataclass

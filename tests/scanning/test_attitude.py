@@ -54,7 +54,8 @@ def test_attitude_matrix_is_a_rotation_with_the_documented_spin_axis(att, law, t
     c, s = np.cos(lam), np.sin(lam)
     z_sun = np.stack([c * z[:, 0] + s * z[:, 1], -s * z[:, 0] + c * z[:, 1], z[:, 2]], axis=-1)
     xi = math.radians(law.solar_aspect_deg)
-    expected = np.stack([np.full_like(nu, math.cos(xi)), math.sin(xi) * np.cos(nu), math.sin(xi) * np.sin(nu)], -1)
+    expected = np.stack([np.full_like(nu, math.cos(xi)), math.sin(xi) * np.cos(nu),
+                         math.sin(xi) * np.sin(nu)], -1)
     np.testing.assert_allclose(z_sun, expected, atol=ORTHONORMAL_TOLERANCE)
     np.testing.assert_allclose(att.spin_axis(times), z, atol=ORTHONORMAL_TOLERANCE)
 

@@ -40,7 +40,10 @@ TABLE_1 = [
 
 
 def _paper_tcb_jd(date: str, hour: float) -> float:
-    """Table 1 epoch (UTC) as a TCB Julian date (TCB - UTC = 86 s in 2015: TT - UTC = 67.2 s, TCB - TT = 18.7 s)."""
+    """Table 1 epoch (UTC) as a TCB Julian date.
+
+    TCB - UTC = 86 s in 2015 (TT - UTC = 67.2 s, TCB - TT = 18.7 s).
+    """
     return float((Time(date, scale="utc") + hour * u.hour).tcb.jd)
 
 

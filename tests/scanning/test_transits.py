@@ -18,7 +18,7 @@ from mcsweep.scanning.reference import reference_transits
 
 REF_TIME_TOLERANCE_S = 0.05  # s; brute force interpolates linearly over a 30 s step
 REF_ANGLE_TOLERANCE_DEG = 1e-4  # deg (psi and zeta)
-PA_TOLERANCE_DEG = 1e-6  # deg, psi vs astropy's position angle
+PA_TOLERANCE_DEG = 1e-4  # deg, psi (spin axis taken < 2 s from the transit) vs astropy
 FOV_LAG_TOLERANCE_S = 5.0  # s, deviation of the P -> F lag from Gamma / omega_z
 OBS_TOLERANCE_AU = 1e-12  # au
 CONVERGENCE_TIME_S = 1e-3  # s, residual of phi(t) = FoV azimuth at the returned time, as time
@@ -156,14 +156,16 @@ def test_observer_position_is_the_ephemeris_at_the_transit(sky_5yr):
 
 
 def test_astropy_time_bounds_and_iso_strings_agree():
-    a = find_transits([10.0, 200.0], [20.0, -30.0], Time("2015-03-01", scale="tcb"), Time("2015-09-01", scale="tcb"))
+    a = find_transits([10.0, 200.0], [20.0, -30.0], Time("2015-03-01", scale="tcb"),
+                      Time("2015-09-01", scale="tcb"))
     b = find_transits([10.0, 200.0], [20.0, -30.0], "2015-03-01", "2015-09-01")
     pd.testing.assert_frame_equal(a, b)
     # A UTC bound is converted, not taken as TCB: TCB - UTC = (TT - UTC = 67.184 s)
     # + (TCB - TT = 1.55e-8 x time since 1977.0 = 18.7 s) in March 2015.
     c = find_transits([10.0], [20.0], Time("2015-03-01", scale="utc"), Time("2015-09-01", scale="utc"))
     assert len(c) > 0
-    assert (c.attrs["start_tcb_jd"] - Time("2015-03-01", scale="tcb").jd) * 86400 == pytest.approx(85.9, abs=0.2)
+    tcb_minus_utc_s = (c.attrs["start_tcb_jd"] - Time("2015-03-01", scale="tcb").jd) * 86400
+    assert tcb_minus_utc_s == pytest.approx(85.9, abs=0.2)
 
 
 def test_compact_output_holds_the_same_transits():
@@ -249,4 +251,5 @@ def test_the_given_law_is_used():
     spans = df.groupby("group")["tcb_jd"].agg(["size", "min", "max"])
     lag_h = (spans["max"] - spans["min"])[spans["size"] == 2].to_numpy() * 24
     assert lag_h.size >= 2
-    np.testing.assert_allclose(lag_h, 90 * 3600 / law.spin_rate_arcsec_s / 3600, atol=FOV_LAG_TOLERANCE_S / 3600)
+    expected_h = 90 * 3600 / law.spin_rate_arcsec_s / 3600
+    np.testing.assert_allclose(lag_h, expected_h, atol=FOV_LAG_TOLERANCE_S / 3600)

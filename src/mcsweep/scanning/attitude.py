@@ -39,8 +39,9 @@ from .ephemeris import TABLE_END_JD_TCB, TABLE_START_JD_TCB
 from .law import ScanningLaw
 from .sun import nominal_sun_longitude
 
-__all__ = ["Attitude", "attitude_for", "scan_frame_components", "spin_axis_from_angles",
-           "frame_axes_from_angles", "TABLE_STEP_DAYS", "ODE_RTOL"]
+__all__ = ["Attitude", "attitude_for", "scan_frame_components", "scan_frame_from_trig",
+           "spin_axis_from_angles", "spin_axis_from_trig", "frame_axes_from_angles",
+           "TABLE_STEP_DAYS", "ODE_RTOL"]
 
 #: Step of the tabulated nu(t), I(t) [day]. Hermite error ~ h**4/384 |nu''''| < 1e-11 rad.
 TABLE_STEP_DAYS = 1.0 / 16.0
@@ -186,15 +187,18 @@ def scan_frame_components(u_ecl, lam, nu, xi):
     psi_w, z : ndarray
         ``atan2(u . b, u . a)`` [rad] and ``u . z_spin`` (see :meth:`Attitude.frame_axes`).
     """
+    return scan_frame_from_trig(u_ecl, np.cos(lam), np.sin(lam), np.cos(nu), np.sin(nu), xi)
+
+
+def scan_frame_from_trig(u_ecl, cos_lam, sin_lam, cos_nu, sin_nu, xi):
+    """:func:`scan_frame_components` from the cosines and sines of lambda_s and nu."""
     ux, uy, uz = u_ecl[..., 0], u_ecl[..., 1], u_ecl[..., 2]
     # R_z(-lambda_s)
-    cl, sl = np.cos(lam), np.sin(lam)
-    x1 = cl * ux + sl * uy
-    y1 = cl * uy - sl * ux
+    x1 = cos_lam * ux + sin_lam * uy
+    y1 = cos_lam * uy - sin_lam * ux
     # R_x(-(nu - 90 deg)): cos(nu - 90) = sin nu, sin(nu - 90) = -cos nu
-    cn, sn = np.cos(nu), np.sin(nu)
-    y2 = sn * y1 - cn * uz
-    z2 = cn * y1 + sn * uz
+    y2 = sin_nu * y1 - cos_nu * uz
+    z2 = cos_nu * y1 + sin_nu * uz
     # R_y(-(90 deg - xi)): cos = sin xi, sin = cos xi
     sx, cx = math.sin(xi), math.cos(xi)
     x3 = sx * x1 - cx * z2
@@ -204,13 +208,21 @@ def scan_frame_components(u_ecl, lam, nu, xi):
 
 def spin_axis_from_angles(lam, nu, xi) -> np.ndarray:
     """Spin axis (ecliptic J2000 unit vector, shape ``(..., 3)``) for angles lam, nu, xi [rad]."""
-    cl, sl, cn, sn = np.cos(lam), np.sin(lam), np.cos(nu), np.sin(nu)
+    return spin_axis_from_trig(np.cos(lam), np.sin(lam), np.cos(nu), np.sin(nu), xi)
+
+
+def spin_axis_from_trig(cos_lam, sin_lam, cos_nu, sin_nu, xi) -> np.ndarray:
+    """:func:`spin_axis_from_angles` from the cosines and sines of lambda_s and nu."""
     sx, cx = math.sin(xi), math.cos(xi)
-    return np.stack(np.broadcast_arrays(cl * cx - sl * sx * cn, sl * cx + cl * sx * cn, sx * sn), axis=-1)
+    return np.stack(np.broadcast_arrays(cos_lam * cx - sin_lam * sx * cos_nu,
+                                        sin_lam * cx + cos_lam * sx * cos_nu, sx * sin_nu), axis=-1)
 
 
 def frame_axes_from_angles(lam, nu, xi):
-    """Axes a, b, z of the non-spinning frame for angles lam, nu, xi [rad]; see :meth:`Attitude.frame_axes`."""
+    """Axes a, b, z of the non-spinning frame for angles lam, nu, xi [rad].
+
+    See :meth:`Attitude.frame_axes`.
+    """
     cl, sl = np.cos(lam), np.sin(lam)
     cn, sn = np.cos(nu), np.sin(nu)
     sx, cx = math.sin(xi), math.cos(xi)

@@ -3,6 +3,8 @@
 import numpy as np
 import pandas as pd
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from mcsweep.errors import UserInputError
 from mcsweep.scanning import assign_groups, find_transits, group_summary, select_groups
@@ -79,3 +81,21 @@ def test_first_and_last_of_a_single_group_star_is_that_group():
 def test_bad_selection_raises_user_input_error(diluted, which):
     with pytest.raises(UserInputError):
         select_groups(diluted, which)
+
+
+@settings(deadline=None)
+@given(st.sets(st.tuples(st.integers(0, 3), st.integers(0, 400), st.booleans()), min_size=1, max_size=80),
+       st.floats(-1e-4, 1e-4))
+def test_groups_are_the_spins_a_source_was_seen_in(passages, jitter_d):
+    # (source, spin number, is F): P at spin * 6 h, F one FoV lag later; the groups of a
+    # source must be its distinct spins, numbered 0, 1, ... in time order.
+    rows = sorted((src, spin * SPIN_D + (LAG_D if is_f else 0.0) + jitter_d, is_f, spin)
+                  for src, spin, is_f in passages)
+    src = np.array([r[0] for r in rows])
+    t = 2457000.0 + np.array([r[1] for r in rows])
+    is_f = np.array([r[2] for r in rows])
+    spin = np.array([r[3] for r in rows])
+    g = assign_groups(src, t, is_f, lag_days=LAG_D)
+    for s in np.unique(src):
+        expected = np.unique(spin[src == s], return_inverse=True)[1]
+        np.testing.assert_array_equal(g[src == s], expected)

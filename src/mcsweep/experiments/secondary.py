@@ -59,7 +59,7 @@ from ..astrometry.solve import normal_equations, solve_no_prior, solve_position_
 from ..errors import UserInputError
 from ..prior import G_FIT_MAX, PAPER_COEFFICIENTS, sigma_f90, sigma_from_coefficients
 from ..scanning import ScanningLaw, find_transits
-from ..scanning.ephemeris import TABLE_END_JD_TCB, TABLE_START_JD_TCB
+from ..scanning.ephemeris import TABLE_END_JD_TCB, TABLE_START_JD_TCB, gaia_position_au
 from ..scanning.timeline import dilution_key, keep_after_dilution
 from .secondary_table import SOLUTION_COLUMNS, g_label
 
@@ -309,7 +309,7 @@ def solve_chunk(settings: SecondarySettings, g_class: float, first: int, stars: 
     keep = keep_after_dilution(key, first + src, tr["fov"].cat.codes.to_numpy() == 1, t, settings.dilution)
     src, t = src[keep], t[keep]
     psi = tr["scan_angle_deg"].to_numpy()[keep].astype(float)
-    obs = np.column_stack([tr[c].to_numpy()[keep] for c in ("obs_x_au", "obs_y_au", "obs_z_au")]).astype(float)
+    obs = gaia_position_au(t)  # compact transits carry no observer: the same table, kept rows only
     del tr
     n_fov = np.bincount(src, minlength=n)
     row0 = np.concatenate([[0], np.cumsum(n_fov)])  # rows sorted by (star, time)

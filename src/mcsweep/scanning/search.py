@@ -251,18 +251,20 @@ def chunk_transits(u_ecl, north_ecl, east_ecl, first_index, nodes: Nodes, att: A
         int_t, grp_t, flt_t = np.int32, np.int16, np.float32
     else:
         int_t, grp_t, flt_t = np.int64, np.int64, np.float64
-    obs = gaia_position_au(t) if t.size else np.empty((0, 3))
-    return {
+    cols = {
         "source_index": src.astype(int_t),
         "tcb_jd": t,
         "fov_code": fov,
         "scan_angle_deg": psi.astype(flt_t),
         "ac_offset_deg": np.degrees(zeta).astype(flt_t),
         "group": assign_groups(src, t, fov == 1, lag_days=law.fov_lag_days).astype(grp_t),
-        "obs_x_au": obs[:, 0].astype(flt_t),
-        "obs_y_au": obs[:, 1].astype(flt_t),
-        "obs_z_au": obs[:, 2].astype(flt_t),
     }
+    if not opts["compact"]:
+        # Compact output leaves the observer out: it is a function of tcb_jd alone
+        # (mcsweep.scanning.observer_position_au), a third of the memory at 1e8 transits.
+        obs = gaia_position_au(t) if t.size else np.empty((0, 3))
+        cols.update(obs_x_au=obs[:, 0], obs_y_au=obs[:, 1], obs_z_au=obs[:, 2])
+    return cols
 
 
 def run_block(u_ecl, north_ecl, east_ecl, first_index, nodes, att, opts, chunk) -> list:

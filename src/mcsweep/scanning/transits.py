@@ -29,13 +29,13 @@ from astropy.time import Time
 
 from ..errors import UserInputError
 from .attitude import attitude_for
-from .ephemeris import TABLE_END_JD_TCB, TABLE_START_JD_TCB
+from .ephemeris import TABLE_END_JD_TCB, TABLE_START_JD_TCB, gaia_position_au
 from .frames import ICRS_TO_ECLIPTIC, local_north_east, unit_vector
 from .law import ScanningLaw
 from .search import build_nodes, run_block
 from .timeline import draw_dead_time, dilution_key
 
-__all__ = ["find_transits", "TRANSIT_COLUMNS", "DEFAULT_DEAD_TIME_BLOCK_DAYS"]
+__all__ = ["find_transits", "observer_position_au", "TRANSIT_COLUMNS", "DEFAULT_DEAD_TIME_BLOCK_DAYS"]
 
 #: Output columns, in order (see docs/architecture.md, section "scanning").
 TRANSIT_COLUMNS = ("source_index", "tcb_jd", "fov", "scan_angle_deg", "ac_offset_deg", "group",
@@ -106,6 +106,17 @@ def _assemble(blocks: list) -> dict:
     return cols
 
 
+def observer_position_au(transits: pd.DataFrame) -> np.ndarray:
+    """Gaia's BCRS position [au] at each transit, shape (n, 3).
+
+    From the frame's observer columns, or, for compact output, from the same
+    ephemeris table (:func:`mcsweep.scanning.ephemeris.gaia_position_au`) at ``tcb_jd``.
+    """
+    if "obs_x_au" in transits:
+        return transits[["obs_x_au", "obs_y_au", "obs_z_au"]].to_numpy(float)
+    return gaia_position_au(transits["tcb_jd"].to_numpy(float))
+
+
 def find_transits(ra_deg, dec_deg, start, end, *, law: ScanningLaw | None = None,
                   dead_time_fraction: float = 0.0, dilution: float = 0.0, rng=None,
                   dead_time_block_days: float = DEFAULT_DEAD_TIME_BLOCK_DAYS, n_jobs: int = 1,
@@ -134,9 +145,10 @@ def find_transits(ra_deg, dec_deg, start, end, *, law: ScanningLaw | None = None
     n_jobs : int, keyword-only
         Processes for joblib (1 = in process; -1 = all cores). Results do not depend on it.
     compact : bool, keyword-only
-        Store ``source_index`` as int32, ``group`` as int16 and the angles and observer
-        coordinates as float32 (precision 1e-5 deg and 1e-7 au), 35 instead of 65 bytes
-        per transit, to hold ~10^8 transits in memory; ``tcb_jd`` stays float64.
+        Store ``source_index`` as int32, ``group`` as int16 and the angles as float32
+        (precision 1e-5 deg), and leave out the observer columns (a function of
+        ``tcb_jd``: :func:`observer_position_au`), 23 instead of 65 bytes per transit,
+        to hold ~10^8 transits in memory; ``tcb_jd`` stays float64.
 
     Returns
     -------
@@ -148,7 +160,8 @@ def find_transits(ra_deg, dec_deg, start, end, *, law: ScanningLaw | None = None
         ``ac_offset_deg`` (zeta), ``group`` (0-based distinct-transit number per source,
         Table 1's "#" minus one, counted among the transits that survive dead time and
         dilution; see :mod:`mcsweep.scanning.groups`) and
-        ``obs_x_au, obs_y_au, obs_z_au`` (Gaia's BCRS position, ICRS axes).
+        ``obs_x_au, obs_y_au, obs_z_au`` (Gaia's BCRS position, ICRS axes; not in
+        compact output).
         ``df.attrs`` holds the law, the interval and the options.
 
     Raises
@@ -217,6 +230,8 @@ def find_transits(ra_deg, dec_deg, start, end, *, law: ScanningLaw | None = None
 def _to_frame(cols: dict, law: ScanningLaw, start_jd: float, end_jd: float, attrs: dict) -> pd.DataFrame:
     data = {}
     for key in TRANSIT_COLUMNS:
+        if key.startswith("obs_") and key not in cols:
+            continue  # compact output
         if key == "fov":
             data[key] = pd.Categorical.from_codes(cols.pop("fov_code"), categories=["P", "F"])
         else:

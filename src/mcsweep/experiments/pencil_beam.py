@@ -16,6 +16,7 @@ All stars of a cell are observed with the transits of the beam's centre (the bea
 from __future__ import annotations
 
 import math
+import zlib
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -26,6 +27,7 @@ from ..astrometry.design import JULIAN_YEAR_DAYS, design_matrix, reference_epoch
 from ..astrometry.measurements import simulate
 from ..astrometry.noise import NoiseModel
 from ..astrometry.solve import normal_equations, solve_with_prior
+from ..scanning import observer_position_au
 
 __all__ = [
     "CellSettings",
@@ -37,6 +39,8 @@ __all__ = [
     "run_cell",
     "CURVE_COLUMNS",
 ]
+
+_STAR_STREAM, _NOISE_STREAM = 0, 1
 
 #: Columns of a cell's result table (one row per case x prior).
 CURVE_COLUMNS = [
@@ -119,7 +123,7 @@ def case_geometry(transits: pd.DataFrame, groups: tuple[int, ...]) -> CaseGeomet
     return CaseGeometry(
         tcb_jd=sel["tcb_jd"].to_numpy(float),
         psi_deg=sel["scan_angle_deg"].to_numpy(float),
-        obs_au=sel[["obs_x_au", "obs_y_au", "obs_z_au"]].to_numpy(float),
+        obs_au=observer_position_au(sel),
     )
 
 
@@ -215,8 +219,9 @@ def run_cell(cell, transits: pd.DataFrame, source, s: CellSettings,
     its direction (columns of :func:`mcsweep.scanning.find_transits`).
     """
     d = cell.direction
-    ss = np.random.SeedSequence(s.seed, spawn_key=cell.key)
-    star_ss, noise_ss = ss.spawn(2)
+    # Streams keyed by content (cell, and case *name* for the noise), never by position in
+    # a list, so adding, removing or reordering cases or cells changes no other result.
+    star_ss = np.random.SeedSequence(s.seed, spawn_key=(*cell.key, _STAR_STREAM))
     radius, _ = beam_radius(source, d.l_deg, d.b_deg, cell.g_min, cell.g_max, s)
     stars = source.sample_cone(d.l_deg, d.b_deg, radius, cell.g_min, cell.g_max,
                                np.random.default_rng(star_ss), max_stars=s.max_stars)
@@ -228,11 +233,13 @@ def run_cell(cell, transits: pd.DataFrame, source, s: CellSettings,
                 dec_deg=d.dec_deg, g_min=cell.g_min, g_max=cell.g_max, n_stars=len(stars),
                 n_in_cone=n_in_cone, radius_deg=radius, n_groups=n_groups)
     normals = {}
-    for case_rng_ss, (case, groups) in zip(noise_ss.spawn(len(s.cases)), s.cases.items()):
+    for case, groups in s.cases.items():
         geom = case_geometry(transits, tuple(groups))
         if geom is not None and len(stars) > 0:
+            case_ss = np.random.SeedSequence(s.seed, spawn_key=(*cell.key, _NOISE_STREAM,
+                                                                zlib.crc32(case.encode())))
             normals[case] = _normal_equations(geom, d.ra_deg, d.dec_deg, stars, s,
-                                              np.random.default_rng(case_rng_ss))
+                                              np.random.default_rng(case_ss))
 
     curves = {case: prior_curve(*normals[case], grid, s) for case in normals}
     if s.f90_case in curves:

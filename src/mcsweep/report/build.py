@@ -15,6 +15,7 @@ from typing import Callable
 import pandas as pd
 
 from ..errors import UserInputError
+from ..sweep.store import atomic_write_bytes
 from . import figures
 from .document import Document
 from .fit import fit_all
@@ -38,10 +39,9 @@ def sweep_section(doc: Document, run_dir: Path, prov: dict) -> None:
     cells = pd.read_parquet(run_dir / "cells.parquet")
     f90 = _f90_table(cells)
     fit = fit_all(f90)
-    fit.compared.to_csv(run_dir / "f90_cells.csv", index=False)
-    fit.coefficients.to_csv(run_dir / "coefficients.csv", index=False)
-    fit.rms.to_csv(run_dir / "rms_dex.csv", index=False)
-    fit.terms.to_csv(run_dir / "eq14_terms.csv", index=False)
+    for name, table in (("f90_cells.csv", fit.compared), ("coefficients.csv", fit.coefficients),
+                        ("rms_dex.csv", fit.rms), ("eq14_terms.csv", fit.terms)):
+        atomic_write_bytes(run_dir / name, table.to_csv(index=False).encode())
     figdir = run_dir / FIG_DIR
     figdir.mkdir(exist_ok=True)
     cfg = prov.get("config", {})

@@ -29,9 +29,15 @@ _CASE_LABELS = {"one": "1 transit", "two": "2 transits", "two_diluted": "2 trans
 
 
 def _save(fig, path: Path) -> Path:
+    import io
+
+    from ..sweep.store import atomic_write_bytes
+
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    buf = io.BytesIO()
+    fig.savefig(buf, dpi=110, format="png")
     plt.close(fig)
+    atomic_write_bytes(path, buf.getvalue())
     return path
 
 
@@ -133,9 +139,9 @@ def plot_showcase_curves(curves: pd.DataFrame, case: str, f90: float, path: Path
 
 def plot_showcase_scatter(scatter: pd.DataFrame, path: Path, p: float) -> Path:
     """Fig. 2: actual position errors with the P-confidence ellipse for three priors."""
-    from scipy.stats import chi2
+    from ..astrometry.confidence import chi2_threshold
 
-    k = chi2.ppf(p, 2)
+    k = chi2_threshold(p, 2)
     priors = list(dict.fromkeys(scatter["prior"]))
     order = sorted(priors, key=lambda lab: scatter.loc[scatter["prior"] == lab, "sigma_prior_mas"].iloc[0])
     fig, axes = plt.subplots(len(order), 1, figsize=(5, 4.2 * len(order)))

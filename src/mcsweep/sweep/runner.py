@@ -27,7 +27,7 @@ from .cells import Cell, Direction, enumerate_cells, sky_directions
 from .execution import executor
 from .provenance import Provenance
 from .schema import Config
-from .store import CellStore
+from .store import CellStore, atomic_write_bytes
 
 __all__ = ["build_settings", "run_sweep", "showcase_cell", "CELLS_DIR", "SHOWCASE_DIR", "OUTPUTS"]
 
@@ -86,10 +86,9 @@ def direction_transits(config: Config, directions: list[Direction]) -> dict[int,
     start = Time(config.observations.start, scale="tcb")
     end = Time(config.observations.end, scale="tcb")
     tr = find_transits(ra, dec, start, end, law=law)
-    out = {}
-    for i, d in enumerate(directions):
-        out[d.index] = tr[tr["source_index"] == i].reset_index(drop=True)
-    return out
+    groups = {int(i): g.reset_index(drop=True) for i, g in tr.groupby("source_index", sort=False)}
+    empty = tr.iloc[:0]
+    return {d.index: groups.get(i, empty) for i, d in enumerate(directions)}
 
 
 @lru_cache(maxsize=4)
@@ -177,8 +176,10 @@ def run_sweep(config: Config, raw_cfg: dict, run_dir: Path, *, prov: Provenance 
             raise RuntimeError(f"{len(missing)} cells have no valid result, e.g. {missing[0]}")
         allcells = pd.concat(tables, ignore_index=True)
         out = run_dir / "cells.parquet"
-        allcells.to_parquet(out, index=False)
-        prov.seeds["cells"] = "SeedSequence(seed, spawn_key=cell key: (l*1e4, (b+90)*1e4, 100*g_min, 100*g_max))"
+        atomic_write_bytes(out, allcells.to_parquet(index=False))
+        prov.seeds["cells"] = ("stars: SeedSequence(seed, spawn_key=(*key, 0)); noise of a case: "
+                               "SeedSequence(seed, spawn_key=(*key, 1, crc32(case name))); "
+                               "key = (l*1e4, (b+90)*1e4, 100*g_min, 100*g_max)")
     return out
 
 

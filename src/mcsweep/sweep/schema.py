@@ -18,6 +18,7 @@ from typing import Any, Dict, List, Optional
 
 from hydra.core.config_store import ConfigStore
 
+from ..astrometry.noise import G_MAX
 from ..errors import UserInputError
 from ..scanning.law import ScanningLaw
 
@@ -103,7 +104,8 @@ class MagnitudesConf:
     def __post_init__(self):
         e = list(self.edges)
         _require(len(e) >= 2, "magnitudes.edges", e, "at least two bin edges")
-        _require(all(0.0 <= g <= 25.0 for g in e), "magnitudes.edges", e, "G values within 0..25 mag")
+        _require(all(0.0 <= g <= G_MAX for g in e), "magnitudes.edges", e,
+                 f"G values within 0..{G_MAX:g} mag (the noise model's range)")
         _require(all(b > a for a, b in zip(e[:-1], e[1:])), "magnitudes.edges", e,
                  "strictly increasing edges (non-empty bins)")
 
@@ -269,8 +271,8 @@ class ShowcaseConf:
     def __post_init__(self):
         _require(0 <= self.ra_deg < 360, "experiment.showcase.ra_deg", self.ra_deg, "0..360 deg")
         _require(-90 <= self.dec_deg <= 90, "experiment.showcase.dec_deg", self.dec_deg, "-90..90 deg")
-        _require(0 <= self.g_min < self.g_max <= 25, "experiment.showcase.g_min/g_max",
-                 (self.g_min, self.g_max), "0 <= g_min < g_max <= 25")
+        _require(0 <= self.g_min < self.g_max <= G_MAX, "experiment.showcase.g_min/g_max",
+                 (self.g_min, self.g_max), f"0 <= g_min < g_max <= {G_MAX:g}")
         _require(self.tight_prior_mas > 0 and self.loose_prior_mas > self.tight_prior_mas,
                  "experiment.showcase priors", (self.tight_prior_mas, self.loose_prior_mas),
                  "0 < tight_prior_mas < loose_prior_mas")
@@ -292,8 +294,8 @@ class SecondaryConf:
 
     def __post_init__(self):
         _require(self.class_size > 0, "experiment.secondary.class_size", self.class_size, "a positive number")
-        _require(len(self.g_classes) > 0 and all(0 <= g < 25 for g in self.g_classes),
-                 "experiment.secondary.g_classes", list(self.g_classes), "G values within 0..25")
+        _require(len(self.g_classes) > 0 and all(0 <= g < G_MAX for g in self.g_classes),
+                 "experiment.secondary.g_classes", list(self.g_classes), f"G values within 0..{G_MAX:g}")
         _require(0 <= self.dilution < 1, "experiment.secondary.dilution", self.dilution, "a probability in [0, 1)")
         _require(0 < self.mission_years <= 10, "experiment.secondary.mission_years", self.mission_years,
                  "a length in (0, 10] years")
@@ -353,7 +355,8 @@ class Config:
     def __post_init__(self):
         _require(0.0 < self.confidence < 1.0 and math.isfinite(self.confidence), "confidence",
                  self.confidence, "a probability strictly between 0 and 1")
-        _require(self.ratio_R > 0, "ratio_R", self.ratio_R, "a positive ratio in 1/yr")
+        _require(self.ratio_R > 0 and math.isfinite(self.ratio_R), "ratio_R", self.ratio_R,
+                 "a positive, finite ratio in 1/yr")
         _require(self.seed >= 0, "seed", self.seed, "a non-negative integer")
 
 

@@ -58,6 +58,9 @@ def run_secondary(config, raw_cfg: dict, run_dir, *, prov=None) -> Path:
                                                                             class_key(g)))))
                    for g in sec.g_classes]
         del source  # the galaxy model's whole-sky tables (~0.5 GB) are not needed any more
+    # Inputs are valid: claim the run directory for this config before any chunk is written,
+    # so a killed run is resumed (and guarded against other configs) like a finished one.
+    prov.write(with_manifest=False)
     chunk = BLOCK_STARS * math.ceil(config.execution.chunk_stars / BLOCK_STARS)
     store = CellStore(run_dir / CHUNKS_DIR, prov.hash)
     store.remove_stale_temporaries()  # left by a killed write, never a result

@@ -102,6 +102,3 @@ class CellStore:
             p.unlink(missing_ok=True)
             n += 1
         return n
-
-    def is_done(self, cell_id: str) -> bool:
-        return self.read(cell_id) is not None

@@ -18,10 +18,13 @@ import hydra
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf
 
-from ..errors import UserInputError, report_user_error
-from .provenance import PROVENANCE_FILE, Provenance
-from .schema import register_configs
-from .validate import preflight, to_config
+from .errors import UserInputError, report_user_error
+from .report.build import build_report
+from .sweep.provenance import PROVENANCE_FILE, Provenance
+from .sweep.runner import run_sweep
+from .sweep.schema import register_configs
+from .sweep.secondary_runner import run_secondary
+from .sweep.validate import preflight, to_config
 
 __all__ = ["main"]
 
@@ -30,16 +33,10 @@ register_configs()
 
 def _remove_fresh_outputs(run_dir: Path) -> None:
     """Undo what this job and Hydra wrote into a run directory it created (no partial output)."""
-    from .runner import OUTPUTS
+    from .experiments.secondary import OUTPUTS as SECONDARY_OUTPUTS
+    from .sweep.runner import OUTPUTS
 
-    names = [".hydra", *OUTPUTS]
-    try:  # the secondary experiment declares its own outputs
-        from ..experiments import secondary
-
-        names += list(getattr(secondary, "OUTPUTS", ()))
-    except ImportError:
-        pass
-    for name in names:
+    for name in (".hydra", *OUTPUTS, *SECONDARY_OUTPUTS):
         p = run_dir / name
         if p.is_dir():
             shutil.rmtree(p, ignore_errors=True)
@@ -60,27 +57,16 @@ def run_job(cfg: DictConfig, run_dir: Path) -> Path:
     name = config.experiment.name
     prov = Provenance(run_dir, raw, kind=name)
     prov.check_compatible()
-    if name == "f90_sweep":
-        from ..report.build import build_report
-        from .runner import run_sweep
-
-        run_sweep(config, raw, run_dir, prov=prov)
-        prov.write()
-        with prov.stage("report"):
-            report = build_report(run_dir)
-    else:
-        from .secondary_runner import run_secondary
-        from ..report.build import build_report
-
-        run_secondary(config, raw, run_dir, prov=prov)
-        prov.write()
-        with prov.stage("report"):
-            report = build_report(run_dir)
+    run = {"f90_sweep": run_sweep, "secondary": run_secondary}[name]
+    run(config, raw, run_dir, prov=prov)
+    prov.write()
+    with prov.stage("report"):
+        report = build_report(run_dir)
     prov.write()
     return report
 
 
-@hydra.main(config_path="../conf", config_name="config", version_base="1.3")
+@hydra.main(config_path="conf", config_name="config", version_base="1.3")
 def _hydra_entry(cfg: DictConfig) -> None:
     run_dir = Path(HydraConfig.get().runtime.output_dir)
     fresh = not (run_dir / PROVENANCE_FILE).exists()

@@ -33,6 +33,7 @@ __all__ = [
     "CellSettings",
     "CaseGeometry",
     "beam_radius",
+    "cell_radius",
     "case_geometry",
     "prior_curve",
     "sigma_f90_from_curve",
@@ -85,26 +86,33 @@ def _cap_area(radius_deg: float) -> float:
     return 2.0 * math.pi * (1.0 - math.cos(math.radians(radius_deg)))
 
 
-def beam_radius(source, l_deg, b_deg, g_min, g_max, s: CellSettings) -> tuple[float, float]:
+def beam_radius(source, l_deg, b_deg, g_min, g_max, *, radius_deg: float, min_stars: int,
+                max_radius_deg: float) -> tuple[float, float]:
     """Radius reaching ``min_stars`` expected stars, and that expected count.
 
     The 1 deg beam of Table 1 holds only ~10-80 stars at G < 10, too few to measure a
     90 % fraction, so the beam is widened around the same centre (solid angle scaled by
     the deficit, re-evaluated twice because the density changes across a wide beam).
     """
-    radius = s.beam_radius_deg
+    radius = radius_deg
     expected = float(source.expected_count(l_deg, b_deg, radius, g_min, g_max))
     for _ in range(3):
-        if expected >= s.min_stars or radius >= s.max_radius_deg:
+        if expected >= min_stars or radius >= max_radius_deg:
             break
         if expected <= 0:
-            radius = s.max_radius_deg
+            radius = max_radius_deg
         else:
-            area = _cap_area(radius) * s.min_stars / expected * 1.05
-            cos_r = max(1.0 - area / (2.0 * math.pi), math.cos(math.radians(s.max_radius_deg)))
-            radius = min(math.degrees(math.acos(cos_r)), s.max_radius_deg)
+            area = _cap_area(radius) * min_stars / expected * 1.05
+            cos_r = max(1.0 - area / (2.0 * math.pi), math.cos(math.radians(max_radius_deg)))
+            radius = min(math.degrees(math.acos(cos_r)), max_radius_deg)
         expected = float(source.expected_count(l_deg, b_deg, radius, g_min, g_max))
     return radius, expected
+
+
+def cell_radius(source, cell, s: CellSettings) -> tuple[float, float]:
+    d = cell.direction
+    return beam_radius(source, d.l_deg, d.b_deg, cell.g_min, cell.g_max, radius_deg=s.beam_radius_deg,
+                       min_stars=s.min_stars, max_radius_deg=s.max_radius_deg)
 
 
 def case_geometry(transits: pd.DataFrame, groups: tuple[int, ...]) -> CaseGeometry | None:
@@ -222,7 +230,7 @@ def run_cell(cell, transits: pd.DataFrame, source, s: CellSettings,
     # Streams keyed by content (cell, and case *name* for the noise), never by position in
     # a list, so adding, removing or reordering cases or cells changes no other result.
     star_ss = np.random.SeedSequence(s.seed, spawn_key=(*cell.key, _STAR_STREAM))
-    radius, _ = beam_radius(source, d.l_deg, d.b_deg, cell.g_min, cell.g_max, s)
+    radius, _ = cell_radius(source, cell, s)
     stars = source.sample_cone(d.l_deg, d.b_deg, radius, cell.g_min, cell.g_max,
                                np.random.default_rng(star_ss), max_stars=s.max_stars)
     n_in_cone = int(stars.attrs.get("n_in_cone", len(stars)))

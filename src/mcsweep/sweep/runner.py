@@ -20,7 +20,7 @@ from tqdm.auto import tqdm
 
 from ..astrometry.noise import NoiseModel
 from ..errors import UserInputError
-from ..experiments.pencil_beam import CellSettings, beam_radius, run_cell
+from ..experiments.pencil_beam import CellSettings, cell_radius, run_cell
 from ..population import CatalogueSource, make_source
 from ..scanning import ScanningLaw, find_transits
 from .cells import Cell, Direction, enumerate_cells, sky_directions
@@ -139,7 +139,7 @@ def run_sweep(config: Config, raw_cfg: dict, run_dir: Path, *, prov: Provenance 
         # A catalogue may not cover every cell: say so before any cell is computed.
         for c in todo + ([show] if show is not None else []):
             d = c.direction
-            radius, n = beam_radius(source, d.l_deg, d.b_deg, c.g_min, c.g_max, settings)
+            radius, n = cell_radius(source, c, settings)
             if n < 1:
                 raise UserInputError(
                     f"catalogue {source.path.name}: no star within {radius:.3g} deg of (l, b) = "

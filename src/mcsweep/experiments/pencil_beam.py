@@ -220,17 +220,19 @@ def sigma_f90_from_curve(priors_mas, fraction, p: float, interpolation: str = "l
 
 
 def run_cell(cell, transits: pd.DataFrame, source, s: CellSettings,
-             *, keep_scatter: bool = False) -> tuple[pd.DataFrame, pd.DataFrame | None]:
+             *, keep_scatter: bool = False,
+             radius_deg: float | None = None) -> tuple[pd.DataFrame, pd.DataFrame | None]:
     """Run one cell; returns its curve table and (optionally) per-star errors (Fig. 2).
 
     ``cell`` is a :class:`mcsweep.sweep.cells.Cell`; ``transits`` the FoV transits of
-    its direction (columns of :func:`mcsweep.scanning.find_transits`).
+    its direction (columns of :func:`mcsweep.scanning.find_transits`). ``radius_deg``
+    skips the beam widening when the caller has already computed it (:func:`cell_radius`).
     """
     d = cell.direction
     # Streams keyed by content (cell, and case *name* for the noise), never by position in
     # a list, so adding, removing or reordering cases or cells changes no other result.
     star_ss = np.random.SeedSequence(s.seed, spawn_key=(*cell.key, _STAR_STREAM))
-    radius, _ = cell_radius(source, cell, s)
+    radius = cell_radius(source, cell, s)[0] if radius_deg is None else radius_deg
     stars = source.sample_cone(d.l_deg, d.b_deg, radius, cell.g_min, cell.g_max,
                                np.random.default_rng(star_ss), max_stars=s.max_stars)
     n_in_cone = int(stars.attrs.get("n_in_cone", len(stars)))

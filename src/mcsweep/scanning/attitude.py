@@ -256,17 +256,22 @@ def _ry(a):
     return np.stack([np.stack([c, o, s], -1), np.stack([o, i, o], -1), np.stack([-s, o, c], -1)], -2)
 
 
-def _nsl_rhs(law: ScanningLaw):
-    xi = math.radians(law.solar_aspect_deg)
-    sx, cx = math.sin(xi), math.cos(xi)
-    s2 = law.precession_S ** 2
+def _nsl_rates(law: ScanningLaw, nu, lam_dot):
+    """NSL rates (dnu/dt, d/dt of the Omega integral) for precession phase ``nu`` [rad].
 
+    dnu/dt = lambda_s' (sqrt(S^2 - cos^2 nu) + cos xi sin nu) / sin xi, and the
+    integral term sin(nu) lambda_s' of dOmega/dt (module notes).
+    """
+    xi = math.radians(law.solar_aspect_deg)
+    sin_nu = np.sin(nu)
+    nu_dot = lam_dot * (np.sqrt(law.precession_S ** 2 - np.cos(nu) ** 2) + math.cos(xi) * sin_nu) / math.sin(xi)
+    return nu_dot, sin_nu * lam_dot
+
+
+def _nsl_rhs(law: ScanningLaw):
     def rhs(t, y):
-        nu = y[0]
         _, lam_dot = nominal_sun_longitude(t)
-        sn, cn = math.sin(nu), math.cos(nu)
-        nu_dot = lam_dot * (math.sqrt(s2 - cn * cn) + cx * sn) / sx
-        return np.array([nu_dot, sn * lam_dot])
+        return np.array(_nsl_rates(law, y[0], lam_dot))
 
     return rhs
 
@@ -296,10 +301,7 @@ def attitude_for(law: ScanningLaw) -> Attitude:
         values[sl] = sol.y.T
     nu, integral = values[:, 0], values[:, 1]
     _, lam_dot = nominal_sun_longitude(grid)
-    xi = math.radians(law.solar_aspect_deg)
-    nu_dot = lam_dot * (np.sqrt(law.precession_S ** 2 - np.cos(nu) ** 2)
-                        + math.cos(xi) * np.sin(nu)) / math.sin(xi)
-    integral_dot = np.sin(nu) * lam_dot
+    nu_dot, integral_dot = _nsl_rates(law, nu, lam_dot)
     for arr in (grid, nu, nu_dot, integral, integral_dot):
         arr.setflags(write=False)
     return Attitude(law=law, t0_jd=float(grid[0]), step_days=h, nu=nu, nu_dot=nu_dot,

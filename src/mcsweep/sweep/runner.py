@@ -107,12 +107,12 @@ def _pop_dict(config: Config) -> dict:
 
 
 def _cell_task(job):
-    cell, transits, pop_frozen, settings, store_dir, chash, keep_scatter = job
+    cell, transits, pop_frozen, settings, store_dir, chash, keep_scatter, radius = job
     source = _source(pop_frozen)
-    table, scatter = run_cell(cell, transits, source, settings, keep_scatter=keep_scatter)
+    table, scatter = run_cell(cell, transits, source, settings, keep_scatter=keep_scatter, radius_deg=radius)
     store = CellStore(store_dir, chash)
     if scatter is not None:
-        CellStore(store_dir, chash).write(cell.cell_id + "_scatter", scatter)
+        store.write(cell.cell_id + "_scatter", scatter)
     store.write(cell.cell_id, table)
     return cell.cell_id
 
@@ -135,11 +135,13 @@ def run_sweep(config: Config, raw_cfg: dict, run_dir: Path, *, prov: Provenance 
 
     todo = [c for c in cells if store.read(c.cell_id) is None]
     source = _source(_freeze(_pop_dict(config)))
+    radii: dict[str, float] = {}  # computed here only for catalogues (each call scans the table)
     if isinstance(source, CatalogueSource):
         # A catalogue may not cover every cell: say so before any cell is computed.
         for c in todo + ([show] if show is not None else []):
             d = c.direction
             radius, n = cell_radius(source, c, settings)
+            radii[c.cell_id] = radius
             if n < 1:
                 raise UserInputError(
                     f"catalogue {source.path.name}: no star within {radius:.3g} deg of (l, b) = "
@@ -157,11 +159,11 @@ def run_sweep(config: Config, raw_cfg: dict, run_dir: Path, *, prov: Provenance 
         transits = direction_transits(config, list(dirs.values()))
 
     pop = _freeze(_pop_dict(config))
-    jobs = [(c, transits[c.direction.index], pop, settings, run_dir / CELLS_DIR, prov.hash, False)
-            for c in todo]
+    jobs = [(c, transits[c.direction.index], pop, settings, run_dir / CELLS_DIR, prov.hash, False,
+             radii.get(c.cell_id)) for c in todo]
     if show_todo:
         jobs.insert(0, (show, transits[show.direction.index], pop, settings, run_dir / SHOWCASE_DIR,
-                        prov.hash, True))
+                        prov.hash, True, radii.get(show.cell_id)))
     with prov.stage("cells"), executor(config.execution) as run:
         bar = tqdm(total=len(cells) + (show is not None), initial=len(cells) + (show is not None) - len(jobs),
                    desc="cells", unit="cell", disable=not config.execution.progress)

@@ -12,6 +12,7 @@ from mcsweep.astrometry.confidence import (
     error_percentile,
     fraction_inside,
     inside,
+    inside_counts,
     mahalanobis_sq,
 )
 from mcsweep.errors import UserInputError
@@ -79,6 +80,15 @@ def test_fraction_inside_ignores_flagged_rows():
     cov = np.array([np.eye(2), np.full((2, 2), np.nan), np.eye(2)])
     assert fraction_inside(d, cov, 0.9) == 0.5
     assert np.isnan(fraction_inside(d[1:2], cov[1:2], 0.9))
+
+
+def test_inside_counts_states_the_nan_rule():
+    # Q = r^2 for a unit covariance: r = 2 is inside the 90 % ellipse (k = 4.605), r = 3 is not;
+    # a non-positive-definite covariance and a NaN error have no region and leave the denominator.
+    d = np.array([[2.0, 0.0], [0.0, 3.0], [np.nan, 0.0], [0.1, 0.0]])
+    cov = np.array([np.eye(2), np.eye(2), np.eye(2), -np.eye(2)])
+    assert inside_counts(d, cov, 0.9) == (1, 2)
+    assert inside(d, cov, 0.9).tolist() == [True, False, False, False]
 
 
 def test_semi_axes_match_eigen_decomposition():

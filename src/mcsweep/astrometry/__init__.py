@@ -26,6 +26,7 @@ from .confidence import (
     ellipse_semi_axes,
     error_percentile,
     fraction_inside,
+    inside_counts,
     inside,
     mahalanobis_sq,
 )
@@ -64,6 +65,7 @@ __all__ = [
     "mahalanobis_sq",
     "inside",
     "fraction_inside",
+    "inside_counts",
     "ellipse_semi_axes",
     "error_percentile",
 ]

@@ -27,6 +27,7 @@ __all__ = [
     "mahalanobis_sq",
     "inside",
     "fraction_inside",
+    "inside_counts",
     "ellipse_semi_axes",
     "error_percentile",
 ]
@@ -104,16 +105,26 @@ def inside(dpos, cov2, P) -> np.ndarray:
         return q < k
 
 
-def fraction_inside(dpos, cov2, P) -> float:
-    """Fraction of stars inside their P confidence ellipse.
+def inside_counts(dpos, cov2, P) -> tuple[int, int]:
+    """``(n_inside, n_valid)``: stars inside their P ellipse, and stars that have one.
 
-    Stars whose ``Q`` is not finite (flagged solutions, NaN) are left out of both the
-    numerator and the denominator; NaN if no star is left.
+    The project's one NaN rule: a star whose error or covariance is not finite (an
+    unsolved or flagged solution) has no confidence region, so it is left out of the
+    denominator. Callers report ``n_valid`` next to the total so the exclusion is seen.
     """
     k = chi2_threshold(P, 2)
     q = mahalanobis_sq(dpos, cov2)
-    q = q[np.isfinite(q)]
-    return float(np.mean(q < k)) if q.size else float("nan")
+    valid = np.isfinite(q)
+    return int(np.count_nonzero(q[valid] < k)), int(np.count_nonzero(valid))
+
+
+def fraction_inside(dpos, cov2, P) -> float:
+    """Fraction of stars inside their P confidence ellipse (NaN rule of :func:`inside_counts`).
+
+    NaN if no star has a valid confidence region.
+    """
+    n_in, n_valid = inside_counts(dpos, cov2, P)
+    return n_in / n_valid if n_valid else float("nan")
 
 
 def ellipse_semi_axes(cov2, P) -> tuple[np.ndarray, np.ndarray]:

@@ -22,7 +22,8 @@ def run(args, **kw):
 @pytest.fixture(scope="module")
 def small_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("run") / "sweep"
-    r = run([f"hydra.run.dir={out}", *SMALL, "execution.n_jobs=2"])
+    # The usual umask, stated so the mode test below does not depend on the caller's shell.
+    r = run([f"hydra.run.dir={out}", *SMALL, "execution.n_jobs=2"], umask=0o022)
     assert r.returncode == 0, r.stderr[-3000:]
     return out
 
@@ -40,6 +41,14 @@ def test_small_sweep_writes_cells_coefficients_and_report(small_run):
     assert set(table["case"]) == {"one", "two", "two_diluted", "four", "eight"}
     assert table["fraction_inside"].between(0, 1).all()
     assert "Provenance" in (small_run / "report.md").read_text()
+
+
+@pytest.mark.slow
+def test_result_files_are_readable_by_group_and_others_under_umask_022(small_run):
+    files = [p for p in small_run.rglob("*") if p.is_file()]
+    assert len(files) > 20
+    private = [str(p.relative_to(small_run)) for p in files if (p.stat().st_mode & 0o777) != 0o644]
+    assert not private, private
 
 
 @pytest.mark.slow

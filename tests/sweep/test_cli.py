@@ -80,7 +80,7 @@ def test_rerun_skips_finished_cells_and_njobs_does_not_matter(small_run, tmp_pat
     assert r.returncode == 0, r.stderr[-2000:]
     a = pd.read_parquet(small_run / "cells.parquet").sort_values(["cell_id", "case", "sigma_prior_mas"])
     b = pd.read_parquet(one / "cells.parquet").sort_values(["cell_id", "case", "sigma_prior_mas"])
-    pd.testing.assert_frame_equal(a.reset_index(drop=True), b.reset_index(drop=True))
+    pd.testing.assert_frame_equal(a.reset_index(drop=True), b.reset_index(drop=True), check_exact=True)
 
 
 @pytest.mark.slow

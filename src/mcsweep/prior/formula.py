@@ -26,7 +26,8 @@ Magnitude range. The coefficients were fitted to G = 6-20 (GUMS, 1 mag bins).
 
 The coefficient table is exposed (:data:`PAPER_COEFFICIENTS`) and
 :func:`sigma_from_coefficients` evaluates Eqs. 14-17 for any coefficients, so a
-re-fitted prior can be evaluated with the same code.
+re-fitted prior can be evaluated with the same code (:class:`mcsweep.prior.Prior`
+applies these rules for the paper's and for a run's coefficients).
 """
 
 from __future__ import annotations
@@ -36,7 +37,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from .errors import UserInputError
+from ..errors import UserInputError
 
 __all__ = [
     "PAPER_COEFFICIENTS",
@@ -44,7 +45,8 @@ __all__ = [
     "G_FIT_MAX",
     "s_coefficients",
     "sigma_from_coefficients",
-    "sigma_f90",
+    "BRIGHT_CHOICES",
+    "check_bright",
 ]
 
 #: Eqs. 15-17: coefficients of s0, s1, s2 in increasing powers of G.
@@ -58,7 +60,15 @@ PAPER_COEFFICIENTS: Mapping[str, tuple[float, ...]] = MappingProxyType({
 G_FIT_MIN = 6.0
 G_FIT_MAX = 20.0
 
-_BRIGHT_CHOICES = ("extrapolate", "clamp")
+#: Treatments of stars brighter than the fit range (module notes).
+BRIGHT_CHOICES = ("extrapolate", "clamp")
+
+
+def check_bright(bright: str) -> str:
+    """Return ``bright`` or raise UserInputError unless it is one of :data:`BRIGHT_CHOICES`."""
+    if bright not in BRIGHT_CHOICES:
+        raise UserInputError(f"bright={bright!r} is not accepted; expected one of {BRIGHT_CHOICES}")
+    return bright
 
 
 def s_coefficients(G, coefficients: Mapping[str, Sequence[float]] = PAPER_COEFFICIENTS):
@@ -120,28 +130,3 @@ def sigma_from_coefficients(l_deg, b_deg, G, coefficients: Mapping[str, Sequence
         g = np.clip(g, g_min, g_max)
     s0, s1, s2 = s_coefficients(g, coefficients)
     return 10.0 ** (s0 + s1 * np.abs(np.sin(b_rad)) + s2 * np.cos(b_rad) * np.cos(l_rad))
-
-
-def sigma_f90(l_deg, b_deg, G, *, bright: str = "extrapolate") -> np.ndarray:
-    """Optimum parallax prior sigma_F90 in mas (paper Eqs. 14-17).
-
-    Parameters
-    ----------
-    l_deg, b_deg : array_like
-        Galactic longitude and latitude, degrees.
-    G : array_like
-        G magnitude; broadcast with ``l_deg``, ``b_deg``. G > 20 uses G = 20 (paper
-        Sect. 3.4).
-    bright : {"extrapolate", "clamp"}, keyword-only
-        Treatment of G < 6 (module notes): evaluate the polynomials (default) or use
-        the value at G = 6.
-
-    Returns
-    -------
-    ndarray
-        sigma_F90 in mas.
-    """
-    if bright not in _BRIGHT_CHOICES:
-        raise UserInputError(f"bright={bright!r} is not accepted; expected one of {_BRIGHT_CHOICES}")
-    g_min = G_FIT_MIN if bright == "clamp" else None
-    return sigma_from_coefficients(l_deg, b_deg, G, PAPER_COEFFICIENTS, g_min=g_min, g_max=G_FIT_MAX)

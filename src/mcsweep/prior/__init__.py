@@ -1,0 +1,38 @@
+"""The parallax and proper-motion prior of Michalik et al. (2015, Sect. 3.4, Eqs. 14-18).
+
+Modules
+-------
+formula
+    Eqs. 14-17 for any coefficients; the paper's coefficient table and fit range.
+model
+    :class:`Prior`: the paper's prior or a run's fit, queried with SkyCoord or (l, b)
+    and G; :func:`sigma_f90` (the paper's formula as plain numbers).
+frames
+    Fast ICRS -> galactic conversion with astropy's rotation (catalogue annotation).
+"""
+
+from .formula import (
+    BRIGHT_CHOICES,
+    G_FIT_MAX,
+    G_FIT_MIN,
+    PAPER_COEFFICIENTS,
+    s_coefficients,
+    sigma_from_coefficients,
+)
+from .frames import galactic_from_icrs
+from .model import COEFFICIENTS_FILE, PAPER_CONFIDENCE, PAPER_RATIO_R, Prior, sigma_f90
+
+__all__ = [
+    "BRIGHT_CHOICES",
+    "G_FIT_MAX",
+    "G_FIT_MIN",
+    "PAPER_COEFFICIENTS",
+    "PAPER_CONFIDENCE",
+    "PAPER_RATIO_R",
+    "COEFFICIENTS_FILE",
+    "Prior",
+    "galactic_from_icrs",
+    "s_coefficients",
+    "sigma_from_coefficients",
+    "sigma_f90",
+]

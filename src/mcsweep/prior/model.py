@@ -1,0 +1,294 @@
+"""The prior as an object a user queries: load once, ask with sky coordinates and G.
+
+:class:`Prior` holds the coefficients of Eqs. 15-17, the magnitude range they were
+fitted over, the confidence level P and the ratio R = sigma_mu / sigma_plx of Eq. 18.
+``Prior.paper()`` is the paper's formula (Sect. 3.4); ``Prior.from_run(run_dir)`` a
+sweep's own fit (``coefficients.csv``, read by column name, and ``provenance.json``).
+
+Magnitudes outside the fit range follow the rules of :mod:`mcsweep.prior.formula`
+for both kinds: fainter than ``g_max`` the value at ``g_max`` (the paper's rule at
+G > 20, Sect. 3.4); brighter than ``g_min`` the documented choice ``bright``
+(``"extrapolate"``, default, or ``"clamp"``). For a run whose G range starts fainter
+than 6 the extrapolation is only as good as the fitted polynomials, so check
+``prior.g_min`` before querying far brighter stars, or use ``bright="clamp"``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from functools import lru_cache
+from pathlib import Path
+from types import MappingProxyType
+from typing import Mapping
+
+import numpy as np
+from astropy import units as u
+from astropy.coordinates import Galactic, SkyCoord
+
+from ..errors import UserInputError
+from .formula import (
+    G_FIT_MAX,
+    G_FIT_MIN,
+    PAPER_COEFFICIENTS,
+    check_bright,
+    sigma_from_coefficients,
+)
+
+__all__ = ["Prior", "PAPER_CONFIDENCE", "PAPER_RATIO_R", "COEFFICIENTS_FILE", "sigma_f90"]
+
+#: Confidence level of the paper's sigma_F90 (Sect. 2.4).
+PAPER_CONFIDENCE = 0.9
+#: R = sigma_mu,p / sigma_plx,p in 1/yr (Sect. 3.1, Eq. 18).
+PAPER_RATIO_R = 10.0
+#: The fitted coefficients in a run directory (written by :mod:`mcsweep.report.fit`).
+COEFFICIENTS_FILE = "coefficients.csv"
+_PROVENANCE_FILE = "provenance.json"
+_TERMS = {"s0": 3, "s1": 4, "s2": 2}  # number of coefficients of Eqs. 15-17
+
+
+def _frozen(coefficients: Mapping) -> Mapping[str, tuple[float, ...]]:
+    return MappingProxyType({k: tuple(float(c) for c in coefficients[k]) for k in ("s0", "s1", "s2")})
+
+
+@dataclass(frozen=True, eq=False)
+class Prior:
+    """The all-sky parallax and proper-motion prior of Eqs. 14-18.
+
+    Parameters
+    ----------
+    coefficients : mapping
+        ``{"s0": (c0, c1, c2), "s1": (c0, .., c3), "s2": (c0, c1)}`` of Eqs. 15-17,
+        increasing powers of G.
+    g_min, g_max : float
+        Magnitude range of the fit (module notes on what happens outside).
+    confidence : float
+        Confidence level P for which sigma_F90 was determined.
+    ratio_R : float
+        ``sigma_mu / sigma_plx`` in 1/yr (Eq. 18).
+    bright : {"extrapolate", "clamp"}
+        Treatment of G < ``g_min``.
+    origin : str
+        Where the coefficients come from ("paper" or the run directory).
+
+    Examples
+    --------
+    >>> from astropy.coordinates import SkyCoord
+    >>> import astropy.units as u
+    >>> prior = Prior.paper()
+    >>> prior.sigma_parallax(SkyCoord(ra=150 * u.deg, dec=20 * u.deg), G=15.0)  # doctest: +FLOAT_CMP
+    <Quantity 2.04467153 mas>
+    """
+
+    coefficients: Mapping[str, tuple[float, ...]]
+    g_min: float = G_FIT_MIN
+    g_max: float = G_FIT_MAX
+    confidence: float = PAPER_CONFIDENCE
+    ratio_R: float = PAPER_RATIO_R
+    bright: str = "extrapolate"
+    origin: str = field(default="paper")
+
+    def __post_init__(self):
+        missing = [k for k in ("s0", "s1", "s2") if k not in self.coefficients]
+        if missing:
+            raise UserInputError(f"coefficients {sorted(self.coefficients)} are not accepted; "
+                                 f"missing {missing} (expected keys s0, s1, s2)")
+        object.__setattr__(self, "coefficients", _frozen(self.coefficients))
+        bad = [k for k, v in self.coefficients.items() if not v or not all(map(math.isfinite, v))]
+        if bad:
+            raise UserInputError(f"coefficients of {bad} from {self.origin} are not finite numbers; "
+                                 "expected a fitted prior (a sweep with at least 4 G bins fitted)")
+        check_bright(self.bright)
+        if not (math.isfinite(self.g_min) and math.isfinite(self.g_max) and self.g_min < self.g_max):
+            raise UserInputError(f"G range ({self.g_min}, {self.g_max}) is not accepted; "
+                                 "expected finite g_min < g_max")
+        if not 0.0 < self.confidence < 1.0:
+            raise UserInputError(f"confidence={self.confidence!r} is not accepted; "
+                                 "expected a probability strictly between 0 and 1")
+        if not (self.ratio_R > 0 and math.isfinite(self.ratio_R)):
+            raise UserInputError(f"ratio_R={self.ratio_R!r} is not accepted; expected a positive finite number per year")
+
+    # -- construction -------------------------------------------------------------------
+    @classmethod
+    def paper(cls, *, bright: str = "extrapolate") -> "Prior":
+        """The paper's prior: Eqs. 14-17 fitted to GUMS at G = 6-20, P = 0.9, R = 10/yr."""
+        return cls(PAPER_COEFFICIENTS, G_FIT_MIN, G_FIT_MAX, PAPER_CONFIDENCE, PAPER_RATIO_R, bright, "paper")
+
+    @classmethod
+    def from_run(cls, run_dir, *, bright: str = "extrapolate") -> "Prior":
+        """The prior fitted by a sigma_F90 sweep.
+
+        Coefficients from the ``fitted`` column of the run's ``coefficients.csv``
+        (rows named by ``term``: ``s0_c0`` ... ``s2_c1``); the G range (outer edges of
+        the magnitude bins), P (``confidence``) and R (``ratio_R``) from the config
+        recorded in ``provenance.json``.
+
+        Raises
+        ------
+        UserInputError
+            If the directory is not a finished sweep with fitted coefficients.
+        """
+        import pandas as pd  # only needed here
+
+        run_dir = Path(run_dir)
+        coef_path, prov_path = run_dir / COEFFICIENTS_FILE, run_dir / _PROVENANCE_FILE
+        for p in (coef_path, prov_path):
+            if not p.is_file():
+                raise UserInputError(f"run directory {run_dir} has no {p.name}; expected the directory "
+                                     "of a finished mcsweep sigma_F90 sweep")
+        try:
+            table = pd.read_csv(coef_path)
+            prov = json.loads(prov_path.read_text())
+        except (ValueError, OSError) as exc:
+            raise UserInputError(f"run directory {run_dir}: cannot read {COEFFICIENTS_FILE} or "
+                                 f"{_PROVENANCE_FILE} ({type(exc).__name__}); expected a finished sweep") from None
+        if not {"term", "fitted"} <= set(table.columns):
+            raise UserInputError(f"{coef_path} has columns {list(table.columns)}; expected 'term' and 'fitted'")
+        fitted = dict(zip(table["term"].astype(str), table["fitted"].astype(float)))
+        coefficients = {}
+        for name, n in _TERMS.items():
+            terms = [f"{name}_c{k}" for k in range(n)]
+            absent = [t for t in terms if t not in fitted]
+            if absent:
+                raise UserInputError(f"{coef_path} lacks the terms {absent}; expected s0_c0..s0_c2, "
+                                     "s1_c0..s1_c3, s2_c0..s2_c1")
+            coefficients[name] = tuple(fitted[t] for t in terms)
+        cfg = prov.get("config", {})
+        edges = cfg.get("magnitudes", {}).get("edges")
+        if prov.get("kind", "f90_sweep") != "f90_sweep" or not edges:
+            raise UserInputError(f"run directory {run_dir} is a {prov.get('kind')!r} run; "
+                                 "expected a sigma_F90 sweep (experiment=f90_sweep)")
+        return cls(coefficients, float(min(edges)), float(max(edges)),
+                   float(cfg.get("confidence", PAPER_CONFIDENCE)), float(cfg.get("ratio_R", PAPER_RATIO_R)),
+                   bright, str(run_dir))
+
+    # -- queries ------------------------------------------------------------------------
+    def sigma_parallax_mas(self, l_deg, b_deg, G) -> np.ndarray:
+        """sigma_F90 in mas as a plain array, from galactic l, b in degrees (hot paths)."""
+        g_low = self.g_min if self.bright == "clamp" else None
+        return sigma_from_coefficients(l_deg, b_deg, G, self.coefficients, g_min=g_low, g_max=self.g_max)
+
+    def sigma_parallax(self, *where, G=None) -> u.Quantity:
+        """Parallax prior sigma_F90 (Eqs. 14-17) as a Quantity in mas.
+
+        Parameters
+        ----------
+        *where : SkyCoord, or l and b
+            A :class:`~astropy.coordinates.SkyCoord` (or frame) in any frame, or
+            galactic longitude and latitude (degrees, or angle Quantities). G may
+            follow as the last positional argument.
+        G : array_like, keyword
+            G magnitude (plain numbers or a Quantity in mag). Broadcast with the
+            positions.
+
+        Returns
+        -------
+        Quantity
+            In mas, broadcast shape of the inputs.
+        """
+        l_deg, b_deg, g = self._parse(where, G)
+        return self.sigma_parallax_mas(l_deg, b_deg, g) * u.mas
+
+    def sigma_pm(self, *where, G=None) -> u.Quantity:
+        """Proper-motion prior ``R * sigma_F90`` (Eq. 18) as a Quantity in mas/yr.
+
+        Same arguments as :meth:`sigma_parallax`.
+        """
+        l_deg, b_deg, g = self._parse(where, G)
+        return self.ratio_R * self.sigma_parallax_mas(l_deg, b_deg, g) * (u.mas / u.yr)
+
+    def normal_matrix(self, *where, G=None, factor: float = 1.0) -> np.ndarray:
+        """Prior normal matrix N_p of Eq. 18 for every star.
+
+        ``N_p = diag(0, 0, sigma_plx^-2, sigma_mu^-2, sigma_mu^-2)`` with
+        ``sigma_plx = factor * sigma_F90`` and ``sigma_mu = R sigma_plx``; parameter
+        order (dalpha*, ddelta, parallax, pmra, pmdec) as in :mod:`mcsweep.astrometry`.
+
+        Parameters
+        ----------
+        *where, G
+            As for :meth:`sigma_parallax`.
+        factor : float, keyword-only
+            Multiplier K of sigma_F90 (Sect. 3.3: priors up to ~10 x sigma_F90 keep
+            the errors at the same level with conservative formal uncertainties).
+
+        Returns
+        -------
+        ndarray, shape ``broadcast_shape + (5, 5)``
+            In mas^-2 (parallax) and (mas/yr)^-2 (proper motion); no units attached
+            because they differ between elements.
+        """
+        if not (np.isscalar(factor) and factor > 0 and math.isfinite(factor)):
+            raise UserInputError(f"factor={factor!r} is not accepted; expected a positive finite number")
+        l_deg, b_deg, g = self._parse(where, G)
+        w_plx = 1.0 / (factor * self.sigma_parallax_mas(l_deg, b_deg, g)) ** 2
+        out = np.zeros(w_plx.shape + (5, 5))
+        out[..., 2, 2] = w_plx
+        out[..., 3, 3] = out[..., 4, 4] = w_plx / self.ratio_R**2
+        return out
+
+    def __repr__(self) -> str:
+        return (f"Prior(origin={self.origin!r}, G {self.g_min:g}-{self.g_max:g}, P={self.confidence:g}, "
+                f"R={self.ratio_R:g}/yr, bright={self.bright!r})")
+
+    # -- argument handling --------------------------------------------------------------
+    @staticmethod
+    def _parse(where: tuple, G) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        where = list(where)
+        is_coord = bool(where) and hasattr(where[0], "transform_to")
+        n_pos = 1 if is_coord else 2
+        if len(where) == n_pos + 1 and G is None:
+            G = where.pop()
+        if len(where) != n_pos or G is None:
+            raise TypeError("expected (coord, G) with coord a SkyCoord, or (l, b, G) with galactic l, b in "
+                            f"degrees; got {len(where)} positional argument(s) and G={'set' if G is not None else 'None'}")
+        if is_coord:
+            gal = where[0].transform_to(Galactic())
+            l_deg, b_deg = gal.l.to_value(u.deg), gal.b.to_value(u.deg)
+        else:
+            l_deg, b_deg = (_angle_deg(v, name) for v, name in zip(where, ("l", "b")))
+        if isinstance(G, u.Quantity):
+            if G.unit not in (u.mag, u.dimensionless_unscaled):
+                raise UserInputError(f"G in {G.unit} is not accepted; expected magnitudes (u.mag or plain numbers)")
+            G = G.value
+        return l_deg, b_deg, np.asarray(G, dtype=float)
+
+
+def _angle_deg(value, name: str) -> np.ndarray:
+    if isinstance(value, u.Quantity):
+        if value.unit.physical_type != "angle":
+            raise UserInputError(f"{name} in {value.unit} is not accepted; expected an angle (degrees)")
+        return value.to_value(u.deg)
+    if isinstance(value, SkyCoord):  # pragma: no cover - caught by _parse
+        raise TypeError(f"{name} must be a number, not a SkyCoord")
+    return np.asarray(value, dtype=float)
+
+
+def sigma_f90(l_deg, b_deg, G, *, bright: str = "extrapolate") -> np.ndarray:
+    """Optimum parallax prior sigma_F90 in mas (paper Eqs. 14-17), as plain numbers.
+
+    The paper's formula, through :meth:`Prior.paper` (kept for existing callers).
+
+    Parameters
+    ----------
+    l_deg, b_deg : array_like
+        Galactic longitude and latitude, degrees.
+    G : array_like
+        G magnitude; broadcast with ``l_deg``, ``b_deg``. G > 20 uses G = 20 (paper
+        Sect. 3.4).
+    bright : {"extrapolate", "clamp"}, keyword-only
+        Treatment of G < 6 (:mod:`mcsweep.prior.formula`): evaluate the polynomials
+        (default) or use the value at G = 6.
+
+    Returns
+    -------
+    ndarray
+        sigma_F90 in mas.
+    """
+    return _paper(check_bright(bright)).sigma_parallax_mas(l_deg, b_deg, G)
+
+
+@lru_cache(maxsize=None)
+def _paper(bright: str) -> Prior:
+    return Prior.paper(bright=bright)

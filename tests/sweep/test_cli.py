@@ -118,3 +118,30 @@ def test_dask_info_lines_go_to_the_log_file_not_the_terminal(tmp_path):
     assert terminal.strip().splitlines()[-1].startswith("mcsweep: results in")
     log = "".join(p.read_text() for p in out.glob("*.log"))
     assert "distributed.scheduler" in log  # kept in the run's log
+
+
+@pytest.mark.slow
+def test_sweep_writes_prior_maps_equal_to_prior_from_run(small_run):
+    import numpy as np
+    from astropy.coordinates import Galactic
+    from astropy.io import fits
+    from astropy_healpix import HEALPix
+
+    from mcsweep.prior import Prior
+
+    rtol_paths = 1e-13  # same formula, array vs scalar numpy kernels
+    prior = Prior.from_run(small_run)
+    assert (prior.g_min, prior.g_max, prior.confidence, prior.ratio_R) == (13.0, 17.0, 0.9, 10.0)
+    with fits.open(small_run / "prior_maps.fits") as hdul:
+        h = hdul["SIGMA_F90"].header
+        assert (h["NSIDE"], h["ORDERING"], h["COORDSYS"]) == (16, "RING", "G")
+        hp = HEALPix(nside=h["NSIDE"], order="ring", frame=Galactic())
+        lon, lat = hp.healpix_to_lonlat(np.arange(hp.npix))
+        gs = [h[f"GMAG{i}"] for i in range(1, h["TFIELDS"] + 1)]
+        assert gs == [13.5, 14.5, 15.5, 16.5]
+        for i, g in enumerate(gs):
+            np.testing.assert_allclose(hdul[1].data.field(i), prior.sigma_parallax(lon, lat, G=g).value,
+                                       rtol=rtol_paths, atol=0)
+        assert len(hdul["CELLS"].data) == 16
+    assert (small_run / "figures" / "prior_maps.png").exists()
+    assert "figures/prior_maps.png" in (small_run / "report.md").read_text()

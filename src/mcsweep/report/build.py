@@ -1,7 +1,8 @@
 """Build a run directory's report from its result files (reads results, computes no cells).
 
 For a sweep: ``f90_cells.csv`` (our sigma_F90 per cell next to the paper's formula),
-``coefficients.csv`` (Eqs. 15-17: fitted, paper, difference), ``rms_dex.csv``, the
+``coefficients.csv`` (Eqs. 15-17: fitted, paper, difference), ``rms_dex.csv``,
+``prior_maps.fits`` (HEALPix maps of the fitted prior, :mod:`mcsweep.prior.maps`), the
 figures, and ``report.md`` / ``report.html``. Experiments with their own tables (e.g.
 the secondary solution) add sections through :data:`SECTION_BUILDERS`.
 """
@@ -16,15 +17,19 @@ from typing import Callable
 import pandas as pd
 
 from ..errors import UserInputError
+from ..prior import Prior
+from ..prior.maps import DEFAULT_NSIDE, MAPS_FILE, prior_maps_bytes
 from ..sweep.store import atomic_write_bytes
 from . import figures
 from .document import Document
 from .fit import fit_all
 from .secondary_section import secondary_section
 
-__all__ = ["build_report", "SECTION_BUILDERS", "sweep_section", "provenance_section"]
+__all__ = ["build_report", "SECTION_BUILDERS", "sweep_section", "provenance_section", "write_prior_maps"]
 
 FIG_DIR = "figures"
+_MAP_CELL_COLUMNS = ("cell_id", "l_deg", "b_deg", "g_min", "g_max", "g", "n_stars", "radius_deg", "f90_flag",
+                     "sigma_f90_mas", "fitted_sigma_f90_mas", "paper_sigma_f90_mas")
 
 
 def _f90_table(cells: pd.DataFrame) -> pd.DataFrame:
@@ -46,6 +51,7 @@ def sweep_section(doc: Document, run_dir: Path, prov: dict) -> None:
     figdir = run_dir / FIG_DIR
     figdir.mkdir(exist_ok=True)
     cfg = prov.get("config", {})
+    run_prior = write_prior_maps(run_dir, fit, cfg)
     p = float(cfg.get("confidence", 0.9))
 
     n_ok = int((f90["f90_flag"] == "ok").sum())
@@ -88,7 +94,31 @@ def sweep_section(doc: Document, run_dir: Path, prov: dict) -> None:
         summary.insert(0, "case", [c.removeprefix("fraction_at_f90_") for c in summary.index])
         doc.table(summary.reset_index(drop=True), "Fraction inside the P ellipse at each cell's sigma_F90, per case",
                   {"mean": ".3f", "10%": ".3f", "50%": ".3f", "90%": ".3f"})
+    if run_prior is not None:
+        name = "prior_maps.png"
+        figures.plot_prior_mollweide(run_dir / MAPS_FILE, Prior.paper(), figdir / name)
+        doc.figure(f"{FIG_DIR}/{name}", "sigma_F90 over the sky (galactic Mollweide, l = 0 at the centre, "
+                   "increasing to the left) at a few G bin centres: this run's fit (prior_maps.fits) and "
+                   "the paper's Eqs. 14-17")
     _showcase_section(doc, run_dir, figdir, p, cfg)
+
+
+def write_prior_maps(run_dir: Path, fit, cfg: dict) -> Prior | None:
+    """Write ``prior_maps.fits`` (maps of the run's prior at every G bin centre, the cells).
+
+    The prior is read back with :meth:`Prior.from_run` from the ``coefficients.csv`` just
+    written, so the maps hold exactly what a user of the run directory gets; None (NaN
+    maps) when the polynomials could not be fitted.
+    """
+    g_centres = sorted(set(fit.compared["g"].astype(float)))
+    try:
+        run_prior = Prior.from_run(run_dir)
+    except UserInputError:
+        run_prior = None
+    cells = fit.compared[[c for c in _MAP_CELL_COLUMNS if c in fit.compared.columns]]
+    nside = int(cfg.get("prior_maps", {}).get("nside", DEFAULT_NSIDE))
+    atomic_write_bytes(run_dir / MAPS_FILE, prior_maps_bytes(run_prior, g_centres, nside=nside, cells=cells))
+    return run_prior
 
 
 def _showcase_section(doc: Document, run_dir: Path, figdir: Path, p: float, cfg: dict) -> None:

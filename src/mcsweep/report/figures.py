@@ -19,6 +19,7 @@ __all__ = [
     "plot_fig4_coefficients",
     "plot_fig4_magnitude",
     "plot_sky_difference",
+    "plot_prior_mollweide",
     "plot_showcase_curves",
     "plot_showcase_scatter",
     "plot_showcase_cases",
@@ -198,3 +199,57 @@ def plot_showcase_cases(curves: pd.DataFrame, f90: float, path: Path, p: float) 
         ax.set_xlabel(r"$\sigma_{\varpi,p}$ [mas]")
     axes[0, 0].legend(fontsize=7)
     return _save(fig, path)
+
+
+def plot_prior_mollweide(maps_path: Path, paper_prior, path: Path, n_bins: int = 3) -> Path:
+    """sigma_F90 maps of a run (``prior_maps.fits``) next to the paper's formula.
+
+    Rows: up to ``n_bins`` G values (the brightest, middle and faintest bin centres);
+    columns: this run's map and the paper's Eqs. 14-17 at the same pixel centres, on one
+    logarithmic colour scale per row. Galactic Mollweide, l = 0 at the centre and
+    increasing to the left (the astronomers' convention).
+    """
+    from astropy.coordinates import Galactic, Longitude
+    from astropy_healpix import HEALPix
+    from astropy import units as u
+    from matplotlib.colors import LogNorm
+
+    from ..prior.maps import read_prior_maps
+
+    nside, g_values, maps = read_prior_maps(maps_path)
+    pick = sorted(set(np.linspace(0, len(g_values) - 1, min(n_bins, len(g_values))).round().astype(int)))
+    hp = HEALPix(nside=nside, order="ring", frame=Galactic())
+    lon_e = np.linspace(-np.pi, np.pi, 361)
+    lat_e = np.linspace(-np.pi / 2, np.pi / 2, 181)
+    lon_c, lat_c = np.meshgrid(0.5 * (lon_e[1:] + lon_e[:-1]), 0.5 * (lat_e[1:] + lat_e[:-1]))
+    # Plot x = -l so that l grows to the left.
+    pix = hp.lonlat_to_healpix(Longitude(-lon_c * u.rad), lat_c * u.rad)
+    pl, pb = hp.healpix_to_lonlat(np.arange(hp.npix))
+    fig, axes = plt.subplots(len(pick), 2, figsize=(10, 2.9 * len(pick)), subplot_kw={"projection": "mollweide"},
+                             squeeze=False)
+    for row, i in enumerate(pick):
+        ours = maps[i]
+        paper = paper_prior.sigma_parallax_mas(pl.deg, pb.deg, g_values[i])
+        finite = np.concatenate([ours[np.isfinite(ours)], paper])
+        norm = LogNorm(vmin=finite.min(), vmax=finite.max())
+        for col, (values, label) in enumerate(((ours, "this run (fit)"), (paper, "paper Eqs. 14-17"))):
+            ax = axes[row, col]
+            mesh = ax.pcolormesh(lon_e, lat_e, values[pix], norm=norm, cmap="viridis", shading="flat")
+            ax.set_title(f"G = {g_values[i]:g}: {label}", fontsize=9)
+            ax.set_xticklabels([])
+            ax.tick_params(labelsize=7)
+            ax.grid(True, alpha=0.3)
+        fig.colorbar(mesh, ax=axes[row, :].tolist(), shrink=0.8, label="sigma_F90 [mas]")
+    return _save_no_tight(fig, path)
+
+
+def _save_no_tight(fig, path: Path) -> Path:
+    import io
+
+    from ..sweep.store import atomic_write_bytes
+
+    buf = io.BytesIO()
+    fig.savefig(buf, dpi=110, format="png", bbox_inches="tight")
+    plt.close(fig)
+    atomic_write_bytes(path, buf.getvalue())
+    return path

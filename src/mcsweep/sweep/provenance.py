@@ -1,7 +1,7 @@
 """What a run directory records about how its results were made.
 
 ``provenance.json`` holds the resolved config, the hash of its scientific part (every
-key except ``execution``, which must not change results), the package version, the
+key except ``execution`` and ``prior_maps``, which do not change the cells), the package version, the
 git commit when the package runs from a checkout, the seeds, per-stage timings and a
 manifest (size and SHA-256) of the result files. The hash also guards a run directory
 against mixing the results of two configs.
@@ -25,7 +25,8 @@ from .store import atomic_write_bytes
 __all__ = ["config_hash", "git_commit", "Provenance", "PROVENANCE_FILE"]
 
 PROVENANCE_FILE = "provenance.json"
-_EXCLUDED_KEYS = ("execution",)
+# execution: how, not what; prior_maps: rendering of the fitted prior, no cell depends on it.
+_EXCLUDED_KEYS = ("execution", "prior_maps")
 
 
 def _science_part(cfg: dict) -> dict:

@@ -36,7 +36,7 @@ SHOWCASE_DIR = "showcase"
 #: Everything a sweep and its report write into a run directory (removed again when a
 #: fresh run stops on a user error, so that no partial output is left).
 OUTPUTS = (CELLS_DIR, SHOWCASE_DIR, "figures", "cells.parquet", "f90_cells.csv", "coefficients.csv",
-           "rms_dex.csv", "eq14_terms.csv", "report.md", "report.html", "provenance.json")
+           "rms_dex.csv", "eq14_terms.csv", "prior_maps.fits", "report.md", "report.html", "provenance.json")
 
 
 def _tcb_jd(iso: str) -> float:

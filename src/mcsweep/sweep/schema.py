@@ -20,6 +20,7 @@ from hydra.core.config_store import ConfigStore
 
 from ..astrometry.noise import G_MAX
 from ..errors import UserInputError
+from ..prior.maps import MAX_NSIDE
 from ..scanning.law import ScanningLaw
 
 __all__ = [
@@ -314,6 +315,19 @@ class ExperimentConf:
 
 
 @dataclass
+class PriorMapsConf:
+    """HEALPix maps of the fitted prior written with every sweep (``prior_maps.fits``)."""
+
+    #: HEALPix resolution of the maps (galactic, RING): a power of two.
+    nside: int = 16
+
+    def __post_init__(self):
+        _require(isinstance(self.nside, int) and 1 <= self.nside <= MAX_NSIDE
+                 and (self.nside & (self.nside - 1)) == 0,
+                 "prior_maps.nside", self.nside, f"a power of two from 1 to {MAX_NSIDE}")
+
+
+@dataclass
 class ExecutionConf:
     #: joblib backend: 'loky' (processes), 'threading', 'sequential' or 'dask'.
     backend: str = "loky"
@@ -345,6 +359,7 @@ class Config:
     cell: CellConf = field(default_factory=CellConf)
     experiment: ExperimentConf = field(default_factory=ExperimentConf)
     execution: ExecutionConf = field(default_factory=ExecutionConf)
+    prior_maps: PriorMapsConf = field(default_factory=PriorMapsConf)
     #: Master seed; every cell derives its own stream from (seed, cell identity).
     seed: int = 20150821
     #: Confidence level P of the ellipses (Sect. 2.4: 0.9).

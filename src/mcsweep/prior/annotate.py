@@ -1,0 +1,214 @@
+"""Add the prior to a star catalogue: ``sigma_f90_parallax`` [mas] and ``sigma_f90_pm`` [mas/yr].
+
+Input columns use Gaia archive names (matched case-insensitively): ``ra, dec`` (ICRS)
+or ``l, b`` (galactic), in degrees, and ``phot_g_mean_mag``. Every other column is kept
+with its unit. Formats: FITS, VOTable, ECSV, CSV and Parquet (by suffix). Parquet to
+Parquet and CSV to CSV are streamed in batches (pyarrow / pandas), so memory stays flat
+whatever the number of rows; the other formats are read whole with astropy.
+
+The functions here write to the path they are given; the ``mcsweep-prior`` command
+gives them a temporary name and moves the file into place only when it is complete.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import UserInputError
+from .frames import galactic_from_icrs
+from .model import Prior
+
+__all__ = ["FORMATS", "PARALLAX_COLUMN", "PM_COLUMN", "detect_format", "prior_columns", "annotate_file"]
+
+PARALLAX_COLUMN = "sigma_f90_parallax"
+PM_COLUMN = "sigma_f90_pm"
+#: Accepted formats and the suffixes that select them.
+FORMATS = {
+    "fits": (".fits", ".fit", ".fits.gz"),
+    "votable": (".vot", ".votable", ".xml"),
+    "ecsv": (".ecsv",),
+    "csv": (".csv",),
+    "parquet": (".parquet", ".pq"),
+}
+_ASTROPY_FORMAT = {"fits": "fits", "votable": "votable", "ecsv": "ascii.ecsv", "csv": "ascii.csv",
+                   "parquet": "parquet"}
+#: Rows per batch when streaming (about 100 MB of float64 columns at 12 columns).
+BATCH_ROWS = 1_000_000
+
+
+def detect_format(path: Path) -> str:
+    """Format name from the file suffix, or UserInputError naming the accepted suffixes."""
+    name = Path(path).name.lower()
+    for fmt, suffixes in FORMATS.items():
+        if name.endswith(suffixes):
+            return fmt
+    accepted = sorted(s for v in FORMATS.values() for s in v)
+    raise UserInputError(f"{Path(path).name}: cannot tell the format from the suffix; expected one of {accepted}")
+
+
+def _find(names, wanted: str):
+    low = {str(n).lower(): n for n in names}
+    return low.get(wanted)
+
+
+def _columns(names, source: str) -> tuple[str, tuple[str, str], str]:
+    """('icrs' or 'galactic', (lon, lat) column names, G column name)."""
+    g = _find(names, "phot_g_mean_mag")
+    ra, dec, l_, b_ = (_find(names, k) for k in ("ra", "dec", "l", "b"))
+    if ra is not None and dec is not None:
+        kind, pos = "icrs", (ra, dec)
+    elif l_ is not None and b_ is not None:
+        kind, pos = "galactic", (l_, b_)
+    else:
+        kind, pos = None, None
+    if pos is None or g is None:
+        raise UserInputError(f"{source}: columns {list(names)[:12]} lack {'ra, dec (or l, b)' if pos is None else ''}"
+                             f"{' and ' if pos is None and g is None else ''}{'phot_g_mean_mag' if g is None else ''}; "
+                             "expected Gaia archive names ra, dec or l, b [deg] and phot_g_mean_mag")
+    for existing in (PARALLAX_COLUMN, PM_COLUMN):
+        if _find(names, existing) is not None:
+            raise UserInputError(f"{source}: already has a column {existing!r}; expected a catalogue without "
+                                 f"{PARALLAX_COLUMN} and {PM_COLUMN}")
+    return kind, pos, g
+
+
+def _values(col, name: str, source: str, unit, angle: bool) -> np.ndarray:
+    """Float values of a column in degrees (angle) or magnitudes, checked finite."""
+    from astropy import units as u
+
+    factor = 1.0
+    if unit is not None and str(unit) not in ("", "None"):
+        try:
+            unit = u.Unit(unit)
+            if angle:
+                factor = unit.to(u.deg)
+            elif unit not in (u.mag, u.dimensionless_unscaled):
+                raise u.UnitConversionError(str(unit))
+        except (u.UnitConversionError, ValueError, TypeError):
+            raise UserInputError(f"{source}: column {name} in {unit} is not accepted; expected "
+                                 f"{'an angle (deg)' if angle else 'magnitudes (mag)'}") from None
+    try:
+        v = np.asarray(col, dtype=float)
+    except (TypeError, ValueError):
+        raise UserInputError(f"{source}: column {name} has non-numeric values; expected numbers") from None
+    bad = ~np.isfinite(v)
+    if bad.any():
+        raise UserInputError(f"{source}: column {name} has {int(bad.sum())} NaN or infinite value(s) "
+                             f"(first at row {int(np.argmax(bad))} of its batch); expected finite values in every row")
+    return v * factor if factor != 1.0 else v
+
+
+def prior_columns(prior: Prior, kind: str, lon, lat, g) -> tuple[np.ndarray, np.ndarray]:
+    """(sigma_F90 parallax [mas], proper motion [mas/yr]) for arrays of stars."""
+    l_deg, b_deg = galactic_from_icrs(lon, lat) if kind == "icrs" else (lon, lat)
+    sig = prior.sigma_parallax_mas(l_deg, b_deg, g)
+    return sig, prior.ratio_R * sig
+
+
+def _prior_of_table(prior, kind, pos, gcol, get, units, source):
+    lon = _values(get(pos[0]), pos[0], source, units.get(pos[0]), True)
+    lat = _values(get(pos[1]), pos[1], source, units.get(pos[1]), True)
+    g = _values(get(gcol), gcol, source, units.get(gcol), False)
+    if np.any(np.abs(lat) > 90.0):
+        raise UserInputError(f"{source}: column {pos[1]} has values beyond +-90 deg; expected latitudes in degrees")
+    return prior_columns(prior, kind, lon, lat, g)
+
+
+def annotate_file(src: Path, dst: Path, prior: Prior, *, out_format: str | None = None,
+                  batch_rows: int = BATCH_ROWS) -> int:
+    """Write ``src`` with the two prior columns added to ``dst``; returns the number of rows.
+
+    ``out_format`` defaults to the format of ``dst``'s suffix (``dst`` may be a
+    temporary name without one). Raises UserInputError for unreadable files, missing
+    columns, wrong units and non-finite values.
+    """
+    src, dst = Path(src), Path(dst)
+    fmt_in = detect_format(src)
+    fmt_out = out_format or detect_format(dst)
+    if not src.is_file():
+        raise UserInputError(f"catalogue {src} does not exist; expected a readable file")
+    source = src.name
+    if fmt_in == fmt_out == "parquet":
+        return _parquet_stream(src, dst, prior, source, batch_rows)
+    if fmt_in == fmt_out == "csv":
+        return _csv_stream(src, dst, prior, source, batch_rows)
+    return _astropy_whole(src, dst, prior, source, fmt_in, fmt_out)
+
+
+def _parquet_stream(src, dst, prior, source, batch_rows) -> int:
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    try:
+        pf = pq.ParquetFile(src)
+    except Exception as exc:  # pyarrow raises ArrowInvalid, OSError, ...
+        raise UserInputError(f"{source}: cannot be read as Parquet ({type(exc).__name__}); "
+                             "expected a Parquet file") from None
+    names = pf.schema_arrow.names
+    kind, pos, gcol = _columns(names, source)
+    # Units a writer may have stored as field metadata (astropy, our own files) are honoured.
+    units = {}
+    for f in pf.schema_arrow:
+        meta = f.metadata or {}
+        if b"unit" in meta:
+            units[f.name] = meta[b"unit"].decode()
+    schema = pf.schema_arrow.append(pa.field(PARALLAX_COLUMN, pa.float64(), metadata={"unit": "mas"})) \
+        .append(pa.field(PM_COLUMN, pa.float64(), metadata={"unit": "mas / yr"}))
+    n = 0
+    with pq.ParquetWriter(dst, schema) as writer:
+        for batch in pf.iter_batches(batch_size=batch_rows):
+            plx, pm = _prior_of_table(prior, kind, pos, gcol,
+                                      lambda c: batch.column(c).to_numpy(zero_copy_only=False), units, source)
+            out = pa.RecordBatch.from_arrays([*batch.columns, pa.array(plx), pa.array(pm)], schema=schema)
+            writer.write_batch(out)
+            n += batch.num_rows
+    return n
+
+
+def _csv_stream(src, dst, prior, source, batch_rows) -> int:
+    import pandas as pd
+
+    n = 0
+    try:
+        reader = pd.read_csv(src, chunksize=batch_rows, comment="#")
+        with open(dst, "w", newline="") as f:
+            for i, chunk in enumerate(reader):
+                kind, pos, gcol = _columns(chunk.columns, source)
+                plx, pm = _prior_of_table(prior, kind, pos, gcol, lambda c: chunk[c].to_numpy(), {}, source)
+                chunk[PARALLAX_COLUMN] = plx
+                chunk[PM_COLUMN] = pm
+                chunk.to_csv(f, index=False, header=(i == 0))
+                n += len(chunk)
+    except UserInputError:
+        raise
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
+        raise UserInputError(f"{source}: cannot be read as CSV ({type(exc).__name__}); expected a CSV table "
+                             "with a header line") from None
+    return n
+
+
+def _astropy_whole(src, dst, prior, source, fmt_in, fmt_out) -> int:
+    from astropy import units as u
+    from astropy.table import Table
+
+    try:
+        t = Table.read(src, format=_ASTROPY_FORMAT[fmt_in])
+    except Exception as exc:  # the readers raise many types; report them on one line
+        raise UserInputError(f"{source}: cannot be read as {fmt_in} ({type(exc).__name__}); "
+                             f"expected a {fmt_in} table") from None
+    kind, pos, gcol = _columns(t.colnames, source)
+
+    def get(c):
+        col = t[c]
+        return col.filled(np.nan) if hasattr(col, "filled") and col.dtype.kind in "fiu" else col
+
+    plx, pm = _prior_of_table(prior, kind, pos, gcol, get, {c: t[c].unit for c in t.colnames}, source)
+    t[PARALLAX_COLUMN] = plx * u.mas
+    t[PM_COLUMN] = pm * (u.mas / u.yr)
+    t[PARALLAX_COLUMN].description = f"parallax prior sigma_F90 (Michalik et al. 2015 Eqs. 14-17; {prior.origin})"
+    t[PM_COLUMN].description = f"proper-motion prior R sigma_F90, R = {prior.ratio_R:g}/yr (Eq. 18)"
+    kw = {"serialize_meta": True} if fmt_out == "parquet" else {}  # keeps units in Parquet
+    t.write(dst, format=_ASTROPY_FORMAT[fmt_out], **kw)
+    return len(t)

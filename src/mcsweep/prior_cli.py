@@ -1,0 +1,133 @@
+"""The ``mcsweep-prior`` command: apply the prior to a user's catalogue or observations.
+
+``mcsweep-prior annotate CATALOGUE --out OUT [--run RUN_DIR | --paper]`` adds
+``sigma_f90_parallax`` [mas] and ``sigma_f90_pm`` [mas/yr] to a catalogue
+(:mod:`mcsweep.prior.annotate`).
+
+``mcsweep-prior solve OBSERVATIONS --out OUT [--sources SOURCES] [--run RUN_DIR | --paper]
+[--factor K] [--confidence P]`` solves each source's few FoV transits with the prior
+(:mod:`mcsweep.prior.observations`).
+
+The prior is the paper's (``--paper``, the default) or a sweep's fit (``--run``). Bad
+input ends with one line on stderr and exit status 2, and nothing is written: the
+output goes to a temporary name in the destination directory and is moved into place
+(atomically, with the mode ``0666 & ~umask`` of a normally created file) only when
+complete. The command sits after every stage (like ``mcsweep``), so it may use the
+sweep's file conventions.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from .errors import UserInputError, report_user_error
+from .prior import Prior
+from .sweep.store import current_umask
+
+__all__ = ["main"]
+
+PROG = "mcsweep-prior"
+
+
+def _prior(args) -> Prior:
+    bright = args.bright
+    return Prior.from_run(args.run, bright=bright) if args.run else Prior.paper(bright=bright)
+
+
+def _publish(out: Path, write) -> None:
+    """Call ``write(tmp_path)`` then move the temporary file to ``out``; no file is left on error."""
+    out = Path(out)
+    if not out.parent.is_dir():
+        raise UserInputError(f"--out {out}: directory {out.parent} does not exist; expected an existing directory")
+    if out.is_dir():
+        raise UserInputError(f"--out {out} is a directory; expected a file name")
+    fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)
+    os.close(fd)
+    try:
+        write(Path(tmp))
+        os.chmod(tmp, 0o666 & ~current_umask())
+        os.replace(tmp, out)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def _annotate(args) -> str:
+    from .prior.annotate import annotate_file, detect_format
+
+    prior = _prior(args)
+    fmt_out = detect_format(args.out)
+    t0 = time.perf_counter()
+    n = [0]
+
+    def write(tmp):
+        n[0] = annotate_file(args.catalogue, tmp, prior, out_format=fmt_out)
+
+    _publish(args.out, write)
+    dt = time.perf_counter() - t0
+    return f"{n[0]} rows annotated with the {prior.origin} prior in {dt:.2f} s -> {args.out}"
+
+
+def _solve(args) -> str:
+    from .prior.observations import read_observations, solve_observations, write_solutions, detect_format
+
+    prior = _prior(args)
+    fmt_out = detect_format(args.out)
+    t0 = time.perf_counter()
+    obs = read_observations(args.observations, args.sources)
+    sol = solve_observations(obs, prior, factor=args.factor, confidence=args.confidence,
+                             reference_epoch=args.reference_epoch)
+    _publish(args.out, lambda tmp: write_solutions(sol, tmp, fmt_out))
+    dt = time.perf_counter() - t0
+    return f"{len(sol)} sources solved with the {prior.origin} prior in {dt:.2f} s -> {args.out}"
+
+
+def _parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog=PROG, description="Apply the parallax prior of Michalik et al. (2015) "
+                                 "to your own catalogue or observations.")
+    sub = ap.add_subparsers(dest="command", required=True)
+
+    def prior_options(p):
+        g = p.add_mutually_exclusive_group()
+        g.add_argument("--run", type=Path, help="use the prior fitted by this mcsweep run directory")
+        g.add_argument("--paper", action="store_true", help="use the paper's Eqs. 14-17 (default)")
+        p.add_argument("--bright", choices=("extrapolate", "clamp"), default="extrapolate",
+                       help="stars brighter than the fit range: extrapolate the polynomials (default) or clamp")
+        p.add_argument("--out", type=Path, required=True, help="output file (format from its suffix)")
+
+    a = sub.add_parser("annotate", help="add sigma_f90_parallax [mas] and sigma_f90_pm [mas/yr] to a catalogue")
+    a.add_argument("catalogue", type=Path, help="FITS, VOTable, ECSV, CSV or Parquet file with Gaia column names")
+    prior_options(a)
+    a.set_defaults(run_command=_annotate)
+
+    s = sub.add_parser("solve", help="solve your own FoV transits of a few sources with the prior")
+    s.add_argument("observations", type=Path, help="one row per FoV transit (README: 'Using the prior')")
+    s.add_argument("--sources", type=Path, help="sources table (source_id, ra, dec, phot_g_mean_mag) if not "
+                   "in the observations")
+    prior_options(s)
+    s.add_argument("--factor", type=float, default=1.0, help="use K x sigma_F90 as the prior (default 1)")
+    s.add_argument("--confidence", type=float, default=None, help="P of the confidence ellipse "
+                   "(default: the prior's, 0.9 for the paper)")
+    s.add_argument("--reference-epoch", default="star_mean",
+                   help="'star_mean' (each source's mean transit epoch, default) or an ISO date (TCB)")
+    s.set_defaults(run_command=_solve)
+    return ap
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    try:
+        message = args.run_command(args)
+    except UserInputError as exc:
+        return report_user_error(exc, prog=PROG)
+    print(f"{PROG}: {message}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

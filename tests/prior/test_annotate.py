@@ -1,0 +1,138 @@
+"""mcsweep-prior annotate: every format, units kept, streaming, bad input (exit 2, nothing written)."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pyarrow.parquet as pq
+import pytest
+from astropy import units as u
+from astropy.coordinates import SkyCoord
+from astropy.table import Table
+
+from mcsweep.prior import Prior
+from mcsweep.prior.annotate import annotate_file
+
+BIN = Path(sys.executable).parent
+#: Fast rotation vs SkyCoord's transformation: rounding of ~1e-12 deg in the direction.
+FRAME_RTOL = 1e-10
+N = 257
+
+
+def _stars(n=N, seed=1):
+    rng = np.random.default_rng(seed)
+    return Table({"source_id": np.arange(n, dtype=np.int64) + 10**15,
+                  "ra": rng.uniform(0, 360, n) * u.deg,
+                  "dec": np.degrees(np.arcsin(rng.uniform(-1, 1, n))) * u.deg,
+                  "parallax": rng.uniform(0.1, 5, n) * u.mas,
+                  "phot_g_mean_mag": rng.uniform(3, 22, n) * u.mag,
+                  "note": np.array(["a", "bb"] * (n // 2) + ["c"] * (n % 2))})
+
+
+def _expected(t):
+    c = SkyCoord(ra=np.asarray(t["ra"], float) * u.deg, dec=np.asarray(t["dec"], float) * u.deg, frame="icrs")
+    return Prior.paper().sigma_parallax(c, G=np.asarray(t["phot_g_mean_mag"], float)).value
+
+
+def run(*args):
+    return subprocess.run([str(BIN / "mcsweep-prior"), *map(str, args)], capture_output=True, text=True,
+                          timeout=300)
+
+
+@pytest.mark.parametrize("suffix", [".fits", ".vot", ".ecsv", ".csv", ".parquet"])
+def test_every_format_keeps_columns_and_units(tmp_path, suffix):
+    t = _stars()
+    src, out = tmp_path / f"in{suffix}", tmp_path / f"out{suffix}"
+    if suffix == ".csv":
+        t.to_pandas().to_csv(src, index=False)
+    elif suffix == ".parquet":
+        t.to_pandas().to_parquet(src, index=False)
+    else:
+        t.write(src, format={".fits": "fits", ".vot": "votable", ".ecsv": "ascii.ecsv"}[suffix])
+    annotate_file(src, out, Prior.paper())
+    if suffix in (".csv", ".parquet"):
+        got = pd.read_csv(out) if suffix == ".csv" else pq.read_table(out).to_pandas()
+        assert list(got.columns) == t.colnames + ["sigma_f90_parallax", "sigma_f90_pm"]
+        np.testing.assert_array_equal(got["source_id"], t["source_id"])
+        assert list(got["note"]) == list(t["note"])
+        plx, pm = got["sigma_f90_parallax"].to_numpy(), got["sigma_f90_pm"].to_numpy()
+    else:
+        got = Table.read(out)
+        assert got.colnames == t.colnames + ["sigma_f90_parallax", "sigma_f90_pm"]
+        for name in ("ra", "dec", "parallax"):
+            assert got[name].unit == t[name].unit
+        assert got["sigma_f90_parallax"].unit == u.mas and got["sigma_f90_pm"].unit == u.mas / u.yr
+        np.testing.assert_array_equal(got["source_id"], t["source_id"])
+        plx, pm = np.asarray(got["sigma_f90_parallax"]), np.asarray(got["sigma_f90_pm"])
+    np.testing.assert_allclose(plx, _expected(t), rtol=FRAME_RTOL, atol=0)
+    np.testing.assert_allclose(pm, 10 * _expected(t), rtol=FRAME_RTOL, atol=0)
+
+
+def test_galactic_columns_and_unit_conversion(tmp_path):
+    t = _stars()
+    c = SkyCoord(ra=t["ra"], dec=t["dec"]).galactic
+    g = Table({"l": c.l.to(u.rad), "b": c.b.to(u.arcmin), "phot_g_mean_mag": t["phot_g_mean_mag"]})
+    g.write(tmp_path / "gal.fits")
+    annotate_file(tmp_path / "gal.fits", tmp_path / "out.ecsv", Prior.paper())
+    np.testing.assert_allclose(Table.read(tmp_path / "out.ecsv")["sigma_f90_parallax"], _expected(t),
+                               rtol=FRAME_RTOL, atol=0)
+
+
+def test_parquet_streaming_is_batch_invariant(tmp_path):
+    src = tmp_path / "in.parquet"
+    _stars(n=1000).to_pandas().to_parquet(src, row_group_size=100)
+    annotate_file(src, tmp_path / "a.parquet", Prior.paper(), batch_rows=37)
+    annotate_file(src, tmp_path / "b.parquet", Prior.paper(), batch_rows=10**6)
+    a, b = pq.read_table(tmp_path / "a.parquet"), pq.read_table(tmp_path / "b.parquet")
+    assert a.equals(b)  # bit-identical whatever the batch size
+    assert a.schema.field("sigma_f90_parallax").metadata[b"unit"] == b"mas"
+
+
+def test_command_with_run_prior_and_paper(tmp_path):
+    src = tmp_path / "in.csv"
+    _stars().to_pandas().to_csv(src, index=False)
+    r = run("annotate", src, "--out", tmp_path / "out.csv", "--paper")
+    assert r.returncode == 0, r.stderr
+    assert "257 rows annotated" in r.stderr
+    got = pd.read_csv(tmp_path / "out.csv")
+    np.testing.assert_allclose(got["sigma_f90_parallax"], _expected(_stars()), rtol=FRAME_RTOL, atol=0)
+    assert not list(tmp_path.glob(".*.tmp"))
+
+
+def _bad_cases(p):
+    t = _stars().to_pandas()
+    t.drop(columns=["phot_g_mean_mag"]).to_csv(p / "nog.csv", index=False)
+    nan = t.copy()
+    nan.loc[5, "ra"] = np.nan
+    nan.to_parquet(p / "nan.parquet")
+    km = _stars()
+    km["ra"].unit = u.km
+    km.write(p / "km.fits")
+    (p / "junk.fits").write_bytes(b"not a fits file")
+    (p / "table.txt").write_text("x")
+    s = t.astype({"dec": object})
+    s.loc[3, "dec"] = "north"
+    s.to_csv(p / "str.csv", index=False)
+    return [
+        (["annotate", p / "nog.csv", "--out", p / "o1.csv"], "phot_g_mean_mag"),
+        (["annotate", p / "nan.parquet", "--out", p / "o2.parquet"], "NaN"),
+        (["annotate", p / "km.fits", "--out", p / "o3.fits"], "km"),
+        (["annotate", p / "junk.fits", "--out", p / "o4.fits"], "junk.fits"),
+        (["annotate", p / "table.txt", "--out", p / "o5.csv"], "suffix"),
+        (["annotate", p / "missing.csv", "--out", p / "o6.csv"], "missing.csv"),
+        (["annotate", p / "str.csv", "--out", p / "o7.csv"], "dec"),
+        (["annotate", p / "nog.csv", "--out", p / "o8.csv", "--run", p], "coefficients.csv"),
+        (["annotate", p / "nog.csv", "--out", p / "nodir" / "o9.csv"], "nodir"),
+    ]
+
+
+def test_bad_input_one_line_exit_2_nothing_written(tmp_path):
+    for argv, needle in _bad_cases(tmp_path):
+        before = set(tmp_path.rglob("*"))
+        r = run(*argv)
+        assert r.returncode == 2, (argv, r.stderr)
+        lines = r.stderr.strip().splitlines()
+        assert len(lines) == 1 and needle in lines[0] and "Traceback" not in r.stderr, (argv, r.stderr)
+        assert set(tmp_path.rglob("*")) == before, argv  # no output, no temporary left

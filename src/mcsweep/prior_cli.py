@@ -8,6 +8,9 @@
 [--factor K] [--confidence P]`` solves each source's few FoV transits with the prior
 (:mod:`mcsweep.prior.observations`).
 
+``mcsweep-prior simulate --out OBS --sources-out SOURCES`` writes an example input with
+the project's simulator (:mod:`mcsweep.prior.example`).
+
 The prior is the paper's (``--paper``, the default) or a sweep's fit (``--run``). Bad
 input ends with one line on stderr and exit status 2, and nothing is written: the
 output goes to a temporary name in the destination directory and is moved into place
@@ -27,6 +30,7 @@ from pathlib import Path
 
 from .errors import UserInputError, report_user_error
 from .prior import Prior
+from .prior.annotate import detect_format
 from .sweep.store import current_umask
 
 __all__ = ["main"]
@@ -58,7 +62,7 @@ def _publish(out: Path, write) -> None:
 
 
 def _annotate(args) -> str:
-    from .prior.annotate import annotate_file, detect_format
+    from .prior.annotate import annotate_file
 
     prior = _prior(args)
     fmt_out = detect_format(args.out)
@@ -74,7 +78,7 @@ def _annotate(args) -> str:
 
 
 def _solve(args) -> str:
-    from .prior.observations import read_observations, solve_observations, write_solutions, detect_format
+    from .prior.observations import read_observations, solve_observations, write_solutions
 
     prior = _prior(args)
     fmt_out = detect_format(args.out)
@@ -85,6 +89,19 @@ def _solve(args) -> str:
     _publish(args.out, lambda tmp: write_solutions(sol, tmp, fmt_out))
     dt = time.perf_counter() - t0
     return f"{len(sol)} sources solved with the {prior.origin} prior in {dt:.2f} s -> {args.out}"
+
+
+def _simulate(args) -> str:
+    from .prior.example import simulate_example
+    from .prior.observations import write_solutions
+
+    if args.n < 1:
+        raise UserInputError(f"--n {args.n} is not accepted; expected a positive number of sources")
+    obs, src = simulate_example(args.n, seed=args.seed)
+    for table, out in ((obs, args.out), (src, args.sources_out)):
+        fmt = detect_format(out)
+        _publish(out, lambda tmp, t=table, f=fmt: write_solutions(t, tmp, f))
+    return f"{len(obs)} transits of {len(src)} sources -> {args.out}, {args.sources_out}"
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -116,6 +133,13 @@ def _parser() -> argparse.ArgumentParser:
     s.add_argument("--reference-epoch", default="star_mean",
                    help="'star_mean' (each source's mean transit epoch, default) or an ISO date (TCB)")
     s.set_defaults(run_command=_solve)
+
+    e = sub.add_parser("simulate", help="write an example observations and sources table (the project's simulator)")
+    e.add_argument("--out", type=Path, required=True, help="observations file (one row per FoV transit)")
+    e.add_argument("--sources-out", type=Path, required=True, help="sources file (with the true parameters)")
+    e.add_argument("--n", type=int, default=40, help="sources drawn (those without transits are dropped)")
+    e.add_argument("--seed", type=int, default=2015)
+    e.set_defaults(run_command=_simulate)
     return ap
 
 

@@ -48,7 +48,7 @@ def make_catalogue(path: Path, n: int, seed: int = 0) -> None:
 
 
 def baseline_copy(src: Path, dst: Path) -> None:
-    pf = pq.ParquetFile(src)
+    pf = pq.ParquetFile(src, pre_buffer=False)  # as annotate reads it
     with pq.ParquetWriter(dst, pf.schema_arrow) as w:
         for batch in pf.iter_batches(batch_size=BATCH_ROWS):
             w.write_batch(batch)

@@ -34,8 +34,8 @@ FORMATS = {
 }
 _ASTROPY_FORMAT = {"fits": "fits", "votable": "votable", "ecsv": "ascii.ecsv", "csv": "ascii.csv",
                    "parquet": "parquet"}
-#: Rows per batch when streaming (about 100 MB of float64 columns at 12 columns).
-BATCH_ROWS = 1_000_000
+#: Rows per batch when streaming (about 25 MB of float64 columns at 12 columns).
+BATCH_ROWS = 262_144
 
 
 def detect_format(path: Path) -> str:
@@ -142,7 +142,10 @@ def _parquet_stream(src, dst, prior, source, batch_rows) -> int:
     import pyarrow.parquet as pq
 
     try:
-        pf = pq.ParquetFile(src)
+        # pre_buffer=False: with pre-buffering, pyarrow keeps read-ahead buffers of
+        # past row groups and the peak memory grows with the file (measured: 276 MB at
+        # 1e6 rows, 413 MB at 4e6; without it 276 MB for both).
+        pf = pq.ParquetFile(src, pre_buffer=False)
     except Exception as exc:  # pyarrow raises ArrowInvalid, OSError, ...
         raise UserInputError(f"{source}: cannot be read as Parquet ({type(exc).__name__}); "
                              "expected a Parquet file") from None

@@ -1,9 +1,10 @@
 """What a run directory records about how its results were made.
 
 ``provenance.json`` holds the resolved config, the hash of its scientific part (every
-key except ``execution``, which must not change results), the package version, the
+key except ``execution`` and ``resume``, which must not change results), the package version, the
 git commit when the package runs from a checkout, the seeds, per-stage timings and a
-manifest (size and SHA-256) of the result files. The hash also guards a run directory
+manifest (size and SHA-256) of the result files, and how many cells each code version
+computed (``cell_code_versions``: a resumed run may mix versions when the user allows it). The hash also guards a run directory
 against mixing the results of two configs.
 """
 
@@ -12,7 +13,6 @@ from __future__ import annotations
 import hashlib
 import json
 import platform
-import subprocess
 import time
 from contextlib import contextmanager
 from pathlib import Path
@@ -21,11 +21,12 @@ from typing import Any
 from .. import __version__
 from ..errors import UserInputError
 from .store import atomic_write_bytes
+from .version import git_commit
 
 __all__ = ["config_hash", "git_commit", "Provenance", "PROVENANCE_FILE"]
 
 PROVENANCE_FILE = "provenance.json"
-_EXCLUDED_KEYS = ("execution",)
+_EXCLUDED_KEYS = ("execution", "resume")
 
 
 def _science_part(cfg: dict) -> dict:
@@ -36,19 +37,6 @@ def config_hash(cfg: dict) -> str:
     """Hash of the config keys that can change results (execution excluded)."""
     blob = json.dumps(_science_part(cfg), sort_keys=True, default=str).encode()
     return hashlib.sha256(blob).hexdigest()[:16]
-
-
-def git_commit() -> str | None:
-    """Commit of the checkout the package was imported from, if any (+ '-dirty')."""
-    src = Path(__file__).resolve().parent
-    try:
-        sha = subprocess.run(["git", "-C", str(src), "rev-parse", "HEAD"], capture_output=True,
-                             text=True, timeout=10, check=True).stdout.strip()
-        dirty = subprocess.run(["git", "-C", str(src), "status", "--porcelain", "--untracked-files=no"],
-                               capture_output=True, text=True, timeout=10).stdout.strip()
-        return sha + ("-dirty" if dirty else "")
-    except (OSError, subprocess.SubprocessError):
-        return None
 
 
 def _diff_keys(a: Any, b: Any, prefix: str = "") -> list[str]:
@@ -70,6 +58,8 @@ class Provenance:
         self.hash = config_hash(cfg)
         self.timings: dict[str, float] = {}
         self.seeds: dict[str, Any] = {"seed": cfg.get("seed")}
+        #: Cells (or chunks) per code version that computed them, filled at aggregation.
+        self.cell_versions: dict[str, int] = {}
 
     @property
     def path(self) -> Path:
@@ -117,6 +107,7 @@ class Provenance:
             "git_commit": git_commit(),
             "python": platform.python_version(),
             "seeds": self.seeds,
+            **({"cell_code_versions": self.cell_versions} if self.cell_versions else {}),
             "timings_s": self.timings,
             **(extra or {}),
             "manifest": self.manifest() if with_manifest else [],

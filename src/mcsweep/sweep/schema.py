@@ -35,6 +35,7 @@ __all__ = [
     "SecondaryConf",
     "ExperimentConf",
     "ExecutionConf",
+    "ResumeConf",
     "Config",
     "register_configs",
 ]
@@ -334,6 +335,13 @@ class ExecutionConf:
 
 
 @dataclass
+class ResumeConf:
+    #: Keep finished cells written by another mcsweep version when resuming a run
+    #: (default: refuse them, naming both versions). Not part of the config hash.
+    accept_other_versions: bool = False
+
+
+@dataclass
 class Config:
     sky: SkyConf = field(default_factory=SkyConf)
     magnitudes: MagnitudesConf = field(default_factory=MagnitudesConf)
@@ -345,6 +353,7 @@ class Config:
     cell: CellConf = field(default_factory=CellConf)
     experiment: ExperimentConf = field(default_factory=ExperimentConf)
     execution: ExecutionConf = field(default_factory=ExecutionConf)
+    resume: ResumeConf = field(default_factory=ResumeConf)
     #: Master seed; every cell derives its own stream from (seed, cell identity).
     seed: int = 20150821
     #: Confidence level P of the ellipses (Sect. 2.4: 0.9).

@@ -30,8 +30,8 @@ __all__ = ["run_secondary"]
 
 
 def _chunk_task(job):
-    settings, g_class, chunk_id, first, stars, store_dir, chash = job
-    CellStore(store_dir, chash).write(chunk_id, solve_chunk(settings, g_class, first, stars))
+    settings, g_class, chunk_id, first, stars, store = job
+    store.write(chunk_id, solve_chunk(settings, g_class, first, stars))
     return chunk_id
 
 
@@ -62,12 +62,12 @@ def run_secondary(config, raw_cfg: dict, run_dir, *, prov=None) -> Path:
     # so a killed run is resumed (and guarded against other configs) like a finished one.
     prov.write(with_manifest=False)
     chunk = BLOCK_STARS * math.ceil(config.execution.chunk_stars / BLOCK_STARS)
-    store = CellStore(run_dir / CHUNKS_DIR, prov.hash)
+    store = CellStore(run_dir / CHUNKS_DIR, prov.hash,
+                      accept_other_versions=config.resume.accept_other_versions)
     store.remove_stale_temporaries()  # left by a killed write, never a result
     plan = [(g, stars, _chunk_id(g, lo, min(lo + chunk, len(stars))), lo, min(lo + chunk, len(stars)))
             for g, stars in classes for lo in range(0, len(stars), chunk)]
-    jobs = [(settings, g, cid, lo, {c: stars[c].to_numpy()[lo:hi] for c in STAR_COLUMNS},
-             run_dir / CHUNKS_DIR, prov.hash)
+    jobs = [(settings, g, cid, lo, {c: stars[c].to_numpy()[lo:hi] for c in STAR_COLUMNS}, store)
             for g, stars, cid, lo, hi in plan if store.read(cid) is None]
     with prov.stage("chunks"), executor(config.execution) as run:
         bar = tqdm(total=len(plan), initial=len(plan) - len(jobs), desc="secondary chunks", unit="chunk",
@@ -77,6 +77,7 @@ def run_secondary(config, raw_cfg: dict, run_dir, *, prov=None) -> Path:
         bar.close()
 
     with prov.stage("aggregate"):
+        store.versions_read.clear()
         per_class, summary = [], []
         for g, stars in classes:
             parts = [store.read(cid) for gg, _, cid, _, _ in plan if gg == g]
@@ -85,6 +86,7 @@ def run_secondary(config, raw_cfg: dict, run_dir, *, prov=None) -> Path:
             results = pd.concat(parts, ignore_index=True)
             per_class.append((g, results))
             summary.append(class_summary(g, stars, results))
+        prov.cell_versions = dict(store.versions_read)
         table = table2_rows(per_class, settings.confidence)
         no_prior = no_prior_rows(per_class)
         summary = pd.DataFrame(summary)

@@ -13,6 +13,7 @@ a file or directory that was there before.
 
 from __future__ import annotations
 
+import logging
 import sys
 from pathlib import Path
 
@@ -52,6 +53,15 @@ def refuse_foreign_outputs(run_dir: Path, outputs) -> None:
             "choose another hydra.run.dir")
 
 
+def _log_to_files(logger: logging.Logger, msg: str, exc_info) -> None:
+    """Write ``msg`` and the traceback to the log files only (the terminal gets Hydra's copy)."""
+    record = logger.makeRecord(logger.name, logging.ERROR, __file__, 0, msg, (), exc_info)
+    for h in logging.getLogger().handlers:
+        if isinstance(h, logging.FileHandler):
+            h.handle(record)
+            h.flush()
+
+
 def _undo(run_dir: Path) -> None:
     """Remove what this command wrote for the refused job; keep everything that was there."""
     snap = snapshot_for(run_dir)
@@ -87,6 +97,11 @@ def _hydra_entry(cfg: DictConfig) -> None:
     except UserInputError as exc:
         _undo(run_dir)
         sys.exit(report_user_error(exc))
+    except Exception:
+        # A bug, not a user error: the outputs stay (a rerun resumes), the traceback is
+        # printed by Hydra (exit status 1) and kept in the run's log for the bug report.
+        _log_to_files(logging.getLogger(__name__), "mcsweep stopped on an unexpected error", sys.exc_info())
+        raise
     print(f"mcsweep: results in {run_dir} (report: {report})", file=sys.stderr)
 
 

@@ -63,10 +63,12 @@ def test_resume_after_an_upgrade_refuses_old_cells_unless_asked(tmp_path):
                       phot_g_mean_mag=rng.uniform(14.5, 15.5, n))).to_csv(cat, index=False)
     out = tmp_path / "run"
     args = [str(BIN / "mcsweep"), f"hydra.run.dir={out}", "sky=single", "magnitudes.edges=[14.5,15,15.5]",
-            "prior_grid.n=5", "execution.n_jobs=1", "execution.progress=false", "cell.min_stars=50",
+            "prior_grid.n=5", "execution.n_jobs=1", "cell.min_stars=50",
             "experiment.showcase.enabled=false", "population=catalogue", f"population.path={cat}"]
     r = subprocess.run(args, capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr[-3000:]
+    # Progress is on and stderr is a pipe: whole lines, no carriage-return redraws (item 7).
+    assert "\r" not in r.stderr and "cells: 2/2 cells (100 %)" in r.stderr, r.stderr
     cells = sorted((out / "cells").glob("cell_*.parquet"))
     assert len(cells) == 2
     _refake_version(cells[0], OLD)

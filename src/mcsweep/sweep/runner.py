@@ -16,7 +16,6 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 from astropy.time import Time
-from tqdm.auto import tqdm
 
 from ..astrometry.noise import NoiseModel
 from ..errors import UserInputError
@@ -25,6 +24,7 @@ from ..population import CatalogueSource, make_source
 from ..scanning import ScanningLaw, find_transits
 from .cells import Cell, Direction, enumerate_cells, sky_directions
 from .execution import executor
+from .progress import progress
 from .provenance import Provenance
 from .schema import Config
 from .store import CellStore, atomic_write_bytes
@@ -165,8 +165,8 @@ def run_sweep(config: Config, raw_cfg: dict, run_dir: Path, *, prov: Provenance 
         jobs.insert(0, (show, transits[show.direction.index], pop, settings, show_store, True,
                         radii.get(show.cell_id)))
     with prov.stage("cells"), executor(config.execution) as run:
-        bar = tqdm(total=len(cells) + (show is not None), initial=len(cells) + (show is not None) - len(jobs),
-                   desc="cells", unit="cell", disable=not config.execution.progress)
+        bar = progress(len(cells) + (show is not None), initial=len(cells) + (show is not None) - len(jobs),
+                       desc="cells", unit="cells", enabled=config.execution.progress)
         for _ in run(_cell_task, jobs):
             bar.update(1)
         bar.close()

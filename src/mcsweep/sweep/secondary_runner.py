@@ -15,7 +15,6 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from tqdm.auto import tqdm
 
 from ..experiments.secondary import (BLOCK_STARS, CHUNKS_DIR, POPULATION_STREAM, STAR_COLUMNS,
                                      build_settings, class_key, class_summary, select_class_stars,
@@ -23,6 +22,7 @@ from ..experiments.secondary import (BLOCK_STARS, CHUNKS_DIR, POPULATION_STREAM,
 from ..experiments.secondary_table import no_prior_rows, table2_markdown, table2_rows
 from ..population import make_source
 from .execution import executor
+from .progress import progress
 from .provenance import Provenance
 from .store import CellStore, atomic_write_bytes
 
@@ -70,8 +70,8 @@ def run_secondary(config, raw_cfg: dict, run_dir, *, prov=None) -> Path:
     jobs = [(settings, g, cid, lo, {c: stars[c].to_numpy()[lo:hi] for c in STAR_COLUMNS}, store)
             for g, stars, cid, lo, hi in plan if store.read(cid) is None]
     with prov.stage("chunks"), executor(config.execution) as run:
-        bar = tqdm(total=len(plan), initial=len(plan) - len(jobs), desc="secondary chunks", unit="chunk",
-                   disable=not config.execution.progress)
+        bar = progress(len(plan), initial=len(plan) - len(jobs), desc="secondary chunks", unit="chunks",
+                       enabled=config.execution.progress)
         for _ in run(_chunk_task, jobs):
             bar.update(1)
         bar.close()

@@ -30,7 +30,7 @@ from .sweep.runner import OUTPUTS, run_sweep
 from .sweep.logs import quiet_third_party_console
 from .sweep.schema import register_configs
 from .sweep.secondary_runner import run_secondary
-from .sweep.validate import preflight, to_config
+from .sweep.validate import ignored_settings, preflight, to_config
 
 __all__ = ["main"]
 
@@ -107,7 +107,9 @@ def _hydra_entry(cfg: DictConfig) -> None:
 
 def main() -> None:
     try:
-        preflight(sys.argv[1:])
+        configs = preflight(sys.argv[1:])
     except UserInputError as exc:
         sys.exit(report_user_error(exc))
+    for line in ignored_settings(sys.argv[1:], configs):
+        print(f"mcsweep: warning: {line}", file=sys.stderr)
     _hydra_entry()

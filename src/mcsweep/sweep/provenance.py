@@ -1,7 +1,8 @@
 """What a run directory records about how its results were made.
 
 ``provenance.json`` holds the resolved config, the hash of its scientific part (every
-key except ``execution`` and ``resume``, which must not change results), the package version, the
+key except ``execution`` and ``resume``, which must not change results, and the keys the
+experiment never reads, :data:`~mcsweep.sweep.schema.IGNORED_BY_EXPERIMENT`), the package version, the
 git commit when the package runs from a checkout, the seeds, per-stage timings and a
 manifest (size and SHA-256) of the result files, and how many cells each code version
 computed (``cell_code_versions``: a resumed run may mix versions when the user allows it). The hash also guards a run directory
@@ -20,6 +21,7 @@ from typing import Any
 
 from .. import __version__
 from ..errors import UserInputError
+from .schema import IGNORED_BY_EXPERIMENT
 from .store import atomic_write_bytes
 from .version import git_commit
 
@@ -30,7 +32,21 @@ _EXCLUDED_KEYS = ("execution", "resume")
 
 
 def _science_part(cfg: dict) -> dict:
-    return {k: v for k, v in cfg.items() if k not in _EXCLUDED_KEYS}
+    """The keys that can change results: not execution/resume, nor what the experiment ignores."""
+    out = {k: v for k, v in cfg.items() if k not in _EXCLUDED_KEYS}
+    name = (cfg.get("experiment") or {}).get("name", "f90_sweep")
+    for dotted in IGNORED_BY_EXPERIMENT.get(name, ()):
+        *parents, leaf = dotted.split(".")
+        node = out
+        for k in parents:
+            if not isinstance(node.get(k), dict):
+                break
+            child = dict(node[k])  # copy on the way down: cfg itself stays whole
+            node[k] = child
+            node = child
+        else:
+            node.pop(leaf, None)
+    return out
 
 
 def config_hash(cfg: dict) -> str:

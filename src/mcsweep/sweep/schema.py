@@ -37,6 +37,7 @@ __all__ = [
     "ExecutionConf",
     "ResumeConf",
     "Config",
+    "IGNORED_BY_EXPERIMENT",
     "register_configs",
 ]
 
@@ -367,6 +368,19 @@ class Config:
         _require(self.ratio_R > 0 and math.isfinite(self.ratio_R), "ratio_R", self.ratio_R,
                  "a positive, finite ratio in 1/yr")
         _require(self.seed >= 0, "seed", self.seed, "a non-negative integer")
+
+
+#: Config keys (dotted, a whole group or one key) each experiment never reads. They are
+#: left out of the config hash (:func:`mcsweep.sweep.provenance.config_hash`), and a
+#: command line setting them gets a one-line warning (:func:`mcsweep.sweep.validate.ignored_settings`).
+#: ``observations.reference_epoch`` is not listed: the global experiments take their
+#: reference epoch from the config (issue 11).
+IGNORED_BY_EXPERIMENT: Dict[str, tuple] = {
+    "f90_sweep": (),
+    "secondary": ("sky", "magnitudes", "prior_grid", "cell", "experiment.showcase", "observations.cases",
+                  "observations.f90_case", "observations.start", "observations.end",
+                  "observations.fixed_epoch"),
+}
 
 
 def register_configs() -> None:

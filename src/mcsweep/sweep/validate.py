@@ -24,9 +24,9 @@ from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 from ..errors import UserInputError
-from .schema import Config, register_configs
+from .schema import IGNORED_BY_EXPERIMENT, Config, register_configs
 
-__all__ = ["to_config", "compose_config", "preflight", "CONFIG_MODULE"]
+__all__ = ["to_config", "compose_config", "preflight", "ignored_settings", "CONFIG_MODULE"]
 
 CONFIG_MODULE = "mcsweep.conf"
 # Hydra command-line flags that take a value as the next token.
@@ -148,6 +148,29 @@ def _expand_sweeps(overrides: list[str]) -> list[list[str]]:
         else:
             choices.append([ov.input_line])
     return [list(combo) for combo in itertools.product(*choices)] or [[]]
+
+
+def _override_key(override: str) -> str:
+    return override.split("=", 1)[0].lstrip("+~").split("@", 1)[0]
+
+
+def ignored_settings(argv: list[str], configs: list[Config]) -> list[str]:
+    """One warning line per experiment for command-line settings it never reads.
+
+    ``configs`` are :func:`preflight`'s, one per job of the command line, in order.
+    """
+    jobs = _expand_sweeps(_split_argv(argv)) if configs else []
+    found: dict[str, list[str]] = {}
+    for job, config in zip(jobs, configs):
+        ignored = IGNORED_BY_EXPERIMENT.get(config.experiment.name, ())
+        for ov in job:
+            key = _override_key(ov)
+            if any(key == k or key.startswith(k + ".") for k in ignored):
+                names = found.setdefault(config.experiment.name, [])
+                if ov not in names:
+                    names.append(ov)
+    return [f"experiment={name} ignores {', '.join(ovs)}: they change neither its results nor its config hash"
+            for name, ovs in found.items()]
 
 
 def preflight(argv: list[str]) -> list[Config]:

@@ -88,7 +88,7 @@ def run_secondary(config, raw_cfg: dict, run_dir, *, prov=None) -> Path:
             summary.append(class_summary(g, stars, results))
         prov.cell_versions = dict(store.versions_read)
         table = table2_rows(per_class, settings.confidence)
-        no_prior = no_prior_rows(per_class)
+        no_prior = no_prior_rows(per_class, settings.confidence)
         summary = pd.DataFrame(summary)
         notes = [f"Confidence P = {settings.confidence:g}; dilution {sec.dilution:g}; "
                  f"{sec.mission_years:g} years from {sec.mission_start} (TCB); scanning law "
@@ -98,7 +98,7 @@ def run_secondary(config, raw_cfg: dict, run_dir, *, prov=None) -> Path:
                                                  for r in summary.to_dict("records")) + "."]
         outputs = {"table2.csv": table.to_csv(index=False), "no_prior.csv": no_prior.to_csv(index=False),
                    "secondary_summary.csv": summary.to_csv(index=False),
-                   "table2.md": table2_markdown(table, settings.confidence, notes)}
+                   "table2.md": table2_markdown(table, settings.confidence, notes, dilution=sec.dilution)}
         for name, text in outputs.items():
             atomic_write_bytes(run_dir / name, text.encode())
     prov.seeds["secondary"] = {

@@ -14,6 +14,7 @@ a file or directory that was there before.
 from __future__ import annotations
 
 import logging
+import os
 import sys
 from pathlib import Path
 
@@ -66,7 +67,7 @@ def _undo(run_dir: Path) -> None:
     """Remove what this command wrote for the refused job; keep everything that was there."""
     snap = snapshot_for(run_dir)
     snap.undo(run_dir)
-    if snap.root != run_dir.resolve() and set(snap.new_paths()) <= {"multirun.yaml", "."}:
+    if snap.root != Path(os.path.abspath(run_dir)) and set(snap.new_paths()) <= {"multirun.yaml", "."}:
         snap.undo()  # a multirun stopped at its first job: its sweep directory goes too
 
 

@@ -127,3 +127,23 @@ def test_snapshot_undo_of_one_job_leaves_its_siblings(tmp_path, scope):
     assert (tmp_path / other / "new.txt").exists()
     assert not (tmp_path / scope / "new.txt").exists()
     assert (tmp_path / "job1/old.txt").read_bytes() == b"o"
+
+
+def test_tree_too_large_to_list_loses_only_new_top_level_names(tmp_path, monkeypatch):
+    import mcsweep.sweep.rundir as rundir
+
+    _plant(tmp_path, {f"data/f{i}.txt": b"d" for i in range(20)})
+    _plant(tmp_path, {".hydra/config.yaml": b"old", "keep.txt": b"k"})
+    monkeypatch.setattr(rundir, "MAX_ENTRIES", 5)
+    snap = Snapshot.take(tmp_path)
+    assert snap.paths is None
+    (tmp_path / ".hydra/config.yaml").write_bytes(b"new")
+    (tmp_path / "cli.log").write_text("new log")
+    (tmp_path / "cells").mkdir()
+    (tmp_path / "cells/c.parquet").write_bytes(b"x")
+    (tmp_path / "data/new.txt").write_text("cannot be told from the user's")
+    snap.undo()
+    assert not (tmp_path / "cli.log").exists() and not (tmp_path / "cells").exists()
+    assert (tmp_path / ".hydra/config.yaml").read_bytes() == b"old"
+    assert len(list((tmp_path / "data").iterdir())) == 21  # kept: unlisted trees err on keeping
+    assert (tmp_path / "keep.txt").read_bytes() == b"k"

@@ -34,8 +34,8 @@ from omegaconf import DictConfig, OmegaConf
 
 __all__ = ["Snapshot", "RunDirGuard", "snapshot_for", "MAX_ENTRIES"]
 
-#: A directory with more entries than this is not listed (a run pointed at a home
-#: directory by mistake): its undo then removes nothing, as nothing can be proven new.
+#: A directory with more entries than this is not listed in full (a run pointed at a
+#: home directory by mistake): its undo then removes only new names directly under it.
 MAX_ENTRIES = 200_000
 #: Files rewritten in place whose bytes are kept so they can be put back.
 _KEEP_BYTES = {"config.yaml", "hydra.yaml", "overrides.yaml", "multirun.yaml", "provenance.json"}
@@ -59,6 +59,8 @@ class Snapshot:
     anchor: Path | None = None
     #: Relative paths (POSIX form) of every file, directory and link; None if too many.
     paths: set[str] | None = field(default_factory=set)
+    #: Names directly under ``root`` (always complete: a new one is wholly this command's).
+    top: set[str] = field(default_factory=set)
     dir_times: dict[str, tuple[int, int]] = field(default_factory=dict)
     file_bytes: dict[str, tuple[bytes, int, tuple[int, int]]] = field(default_factory=dict)
     log_sizes: dict[str, tuple[int, tuple[int, int]]] = field(default_factory=dict)
@@ -72,7 +74,7 @@ class Snapshot:
             while not anchor.exists() and anchor != anchor.parent:
                 anchor = anchor.parent
             return cls(root, existed=False, anchor=anchor)
-        snap = cls(root, existed=True)
+        snap = cls(root, existed=True, top=set(os.listdir(root)))
         snap.dir_times[""] = _times(root.stat())
         n = 0
         for dirpath, dirnames, filenames in os.walk(root):
@@ -89,21 +91,33 @@ class Snapshot:
                     st = p.lstat()
                 except OSError:
                     continue
-                if p.is_symlink():
-                    continue
-                if name in dirnames:
-                    snap.dir_times[rel] = _times(st)
-                elif name.endswith(".log"):
-                    snap.log_sizes[rel] = (st.st_size, _times(st))
-                elif name in _KEEP_BYTES and st.st_size <= _KEEP_BYTES_LIMIT:
-                    snap.file_bytes[rel] = (p.read_bytes(), st.st_mode & 0o7777, _times(st))
+                snap._keep(rel, p, st)
             if snap.paths is None:
                 break
             dirnames[:] = [d for d in dirnames if not (Path(dirpath) / d).is_symlink()]
+        # Hydra's own files, whatever the walk reached before MAX_ENTRIES.
+        for p in [*root.glob("*"), *root.glob(".hydra/*")]:
+            try:
+                snap._keep(p.relative_to(root).as_posix(), p, p.lstat())
+            except OSError:
+                continue
         return snap
 
+    def _keep(self, rel: str, p: Path, st: os.stat_result) -> None:
+        """Record what is needed to put ``p`` back: times, a log's size, a rewritten file's bytes."""
+        if p.is_symlink():
+            return
+        if p.is_dir():
+            self.dir_times[rel] = _times(st)
+        elif p.name.endswith(".log"):
+            self.log_sizes[rel] = (st.st_size, _times(st))
+        elif p.name in _KEEP_BYTES and st.st_size <= _KEEP_BYTES_LIMIT:
+            self.file_bytes[rel] = (p.read_bytes(), st.st_mode & 0o7777, _times(st))
+
     def _is_old(self, rel: str) -> bool:
-        return self.paths is None or rel in self.paths
+        if self.paths is None:  # too many to list: only new top-level names are known to be new
+            return "/" in rel or rel in self.top
+        return rel in self.paths
 
     def undo(self, scope=None) -> None:
         """Remove what is new under ``scope`` (default: the whole root) and restore the rest."""
@@ -124,23 +138,23 @@ class Snapshot:
         if base and not self._is_old(base):
             shutil.rmtree(scope, ignore_errors=True)
             return
-        if self.paths is not None:
-            for dirpath, dirnames, filenames in os.walk(scope, topdown=True):
-                rel_dir = Path(dirpath).relative_to(self.root)
-                keep = []
-                for name in dirnames:
-                    p = Path(dirpath) / name
-                    if self._is_old((rel_dir / name).as_posix()):
-                        if not p.is_symlink():
-                            keep.append(name)
-                    elif p.is_symlink():
-                        p.unlink(missing_ok=True)
-                    else:
-                        shutil.rmtree(p, ignore_errors=True)
-                dirnames[:] = keep
-                for name in filenames:
-                    if not self._is_old((rel_dir / name).as_posix()):
-                        (Path(dirpath) / name).unlink(missing_ok=True)
+        for dirpath, dirnames, filenames in os.walk(scope, topdown=True):
+            rel_dir = Path(dirpath).relative_to(self.root)
+            keep = []
+            for name in dirnames:
+                p = Path(dirpath) / name
+                if self._is_old((rel_dir / name).as_posix()):
+                    if not p.is_symlink():
+                        keep.append(name)
+                elif p.is_symlink():
+                    p.unlink(missing_ok=True)
+                else:
+                    shutil.rmtree(p, ignore_errors=True)
+            # Unlisted (huge) tree: only its top level is known, do not descend.
+            dirnames[:] = keep if self.paths is not None else []
+            for name in filenames:
+                if not self._is_old((rel_dir / name).as_posix()):
+                    (Path(dirpath) / name).unlink(missing_ok=True)
         inside = (lambda rel: rel == base or rel.startswith(base + "/")) if base else (lambda rel: True)
         for rel, (data, mode, times) in self.file_bytes.items():
             if not inside(rel):
@@ -182,8 +196,6 @@ class Snapshot:
             return []
         if not self.existed:
             return sorted(p.relative_to(self.root).as_posix() for p in scope.rglob("*")) or ["."]
-        if self.paths is None:
-            return []
         return sorted(rel for p in scope.rglob("*")
                       if not self._is_old(rel := p.relative_to(self.root).as_posix()))
 

@@ -49,7 +49,7 @@ def test_store_treats_a_cell_without_a_version_as_another_version(tmp_path):
     meta = json.loads(table.schema.metadata[b"mcsweep"])
     del meta["code_version"]
     pq.write_table(table.replace_schema_metadata({b"mcsweep": json.dumps(meta).encode()}), path)
-    with pytest.raises(UserInputError, match="unrecorded version"):
+    with pytest.raises(UserInputError, match="too old to record its version"):
         CellStore(tmp_path, "h").read("c1")
 
 

@@ -130,7 +130,7 @@ class CellStore:
         if problem:
             warnings.warn(f"recomputing {path.name}: {problem}", stacklevel=2)
             return None
-        written_by = meta.get("code_version") or "an unrecorded version (before issue 16)"
+        written_by = meta.get("code_version") or "an mcsweep too old to record its version"
         if written_by != self.version and not self.accept_other_versions:
             raise UserInputError(
                 f"{self.directory.name}/{path.name} was computed by {written_by}, this is {self.version}; "

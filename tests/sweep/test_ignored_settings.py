@@ -51,3 +51,17 @@ def test_cli_prints_the_warning_once_before_running(tmp_path):
     assert lines[0] == ("mcsweep: warning: experiment=secondary ignores sky=single, cell.max_stars=7: they change "
                         "neither its results nor its config hash")
     assert len(lines) == 2 and "typo.fits" in lines[1]
+
+
+def test_same_values_under_an_older_hash_rule_are_explained(tmp_path):
+    import json
+
+    import pytest
+
+    from mcsweep.errors import UserInputError
+    from mcsweep.sweep.provenance import Provenance
+
+    (tmp_path / "provenance.json").write_text(json.dumps({"config_hash": "0ld", "config": {"seed": 1},
+                                                          "mcsweep_version": "0.1"}))
+    with pytest.raises(UserInputError, match="same values, hash 0ld by 0.1"):
+        Provenance(tmp_path, {"seed": 1}, kind="secondary").check_compatible()

@@ -88,7 +88,8 @@ class Provenance:
         old = json.loads(self.path.read_text())
         if old.get("config_hash") != self.hash:
             diffs = _diff_keys(_science_part(old.get("config", {})), _science_part(self.cfg))
-            what = "; ".join(diffs[:3]) + (" ..." if len(diffs) > 3 else "")
+            what = "; ".join(diffs[:3]) + (" ..." if len(diffs) > 3 else "") if diffs else \
+                f"same values, hash {old.get('config_hash')} by {old.get('mcsweep_version')} vs {self.hash}"
             raise UserInputError(
                 f"run directory {self.run_dir} holds results of a different config ({what}); "
                 "expected the same config to resume, or a new hydra.run.dir"

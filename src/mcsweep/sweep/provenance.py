@@ -1,12 +1,13 @@
 """What a run directory records about how its results were made.
 
 ``provenance.json`` holds the resolved config, the hash of its scientific part (every
-key except ``execution`` and ``resume``, which must not change results, and the keys the
-experiment never reads, :data:`~mcsweep.sweep.schema.IGNORED_BY_EXPERIMENT`), the package version, the
-git commit when the package runs from a checkout, the seeds, per-stage timings and a
-manifest (size and SHA-256) of the result files, and how many cells each code version
-computed (``cell_code_versions``: a resumed run may mix versions when the user allows it). The hash also guards a run directory
-against mixing the results of two configs.
+key except ``execution`` and ``resume``, which must not change results, and the keys
+the experiment never reads, :data:`~mcsweep.sweep.schema.IGNORED_BY_EXPERIMENT`), the
+package version, the git commit when the package runs from a checkout, the seeds,
+per-stage timings, a manifest (size and SHA-256) of the result files, and how many
+cells each code version computed (``cell_code_versions``: a resumed run may mix
+versions when the user allows it). The hash also guards a run directory against
+mixing the results of two configs.
 """
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 
 import io
 
-from mcsweep.sweep.progress import STEP_PERCENT, LineProgress, progress
+from mcsweep.sweep.progress import STEP_PERCENT, LineProgress, progress, stage_line
 
 
 class _Tty(io.StringIO):
@@ -59,3 +59,10 @@ def test_terminal_keeps_the_live_bar_and_disabled_prints_nothing():
     bar.update(10)
     bar.close()
     assert quiet.getvalue() == ""
+
+
+def test_stage_line_is_one_plain_line_and_silent_when_disabled():
+    out = io.StringIO()
+    stage_line("transits", "scanning law over 3 directions", file=out)
+    stage_line("transits", "hidden", enabled=False, file=out)
+    assert out.getvalue() == "transits: scanning law over 3 directions\n"

@@ -69,6 +69,7 @@ def test_resume_after_an_upgrade_refuses_old_cells_unless_asked(tmp_path):
     assert r.returncode == 0, r.stderr[-3000:]
     # Progress is on and stderr is a pipe: whole lines, no carriage-return redraws (item 7).
     assert "\r" not in r.stderr and "cells: 2/2 cells (100 %)" in r.stderr, r.stderr
+    assert "transits: scanning law over 1 direction," in r.stderr and "FoV transits found in" in r.stderr
     cells = sorted((out / "cells").glob("cell_*.parquet"))
     assert len(cells) == 2
     _refake_version(cells[0], OLD)

@@ -4,7 +4,9 @@ tqdm redraws its bar with a carriage return several times a second. In a SLURM o
 file, a CI log or ``> file`` every redraw becomes text, so a long sweep leaves thousands
 of bar fragments. When the stream is not a terminal, :func:`progress` prints one plain
 line each time another :data:`STEP_PERCENT` per cent is done (and at the end), built
-with tqdm's own formatter so the line reads like the bar.
+with tqdm's own formatter so the line reads like the bar. A stage that is one call
+(the transits of every direction) gets a line when it starts and one when it ends
+(:func:`stage_line`).
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ from typing import TextIO
 
 from tqdm.auto import tqdm
 
-__all__ = ["progress", "LineProgress", "STEP_PERCENT"]
+__all__ = ["progress", "stage_line", "LineProgress", "STEP_PERCENT"]
 
 #: Per cent of the work between two lines of a non-terminal progress report.
 STEP_PERCENT = 10
@@ -70,3 +72,9 @@ def progress(total: int, *, initial: int = 0, desc: str = "", unit: str = "it", 
     if isatty:
         return tqdm(total=total, initial=initial, desc=desc, unit=unit, file=file)
     return LineProgress(total, initial=initial, desc=desc, unit=unit, file=file)
+
+
+def stage_line(desc: str, text: str, *, enabled: bool = True, file: TextIO | None = None) -> None:
+    """One plain line ``desc: text`` on stderr, for a stage without steps to count."""
+    if enabled:
+        print(f"{desc}: {text}", file=file if file is not None else sys.stderr, flush=True)

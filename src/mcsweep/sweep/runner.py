@@ -24,7 +24,7 @@ from ..population import CatalogueSource, make_source
 from ..scanning import ScanningLaw, find_transits
 from .cells import Cell, Direction, enumerate_cells, sky_directions
 from .execution import executor
-from .progress import progress
+from .progress import progress, stage_line
 from .provenance import Provenance
 from .schema import Config
 from .store import CellStore, atomic_write_bytes
@@ -156,8 +156,16 @@ def run_sweep(config: Config, raw_cfg: dict, run_dir: Path, *, prov: Provenance 
     dirs = {c.direction.index: c.direction for c in todo}
     if show_todo:
         dirs[show.direction.index] = show.direction
+    show_progress = config.execution.progress
+    if dirs:
+        stage_line("transits", f"scanning law over {len(dirs)} direction{'s' * (len(dirs) != 1)}, {config.observations.start} to "
+                   f"{config.observations.end} (TCB)", enabled=show_progress)
     with prov.stage("transits"):
         transits = direction_transits(config, list(dirs.values()))
+    if dirs:
+        n_tr = sum(len(t) for t in transits.values())
+        stage_line("transits", f"{n_tr} FoV transits found in {prov.timings['transits']:.1f} s",
+                   enabled=show_progress)
 
     pop = _freeze(_pop_dict(config))
     jobs = [(c, transits[c.direction.index], pop, settings, store, False, radii.get(c.cell_id)) for c in todo]

@@ -53,10 +53,14 @@ def run_secondary(config, raw_cfg: dict, run_dir, *, prov=None) -> Path:
     settings = build_settings(config)
     with prov.stage("population"):
         source = make_source(dataclasses.asdict(config.population))
-        classes = [(float(g), select_class_stars(source, float(g), sec.class_size,
-                                                 np.random.default_rng(stream_seed(settings.seed, POPULATION_STREAM,
-                                                                            class_key(g)))))
-                   for g in sec.g_classes]
+        bar = progress(len(sec.g_classes), desc="population classes", unit="classes",
+                       enabled=config.execution.progress)
+        classes = []
+        for g in sec.g_classes:
+            rng = np.random.default_rng(stream_seed(settings.seed, POPULATION_STREAM, class_key(g)))
+            classes.append((float(g), select_class_stars(source, float(g), sec.class_size, rng)))
+            bar.update(1)
+        bar.close()
         del source  # the galaxy model's whole-sky tables (~0.5 GB) are not needed any more
     # Inputs are valid: claim the run directory for this config before any chunk is written,
     # so a killed run is resumed (and guarded against other configs) like a finished one.

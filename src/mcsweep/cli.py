@@ -26,7 +26,7 @@ from .errors import UserInputError, report_user_error
 from .report.build import build_report
 from .experiments.secondary import OUTPUTS as SECONDARY_OUTPUTS
 from .sweep.provenance import PROVENANCE_FILE, Provenance
-from .sweep.rundir import snapshot_for
+from .sweep.rundir import release, snapshot_for
 from .sweep.runner import OUTPUTS, run_sweep
 from .sweep.logs import quiet_third_party_console
 from .sweep.schema import register_configs
@@ -103,6 +103,8 @@ def _hydra_entry(cfg: DictConfig) -> None:
         # printed by Hydra (exit status 1) and kept in the run's log for the bug report.
         _log_to_files(logging.getLogger(__name__), "mcsweep stopped on an unexpected error", sys.exc_info())
         raise
+    finally:
+        release(run_dir)
     print(f"mcsweep: results in {run_dir} (report: {report})", file=sys.stderr)
 
 

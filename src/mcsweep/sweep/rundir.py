@@ -32,7 +32,7 @@ from typing import Any
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 
-__all__ = ["Snapshot", "RunDirGuard", "snapshot_for", "MAX_ENTRIES"]
+__all__ = ["Snapshot", "RunDirGuard", "snapshot_for", "release", "MAX_ENTRIES"]
 
 #: A directory with more entries than this is not listed in full (a run pointed at a
 #: home directory by mistake): its undo then removes only new names directly under it.
@@ -209,6 +209,11 @@ def snapshot_for(run_dir) -> Snapshot:
     snap = Snapshot.take(run_dir)
     _SNAPSHOTS[run_dir] = snap
     return snap
+
+
+def release(run_dir) -> None:
+    """Forget the record of a finished single run (a later run in this process takes its own)."""
+    _SNAPSHOTS.pop(Path(os.path.abspath(run_dir)), None)
 
 
 def _record(config: DictConfig, key: str) -> None:

@@ -35,7 +35,9 @@ __all__ = [
     "SecondaryConf",
     "ExperimentConf",
     "ExecutionConf",
+    "ResumeConf",
     "Config",
+    "IGNORED_BY_EXPERIMENT",
     "register_configs",
 ]
 
@@ -334,6 +336,13 @@ class ExecutionConf:
 
 
 @dataclass
+class ResumeConf:
+    #: Keep finished cells written by another mcsweep version when resuming a run
+    #: (default: refuse them, naming both versions). Not part of the config hash.
+    accept_other_versions: bool = False
+
+
+@dataclass
 class Config:
     sky: SkyConf = field(default_factory=SkyConf)
     magnitudes: MagnitudesConf = field(default_factory=MagnitudesConf)
@@ -345,6 +354,7 @@ class Config:
     cell: CellConf = field(default_factory=CellConf)
     experiment: ExperimentConf = field(default_factory=ExperimentConf)
     execution: ExecutionConf = field(default_factory=ExecutionConf)
+    resume: ResumeConf = field(default_factory=ResumeConf)
     #: Master seed; every cell derives its own stream from (seed, cell identity).
     seed: int = 20150821
     #: Confidence level P of the ellipses (Sect. 2.4: 0.9).
@@ -358,6 +368,19 @@ class Config:
         _require(self.ratio_R > 0 and math.isfinite(self.ratio_R), "ratio_R", self.ratio_R,
                  "a positive, finite ratio in 1/yr")
         _require(self.seed >= 0, "seed", self.seed, "a non-negative integer")
+
+
+#: Config keys (dotted, a whole group or one key) each experiment never reads. They are
+#: left out of the config hash (:func:`mcsweep.sweep.provenance.config_hash`), and a
+#: command line setting them gets a one-line warning (:func:`mcsweep.sweep.validate.ignored_settings`).
+#: ``observations.reference_epoch`` is not listed: the global experiments take their
+#: reference epoch from the config (issue 11).
+IGNORED_BY_EXPERIMENT: Dict[str, tuple] = {
+    "f90_sweep": (),
+    "secondary": ("sky", "magnitudes", "prior_grid", "cell", "experiment.showcase", "observations.cases",
+                  "observations.f90_case", "observations.start", "observations.end",
+                  "observations.fixed_epoch"),
+}
 
 
 def register_configs() -> None:

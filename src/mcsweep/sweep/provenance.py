@@ -70,6 +70,8 @@ class Provenance:
         self.hash = config_hash(cfg)
         self.timings: dict[str, float] = {}
         self.seeds: dict[str, Any] = {"seed": cfg.get("seed")}
+        #: Values derived from the config that a reader needs (e.g. a resolved reference epoch).
+        self.derived: dict[str, Any] = {}
 
     @property
     def path(self) -> Path:
@@ -117,6 +119,7 @@ class Provenance:
             "git_commit": git_commit(),
             "python": platform.python_version(),
             "seeds": self.seeds,
+            "derived": self.derived,
             "timings_s": self.timings,
             **(extra or {}),
             "manifest": self.manifest() if with_manifest else [],

@@ -24,7 +24,8 @@ The attitude is known from an earlier solution, so each star is solved on its ow
    parameters referred to the epoch of ``reference_epoch``
    (:func:`~mcsweep.experiments.epoch.resolve_reference_epoch`; default ``dataset_mean``,
    the mid-point of the mission, one epoch for every star as in a global solution,
-   Sect. 2.1; ``star_mean`` is the mean epoch of each star's retained transits), ``x_true = (0, 0, parallax, pmra, pmdec)``, one noise
+   Sect. 2.1; ``star_mean`` is the mean epoch of each star's retained transits),
+   ``x_true = (0, 0, parallax, pmra, pmdec)`` (position zero at that epoch), one noise
    realisation shared by every solution: position only (the "none" row), priors of
    0.01 mas, sigma_F90 (Eqs. 14-17, or our own fitted coefficients), 10 sigma_F90 and
    1000 mas with R = sigma_mu / sigma_plx (Eq. 18), and five parameters without prior

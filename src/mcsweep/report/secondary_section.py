@@ -34,7 +34,9 @@ def secondary_section(doc: Document, run_dir: Path, prov: dict) -> None:
         f"'{cfg.get('scanning', {}).get('name')}' scanning law, each transit removed with probability "
         f"{sec.get('dilution')}; attitude known. Priors: sigma_F90 from '{sec.get('f90_formula')}', "
         f"R = {cfg.get('ratio_R')} /yr. Fractions are inside the P = {p:g} confidence ellipse; errors are "
-        "the 90th percentile of |estimated - true position|, at the reference epoch. Each cell: ours (paper).")
+        "the 90th percentile of |estimated - true position|, at the reference epoch. "
+        "Each cell: ours (paper).")
+    # Runs made before the setting existed referred each star to its own mean epoch.
     epoch = prov.get("derived", {}).get("secondary", {}).get("reference_epoch", {})
     doc.para(f"Reference epoch: {epoch.get('text') or sec.get('reference_epoch', 'star_mean (not recorded)')}.")
     for subset, df in table2_layout(table, p).items():

@@ -34,8 +34,11 @@ def secondary_section(doc: Document, run_dir: Path, prov: dict) -> None:
         f"'{cfg.get('scanning', {}).get('name')}' scanning law, each transit removed with probability "
         f"{sec.get('dilution')}; attitude known. Priors: sigma_F90 from '{sec.get('f90_formula')}', "
         f"R = {cfg.get('ratio_R')} /yr. Fractions are inside the P = {p:g} confidence ellipse; errors are "
-        f"the {100 * p:g}th percentile of |estimated - true position| (the paper's values are shown only at "
-        "its P = 0.9). Each cell: ours (paper).")
+        f"the {100 * p:g}th percentile of |estimated - true position| at the reference epoch (the paper's "
+        "values are shown only at its P = 0.9). Each cell: ours (paper).")
+    # Runs made before the setting existed referred each star to its own mean epoch.
+    epoch = prov.get("derived", {}).get("secondary", {}).get("reference_epoch", {})
+    doc.para(f"Reference epoch: {epoch.get('text') or sec.get('reference_epoch', 'star_mean (not recorded)')}.")
     for subset, df in table2_layout(table, p).items():
         n = table[table["subset"] == subset].drop_duplicates("g_class")
         counts = ", ".join(f"G~{g}: {int(v)}" for g, v in zip(n["g_class"], n["n_stars"]))

@@ -77,6 +77,8 @@ class Provenance:
         self.seeds: dict[str, Any] = {"seed": cfg.get("seed")}
         #: Cells (or chunks) per code version that computed them, filled at aggregation.
         self.cell_versions: dict[str, int] = {}
+        #: Values derived from the config that a reader needs (e.g. a resolved reference epoch).
+        self.derived: dict[str, Any] = {}
 
     @property
     def path(self) -> Path:
@@ -126,6 +128,7 @@ class Provenance:
             "python": platform.python_version(),
             "seeds": self.seeds,
             **({"cell_code_versions": self.cell_versions} if self.cell_versions else {}),
+            "derived": self.derived,
             "timings_s": self.timings,
             **(extra or {}),
             "manifest": self.manifest() if with_manifest else [],

@@ -62,6 +62,17 @@ def _tcb_jd(key: str, iso: str) -> float:
     return jd
 
 
+def _check_reference_epoch(key: str, value: str) -> None:
+    """A reference-epoch setting: 'dataset_mean', 'star_mean' or an ISO date within 2013-2031 (TCB)."""
+    if value in ("dataset_mean", "star_mean"):
+        return
+    try:
+        _tcb_jd(key, value)
+    except UserInputError:
+        raise UserInputError(f"{key}={value!r} is not accepted; expected 'dataset_mean', 'star_mean' or an "
+                             "ISO date within 2013-2031 (TCB) such as '2017-01-23T00:00:00'") from None
+
+
 @dataclass
 class SkyConf:
     """Directions of the pencil beams (Sect. 3.4: 48 directions uniform on the sky)."""
@@ -293,8 +304,13 @@ class SecondaryConf:
     mission_start: str = "2014-07-25T10:30:00"
     #: 'paper' (Eqs. 14-17) or the path of a run directory's coefficients.csv.
     f90_formula: str = "paper"
+    #: Reference epoch of the astrometric parameters (Sect. 2.1): 'dataset_mean' (mid-point
+    #: of the mission, one epoch for all stars), 'star_mean' (each star's mean epoch) or an
+    #: ISO date (TCB).
+    reference_epoch: str = "dataset_mean"
 
     def __post_init__(self):
+        _check_reference_epoch("experiment.secondary.reference_epoch", self.reference_epoch)
         _require(self.class_size > 0, "experiment.secondary.class_size", self.class_size, "a positive number")
         _require(len(self.g_classes) > 0 and all(0 <= g < G_MAX for g in self.g_classes),
                  "experiment.secondary.g_classes", list(self.g_classes), f"G values within 0..{G_MAX:g}")

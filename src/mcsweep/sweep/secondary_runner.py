@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ..experiments.epoch import describe_reference_epoch
 from ..experiments.secondary import (BLOCK_STARS, CHUNKS_DIR, POPULATION_STREAM, STAR_COLUMNS,
                                      build_settings, class_key, class_summary, select_class_stars,
                                      solve_chunk, stream_seed)
@@ -51,6 +52,8 @@ def run_secondary(config, raw_cfg: dict, run_dir, *, prov=None) -> Path:
     prov.check_compatible()
     sec = config.experiment.secondary
     settings = build_settings(config)
+    epoch = describe_reference_epoch(settings.reference_epoch, settings.start_jd, settings.end_jd)
+    prov.derived["secondary"] = {"reference_epoch": epoch}
     with prov.stage("population"):
         source = make_source(dataclasses.asdict(config.population))
         bar = progress(len(sec.g_classes), desc="population classes", unit="classes",
@@ -96,7 +99,8 @@ def run_secondary(config, raw_cfg: dict, run_dir, *, prov=None) -> Path:
         summary = pd.DataFrame(summary)
         notes = [f"Confidence P = {settings.confidence:g}; dilution {sec.dilution:g}; "
                  f"{sec.mission_years:g} years from {sec.mission_start} (TCB); scanning law "
-                 f"'{config.scanning.name}'; sigma_F90: {sec.f90_formula}; R = {settings.ratio_R:g} /yr.",
+                 f"'{config.scanning.name}'; sigma_F90: {sec.f90_formula}; R = {settings.ratio_R:g} /yr; "
+                 f"reference epoch: {epoch['text']}.",
                  "Stars per class: " + ", ".join(f"G >= {r['g_class']}: {r['n_stars']} (mean retained "
                                                  f"FoV transits {r['mean_fov_retained']:.2f})"
                                                  for r in summary.to_dict("records")) + "."]

@@ -29,10 +29,13 @@ from .provenance import Provenance
 from .schema import Config
 from .store import CellStore, atomic_write_bytes
 
-__all__ = ["build_settings", "run_sweep", "showcase_cell", "CELLS_DIR", "SHOWCASE_DIR", "OUTPUTS"]
+__all__ = ["build_settings", "run_sweep", "showcase_cell", "showcase_groups", "CELLS_DIR", "SHOWCASE_DIR",
+           "SHOWCASE_GROUPS_FILE", "OUTPUTS"]
 
 CELLS_DIR = "cells"
 SHOWCASE_DIR = "showcase"
+#: The showcase direction's distinct transits (one row per group), for the report's Fig. 3.
+SHOWCASE_GROUPS_FILE = "groups.csv"
 #: Everything a sweep and its report write into a run directory (removed again when a
 #: fresh run stops on a user error, so that no partial output is left).
 OUTPUTS = (CELLS_DIR, SHOWCASE_DIR, "figures", "cells.parquet", "f90_cells.csv", "coefficients.csv",
@@ -65,6 +68,17 @@ def build_settings(config: Config) -> CellSettings:
         seed=config.seed,
         scatter_priors_mas=(sc.tight_prior_mas, sc.loose_prior_mas),
     )
+
+
+def showcase_groups(transits: pd.DataFrame) -> pd.DataFrame:
+    """One row per distinct transit (visit) of a direction: group, first and last UTC, FoVs, psi."""
+    g = transits.groupby("group", sort=True, observed=True)
+    out = g.agg(first_tcb_jd=("tcb_jd", "first"), last_tcb_jd=("tcb_jd", "last"),
+                fovs=("fov", lambda f: "".join(f.astype(str))),
+                scan_angle_deg=("scan_angle_deg", "first")).reset_index()
+    for col in ("first", "last"):
+        out[f"{col}_utc"] = Time(out[f"{col}_tcb_jd"].to_numpy(float), format="jd", scale="tcb").utc.iso
+    return out[["group", "first_utc", "last_utc", "fovs", "scan_angle_deg"]]
 
 
 def showcase_cell(config: Config) -> Cell:
@@ -158,6 +172,10 @@ def run_sweep(config: Config, raw_cfg: dict, run_dir: Path, *, prov: Provenance 
     with prov.stage("transits"):
         transits = direction_transits(config, list(dirs.values()))
 
+    if show_todo:
+        (run_dir / SHOWCASE_DIR).mkdir(exist_ok=True)
+        atomic_write_bytes(run_dir / SHOWCASE_DIR / SHOWCASE_GROUPS_FILE,
+                           showcase_groups(transits[show.direction.index]).to_csv(index=False).encode())
     pop = _freeze(_pop_dict(config))
     jobs = [(c, transits[c.direction.index], pop, settings, run_dir / CELLS_DIR, prov.hash, False,
              radii.get(c.cell_id)) for c in todo]

@@ -51,7 +51,8 @@ import numpy as np
 import pandas as pd
 from astropy.time import Time
 
-from ..astrometry.confidence import chi2_threshold, mahalanobis_sq
+from ..astrometry.confidence import inside as inside_ellipse
+from ..astrometry.confidence import mahalanobis_sq
 from ..astrometry.design import design_matrix, reference_epoch, years_since
 from ..astrometry.measurements import simulate
 from ..astrometry.noise import G_MAX, NoiseModel
@@ -332,17 +333,16 @@ def solve_chunk(settings: SecondarySettings, g_class: float, first: int, stars: 
     sig = settings.sigma_f90_mas(st["l"], st["b"], st["phot_g_mean_mag"])
     out = {"star": (first + np.arange(n)).astype(np.int32), "n_transits": n_transits.astype(np.int16),
            "n_fov": n_fov.astype(np.int16), "sigma_f90_mas": sig.astype(np.float32)}
-    k_p = chi2_threshold(settings.confidence, 2)
     sel = np.concatenate(solved) if solved else np.empty(0, dtype=np.int64)
     N0 = np.concatenate([a for a, _ in normals]) if normals else np.empty((0, 5, 5))
     b0 = np.concatenate([b for _, b in normals]) if normals else np.empty((0, 5))
     for name, sol in _solutions(N0, b0, sig[sel], settings.ratio_R):
         stem = SOLUTION_COLUMNS[name]
         dpos = sol.position  # the true position offset is zero
-        q = mahalanobis_sq(dpos, sol.position_cov)
-        ok = sol.ok & np.isfinite(q)
+        # No confidence region (NaN rule of astrometry.confidence.inside_counts): flag -1.
+        ok = sol.ok & np.isfinite(mahalanobis_sq(dpos, sol.position_cov))
         inside = np.full(n, -1, dtype=np.int8)
-        inside[sel[ok]] = (q[ok] < k_p).astype(np.int8)
+        inside[sel[ok]] = inside_ellipse(dpos[ok], sol.position_cov[ok], settings.confidence)
         err = np.full(n, np.nan, dtype=np.float32)
         err[sel[ok]] = np.hypot(dpos[ok, 0], dpos[ok, 1])
         out[f"inside_{stem}"], out[f"err_{stem}_mas"] = inside, err

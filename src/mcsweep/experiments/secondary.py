@@ -49,7 +49,6 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from astropy.time import Time
 
 from ..astrometry.confidence import inside as inside_ellipse
 from ..astrometry.confidence import mahalanobis_sq
@@ -62,6 +61,7 @@ from ..prior import G_FIT_MAX, PAPER_COEFFICIENTS, sigma_f90, sigma_from_coeffic
 from ..scanning import ScanningLaw, find_transits
 from ..scanning.ephemeris import TABLE_END_JD_TCB, TABLE_START_JD_TCB, gaia_position_au
 from ..scanning.timeline import dilution_key, keep_after_dilution
+from ..scanning.timescale import tcb_jd
 from .secondary_table import SOLUTION_COLUMNS, g_label
 
 __all__ = [
@@ -159,12 +159,7 @@ def load_f90_coefficients(spec: str) -> tuple | None:
 def build_settings(config) -> SecondarySettings:
     """Settings from a checked :class:`~mcsweep.sweep.schema.Config`; user errors raised here."""
     sec = config.experiment.secondary
-    try:
-        start = Time(sec.mission_start, scale="tcb")
-    except ValueError:
-        raise UserInputError(f"experiment.secondary.mission_start={sec.mission_start!r} is not accepted; "
-                             "expected an ISO date (TCB) such as '2014-07-25T10:30:00'") from None
-    start_jd = float(start.jd)
+    start_jd = tcb_jd(str(sec.mission_start), "experiment.secondary.mission_start")
     end_jd = start_jd + 365.25 * sec.mission_years
     if start_jd < TABLE_START_JD_TCB + 1.0 or end_jd > TABLE_END_JD_TCB - 1.0:
         raise UserInputError(f"experiment.secondary.mission_start={sec.mission_start!r} with mission_years="
@@ -181,8 +176,7 @@ def build_settings(config) -> SecondarySettings:
         seed=int(config.seed), start_jd=start_jd, end_jd=end_jd,
         law=ScanningLaw.from_config(dataclasses.asdict(config.scanning)),
         dilution=float(sec.dilution),
-        noise=NoiseModel(al_scale=config.noise.al_scale, ac_scale=config.noise.ac_scale,
-                         use_ac=config.noise.use_ac),
+        noise=NoiseModel.from_config(config.noise),
         confidence=float(config.confidence), ratio_R=float(config.ratio_R),
         f90_coefficients=load_f90_coefficients(sec.f90_formula))
 

@@ -23,6 +23,7 @@ from ..errors import UserInputError
 from ..experiments.pencil_beam import CellSettings, cell_radius, run_cell
 from ..population import CatalogueSource, make_source
 from ..scanning import ScanningLaw, find_transits
+from ..scanning.timescale import tcb_jd
 from .cells import Cell, Direction, enumerate_cells, sky_directions
 from .execution import executor
 from .provenance import Provenance
@@ -42,10 +43,6 @@ OUTPUTS = (CELLS_DIR, SHOWCASE_DIR, "figures", "cells.parquet", "f90_cells.csv",
            "rms_dex.csv", "eq14_terms.csv", "report.md", "report.html", "provenance.json")
 
 
-def _tcb_jd(iso: str) -> float:
-    return float(Time(iso, scale="tcb").jd)
-
-
 def build_settings(config: Config) -> CellSettings:
     g = config.prior_grid
     grid = tuple(float(v) for v in np.geomspace(g.min_mas, g.max_mas, g.n))
@@ -62,9 +59,8 @@ def build_settings(config: Config) -> CellSettings:
         max_radius_deg=cell.max_radius_deg,
         interpolation=cell.interpolation,
         reference_epoch=obs.reference_epoch,
-        fixed_epoch_tcb_jd=_tcb_jd(obs.fixed_epoch),
-        noise=NoiseModel(al_scale=config.noise.al_scale, ac_scale=config.noise.ac_scale,
-                         use_ac=config.noise.use_ac),
+        fixed_epoch_tcb_jd=tcb_jd(obs.fixed_epoch, "observations.fixed_epoch"),
+        noise=NoiseModel.from_config(config.noise),
         seed=config.seed,
         scatter_priors_mas=(sc.tight_prior_mas, sc.loose_prior_mas),
     )
@@ -97,8 +93,8 @@ def direction_transits(config: Config, directions: list[Direction]) -> dict[int,
     law = ScanningLaw.from_config(dataclasses.asdict(config.scanning))
     ra = np.array([d.ra_deg for d in directions])
     dec = np.array([d.dec_deg for d in directions])
-    start = Time(config.observations.start, scale="tcb")
-    end = Time(config.observations.end, scale="tcb")
+    start = tcb_jd(config.observations.start, "observations.start")
+    end = tcb_jd(config.observations.end, "observations.end")
     tr = find_transits(ra, dec, start, end, law=law)
     groups = {int(i): g.reset_index(drop=True) for i, g in tr.groupby("source_index", sort=False)}
     empty = tr.iloc[:0]

@@ -167,8 +167,10 @@ def test_reference_epoch_is_mean_of_present_epochs():
     # Means computed by hand (relative to 2457000 to keep the digits visible).
     np.testing.assert_allclose(ep[:2] - 2457000.0, [(0.1 + 100.7 + 400.2) / 3, 15.0], rtol=0, atol=1e-8)
     assert np.isnan(ep[2])
-    np.testing.assert_allclose(years_since(jd[:1], ep[:1]), (jd[:1] - ep[0]) / 365.25)
-    assert JULIAN_YEAR_DAYS == 365.25
+    # astropy's year is the Julian year (IAU): an independent value of the constant.
+    julian_year_d = (1 * u.yr).to_value(u.day)
+    np.testing.assert_allclose(years_since(jd[:1], ep[:1]), (jd[:1] - ep[0]) / julian_year_d, rtol=1e-15)
+    assert JULIAN_YEAR_DAYS == julian_year_d
 
 
 @pytest.mark.parametrize("kwargs, match", [

@@ -101,7 +101,6 @@ def test_posterior_covariance_inverse_is_n0_plus_prior(table1, ratio_R):
     Np = np.linalg.inv(sol.cov[0]) - N0[0]
     expected = np.diag([0.0, 0.0, sigma_p**-2, (ratio_R * sigma_p) ** -2, (ratio_R * sigma_p) ** -2])
     np.testing.assert_allclose(Np, expected, rtol=0, atol=1e-8 * np.abs(N0[0]).max())
-    assert DEFAULT_RATIO_R == 10.0  # Sect. 3.1
 
 
 def test_normal_equations_are_a_transpose_a(table1):

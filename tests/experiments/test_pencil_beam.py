@@ -90,3 +90,47 @@ def test_table1_beam_behaves_as_the_paper_describes(table1):
     at = curves[curves["at_f90"]].set_index("case")["fraction_inside"]
     assert at["two"] == pytest.approx(P, abs=FRACTION_TOL)
     assert np.all(np.abs(at - P) < 0.05), at
+
+
+def _reference_curve(n0, b0, priors, ratio_r, p):
+    # Independent of the package: dense numpy inverses per star and prior, scipy's chi2.
+    from scipy import stats
+
+    k = stats.chi2.ppf(p, 2)
+    n_in, n_valid = [], []
+    for sigma in priors:
+        inv_prior = np.diag([0.0, 0.0, sigma ** -2, (ratio_r * sigma) ** -2, (ratio_r * sigma) ** -2])
+        q = []
+        for a, b in zip(n0, b0):
+            try:
+                cov = np.linalg.inv(a + inv_prior)
+            except np.linalg.LinAlgError:
+                continue  # no confidence region: out of the denominator
+            d = (cov @ b)[:2]
+            q.append(d @ np.linalg.solve(cov[:2, :2], d))
+        n_in.append(int(np.sum(np.array(q) < k)))
+        n_valid.append(len(q))
+    return np.array(n_in), np.array(n_valid)
+
+
+@pytest.mark.parametrize("unsolvable", [0, 3])
+def test_prior_curve_counts_match_a_direct_computation(table1, unsolvable):
+    # Where every star has a region the fraction is the plain mean (the pre-issue-17
+    # result); stars without one (singular normal matrix) leave the denominator.
+    from mcsweep.experiments.pencil_beam import prior_curve
+
+    config, _, _ = table1
+    s = build_settings(config)
+    rng = np.random.default_rng(17)
+    a = rng.normal(size=(60, 5, 7))
+    n0 = a @ a.transpose(0, 2, 1) * 0.5
+    b0 = np.einsum("nij,nj->ni", n0, rng.normal(size=(60, 5)) * 2.0)
+    n0[:unsolvable] = 0.0
+    b0[:unsolvable] = 0.0
+    priors = [0.01, 0.3, 1.0, 30.0]
+    curve = prior_curve(n0, b0, priors, s)
+    ref_in, ref_valid = _reference_curve(n0, b0, priors, s.ratio_R, s.confidence)
+    np.testing.assert_array_equal(curve["n_valid"], ref_valid)
+    assert (ref_valid == 60 - unsolvable).all()
+    np.testing.assert_array_equal(curve["n_inside"], ref_in)
+    np.testing.assert_array_equal(curve["fraction_inside"], ref_in / ref_valid)

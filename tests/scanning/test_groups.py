@@ -1,4 +1,4 @@
-"""Distinct-transit groups and their selection, against straightforward per-source loops."""
+"""Distinct-transit groups (visits) and their selection, against straightforward per-source loops."""
 
 import numpy as np
 import pandas as pd
@@ -7,33 +7,42 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from mcsweep.errors import UserInputError
-from mcsweep.scanning import assign_groups, find_transits, group_summary, select_groups
+from mcsweep.scanning import (
+    VISIT_MAX_GAP_DAYS,
+    VISIT_MAX_TURN_DEG,
+    assign_groups,
+    find_transits,
+    group_summary,
+    select_groups,
+)
 
 LAG_D = 1.776 / 24  # day, Gamma / omega_z
 SPIN_D = 6.0 / 24  # day
+VISIT_GAP_D = 2.0  # day, between the starts of successive visit slots
 
 
 def _frame(rows):
-    df = pd.DataFrame(rows, columns=["source_index", "tcb_jd", "fov"])
-    df["group"] = assign_groups(df["source_index"], df["tcb_jd"], df["fov"] == "F", lag_days=LAG_D)
-    df["scan_angle_deg"] = 0.0
+    df = pd.DataFrame(rows, columns=["source_index", "tcb_jd", "fov", "scan_angle_deg"])
+    df["group"] = assign_groups(df["source_index"], df["tcb_jd"], df["scan_angle_deg"])
     return df
 
 
-def test_pairs_singles_and_successive_spins():
+def test_pairs_singles_successive_spins_and_turns():
     t0 = 2457000.0
     df = _frame([
-        (0, t0, "P"), (0, t0 + LAG_D, "F"),                     # a P+F pair -> group 0
-        (0, t0 + SPIN_D, "P"), (0, t0 + SPIN_D + LAG_D, "F"),   # next spin: a new group
-        (0, t0 + 20, "F"),                                      # F alone -> own group
-        (0, t0 + 40, "P"),                                      # P alone -> own group
-        (0, t0 + 40 + 3 * LAG_D, "F"),                          # F too late for that P
-        (1, t0 + 5, "F"), (1, t0 + 5 + SPIN_D, "P"),            # new source restarts at 0
-        (1, t0 + 5 + SPIN_D + LAG_D, "F"),
+        (0, t0, "P", 230.0), (0, t0 + LAG_D, "F", 230.2),        # a P+F pair -> group 0
+        (0, t0 + SPIN_D, "P", 231.0),                            # next spin, same visit
+        (0, t0 + SPIN_D + LAG_D, "F", 231.1),
+        (0, t0 + 24, "F", 65.0),                                 # Table 1 #4 -> #5: 24 d later
+        (0, t0 + 40, "P", 359.0), (0, t0 + 40 + LAG_D, "F", 1.0),  # angles wrap at 360 deg
+        (0, t0 + 41.5, "P", 3.0),                                # 1.5 d after: a new visit
+        (0, t0 + 41.5 + LAG_D, "F", 10.0),                       # 7 deg turn: a new direction
+        (1, t0 + 5, "F", 10.0), (1, t0 + 5 + 2 * SPIN_D, "P", 11.0),  # spin lost to dead time
+        (1, t0 + 5 + 2 * SPIN_D + LAG_D, "F", 11.2),
     ])
-    assert df["group"].tolist() == [0, 0, 1, 1, 2, 3, 4, 0, 1, 1]
+    assert df["group"].tolist() == [0, 0, 0, 0, 1, 2, 2, 3, 4, 0, 0, 0]
     summary = group_summary(df)
-    assert summary["fovs"].tolist() == ["PF", "PF", "F", "P", "F", "F", "PF"]
+    assert summary["fovs"].tolist() == ["PFPF", "F", "PF", "P", "F", "FPF"]
 
 
 def _reference_select(df, which):
@@ -72,7 +81,7 @@ def test_first_k_forms_agree_and_complete_drops_short_histories(diluted):
 
 
 def test_first_and_last_of_a_single_group_star_is_that_group():
-    df = _frame([(0, 2457000.0, "P"), (0, 2457000.0 + LAG_D, "F")])
+    df = _frame([(0, 2457000.0, "P", 10.0), (0, 2457000.0 + LAG_D, "F", 10.1)])
     assert len(select_groups(df, [0, -1])) == 2
     assert len(select_groups(df, [0, -1], complete=True)) == 2
 
@@ -84,18 +93,38 @@ def test_bad_selection_raises_user_input_error(diluted, which):
 
 
 @settings(deadline=None)
-@given(st.sets(st.tuples(st.integers(0, 3), st.integers(0, 400), st.booleans()), min_size=1, max_size=80),
-       st.floats(-1e-4, 1e-4))
-def test_groups_are_the_spins_a_source_was_seen_in(passages, jitter_d):
-    # (source, spin number, is F): P at spin * 6 h, F one FoV lag later; the groups of a
-    # source must be its distinct spins, numbered 0, 1, ... in time order.
-    rows = sorted((src, spin * SPIN_D + (LAG_D if is_f else 0.0) + jitter_d, is_f, spin)
-                  for src, spin, is_f in passages)
+@given(st.lists(st.tuples(st.integers(0, 3), st.integers(0, 60), st.integers(0, 3), st.booleans()),
+                min_size=1, max_size=80))
+def test_groups_are_the_visits_a_source_was_seen_in(passages):
+    # (source, visit slot, spin within the visit, is F): visits start VISIT_GAP_D apart
+    # (the flown law's shortest gap between visits is 2 days), spins 6 h apart inside a
+    # visit, F one FoV lag after P; each visit has its own direction (wrapping through
+    # 360 deg for some), turning 1 deg per spin (the precession's ~4 deg/day). The
+    # groups of a source must be its distinct visits, numbered 0, 1, ... in time order.
+    rows = sorted({(src, slot * VISIT_GAP_D + spin * SPIN_D + (LAG_D if is_f else 0.0),
+                    (slot * 137.0 + src * 51.0 + spin * 1.0) % 360.0, slot)
+                   for src, slot, spin, is_f in passages})
     src = np.array([r[0] for r in rows])
     t = 2457000.0 + np.array([r[1] for r in rows])
-    is_f = np.array([r[2] for r in rows])
-    spin = np.array([r[3] for r in rows])
-    g = assign_groups(src, t, is_f, lag_days=LAG_D)
+    psi = np.array([r[2] for r in rows])
+    slot = np.array([r[3] for r in rows])
+    g = assign_groups(src, t, psi)
     for s in np.unique(src):
-        expected = np.unique(spin[src == s], return_inverse=True)[1]
+        expected = np.unique(slot[src == s], return_inverse=True)[1]
         np.testing.assert_array_equal(g[src == s], expected)
+
+
+def test_rule_sits_in_the_gap_between_visits_of_the_flown_law():
+    # Independent of the grouping code: the raw times and scan angles of the flown law
+    # over a sample of the sky. Consecutive transits closer than the rule's gap must be
+    # one spin or less apart and turn little; all other gaps must be far longer.
+    rng = np.random.default_rng(5)
+    ra, dec = rng.uniform(0, 360, 60), np.degrees(np.arcsin(rng.uniform(-1, 1, 60)))
+    tr = find_transits(ra, dec, "2014-10-01", "2016-01-01")
+    same = np.diff(tr["source_index"].to_numpy()) == 0
+    dt = np.diff(tr["tcb_jd"].to_numpy())[same]
+    turn = np.abs(np.mod(np.diff(tr["scan_angle_deg"].to_numpy(float)) + 180.0, 360.0) - 180.0)[same]
+    inside = dt <= VISIT_MAX_GAP_DAYS
+    assert dt[inside].max() < SPIN_D * (1 + 1e-3)
+    assert turn[inside].max() < VISIT_MAX_TURN_DEG / 2
+    assert dt[~inside].min() > 1.5 * VISIT_MAX_GAP_DAYS

@@ -47,6 +47,17 @@ def test_small_sweep_writes_cells_coefficients_and_report(small_run):
 
 
 @pytest.mark.slow
+def test_report_says_where_the_eight_case_leaves_table_1(small_run):
+    # Independent reference: the paper's Table 1 lists the groups of the showcase star on
+    # ... 2015-11-09 and 2015-12-29; the flown law adds a visit on 2015-12-05 in between.
+    groups = pd.read_csv(small_run / "showcase" / "groups.csv")
+    assert groups["first_utc"].str[:10].tolist()[6:9] == ["2015-11-09", "2015-12-05", "2015-12-29"]
+    report = (small_run / "report.md").read_text()
+    assert "Visits here that Table 1 lacks: 2015-12-05; Table 1 groups not found here: none" in report
+    assert "the 'eight' case ends on 2015-12-05 instead of 2015-12-29" in report
+
+
+@pytest.mark.slow
 def test_report_summarises_the_manifest_which_stays_in_provenance(small_run):
     report = (small_run / "report.md").read_text()
     # The report summarises the computation's files as they were when it was written

@@ -33,6 +33,10 @@ from __future__ import annotations
 
 import numpy as np
 
+# The normal triad (p, q, r) of the star, Eq. 1 of Lindegren et al. (2012); one
+# implementation, in the scanning stage's frames, re-exported here.
+from ..scanning.frames import tangent_triad
+
 __all__ = [
     "JULIAN_YEAR_DAYS",
     "N_PARAMETERS",
@@ -49,29 +53,6 @@ JULIAN_YEAR_DAYS = 365.25
 #: Order of the astrometric parameters (units mas, mas, mas, mas/yr, mas/yr).
 PARAMETER_NAMES = ("dalpha_star_mas", "ddelta_mas", "parallax_mas", "pmra_mas_yr", "pmdec_mas_yr")
 N_PARAMETERS = 5
-
-
-def tangent_triad(ra_deg, dec_deg) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Unit vectors towards local east (p), local north (q) and the star (r).
-
-    Parameters
-    ----------
-    ra_deg, dec_deg : array_like
-        Barycentric direction of the star (ICRS), degrees; broadcast together.
-
-    Returns
-    -------
-    p, q, r : ndarray, shape ``broadcast_shape + (3,)``
-        Components in the ICRS (BCRS) axes.
-    """
-    ra = np.radians(np.asarray(ra_deg, dtype=float))
-    dec = np.radians(np.asarray(dec_deg, dtype=float))
-    ra, dec = np.broadcast_arrays(ra, dec)
-    sa, ca, sd, cd = np.sin(ra), np.cos(ra), np.sin(dec), np.cos(dec)
-    p = np.stack([-sa, ca, np.zeros_like(sa)], axis=-1)
-    q = np.stack([-sd * ca, -sd * sa, cd], axis=-1)
-    r = np.stack([cd * ca, cd * sa, sd], axis=-1)
-    return p, q, r
 
 
 def reference_epoch(tcb_jd, mask=None) -> np.ndarray:

@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from ..astrometry.confidence import chi2_threshold, ellipse_semi_axes, mahalanobis_sq
+from ..astrometry.confidence import ellipse_semi_axes, inside_counts
 from ..astrometry.design import JULIAN_YEAR_DAYS, design_matrix, reference_epoch
 from ..astrometry.measurements import simulate
 from ..astrometry.noise import NoiseModel
@@ -46,7 +46,8 @@ _STAR_STREAM, _NOISE_STREAM = 0, 1
 #: Columns of a cell's result table (one row per case x prior).
 CURVE_COLUMNS = [
     "cell_id", "l_deg", "b_deg", "ra_deg", "dec_deg", "g_min", "g_max", "case",
-    "sigma_prior_mas", "at_f90", "fraction_inside", "p_error_mas", "median_semi_major_mas",
+    "sigma_prior_mas", "at_f90", "fraction_inside", "n_inside", "n_valid", "p_error_mas",
+    "median_semi_major_mas",
     "n_stars", "n_in_cone", "radius_deg", "n_groups", "sigma_f90_mas", "f90_flag",
 ]
 
@@ -168,7 +169,10 @@ def _evaluate(n0, b0, sigma_mas: float, s: CellSettings):
 
 
 def prior_curve(n0, b0, priors_mas, s: CellSettings) -> pd.DataFrame:
-    """Fraction inside, P-th percentile error and median semi-major axis per prior.
+    """Fraction inside (with its counts), P-th percentile error and median semi-major axis per prior.
+
+    ``fraction_inside = n_inside / n_valid`` (:func:`mcsweep.astrometry.confidence.inside_counts`:
+    stars without a finite confidence region are left out of ``n_valid``).
 
     All priors are solved in one batch (the stars' normal equations repeated once per
     prior), which is several times faster than one call per prior for ~10^3 stars.
@@ -179,18 +183,22 @@ def prior_curve(n0, b0, priors_mas, s: CellSettings) -> pd.DataFrame:
                            ratio_R=s.ratio_R)
     # True position offsets are zero at the reference epoch (Sect. 3.2).
     dpos, cov2 = np.ascontiguousarray(sol.x[:, :2]), np.ascontiguousarray(sol.cov[:, :2, :2])
-    q = mahalanobis_sq(dpos, cov2).reshape(m, n)
-    k = chi2_threshold(s.confidence, 2)
-    valid = np.isfinite(q)
-    with np.errstate(invalid="ignore"):
-        frac = np.sum((q < k) & valid, axis=1) / np.maximum(valid.sum(axis=1), 1)
+    # The project's one fraction-inside rule (stars without a finite region are left out
+    # of the denominator); the loop is over priors, each call vectorised over stars.
+    counts = np.array([inside_counts(dpos[i * n:(i + 1) * n], cov2[i * n:(i + 1) * n], s.confidence)
+                       for i in range(m)], dtype=np.int64).reshape(m, 2)
+    n_inside, n_valid = counts[:, 0], counts[:, 1]
     err = np.hypot(dpos[:, 0], dpos[:, 1]).reshape(m, n)
     semi_major = ellipse_semi_axes(cov2, s.confidence)[0].reshape(m, n)
     # A prior always gives a solution; the NaN-aware reductions (10x slower) only if not.
-    pct, med = (np.percentile, np.median) if valid.all() else (np.nanpercentile, np.nanmedian)
+    pct, med = (np.percentile, np.median) if (n_valid == n).all() else (np.nanpercentile, np.nanmedian)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        frac = np.where(n_valid > 0, n_inside / np.maximum(n_valid, 1), np.nan)
     return pd.DataFrame({
         "sigma_prior_mas": priors,
-        "fraction_inside": np.where(valid.any(axis=1), frac, np.nan),
+        "fraction_inside": frac,
+        "n_inside": n_inside,
+        "n_valid": n_valid,
         "p_error_mas": pct(err, 100.0 * s.confidence, axis=1),
         "median_semi_major_mas": med(semi_major, axis=1),
     })
@@ -266,7 +274,8 @@ def run_cell(cell, transits: pd.DataFrame, source, s: CellSettings,
                 c = pd.concat([c, prior_curve(*normals[case], [f90], s).assign(at_f90=True)],
                               ignore_index=True)
         else:
-            c = pd.DataFrame({"sigma_prior_mas": grid, "fraction_inside": np.nan, "p_error_mas": np.nan,
+            c = pd.DataFrame({"sigma_prior_mas": grid, "fraction_inside": np.nan, "n_inside": 0, "n_valid": 0,
+                              "p_error_mas": np.nan,
                               "median_semi_major_mas": np.nan, "at_f90": False})
         frames.append(c.assign(case=case))
     table = pd.concat(frames, ignore_index=True).assign(**base, sigma_f90_mas=f90, f90_flag=flag)

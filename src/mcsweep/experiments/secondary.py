@@ -53,9 +53,9 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from astropy.time import Time
 
-from ..astrometry.confidence import chi2_threshold, mahalanobis_sq
+from ..astrometry.confidence import inside as inside_ellipse
+from ..astrometry.confidence import mahalanobis_sq
 from ..astrometry.design import design_matrix, years_since
 from ..astrometry.measurements import simulate
 from ..astrometry.noise import G_MAX, NoiseModel
@@ -65,6 +65,7 @@ from ..prior import G_FIT_MAX, PAPER_COEFFICIENTS, sigma_f90, sigma_from_coeffic
 from ..scanning import ScanningLaw, find_transits
 from ..scanning.ephemeris import TABLE_END_JD_TCB, TABLE_START_JD_TCB, gaia_position_au
 from ..scanning.timeline import dilution_key, keep_after_dilution
+from ..scanning.timescale import tcb_jd
 from .epoch import resolve_reference_epoch
 from .secondary_table import SOLUTION_COLUMNS, g_label
 
@@ -169,12 +170,7 @@ def load_f90_coefficients(spec: str) -> tuple | None:
 def build_settings(config) -> SecondarySettings:
     """Settings from a checked :class:`~mcsweep.sweep.schema.Config`; user errors raised here."""
     sec = config.experiment.secondary
-    try:
-        start = Time(sec.mission_start, scale="tcb")
-    except ValueError:
-        raise UserInputError(f"experiment.secondary.mission_start={sec.mission_start!r} is not accepted; "
-                             "expected an ISO date (TCB) such as '2014-07-25T10:30:00'") from None
-    start_jd = float(start.jd)
+    start_jd = tcb_jd(str(sec.mission_start), "experiment.secondary.mission_start")
     end_jd = start_jd + 365.25 * sec.mission_years
     if start_jd < TABLE_START_JD_TCB + 1.0 or end_jd > TABLE_END_JD_TCB - 1.0:
         raise UserInputError(f"experiment.secondary.mission_start={sec.mission_start!r} with mission_years="
@@ -191,8 +187,7 @@ def build_settings(config) -> SecondarySettings:
         seed=int(config.seed), start_jd=start_jd, end_jd=end_jd,
         law=ScanningLaw.from_config(dataclasses.asdict(config.scanning)),
         dilution=float(sec.dilution),
-        noise=NoiseModel(al_scale=config.noise.al_scale, ac_scale=config.noise.ac_scale,
-                         use_ac=config.noise.use_ac),
+        noise=NoiseModel.from_config(config.noise),
         confidence=float(config.confidence), ratio_R=float(config.ratio_R),
         f90_coefficients=load_f90_coefficients(sec.f90_formula),
         reference_epoch=str(sec.reference_epoch))
@@ -344,17 +339,16 @@ def solve_chunk(settings: SecondarySettings, g_class: float, first: int, stars: 
     sig = settings.sigma_f90_mas(st["l"], st["b"], st["phot_g_mean_mag"])
     out = {"star": (first + np.arange(n)).astype(np.int32), "n_transits": n_transits.astype(np.int16),
            "n_fov": n_fov.astype(np.int16), "sigma_f90_mas": sig.astype(np.float32)}
-    k_p = chi2_threshold(settings.confidence, 2)
     sel = np.concatenate(solved) if solved else np.empty(0, dtype=np.int64)
     N0 = np.concatenate([a for a, _ in normals]) if normals else np.empty((0, 5, 5))
     b0 = np.concatenate([b for _, b in normals]) if normals else np.empty((0, 5))
     for name, sol in _solutions(N0, b0, sig[sel], settings.ratio_R):
         stem = SOLUTION_COLUMNS[name]
         dpos = sol.position  # the true position offset is zero
-        q = mahalanobis_sq(dpos, sol.position_cov)
-        ok = sol.ok & np.isfinite(q)
+        # No confidence region (NaN rule of astrometry.confidence.inside_counts): flag -1.
+        ok = sol.ok & np.isfinite(mahalanobis_sq(dpos, sol.position_cov))
         inside = np.full(n, -1, dtype=np.int8)
-        inside[sel[ok]] = (q[ok] < k_p).astype(np.int8)
+        inside[sel[ok]] = inside_ellipse(dpos[ok], sol.position_cov[ok], settings.confidence)
         err = np.full(n, np.nan, dtype=np.float32)
         err[sel[ok]] = np.hypot(dpos[ok, 0], dpos[ok, 1])
         out[f"inside_{stem}"], out[f"err_{stem}_mas"] = inside, err

@@ -127,10 +127,13 @@ def error_percentile(confidence: float) -> float:
 
 def _stats(stars: pd.DataFrame, sel: np.ndarray, col: str, percentile: float) -> tuple[int, float, float]:
     """(stars without solution, fraction inside, ``percentile``-th percentile of errors) of a selection."""
+    # The flags were set per star by astrometry.confidence.inside (secondary.py); -1 (no
+    # confidence region) is left out of the denominator, the NaN rule of inside_counts.
     inside = stars[f"inside_{col}"].to_numpy()[sel]
     err = stars[f"err_{col}_mas"].to_numpy()[sel].astype(np.float64)
     ok = inside >= 0
-    frac = float(np.mean(inside[ok] == 1)) if ok.any() else float("nan")
+    n_in, n_valid = int(np.count_nonzero(inside == 1)), int(np.count_nonzero(ok))
+    frac = n_in / n_valid if n_valid else float("nan")
     p90 = float(np.percentile(err[ok], percentile)) if ok.any() else float("nan")
     return int((~ok).sum()), frac, p90
 

@@ -14,6 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..scanning.frames import tangent_triad
+
 __all__ = ["WHOLE_SKY_DEG", "CellGrid", "cone_cells", "cone_axes", "in_cone"]
 
 #: Radius at and beyond which a cone is the whole sky, deg.
@@ -21,18 +23,13 @@ WHOLE_SKY_DEG = 180.0
 
 
 def _unit(l_deg, b_deg):
-    l, b = np.radians(l_deg), np.radians(b_deg)
-    cb = np.cos(b)
-    return np.stack([cb * np.cos(l), cb * np.sin(l), np.sin(b)])
+    # Components first, shape (3, ...), as the cone code indexes them.
+    return np.moveaxis(tangent_triad(l_deg, b_deg)[2], -1, 0)
 
 
 def cone_axes(l_deg, b_deg):
     """Rotation matrix whose columns are (east, north, centre) at a Galactic direction."""
-    l, b = np.radians(l_deg), np.radians(b_deg)
-    east = np.array([-np.sin(l), np.cos(l), 0.0])
-    north = np.array([-np.sin(b) * np.cos(l), -np.sin(b) * np.sin(l), np.cos(b)])
-    centre = np.array([np.cos(b) * np.cos(l), np.cos(b) * np.sin(l), np.sin(b)])
-    return np.stack([east, north, centre], axis=1)
+    return np.stack(tangent_triad(float(l_deg), float(b_deg)), axis=1)
 
 
 @dataclass(frozen=True)

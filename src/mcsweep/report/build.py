@@ -14,6 +14,7 @@ import json
 from pathlib import Path
 from typing import Callable
 
+import numpy as np
 import pandas as pd
 
 from ..errors import UserInputError
@@ -31,6 +32,12 @@ __all__ = ["build_report", "SECTION_BUILDERS", "REQUIRED_RESULTS", "sweep_sectio
 FIG_DIR = "figures"
 _MAP_CELL_COLUMNS = ("cell_id", "l_deg", "b_deg", "g_min", "g_max", "g", "n_stars", "radius_deg", "f90_flag",
                      "sigma_f90_mas", "fitted_sigma_f90_mas", "paper_sigma_f90_mas")
+#: Michalik et al. (2015), Table 1: the star (alpha, delta) = (157.5, 0) deg and the UTC
+#: time of the first transit of each of its 8 distinct transit groups "#" (pre-launch
+#: nominal scanning law; the table gives 0.1 h).
+TABLE1_RA_DEC_DEG = (157.5, 0.0)
+TABLE1_GROUP_STARTS_UTC = ("2014-10-30T17:00", "2014-11-20T17:00", "2014-12-19T16:36", "2015-04-29T05:12",
+                           "2015-05-23T18:54", "2015-06-21T04:54", "2015-11-09T06:06", "2015-12-29T11:48")
 
 
 def _f90_table(cells: pd.DataFrame) -> pd.DataFrame:
@@ -150,6 +157,43 @@ def _showcase_section(doc: Document, run_dir: Path, figdir: Path, p: float, cfg:
                    "tight prior, sigma_F90 and a loose prior (Fig. 2)")
     figures.plot_showcase_cases(curves, f90, figdir / "fig3_cases.png", p)
     doc.figure(f"{FIG_DIR}/fig3_cases.png", "1, 2, 2 diluted, 4 and 8 distinct transits (Fig. 3)")
+    groups_file = run_dir / "showcase" / "groups.csv"
+    if groups_file.exists():
+        _showcase_groups_note(doc, pd.read_csv(groups_file), (float(r["ra_deg"]), float(r["dec_deg"])), cfg)
+
+
+def _showcase_groups_note(doc: Document, groups: pd.DataFrame, ra_dec: tuple[float, float], cfg: dict) -> None:
+    """The showcase's distinct transits, which of them each case uses, and Table 1's differences."""
+    cases = cfg.get("observations", {}).get("cases", {})
+    n = len(groups)
+    used = {c: [groups["group"].iloc[i] for i in idx if -n <= int(i) < n] for c, idx in cases.items()}
+    groups = groups.assign(cases=[", ".join(c for c, gs in used.items() if g in gs) for g in groups["group"]])
+    doc.table(groups, "Distinct transits (visits) of the showcase direction and the cases that use them",
+              {"scan_angle_deg": ".1f"})
+    law = cfg.get("scanning", {}).get("name", "?")
+    text = (f"Cases take distinct transits by number; here the {n} visits come from the '{law}' "
+            "scanning law.")
+    if "eight" in used and len(used["eight"]) == 8:
+        last = groups.loc[groups["group"] == used["eight"][-1], "last_utc"].iloc[0][:10]
+        text += f" The 'eight' case ends on {last}."
+    if np.allclose(ra_dec, TABLE1_RA_DEC_DEG):
+        ours = pd.to_datetime(groups["first_utc"]).to_numpy()
+        paper = pd.to_datetime(pd.Series(TABLE1_GROUP_STARTS_UTC)).to_numpy()
+        # The 2015 rows of Table 1 are one 6 h spin off the flown law: match within 1 day.
+        near = np.abs(ours[:, None] - paper[None, :]) <= np.timedelta64(1, "D")
+        extra = groups["first_utc"][~near.any(axis=1)].str[:10].tolist()
+        missing = [d[:10] for d, hit in zip(TABLE1_GROUP_STARTS_UTC, near.any(axis=0)) if not hit]
+        if extra or missing:
+            text += (" This is the paper's Table 1 star, whose 8 groups (computed before launch with "
+                     f"the nominal law) end on {TABLE1_GROUP_STARTS_UTC[-1][:10]}. Visits here that Table 1 "
+                     f"lacks: {', '.join(extra) or 'none'}; Table 1 groups not found here: "
+                     f"{', '.join(missing) or 'none'}. The cases are therefore not the paper's: "
+                     "a case that reaches past an extra visit uses it instead of a later Table 1 group"
+                     + (f" (the 'eight' case ends on {last} instead of {TABLE1_GROUP_STARTS_UTC[-1][:10]})."
+                        if "eight" in used and len(used["eight"]) == 8 else "."))
+        else:
+            text += " Its visits are the 8 groups of the paper's Table 1 (within 1 day)."
+    doc.para(text)
 
 
 def provenance_section(doc: Document, run_dir: Path, prov: dict) -> None:

@@ -47,15 +47,15 @@ MU_PLX_RANGE = (6.0, 15.0)       # 1/yr
 RATIO_RANGE = (0.4, 1.0)         # accepted range of sigma_F90 / p90 (issue)
 FOOTNOTE_RANGE = (0.5, 0.8)      # the paper's footnote
 MIN_STARS, MAX_STARS, MAX_RADIUS_DEG = 1000, 2000, 20.0
-#: Published all-sky numbers. [V] read in the cited place, [M] from memory.
+#: Published all-sky numbers, each read in the cited place [V].
 PUBLISHED = [
     ("GUMS-10, G < 20 (Robin et al. 2012, A&A 543, A100; CDS VI/137) [V]", None, 20.0, 1.1e9),
     ("Gaia DR3 sources with G, G <~ 21, incomplete beyond G ~ 19-20 "
      "(Gaia Collaboration, Vallenari et al. 2023) [V]", None, 21.0, 1_811_709_771),
     ("Gaia DR2 sources, G <~ 21 (Gaia Collaboration, Brown et al. 2018) [V]", None, 21.0,
      1_692_919_135),
-    ("Yale Bright Star Catalogue, V < 6.5 (Hoffleit & Jaschek 1991; model: G < 6.3) [M]",
-     None, 6.3, 9110),
+    ("Yale Bright Star Catalogue, 5th rev. ed., V < 6.5: 9096 stars of its 9110 objects "
+     "(Hoffleit & Warren 1991, CDS V/50 ReadMe; model: G < 6.3) [V]", None, 6.3, 9096),
 ]
 
 

@@ -17,6 +17,7 @@ __all__ = [
     "ECLIPTIC_TO_ICRS",
     "unit_vector",
     "local_north_east",
+    "tangent_triad",
 ]
 
 #: Mean obliquity of the ecliptic at J2000.0 (IAU 2006 precession, Capitaine et al. 2003) [arcsec].
@@ -55,6 +56,34 @@ def unit_vector(lon_deg, lat_deg) -> np.ndarray:
     return np.stack(np.broadcast_arrays(cos_lat * np.cos(lon), cos_lat * np.sin(lon), np.sin(lat)), axis=-1)
 
 
+def tangent_triad(lon_deg, lat_deg) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Unit vectors towards local east (p), local north (q) and the direction (r).
+
+    The normal triad of Lindegren et al. (2012, A&A 538, A78, Eq. 1), the one
+    implementation in the package (the design matrix, the transit search and the cones
+    of the population all use it).
+
+    Parameters
+    ----------
+    lon_deg, lat_deg : array_like
+        Longitude (e.g. right ascension, Galactic l) and latitude (declination, b) [deg];
+        broadcast together.
+
+    Returns
+    -------
+    p, q, r : ndarray, shape ``broadcast_shape + (3,)``
+        Components in the axes of the frame of ``lon, lat`` (ICRS for ra, dec).
+    """
+    lon = np.deg2rad(np.asarray(lon_deg, dtype=float))
+    lat = np.deg2rad(np.asarray(lat_deg, dtype=float))
+    lon, lat = np.broadcast_arrays(lon, lat)
+    sa, ca, sd, cd = np.sin(lon), np.cos(lon), np.sin(lat), np.cos(lat)
+    p = np.stack([-sa, ca, np.zeros_like(sa)], axis=-1)
+    q = np.stack([-sd * ca, -sd * sa, cd], axis=-1)
+    r = np.stack([cd * ca, cd * sa, sd], axis=-1)
+    return p, q, r
+
+
 def local_north_east(ra_deg, dec_deg) -> tuple[np.ndarray, np.ndarray]:
     """Local north and east unit vectors (ICRS components) at the given directions.
 
@@ -67,11 +96,7 @@ def local_north_east(ra_deg, dec_deg) -> tuple[np.ndarray, np.ndarray]:
     -------
     north, east : ndarray, shape ``(..., 3)``
         ``north`` points towards increasing declination, ``east`` towards increasing
-        right ascension.
+        right ascension (:func:`tangent_triad`'s q and p).
     """
-    ra = np.deg2rad(np.asarray(ra_deg, dtype=float))
-    dec = np.deg2rad(np.asarray(dec_deg, dtype=float))
-    sa, ca, sd, cd = np.sin(ra), np.cos(ra), np.sin(dec), np.cos(dec)
-    north = np.stack(np.broadcast_arrays(-sd * ca, -sd * sa, cd), axis=-1)
-    east = np.stack(np.broadcast_arrays(-sa, ca, np.zeros_like(ca)), axis=-1)
+    east, north, _ = tangent_triad(ra_deg, dec_deg)
     return north, east

@@ -1,15 +1,39 @@
 """Distinct transits (the ``#`` column of the paper's Table 1) and their selection.
 
 A star crosses the preceding FoV and, Gamma / omega_z later (1.77 h for Gaia), the
-following FoV of the same spin revolution, along practically the same direction.
-Table 1 numbers such pairs as one "transit group that is distinct in time and/or
-direction"; a group may hold only one FoV transit when the other fell outside the
-across-scan acceptance (Table 1, group 5), or was lost to dead time or dilution.
+following FoV of the same spin revolution, along practically the same direction. As
+the spin axis precesses slowly, the star may stay inside the across-scan acceptance
+for the next spin (6 h later) or two, crossed along almost the same direction again.
+Table 1 numbers "transit groups that are distinct in time and/or direction", and the
+paper's two-transit case needs two different scan directions (Sect. 3.3): a group is
+therefore one *visit* of the scanning circle to the star, all the transits of its
+consecutive spins. A group may hold a single FoV transit when the other fell outside
+the across-scan acceptance (Table 1, group 5), or was lost to dead time or dilution.
 
-Rule used here, per source and in time order: a transit opens a new group unless it
-is an F transit that follows a P transit of the same source by the FoV lag
-``Gamma / omega_z`` to within :data:`GROUP_LAG_TOLERANCE_DAYS`. Transits of
-successive spins (6 h apart) are therefore separate groups.
+Rule used here, per source and in time order: a transit joins the group of the
+source's previous transit when it follows it by at most :data:`VISIT_MAX_GAP_DAYS`
+*and* its scan angle differs from that transit's by at most
+:data:`VISIT_MAX_TURN_DEG`; otherwise it opens a new group. Justification:
+
+* Table 1: the P/F pair of one spin (1.8 h apart, angles equal to 1 deg) is one group;
+  the closest distinct groups are 21 days apart (#1 and #2), and #4 and #5 are 24 days
+  and 83 deg apart.
+* Flown law over the sweep's 48 directions, 2014-10-01 to 2016-01-01 (1069 transits):
+  consecutive transits of one visit are at most 6.0 h apart (P -> F 1.8 h, F -> P of the
+  next spin 4.2 h, same FoV one spin later 6.0 h) and turn by at most 1.07 deg; the
+  shortest gaps between visits are 2.0 and 2.75 days (8 and 11 deg turns), all others
+  5.25 days or more. 1 day allows for up to three spins lost to dead time or dilution
+  inside a visit and stays a factor 2 below the shortest gap between visits.
+* The spin axis precesses at about 4 deg/day (de Bruijne et al. 2010, S = 4.22; the
+  turns between the closest visits above are 4.0-4.2 deg/day), so
+  within 1 day the scan direction at a star turns by less than 5 deg; a larger turn
+  means a different direction, i.e. a distinct transit even if close in time. (Time
+  separates the visits of the flown law on its own: turns between visits start at
+  1.05 deg.)
+
+Consecutive spins are chained: where the scanning circle turns over a star it can stay
+for up to 11 spins (60 h, 10.7 deg of total turn, 2 of the 48 directions' 491 visits
+above), and those spins, none distinct from the next, are one visit.
 """
 
 from __future__ import annotations
@@ -21,16 +45,17 @@ import pandas as pd
 
 from ..errors import UserInputError
 
-__all__ = ["GROUP_LAG_TOLERANCE_DAYS", "assign_groups", "select_groups", "group_summary"]
+__all__ = ["VISIT_MAX_GAP_DAYS", "VISIT_MAX_TURN_DEG", "assign_groups", "select_groups", "group_summary"]
 
-#: Allowed deviation of the P -> F time lag from Gamma / omega_z [day] (0.25 h; the
-#: real deviation, from the slow motion of the spin axis, is below a second).
-GROUP_LAG_TOLERANCE_DAYS = 0.25 / 24.0
+#: Largest time between consecutive transits of one visit [day] (module docstring).
+VISIT_MAX_GAP_DAYS = 1.0
+#: Largest change of scan angle between consecutive transits of one visit [deg].
+VISIT_MAX_TURN_DEG = 5.0
 
 
-def assign_groups(source_index, tcb_jd, fov_is_f, *, lag_days: float,
-                  tolerance_days: float = GROUP_LAG_TOLERANCE_DAYS) -> np.ndarray:
-    """0-based distinct-transit number of every transit, counted per source.
+def assign_groups(source_index, tcb_jd, scan_angle_deg, *, max_gap_days: float = VISIT_MAX_GAP_DAYS,
+                  max_turn_deg: float = VISIT_MAX_TURN_DEG) -> np.ndarray:
+    """0-based distinct-transit (visit) number of every transit, counted per source.
 
     Parameters
     ----------
@@ -38,12 +63,13 @@ def assign_groups(source_index, tcb_jd, fov_is_f, *, lag_days: float,
         Source of each transit; the rows must be sorted by (source, time).
     tcb_jd : array_like of float
         Transit times [day].
-    fov_is_f : array_like of bool
-        True for following-FoV transits.
-    lag_days : float
-        Nominal P -> F lag Gamma / omega_z [day].
-    tolerance_days : float
-        Allowed deviation from ``lag_days`` [day].
+    scan_angle_deg : array_like of float
+        Scan position angle psi of each transit [deg].
+    max_gap_days : float
+        A transit later than this after the source's previous one opens a new group [day].
+    max_turn_deg : float
+        A transit whose scan angle differs by more than this from the previous one's
+        opens a new group [deg].
 
     Returns
     -------
@@ -51,15 +77,15 @@ def assign_groups(source_index, tcb_jd, fov_is_f, *, lag_days: float,
     """
     src = np.asarray(source_index)
     t = np.asarray(tcb_jd, dtype=float)
-    is_f = np.asarray(fov_is_f, dtype=bool)
+    psi = np.asarray(scan_angle_deg, dtype=float)
     n = src.size
     if n == 0:
         return np.empty(0, dtype=np.int32)
     new_source = np.ones(n, dtype=bool)
     new_source[1:] = src[1:] != src[:-1]
+    turn = np.abs(np.mod(np.diff(psi) + 180.0, 360.0) - 180.0)
     joins = np.zeros(n, dtype=bool)
-    joins[1:] = (~new_source[1:] & is_f[1:] & ~is_f[:-1]
-                 & (np.abs(np.diff(t) - lag_days) <= tolerance_days))
+    joins[1:] = ~new_source[1:] & (np.diff(t) <= max_gap_days) & (turn <= max_turn_deg)
     opens = ~joins
     count = np.cumsum(opens)  # groups opened so far, over all sources
     first_of_source = np.flatnonzero(new_source)
@@ -151,13 +177,14 @@ def _parse_which(which):
 
 
 def group_summary(transits: pd.DataFrame) -> pd.DataFrame:
-    """One row per (source, group): first time, FoVs present and mean scan angle.
+    """One row per (source, group): first time, FoVs in time order and first scan angle.
 
     Returns
     -------
     pandas.DataFrame
         Columns ``source_index, group, tcb_jd`` (time of the group's first transit),
-        ``fovs`` ('P', 'F' or 'PF'), ``scan_angle_deg`` (of the first transit).
+        ``fovs`` (the group's FoVs in time order, e.g. 'F', 'PF' or 'PFPF' for two
+        spins), ``scan_angle_deg`` (of the first transit).
     """
     g = transits.groupby(["source_index", "group"], sort=True, observed=True)
     out = g.agg(tcb_jd=("tcb_jd", "first"), scan_angle_deg=("scan_angle_deg", "first"),

@@ -257,7 +257,7 @@ def chunk_transits(u_ecl, north_ecl, east_ecl, first_index, nodes: Nodes, att: A
         "fov_code": fov,
         "scan_angle_deg": psi.astype(flt_t),
         "ac_offset_deg": np.degrees(zeta).astype(flt_t),
-        "group": assign_groups(src, t, fov == 1, lag_days=law.fov_lag_days).astype(grp_t),
+        "group": assign_groups(src, t, psi).astype(grp_t),
     }
     if not opts["compact"]:
         # Compact output leaves the observer out: it is a function of tcb_jd alone

@@ -25,7 +25,6 @@ from functools import lru_cache
 
 import numpy as np
 import pandas as pd
-from astropy.time import Time
 
 from ..errors import UserInputError
 from .attitude import attitude_for
@@ -34,6 +33,7 @@ from .frames import ICRS_TO_ECLIPTIC, local_north_east, unit_vector
 from .law import ScanningLaw
 from .search import build_nodes, run_block
 from .timeline import draw_dead_time, dilution_key
+from .timescale import tcb_jd
 
 __all__ = ["find_transits", "observer_position_au", "TRANSIT_COLUMNS", "DEFAULT_DEAD_TIME_BLOCK_DAYS"]
 
@@ -46,23 +46,6 @@ DEFAULT_DEAD_TIME_BLOCK_DAYS = 0.25
 _F_ENTRIES_PER_CHUNK = 4_000_000
 # Stars per block (one joblib task when n_jobs != 1); ~30 MB of results for 5 years.
 _STARS_PER_BLOCK = 10_000
-
-
-def _tcb_jd(t, name: str) -> float:
-    if isinstance(t, Time):
-        if t.shape != ():
-            raise UserInputError(f"{name}={t!r} is not accepted; expected a scalar astropy Time")
-        return float(t.tcb.jd)
-    if isinstance(t, str):
-        try:
-            return float(Time(t, scale="tcb").jd)
-        except ValueError:
-            raise UserInputError(f"{name}={t!r} is not accepted; expected an ISO date (TCB) "
-                                 "or an astropy Time") from None
-    if isinstance(t, (int, float, np.floating, np.integer)) and not isinstance(t, bool):
-        return float(t)
-    raise UserInputError(f"{name}={t!r} is not accepted; expected an astropy Time, an ISO date (TCB) "
-                         "or a TCB Julian date")
 
 
 @lru_cache(maxsize=1)
@@ -181,7 +164,7 @@ def find_transits(ra_deg, dec_deg, start, end, *, law: ScanningLaw | None = None
                              "expected two 1-D arrays of equal length")
     if not (np.all(np.isfinite(ra)) and np.all(np.isfinite(dec)) and np.all(np.abs(dec) <= 90.0)):
         raise UserInputError("ra_deg/dec_deg are not accepted; expected finite values with |dec| <= 90 deg")
-    start_jd, end_jd = _tcb_jd(start, "start"), _tcb_jd(end, "end")
+    start_jd, end_jd = tcb_jd(start, "start"), tcb_jd(end, "end")
     if not end_jd > start_jd:
         raise UserInputError(f"interval {start}..{end} is not accepted; expected end after start")
     if start_jd < TABLE_START_JD_TCB + 1.0 or end_jd > TABLE_END_JD_TCB - 1.0:

@@ -22,6 +22,7 @@ from ..errors import UserInputError
 from ..experiments.pencil_beam import CellSettings, cell_radius, run_cell
 from ..population import CatalogueSource, make_source
 from ..scanning import ScanningLaw, find_transits
+from ..scanning.timescale import tcb_jd
 from .cells import Cell, Direction, enumerate_cells, sky_directions
 from .execution import executor
 from .progress import progress, stage_line
@@ -29,18 +30,17 @@ from .provenance import Provenance
 from .schema import Config
 from .store import CellStore, atomic_write_bytes
 
-__all__ = ["build_settings", "run_sweep", "showcase_cell", "CELLS_DIR", "SHOWCASE_DIR", "OUTPUTS"]
+__all__ = ["build_settings", "run_sweep", "showcase_cell", "showcase_groups", "CELLS_DIR", "SHOWCASE_DIR",
+           "SHOWCASE_GROUPS_FILE", "OUTPUTS"]
 
 CELLS_DIR = "cells"
 SHOWCASE_DIR = "showcase"
+#: The showcase direction's distinct transits (one row per group), for the report's Fig. 3.
+SHOWCASE_GROUPS_FILE = "groups.csv"
 #: Everything a sweep and its report write into a run directory (removed again when a
 #: fresh run stops on a user error, so that no partial output is left).
 OUTPUTS = (CELLS_DIR, SHOWCASE_DIR, "figures", "cells.parquet", "f90_cells.csv", "coefficients.csv",
            "rms_dex.csv", "eq14_terms.csv", "prior_maps.fits", "report.md", "report.html", "provenance.json")
-
-
-def _tcb_jd(iso: str) -> float:
-    return float(Time(iso, scale="tcb").jd)
 
 
 def build_settings(config: Config) -> CellSettings:
@@ -59,12 +59,22 @@ def build_settings(config: Config) -> CellSettings:
         max_radius_deg=cell.max_radius_deg,
         interpolation=cell.interpolation,
         reference_epoch=obs.reference_epoch,
-        fixed_epoch_tcb_jd=_tcb_jd(obs.fixed_epoch),
-        noise=NoiseModel(al_scale=config.noise.al_scale, ac_scale=config.noise.ac_scale,
-                         use_ac=config.noise.use_ac),
+        fixed_epoch_tcb_jd=tcb_jd(obs.fixed_epoch, "observations.fixed_epoch"),
+        noise=NoiseModel.from_config(config.noise),
         seed=config.seed,
         scatter_priors_mas=(sc.tight_prior_mas, sc.loose_prior_mas),
     )
+
+
+def showcase_groups(transits: pd.DataFrame) -> pd.DataFrame:
+    """One row per distinct transit (visit) of a direction: group, first and last UTC, FoVs, psi."""
+    g = transits.groupby("group", sort=True, observed=True)
+    out = g.agg(first_tcb_jd=("tcb_jd", "first"), last_tcb_jd=("tcb_jd", "last"),
+                fovs=("fov", lambda f: "".join(f.astype(str))),
+                scan_angle_deg=("scan_angle_deg", "first")).reset_index()
+    for col in ("first", "last"):
+        out[f"{col}_utc"] = Time(out[f"{col}_tcb_jd"].to_numpy(float), format="jd", scale="tcb").utc.iso
+    return out[["group", "first_utc", "last_utc", "fovs", "scan_angle_deg"]]
 
 
 def showcase_cell(config: Config) -> Cell:
@@ -83,8 +93,8 @@ def direction_transits(config: Config, directions: list[Direction]) -> dict[int,
     law = ScanningLaw.from_config(dataclasses.asdict(config.scanning))
     ra = np.array([d.ra_deg for d in directions])
     dec = np.array([d.dec_deg for d in directions])
-    start = Time(config.observations.start, scale="tcb")
-    end = Time(config.observations.end, scale="tcb")
+    start = tcb_jd(config.observations.start, "observations.start")
+    end = tcb_jd(config.observations.end, "observations.end")
     tr = find_transits(ra, dec, start, end, law=law)
     groups = {int(i): g.reset_index(drop=True) for i, g in tr.groupby("source_index", sort=False)}
     empty = tr.iloc[:0]
@@ -167,6 +177,10 @@ def run_sweep(config: Config, raw_cfg: dict, run_dir: Path, *, prov: Provenance 
         stage_line("transits", f"{n_tr} FoV transits found in {prov.timings['transits']:.1f} s",
                    enabled=show_progress)
 
+    if show_todo:
+        (run_dir / SHOWCASE_DIR).mkdir(exist_ok=True)
+        atomic_write_bytes(run_dir / SHOWCASE_DIR / SHOWCASE_GROUPS_FILE,
+                           showcase_groups(transits[show.direction.index]).to_csv(index=False).encode())
     pop = _freeze(_pop_dict(config))
     jobs = [(c, transits[c.direction.index], pop, settings, store, False, radii.get(c.cell_id)) for c in todo]
     if show_todo:

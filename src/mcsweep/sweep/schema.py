@@ -50,15 +50,10 @@ def _require(ok: bool, key: str, value: Any, accepted: str) -> None:
 
 def _tcb_jd(key: str, iso: str) -> float:
     """TCB Julian date of an ISO date inside the observer-ephemeris table, else a one-line error."""
-    from astropy.time import Time
-
     from ..scanning.ephemeris import TABLE_END_JD_TCB, TABLE_START_JD_TCB
+    from ..scanning.timescale import tcb_jd
 
-    try:
-        jd = float(Time(str(iso), format="isot", scale="tcb").jd)
-    except ValueError:
-        raise UserInputError(f"{key}={iso!r} is not accepted; expected an ISO date such as "
-                             "'2015-01-01T00:00:00' (TCB)") from None
+    jd = tcb_jd(str(iso), key)
     _require(TABLE_START_JD_TCB <= jd <= TABLE_END_JD_TCB, key, iso, "a date within 2013-2031 (TCB)")
     return jd
 

@@ -90,3 +90,33 @@ def test_table1_beam_behaves_as_the_paper_describes(table1):
     at = curves[curves["at_f90"]].set_index("case")["fraction_inside"]
     assert at["two"] == pytest.approx(P, abs=FRACTION_TOL)
     assert np.all(np.abs(at - P) < 0.05), at
+
+
+#: The prior scan and the direct 5 x 5 solver give the same cell statistics to this
+#: tolerance where N0 is regular (four and eight distinct transits) ...
+RTOL_CELL = 1e-10
+#: ... and, for the singular one- and two-transit N0, to the forward error that the
+#: condition number of N0 + N_p allows any float64 method at the loosest prior of the
+#: grid (kappa ~ 1e9 at 1000 mas: kappa * eps ~ 2e-7; tests/astrometry/test_prior_scan.py
+#: checks both against an exact rational solve).
+RTOL_CELL_SINGULAR = 1e-6
+
+
+def test_prior_scan_leaves_the_cell_statistics_unchanged(table1):
+    from mcsweep.experiments import pencil_beam as pb
+
+    config, cell, transits = table1
+    s = build_settings(config)
+    d = cell.direction
+    stars = GalaxyModel().sample_cone(d.l_deg, d.b_deg, 3.0, 14.5, 15.5, np.random.default_rng(1),
+                                      max_stars=N_STARS)
+    for case, groups in s.cases.items():
+        geom = pb.case_geometry(transits, tuple(groups))
+        n0, b0 = pb._normal_equations(geom, d.ra_deg, d.dec_deg, stars, s, np.random.default_rng(2))
+        direct = pb.prior_curve(n0, b0, s.prior_grid_mas, s, method="direct")
+        scan = pb.prior_curve(n0, b0, s.prior_grid_mas, s)
+        np.testing.assert_array_equal(scan["n_inside"], direct["n_inside"])
+        np.testing.assert_array_equal(scan["n_valid"], direct["n_valid"])
+        rtol = RTOL_CELL if case in ("four", "eight") else RTOL_CELL_SINGULAR
+        for col in ("p_error_mas", "median_semi_major_mas"):
+            np.testing.assert_allclose(scan[col], direct[col], rtol=rtol, atol=0)

@@ -22,10 +22,11 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from ..astrometry.confidence import chi2_threshold, ellipse_semi_axes, mahalanobis_sq
+from ..astrometry.confidence import ellipse_semi_axes, inside, inside_counts, mahalanobis_sq
 from ..astrometry.design import JULIAN_YEAR_DAYS, design_matrix, reference_epoch
 from ..astrometry.measurements import simulate
 from ..astrometry.noise import NoiseModel
+from ..astrometry.prior_scan import prior_scan
 from ..astrometry.solve import normal_equations, solve_with_prior
 from ..scanning import observer_position_au
 
@@ -167,33 +168,59 @@ def _evaluate(n0, b0, sigma_mas: float, s: CellSettings):
     return dpos, cov2
 
 
-def prior_curve(n0, b0, priors_mas, s: CellSettings) -> pd.DataFrame:
+def prior_curve(n0, b0, priors_mas, s: CellSettings, *, method: str = "scan", return_inside: bool = False):
     """Fraction inside, P-th percentile error and median semi-major axis per prior.
 
-    All priors are solved in one batch (the stars' normal equations repeated once per
-    prior), which is several times faster than one call per prior for ~10^3 stars.
+    ``method="scan"`` (default) reduces each star's normal equations once and evaluates
+    every prior in O(15) operations per star (:mod:`mcsweep.astrometry.prior_scan`);
+    ``"direct"`` solves the 5 x 5 system of every star and prior (the reference, kept
+    for tests and ``benchmarks/bench_cell.py``). The fraction inside follows the NaN
+    rule of :func:`mcsweep.astrometry.confidence.inside_counts`. With ``return_inside``
+    also returns the per-star ``inside`` and ``valid`` flags, both (n_priors, n_stars)
+    (for the bootstrap of :func:`sigma_f90_interval`).
     """
     priors = np.asarray(priors_mas, float)
     m, n = len(priors), n0.shape[0]
-    sol = solve_with_prior(np.tile(n0, (m, 1, 1)), np.tile(b0, (m, 1)), np.repeat(priors, n),
-                           ratio_R=s.ratio_R)
-    # True position offsets are zero at the reference epoch (Sect. 3.2).
-    dpos, cov2 = np.ascontiguousarray(sol.x[:, :2]), np.ascontiguousarray(sol.cov[:, :2, :2])
-    q = mahalanobis_sq(dpos, cov2).reshape(m, n)
-    k = chi2_threshold(s.confidence, 2)
-    valid = np.isfinite(q)
-    with np.errstate(invalid="ignore"):
-        frac = np.sum((q < k) & valid, axis=1) / np.maximum(valid.sum(axis=1), 1)
-    err = np.hypot(dpos[:, 0], dpos[:, 1]).reshape(m, n)
-    semi_major = ellipse_semi_axes(cov2, s.confidence)[0].reshape(m, n)
+    if method == "scan":
+        scan = prior_scan(n0, b0, s.ratio_R)
+        solutions = (scan.position(p) for p in priors)
+    elif method == "direct":
+        def solutions():
+            for p in priors:
+                sol = solve_with_prior(n0, b0, p, ratio_R=s.ratio_R)
+                yield np.ascontiguousarray(sol.x[:, :2]), np.ascontiguousarray(sol.cov[:, :2, :2])
+        solutions = solutions()
+    else:
+        raise ValueError(f"method={method!r}; expected 'scan' or 'direct'")
+    counts = np.zeros((m, 2), dtype=np.int64)
+    err = np.empty((m, n))
+    semi_major = np.empty((m, n))
+    inside_flags = np.zeros((m, n), dtype=bool) if return_inside else None
+    valid_flags = np.zeros((m, n), dtype=bool) if return_inside else None
+    # True position offsets are zero at the reference epoch, so the solved position is
+    # the actual error (Sect. 3.2).
+    for i, (dpos, cov2) in enumerate(solutions):
+        counts[i] = inside_counts(dpos, cov2, s.confidence)
+        err[i] = np.hypot(dpos[:, 0], dpos[:, 1])
+        semi_major[i] = ellipse_semi_axes(cov2, s.confidence)[0]
+        if return_inside:
+            valid_flags[i] = np.isfinite(mahalanobis_sq(dpos, cov2))
+            inside_flags[i] = inside(dpos, cov2, s.confidence) & valid_flags[i]
+    n_in, n_valid = counts[:, 0], counts[:, 1]
+    valid = np.isfinite(err) & np.isfinite(semi_major)
     # A prior always gives a solution; the NaN-aware reductions (10x slower) only if not.
     pct, med = (np.percentile, np.median) if valid.all() else (np.nanpercentile, np.nanmedian)
-    return pd.DataFrame({
+    with np.errstate(invalid="ignore", divide="ignore"):
+        frac = np.where(n_valid > 0, n_in / np.maximum(n_valid, 1), np.nan)
+    table = pd.DataFrame({
         "sigma_prior_mas": priors,
-        "fraction_inside": np.where(valid.any(axis=1), frac, np.nan),
+        "fraction_inside": frac,
         "p_error_mas": pct(err, 100.0 * s.confidence, axis=1),
         "median_semi_major_mas": med(semi_major, axis=1),
+        "n_inside": n_in,
+        "n_valid": n_valid,
     })
+    return (table, inside_flags, valid_flags) if return_inside else table
 
 
 def sigma_f90_from_curve(priors_mas, fraction, p: float, interpolation: str = "log") -> tuple[float, str]:

@@ -120,3 +120,32 @@ def test_prior_scan_leaves_the_cell_statistics_unchanged(table1):
         rtol = RTOL_CELL if case in ("four", "eight") else RTOL_CELL_SINGULAR
         for col in ("p_error_mas", "median_semi_major_mas"):
             np.testing.assert_allclose(scan[col], direct[col], rtol=rtol, atol=0)
+
+
+#: Synthetic cells for the coverage of the bootstrap interval; the 68 % interval must
+#: cover the truth in 68 % of them within 3 binomial sigma (0.68 +- 0.21 for 45 cells).
+N_COVERAGE_CELLS = 45
+COVERAGE_TOL = 3 * math.sqrt(0.68 * 0.32 / N_COVERAGE_CELLS)
+
+
+@pytest.mark.slow
+def test_bootstrap_interval_covers_the_truth_at_its_nominal_rate(table1):
+    """Stars drawn from the prior itself: the posterior is exact at sigma_prior = 1 mas,
+    so the true sigma_F90 is 1 mas (paper Sects. 2.3-2.4)."""
+    import dataclasses
+
+    from mcsweep.sweep.cells import Cell
+
+    config, cell, transits = table1
+    s = build_settings(config)
+    s = dataclasses.replace(s, cases={s.f90_case: s.cases[s.f90_case]}, n_bootstrap=200,
+                            prior_grid_mas=tuple(np.geomspace(0.1, 10.0, 33)))
+    hits = 0
+    for i in range(N_COVERAGE_CELLS):
+        c = Cell(cell.direction, cell.g_min, cell.g_max)
+        s_i = dataclasses.replace(s, seed=1000 + i)
+        curves, _ = run_cell(c, transits, GaussianAstrometrySource(1.0), s_i)
+        lo, hi = curves["sigma_f90_lo_mas"].iloc[0], curves["sigma_f90_hi_mas"].iloc[0]
+        assert lo <= curves["sigma_f90_mas"].iloc[0] <= hi
+        hits += lo <= 1.0 <= hi
+    assert abs(hits / N_COVERAGE_CELLS - 0.68) <= COVERAGE_TOL, hits

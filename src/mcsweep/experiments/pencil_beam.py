@@ -38,18 +38,30 @@ __all__ = [
     "case_geometry",
     "prior_curve",
     "sigma_f90_from_curve",
+    "sigma_f90_interval",
+    "ill_determined",
     "run_cell",
     "CURVE_COLUMNS",
 ]
 
-_STAR_STREAM, _NOISE_STREAM = 0, 1
+_STAR_STREAM, _NOISE_STREAM, _BOOTSTRAP_STREAM = 0, 1, 2
 
 #: Columns of a cell's result table (one row per case x prior).
 CURVE_COLUMNS = [
     "cell_id", "l_deg", "b_deg", "ra_deg", "dec_deg", "g_min", "g_max", "case",
     "sigma_prior_mas", "at_f90", "fraction_inside", "p_error_mas", "median_semi_major_mas",
     "n_stars", "n_in_cone", "radius_deg", "n_groups", "sigma_f90_mas", "f90_flag",
+    "sigma_f90_lo_mas", "sigma_f90_hi_mas", "ill_determined",
 ]
+
+#: Bootstrap interval of sigma_F90: the 16th and 84th percentiles (a 68 % interval,
+#: "1 sigma" for a Gaussian).
+INTERVAL_QUANTILES = (0.16, 0.84)
+#: A cell is ill-determined when its fraction curve stays within ILL_BAND_SIGMAS
+#: binomial standard deviations of P (sqrt(P(1-P)/n)) over at least ILL_RANGE_DEX of
+#: prior widths: the crossing is then set by noise, not by the stars (issue 13).
+ILL_BAND_SIGMAS = 2.0
+ILL_RANGE_DEX = 1.0
 
 
 @dataclass(frozen=True)
@@ -70,6 +82,8 @@ class CellSettings:
     fixed_epoch_tcb_jd: float
     noise: NoiseModel
     seed: int
+    #: Bootstrap resamples of the stars for the sigma_F90 interval (0 = no interval).
+    n_bootstrap: int = 0
     #: Priors at which to keep every star's error and covariance (Fig. 2); F90 is added.
     scatter_priors_mas: tuple[float, ...] = field(default=())
 
@@ -246,6 +260,47 @@ def sigma_f90_from_curve(priors_mas, fraction, p: float, interpolation: str = "l
     return float(math.exp(log_s)), "ok"
 
 
+def sigma_f90_interval(priors_mas, inside_flags, valid_flags, p: float, interpolation: str,
+                       n_resamples: int, rng: np.random.Generator) -> tuple[float, float]:
+    """Bootstrap interval (INTERVAL_QUANTILES) of sigma_F90 over the cell's stars.
+
+    Each resample draws the stars with replacement (one draw serves all priors, so the
+    curve keeps its correlation between priors) and finds its crossing with
+    :func:`sigma_f90_from_curve`; a resample whose fraction never reaches ``p`` counts
+    as +inf, one below the grid as the grid's lower end. ``inside_flags`` and
+    ``valid_flags`` are (n_priors, n_stars) (NaN rule of ``inside_counts``).
+    """
+    m, n = inside_flags.shape
+    if n_resamples <= 0 or n == 0:
+        return float("nan"), float("nan")
+    idx = rng.integers(0, n, size=(n_resamples, n))
+    weights = np.stack([np.bincount(row, minlength=n) for row in idx]).astype(float)
+    # Integer-valued sums below 2^53: exact whatever the summation order (bit-identical).
+    n_in = weights @ inside_flags.T.astype(float)
+    n_val = weights @ valid_flags.T.astype(float)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        frac = np.where(n_val > 0, n_in / n_val, np.nan)
+    values = np.array([sigma_f90_from_curve(priors_mas, f, p, interpolation)[0] for f in frac])
+    values[np.isnan(values)] = np.inf
+    lo, hi = np.quantile(values, INTERVAL_QUANTILES, method="inverted_cdf")
+    return float(lo), float(hi)
+
+
+def ill_determined(priors_mas, fraction, n_valid, p: float) -> bool:
+    """True when the fraction stays within ILL_BAND_SIGMAS binomial sigma of ``p`` over
+    ILL_RANGE_DEX or more of the prior grid (module constants)."""
+    priors = np.asarray(priors_mas, float)
+    frac = np.asarray(fraction, float)
+    nv = np.asarray(n_valid, float)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        band = ILL_BAND_SIGMAS * np.sqrt(p * (1.0 - p) / nv)
+        near = np.abs(frac - p) <= band
+    if not near.any():
+        return False
+    logs = np.log10(priors[near])
+    return bool(logs.max() - logs.min() >= ILL_RANGE_DEX - 1e-9)
+
+
 def run_cell(cell, transits: pd.DataFrame, source, s: CellSettings,
              *, keep_scatter: bool = False,
              radius_deg: float | None = None) -> tuple[pd.DataFrame, pd.DataFrame | None]:
@@ -278,10 +333,21 @@ def run_cell(cell, transits: pd.DataFrame, source, s: CellSettings,
             normals[case] = _normal_equations(geom, d.ra_deg, d.dec_deg, stars, s,
                                               np.random.default_rng(case_ss))
 
-    curves = {case: prior_curve(*normals[case], grid, s) for case in normals}
+    curves, f90_flags = {}, None
+    for case in normals:
+        if case == s.f90_case:
+            curves[case], *f90_flags = prior_curve(*normals[case], grid, s, return_inside=True)
+        else:
+            curves[case] = prior_curve(*normals[case], grid, s)
+    f90_lo = f90_hi = float("nan")
+    ill = False
     if s.f90_case in curves:
-        f90, flag = sigma_f90_from_curve(grid, curves[s.f90_case]["fraction_inside"],
-                                         s.confidence, s.interpolation)
+        c = curves[s.f90_case]
+        f90, flag = sigma_f90_from_curve(grid, c["fraction_inside"], s.confidence, s.interpolation)
+        boot_rng = np.random.default_rng(np.random.SeedSequence(s.seed, spawn_key=(*cell.key, _BOOTSTRAP_STREAM)))
+        f90_lo, f90_hi = sigma_f90_interval(grid, *f90_flags, s.confidence, s.interpolation,
+                                            s.n_bootstrap, boot_rng)
+        ill = ill_determined(grid, c["fraction_inside"], c["n_valid"], s.confidence)
     else:
         f90, flag = float("nan"), "no_transits" if len(stars) else "no_stars"
 
@@ -296,7 +362,9 @@ def run_cell(cell, transits: pd.DataFrame, source, s: CellSettings,
             c = pd.DataFrame({"sigma_prior_mas": grid, "fraction_inside": np.nan, "p_error_mas": np.nan,
                               "median_semi_major_mas": np.nan, "at_f90": False})
         frames.append(c.assign(case=case))
-    table = pd.concat(frames, ignore_index=True).assign(**base, sigma_f90_mas=f90, f90_flag=flag)
+    table = pd.concat(frames, ignore_index=True).assign(**base, sigma_f90_mas=f90, f90_flag=flag,
+                                                          sigma_f90_lo_mas=f90_lo, sigma_f90_hi_mas=f90_hi,
+                                                          ill_determined=ill)
     table = table[CURVE_COLUMNS]
 
     scatter = None

@@ -30,7 +30,9 @@ FIG_DIR = "figures"
 def _f90_table(cells: pd.DataFrame) -> pd.DataFrame:
     base = cells.drop_duplicates("cell_id")[["cell_id", "l_deg", "b_deg", "ra_deg", "dec_deg", "g_min",
                                              "g_max", "n_stars", "n_in_cone", "radius_deg", "n_groups",
-                                             "sigma_f90_mas", "f90_flag"]]
+                                             "sigma_f90_mas", "f90_flag"]
+                                            + [c for c in ("sigma_f90_lo_mas", "sigma_f90_hi_mas",
+                                                           "ill_determined") if c in cells]]
     at = cells[cells["at_f90"]].pivot_table(index="cell_id", columns="case", values="fraction_inside")
     at.columns = [f"fraction_at_f90_{c}" for c in at.columns]
     return base.merge(at, left_on="cell_id", right_index=True, how="left").reset_index(drop=True)

@@ -116,19 +116,22 @@ class PriorScan:
         to rounding (module notes); NaN where ``ok`` is False.
         """
         t = float(prior_diagonal(float(sigma_plx_prior_mas), self.ratio_R)[2])
+        g = self.g
+        # Star-last buffers returned as (n, 2) and (n, 2, 2) views: every element is a
+        # contiguous vector for the consumers (mahalanobis_sq, ellipse_semi_axes).
+        d = np.empty((2, self.n))
+        cv = np.empty((2, 2, self.n))
         with np.errstate(invalid="ignore", divide="ignore"):
             w = 1.0 / (self.lam + t)
             wc = w * self.c
-            g = self.g
-            dpos = np.empty((self.n, 2))
-            dpos[:, 0] = self.x0[0] - (g[0, 0] * wc[0] + g[0, 1] * wc[1] + g[0, 2] * wc[2])
-            dpos[:, 1] = self.x0[1] - (g[1, 0] * wc[0] + g[1, 1] * wc[1] + g[1, 2] * wc[2])
-            cov = np.empty((self.n, 2, 2))
-            cov[:, 0, 0] = self.ainv[0] + (w[0] * g[0, 0] ** 2 + w[1] * g[0, 1] ** 2 + w[2] * g[0, 2] ** 2)
-            cov[:, 1, 1] = self.ainv[2] + (w[0] * g[1, 0] ** 2 + w[1] * g[1, 1] ** 2 + w[2] * g[1, 2] ** 2)
-            cov[:, 0, 1] = self.ainv[1] + (w[0] * g[0, 0] * g[1, 0] + w[1] * g[0, 1] * g[1, 1]
-                                           + w[2] * g[0, 2] * g[1, 2])
-            cov[:, 1, 0] = cov[:, 0, 1]
+            for i in range(2):
+                np.subtract(self.x0[i], g[i, 0] * wc[0] + g[i, 1] * wc[1] + g[i, 2] * wc[2], out=d[i])
+            wg0 = w * g[0]
+            cv[0, 0] = self.ainv[0] + (wg0[0] * g[0, 0] + wg0[1] * g[0, 1] + wg0[2] * g[0, 2])
+            cv[0, 1] = self.ainv[1] + (wg0[0] * g[1, 0] + wg0[1] * g[1, 1] + wg0[2] * g[1, 2])
+            cv[1, 1] = self.ainv[2] + (w[0] * g[1, 0] ** 2 + w[1] * g[1, 1] ** 2 + w[2] * g[1, 2] ** 2)
+            cv[1, 0] = cv[0, 1]
+        dpos, cov = d.T, np.moveaxis(cv, -1, 0)
         # lam + t <= 0 only if rounding made a singular S slightly indefinite and the
         # prior is weaker than that rounding: no reliable solution, as in spd_solve.
         bad = ~self.ok | ~np.all(self.lam + t > 0.0, axis=0)

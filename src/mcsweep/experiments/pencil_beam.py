@@ -9,8 +9,10 @@ errors and the median semi-major axis (Figs. 1 and 3). sigma_F90 is the smallest
 whose fraction reaches P in the two-transit case (Sect. 3.3); every case is then also
 evaluated at that prior, as in Fig. 3.
 
-All stars of a cell are observed with the transits of the beam's centre (the beam is
-1 deg wide; bright cells may be widened, see :func:`beam_radius`).
+All stars of a cell are observed with the transits of the beam's centre. Beam rule
+(:func:`cell_radius`): with the built-in galaxy model the beam keeps the paper's 1 deg
+and at least ``min_stars`` stars are drawn from its density; with a catalogue the beam
+is widened until it holds ``min_stars`` (:func:`beam_radius`).
 """
 
 from __future__ import annotations
@@ -125,7 +127,17 @@ def beam_radius(source, l_deg, b_deg, g_min, g_max, *, radius_deg: float, min_st
 
 
 def cell_radius(source, cell, s: CellSettings) -> tuple[float, float]:
+    """Beam radius of a cell and the expected number of stars in it.
+
+    Beam rule: a source that can draw from its density (the built-in galaxy model,
+    ``draws_from_density``) keeps the paper's beam (Table 1: 1 deg) and draws at least
+    ``min_stars`` stars from it -- independent realisations of the same distribution;
+    a catalogue has no further stars, so its beam is widened (:func:`beam_radius`).
+    """
     d = cell.direction
+    if getattr(source, "draws_from_density", False):
+        return s.beam_radius_deg, float(source.expected_count(d.l_deg, d.b_deg, s.beam_radius_deg,
+                                                              cell.g_min, cell.g_max))
     return beam_radius(source, d.l_deg, d.b_deg, cell.g_min, cell.g_max, radius_deg=s.beam_radius_deg,
                        min_stars=s.min_stars, max_radius_deg=s.max_radius_deg)
 
@@ -287,18 +299,31 @@ def sigma_f90_interval(priors_mas, inside_flags, valid_flags, p: float, interpol
 
 
 def ill_determined(priors_mas, fraction, n_valid, p: float) -> bool:
-    """True when the fraction stays within ILL_BAND_SIGMAS binomial sigma of ``p`` over
-    ILL_RANGE_DEX or more of the prior grid (module constants)."""
+    """True when the fraction curve runs within ILL_BAND_SIGMAS binomial sigma of ``p``
+    over ILL_RANGE_DEX or more of contiguous prior grid around its crossing of ``p``
+    (or, if it never crosses, anywhere): the crossing is then set by noise."""
     priors = np.asarray(priors_mas, float)
     frac = np.asarray(fraction, float)
     nv = np.asarray(n_valid, float)
     with np.errstate(invalid="ignore", divide="ignore"):
-        band = ILL_BAND_SIGMAS * np.sqrt(p * (1.0 - p) / nv)
-        near = np.abs(frac - p) <= band
-    if not near.any():
-        return False
-    logs = np.log10(priors[near])
-    return bool(logs.max() - logs.min() >= ILL_RANGE_DEX - 1e-9)
+        near = np.abs(frac - p) <= ILL_BAND_SIGMAS * np.sqrt(p * (1.0 - p) / nv)
+    hits = np.flatnonzero(frac >= p)
+    if hits.size and hits[0] > 0:
+        # The run of near points that contains the crossing (either bracketing point).
+        i = int(hits[0]) if near[hits[0]] else int(hits[0]) - 1
+        if not near[i]:
+            return False
+        lo = hi = i
+        while lo > 0 and near[lo - 1]:
+            lo -= 1
+        while hi < len(near) - 1 and near[hi + 1]:
+            hi += 1
+        span = np.log10(priors[hi]) - np.log10(priors[lo])
+    else:
+        if not near.any():
+            return False
+        span = np.log10(priors[near]).max() - np.log10(priors[near]).min()
+    return bool(span >= ILL_RANGE_DEX - 1e-9)
 
 
 def run_cell(cell, transits: pd.DataFrame, source, s: CellSettings,
@@ -315,8 +340,9 @@ def run_cell(cell, transits: pd.DataFrame, source, s: CellSettings,
     # a list, so adding, removing or reordering cases or cells changes no other result.
     star_ss = np.random.SeedSequence(s.seed, spawn_key=(*cell.key, _STAR_STREAM))
     radius = cell_radius(source, cell, s)[0] if radius_deg is None else radius_deg
+    more = {"min_draw": s.min_stars} if getattr(source, "draws_from_density", False) else {}
     stars = source.sample_cone(d.l_deg, d.b_deg, radius, cell.g_min, cell.g_max,
-                               np.random.default_rng(star_ss), max_stars=s.max_stars)
+                               np.random.default_rng(star_ss), max_stars=s.max_stars, **more)
     n_in_cone = int(stars.attrs.get("n_in_cone", len(stars)))
     n_groups = int(transits["group"].nunique()) if len(transits) else 0
     grid = np.asarray(s.prior_grid_mas, float)

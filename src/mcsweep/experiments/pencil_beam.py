@@ -51,8 +51,8 @@ _STAR_STREAM, _NOISE_STREAM, _BOOTSTRAP_STREAM = 0, 1, 2
 #: Columns of a cell's result table (one row per case x prior).
 CURVE_COLUMNS = [
     "cell_id", "l_deg", "b_deg", "ra_deg", "dec_deg", "g_min", "g_max", "case",
-    "sigma_prior_mas", "at_f90", "fraction_inside", "p_error_mas", "median_semi_major_mas",
-    "n_stars", "n_in_cone", "radius_deg", "n_groups", "sigma_f90_mas", "f90_flag",
+    "sigma_prior_mas", "at_f90", "fraction_inside", "n_inside", "n_valid", "p_error_mas",
+    "median_semi_major_mas", "n_stars", "n_in_cone", "radius_deg", "n_groups", "sigma_f90_mas", "f90_flag",
     "sigma_f90_lo_mas", "sigma_f90_hi_mas", "ill_determined",
 ]
 
@@ -385,7 +385,8 @@ def run_cell(cell, transits: pd.DataFrame, source, s: CellSettings,
                 c = pd.concat([c, prior_curve(*normals[case], [f90], s).assign(at_f90=True)],
                               ignore_index=True)
         else:
-            c = pd.DataFrame({"sigma_prior_mas": grid, "fraction_inside": np.nan, "p_error_mas": np.nan,
+            c = pd.DataFrame({"sigma_prior_mas": grid, "fraction_inside": np.nan, "n_inside": 0, "n_valid": 0,
+                              "p_error_mas": np.nan,
                               "median_semi_major_mas": np.nan, "at_f90": False})
         frames.append(c.assign(case=case))
     table = pd.concat(frames, ignore_index=True).assign(**base, sigma_f90_mas=f90, f90_flag=flag,

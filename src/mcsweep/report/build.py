@@ -13,6 +13,7 @@ import json
 from pathlib import Path
 from typing import Callable
 
+import numpy as np
 import pandas as pd
 
 from ..errors import UserInputError
@@ -57,6 +58,16 @@ def sweep_section(doc: Document, run_dir: Path, prov: dict) -> None:
              f"{f90[['g_min', 'g_max']].drop_duplicates().shape[0]} G bins); sigma_F90 found in {n_ok} "
              f"(flags: {flags}). Confidence level P = {p:g}, R = {cfg.get('ratio_R')} /yr, "
              f"sigma_F90 fixed from the '{cfg.get('observations', {}).get('f90_case', 'two')}' case.")
+    if {"sigma_f90_lo_mas", "sigma_f90_hi_mas"} <= set(f90.columns):
+        with np.errstate(divide="ignore", invalid="ignore"):
+            half = 0.5 * np.log10(f90["sigma_f90_hi_mas"] / f90["sigma_f90_lo_mas"])
+        half = half[np.isfinite(half)]
+        n_ill = int(f90["ill_determined"].sum()) if "ill_determined" in f90 else 0
+        if len(half):
+            doc.para(f"Monte Carlo precision: half-width of the 16-84 % bootstrap interval of sigma_F90 "
+                     f"(stars resampled, `cell.n_bootstrap`) median {np.median(half):.3f} dex, 90th percentile "
+                     f"{np.percentile(half, 90):.3f} dex over {len(half)} cells; {n_ill} cells ill-determined "
+                     "(fraction within 2 binomial sigma of P over >= 1 dex of priors around the crossing).")
     n_bins = int(fit.terms["s0"].notna().sum())
     if n_bins < 4:
         doc.para(f"Only {n_bins} G bins have an Eq. 14 fit: the polynomials of Eqs. 15-17 need at least "

@@ -130,3 +130,15 @@ def test_error_percentile_matches_rayleigh_quantiles():
     for bad in (-1, 101, "x"):
         with pytest.raises(UserInputError, match="percentile"):
             error_percentile(d, bad)
+
+
+def test_binomial_interval_matches_scipy_clopper_pearson():
+    from scipy.stats import binomtest
+
+    from mcsweep.astrometry.confidence import binomial_interval
+
+    for k, n in ((0, 10), (9, 10), (10, 10), (450, 500), (1800, 2000)):
+        ci = binomtest(k, n).proportion_ci(confidence_level=0.68, method="exact")
+        lo, hi = binomial_interval(k, n, 0.68)
+        np.testing.assert_allclose([lo, hi], [ci.low, ci.high], rtol=1e-9)
+    assert np.isnan(binomial_interval(0, 0)[0])

@@ -134,3 +134,62 @@ def test_prior_curve_counts_match_a_direct_computation(table1, unsolvable):
     assert (ref_valid == 60 - unsolvable).all()
     np.testing.assert_array_equal(curve["n_inside"], ref_in)
     np.testing.assert_array_equal(curve["fraction_inside"], ref_in / ref_valid)
+
+
+#: The prior scan and the direct 5 x 5 solver give the same cell statistics to this
+#: tolerance where N0 is regular (four and eight distinct transits) ...
+RTOL_CELL = 1e-10
+#: ... and, for the singular one- and two-transit N0, to the forward error that the
+#: condition number of N0 + N_p allows any float64 method at the loosest prior of the
+#: grid (kappa ~ 1e9 at 1000 mas: kappa * eps ~ 2e-7; tests/astrometry/test_prior_scan.py
+#: checks both against an exact rational solve).
+RTOL_CELL_SINGULAR = 1e-6
+
+
+def test_prior_scan_leaves_the_cell_statistics_unchanged(table1):
+    from mcsweep.experiments import pencil_beam as pb
+
+    config, cell, transits = table1
+    s = build_settings(config)
+    d = cell.direction
+    stars = GalaxyModel().sample_cone(d.l_deg, d.b_deg, 3.0, 14.5, 15.5, np.random.default_rng(1),
+                                      max_stars=N_STARS)
+    for case, groups in s.cases.items():
+        geom = pb.case_geometry(transits, tuple(groups))
+        n0, b0 = pb._normal_equations(geom, d.ra_deg, d.dec_deg, stars, s, np.random.default_rng(2))
+        direct = pb.prior_curve(n0, b0, s.prior_grid_mas, s, method="direct")
+        scan = pb.prior_curve(n0, b0, s.prior_grid_mas, s)
+        np.testing.assert_array_equal(scan["n_inside"], direct["n_inside"])
+        np.testing.assert_array_equal(scan["n_valid"], direct["n_valid"])
+        rtol = RTOL_CELL if case in ("four", "eight") else RTOL_CELL_SINGULAR
+        for col in ("p_error_mas", "median_semi_major_mas"):
+            np.testing.assert_allclose(scan[col], direct[col], rtol=rtol, atol=0)
+
+
+#: Synthetic cells for the coverage of the bootstrap interval; the 68 % interval must
+#: cover the truth in 68 % of them within 3 binomial sigma (0.68 +- 0.21 for 45 cells).
+N_COVERAGE_CELLS = 45
+COVERAGE_TOL = 3 * math.sqrt(0.68 * 0.32 / N_COVERAGE_CELLS)
+
+
+@pytest.mark.slow
+def test_bootstrap_interval_covers_the_truth_at_its_nominal_rate(table1):
+    """Stars drawn from the prior itself: the posterior is exact at sigma_prior = 1 mas,
+    so the true sigma_F90 is 1 mas (paper Sects. 2.3-2.4)."""
+    import dataclasses
+
+    from mcsweep.sweep.cells import Cell
+
+    config, cell, transits = table1
+    s = build_settings(config)
+    s = dataclasses.replace(s, cases={s.f90_case: s.cases[s.f90_case]}, n_bootstrap=200,
+                            prior_grid_mas=tuple(np.geomspace(0.1, 10.0, 33)))
+    hits = 0
+    for i in range(N_COVERAGE_CELLS):
+        c = Cell(cell.direction, cell.g_min, cell.g_max)
+        s_i = dataclasses.replace(s, seed=1000 + i)
+        curves, _ = run_cell(c, transits, GaussianAstrometrySource(1.0), s_i)
+        lo, hi = curves["sigma_f90_lo_mas"].iloc[0], curves["sigma_f90_hi_mas"].iloc[0]
+        assert lo <= curves["sigma_f90_mas"].iloc[0] <= hi
+        hits += lo <= 1.0 <= hi
+    assert abs(hits / N_COVERAGE_CELLS - 0.68) <= COVERAGE_TOL, hits

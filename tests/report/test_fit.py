@@ -66,3 +66,24 @@ def test_paper_formula_value_by_hand():
 
     out = compare_cells(df, PAPER_COEFFICIENTS)
     assert out["paper_sigma_f90_mas"].item() == pytest.approx(10**-0.25955, rel=1e-9)
+
+
+#: Noise added to synthetic log10 sigma_F90 (dex) for the interval-coverage test; over
+#: N_NOISY_RUNS independent runs the 16-84 % interval must contain the true coefficient
+#: in 68 % of cases within 3 binomial sigma (pooled over the 9 coefficients).
+NOISE_DEX = 0.05
+N_NOISY_RUNS = 6
+
+
+def test_fit_intervals_cover_the_true_coefficients():
+    rng = np.random.default_rng(7)
+    hits = total = 0
+    for _ in range(N_NOISY_RUNS):
+        cells = _synthetic(PAPER_COEFFICIENTS)
+        cells["sigma_f90_mas"] *= 10 ** rng.normal(0, NOISE_DEX, len(cells))
+        table = fit_all(cells).coefficients
+        assert (table["fitted_lo"] <= table["fitted"]).all() and (table["fitted"] <= table["fitted_hi"]).all()
+        hits += int(table["paper_inside"].sum())
+        total += len(table)
+    tol = 3 * np.sqrt(0.68 * 0.32 / total)
+    assert abs(hits / total - 0.68) <= tol, (hits, total)

@@ -30,6 +30,7 @@ __all__ = [
     "inside_counts",
     "ellipse_semi_axes",
     "error_percentile",
+    "binomial_interval",
 ]
 
 
@@ -165,3 +166,21 @@ def error_percentile(dpos, q) -> float:
     r = np.hypot(d[:, 0], d[:, 1])
     r = r[np.isfinite(r)]
     return float(np.percentile(r, qf)) if r.size else float("nan")
+
+
+def binomial_interval(n_inside, n_valid, level: float = 0.68) -> tuple[np.ndarray, np.ndarray]:
+    """Clopper-Pearson interval of a fraction inside, ``n_inside`` of ``n_valid`` stars.
+
+    Exact (conservative) binomial interval from the beta distribution (Clopper & Pearson
+    1934, Biometrika 26, 404), central with probability ``level``; NaN where
+    ``n_valid`` is 0. Arrays broadcast.
+    """
+    lv = check_probability(level)
+    k = np.asarray(n_inside, dtype=float)
+    n = np.asarray(n_valid, dtype=float)
+    a = 0.5 * (1.0 - lv)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        lo = np.where(k > 0, stats.beta.ppf(a, k, n - k + 1), 0.0)
+        hi = np.where(k < n, stats.beta.ppf(1.0 - a, k + 1, n - k), 1.0)
+    bad = ~(n > 0)
+    return np.where(bad, np.nan, lo), np.where(bad, np.nan, hi)

@@ -9,8 +9,10 @@ errors and the median semi-major axis (Figs. 1 and 3). sigma_F90 is the smallest
 whose fraction reaches P in the two-transit case (Sect. 3.3); every case is then also
 evaluated at that prior, as in Fig. 3.
 
-All stars of a cell are observed with the transits of the beam's centre (the beam is
-1 deg wide; bright cells may be widened, see :func:`beam_radius`).
+All stars of a cell are observed with the transits of the beam's centre. Beam rule
+(:func:`cell_radius`): with the built-in galaxy model the beam keeps the paper's 1 deg
+and at least ``min_stars`` stars are drawn from its density; with a catalogue the beam
+is widened until it holds ``min_stars`` (:func:`beam_radius`).
 """
 
 from __future__ import annotations
@@ -22,10 +24,11 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from ..astrometry.confidence import ellipse_semi_axes, inside_counts
+from ..astrometry.confidence import ellipse_semi_axes, inside, inside_counts, mahalanobis_sq
 from ..astrometry.design import JULIAN_YEAR_DAYS, design_matrix, reference_epoch
 from ..astrometry.measurements import simulate
 from ..astrometry.noise import NoiseModel
+from ..astrometry.prior_scan import prior_scan
 from ..astrometry.solve import normal_equations, solve_with_prior
 from ..scanning import observer_position_au
 
@@ -37,19 +40,30 @@ __all__ = [
     "case_geometry",
     "prior_curve",
     "sigma_f90_from_curve",
+    "sigma_f90_interval",
+    "ill_determined",
     "run_cell",
     "CURVE_COLUMNS",
 ]
 
-_STAR_STREAM, _NOISE_STREAM = 0, 1
+_STAR_STREAM, _NOISE_STREAM, _BOOTSTRAP_STREAM = 0, 1, 2
 
 #: Columns of a cell's result table (one row per case x prior).
 CURVE_COLUMNS = [
     "cell_id", "l_deg", "b_deg", "ra_deg", "dec_deg", "g_min", "g_max", "case",
     "sigma_prior_mas", "at_f90", "fraction_inside", "n_inside", "n_valid", "p_error_mas",
-    "median_semi_major_mas",
-    "n_stars", "n_in_cone", "radius_deg", "n_groups", "sigma_f90_mas", "f90_flag",
+    "median_semi_major_mas", "n_stars", "n_in_cone", "radius_deg", "n_groups", "sigma_f90_mas", "f90_flag",
+    "sigma_f90_lo_mas", "sigma_f90_hi_mas", "ill_determined",
 ]
+
+#: Bootstrap interval of sigma_F90: the 16th and 84th percentiles (a 68 % interval,
+#: "1 sigma" for a Gaussian).
+INTERVAL_QUANTILES = (0.16, 0.84)
+#: A cell is ill-determined when its fraction curve stays within ILL_BAND_SIGMAS
+#: binomial standard deviations of P (sqrt(P(1-P)/n)) over at least ILL_RANGE_DEX of
+#: prior widths: the crossing is then set by noise, not by the stars (issue 13).
+ILL_BAND_SIGMAS = 2.0
+ILL_RANGE_DEX = 1.0
 
 
 @dataclass(frozen=True)
@@ -70,6 +84,8 @@ class CellSettings:
     fixed_epoch_tcb_jd: float
     noise: NoiseModel
     seed: int
+    #: Bootstrap resamples of the stars for the sigma_F90 interval (0 = no interval).
+    n_bootstrap: int = 0
     #: Priors at which to keep every star's error and covariance (Fig. 2); F90 is added.
     scatter_priors_mas: tuple[float, ...] = field(default=())
 
@@ -111,7 +127,17 @@ def beam_radius(source, l_deg, b_deg, g_min, g_max, *, radius_deg: float, min_st
 
 
 def cell_radius(source, cell, s: CellSettings) -> tuple[float, float]:
+    """Beam radius of a cell and the expected number of stars in it.
+
+    Beam rule: a source that can draw from its density (the built-in galaxy model,
+    ``draws_from_density``) keeps the paper's beam (Table 1: 1 deg) and draws at least
+    ``min_stars`` stars from it -- independent realisations of the same distribution;
+    a catalogue has no further stars, so its beam is widened (:func:`beam_radius`).
+    """
     d = cell.direction
+    if getattr(source, "draws_from_density", False):
+        return s.beam_radius_deg, float(source.expected_count(d.l_deg, d.b_deg, s.beam_radius_deg,
+                                                              cell.g_min, cell.g_max))
     return beam_radius(source, d.l_deg, d.b_deg, cell.g_min, cell.g_max, radius_deg=s.beam_radius_deg,
                        min_stars=s.min_stars, max_radius_deg=s.max_radius_deg)
 
@@ -168,40 +194,59 @@ def _evaluate(n0, b0, sigma_mas: float, s: CellSettings):
     return dpos, cov2
 
 
-def prior_curve(n0, b0, priors_mas, s: CellSettings) -> pd.DataFrame:
-    """Fraction inside (with its counts), P-th percentile error and median semi-major axis per prior.
+def prior_curve(n0, b0, priors_mas, s: CellSettings, *, method: str = "scan", return_inside: bool = False):
+    """Fraction inside, P-th percentile error and median semi-major axis per prior.
 
-    ``fraction_inside = n_inside / n_valid`` (:func:`mcsweep.astrometry.confidence.inside_counts`:
-    stars without a finite confidence region are left out of ``n_valid``).
-
-    All priors are solved in one batch (the stars' normal equations repeated once per
-    prior), which is several times faster than one call per prior for ~10^3 stars.
+    ``method="scan"`` (default) reduces each star's normal equations once and evaluates
+    every prior in O(15) operations per star (:mod:`mcsweep.astrometry.prior_scan`);
+    ``"direct"`` solves the 5 x 5 system of every star and prior (the reference, kept
+    for tests and ``benchmarks/bench_cell.py``). The fraction inside follows the NaN
+    rule of :func:`mcsweep.astrometry.confidence.inside_counts`. With ``return_inside``
+    also returns the per-star ``inside`` and ``valid`` flags, both (n_priors, n_stars)
+    (for the bootstrap of :func:`sigma_f90_interval`).
     """
     priors = np.asarray(priors_mas, float)
     m, n = len(priors), n0.shape[0]
-    sol = solve_with_prior(np.tile(n0, (m, 1, 1)), np.tile(b0, (m, 1)), np.repeat(priors, n),
-                           ratio_R=s.ratio_R)
-    # True position offsets are zero at the reference epoch (Sect. 3.2).
-    dpos, cov2 = np.ascontiguousarray(sol.x[:, :2]), np.ascontiguousarray(sol.cov[:, :2, :2])
-    # The project's one fraction-inside rule (stars without a finite region are left out
-    # of the denominator); the loop is over priors, each call vectorised over stars.
-    counts = np.array([inside_counts(dpos[i * n:(i + 1) * n], cov2[i * n:(i + 1) * n], s.confidence)
-                       for i in range(m)], dtype=np.int64).reshape(m, 2)
-    n_inside, n_valid = counts[:, 0], counts[:, 1]
-    err = np.hypot(dpos[:, 0], dpos[:, 1]).reshape(m, n)
-    semi_major = ellipse_semi_axes(cov2, s.confidence)[0].reshape(m, n)
+    if method == "scan":
+        scan = prior_scan(n0, b0, s.ratio_R)
+        solutions = (scan.position(p) for p in priors)
+    elif method == "direct":
+        def solutions():
+            for p in priors:
+                sol = solve_with_prior(n0, b0, p, ratio_R=s.ratio_R)
+                yield np.ascontiguousarray(sol.x[:, :2]), np.ascontiguousarray(sol.cov[:, :2, :2])
+        solutions = solutions()
+    else:
+        raise ValueError(f"method={method!r}; expected 'scan' or 'direct'")
+    counts = np.zeros((m, 2), dtype=np.int64)
+    err = np.empty((m, n))
+    semi_major = np.empty((m, n))
+    inside_flags = np.zeros((m, n), dtype=bool) if return_inside else None
+    valid_flags = np.zeros((m, n), dtype=bool) if return_inside else None
+    # True position offsets are zero at the reference epoch, so the solved position is
+    # the actual error (Sect. 3.2).
+    for i, (dpos, cov2) in enumerate(solutions):
+        counts[i] = inside_counts(dpos, cov2, s.confidence)
+        err[i] = np.hypot(dpos[:, 0], dpos[:, 1])
+        semi_major[i] = ellipse_semi_axes(cov2, s.confidence)[0]
+        if return_inside:
+            valid_flags[i] = np.isfinite(mahalanobis_sq(dpos, cov2))
+            inside_flags[i] = inside(dpos, cov2, s.confidence) & valid_flags[i]
+    n_in, n_valid = counts[:, 0], counts[:, 1]
+    valid = np.isfinite(err) & np.isfinite(semi_major)
     # A prior always gives a solution; the NaN-aware reductions (10x slower) only if not.
-    pct, med = (np.percentile, np.median) if (n_valid == n).all() else (np.nanpercentile, np.nanmedian)
+    pct, med = (np.percentile, np.median) if valid.all() else (np.nanpercentile, np.nanmedian)
     with np.errstate(invalid="ignore", divide="ignore"):
-        frac = np.where(n_valid > 0, n_inside / np.maximum(n_valid, 1), np.nan)
-    return pd.DataFrame({
+        frac = np.where(n_valid > 0, n_in / np.maximum(n_valid, 1), np.nan)
+    table = pd.DataFrame({
         "sigma_prior_mas": priors,
         "fraction_inside": frac,
-        "n_inside": n_inside,
-        "n_valid": n_valid,
         "p_error_mas": pct(err, 100.0 * s.confidence, axis=1),
         "median_semi_major_mas": med(semi_major, axis=1),
+        "n_inside": n_in,
+        "n_valid": n_valid,
     })
+    return (table, inside_flags, valid_flags) if return_inside else table
 
 
 def sigma_f90_from_curve(priors_mas, fraction, p: float, interpolation: str = "log") -> tuple[float, str]:
@@ -227,6 +272,60 @@ def sigma_f90_from_curve(priors_mas, fraction, p: float, interpolation: str = "l
     return float(math.exp(log_s)), "ok"
 
 
+def sigma_f90_interval(priors_mas, inside_flags, valid_flags, p: float, interpolation: str,
+                       n_resamples: int, rng: np.random.Generator) -> tuple[float, float]:
+    """Bootstrap interval (INTERVAL_QUANTILES) of sigma_F90 over the cell's stars.
+
+    Each resample draws the stars with replacement (one draw serves all priors, so the
+    curve keeps its correlation between priors) and finds its crossing with
+    :func:`sigma_f90_from_curve`; a resample whose fraction never reaches ``p`` counts
+    as +inf, one below the grid as the grid's lower end. ``inside_flags`` and
+    ``valid_flags`` are (n_priors, n_stars) (NaN rule of ``inside_counts``).
+    """
+    m, n = inside_flags.shape
+    if n_resamples <= 0 or n == 0:
+        return float("nan"), float("nan")
+    idx = rng.integers(0, n, size=(n_resamples, n))
+    weights = np.stack([np.bincount(row, minlength=n) for row in idx]).astype(float)
+    # Integer-valued sums below 2^53: exact whatever the summation order (bit-identical).
+    n_in = weights @ inside_flags.T.astype(float)
+    n_val = weights @ valid_flags.T.astype(float)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        frac = np.where(n_val > 0, n_in / n_val, np.nan)
+    values = np.array([sigma_f90_from_curve(priors_mas, f, p, interpolation)[0] for f in frac])
+    values[np.isnan(values)] = np.inf
+    lo, hi = np.quantile(values, INTERVAL_QUANTILES, method="inverted_cdf")
+    return float(lo), float(hi)
+
+
+def ill_determined(priors_mas, fraction, n_valid, p: float) -> bool:
+    """True when the fraction curve runs within ILL_BAND_SIGMAS binomial sigma of ``p``
+    over ILL_RANGE_DEX or more of contiguous prior grid around its crossing of ``p``
+    (or, if it never crosses, anywhere): the crossing is then set by noise."""
+    priors = np.asarray(priors_mas, float)
+    frac = np.asarray(fraction, float)
+    nv = np.asarray(n_valid, float)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        near = np.abs(frac - p) <= ILL_BAND_SIGMAS * np.sqrt(p * (1.0 - p) / nv)
+    hits = np.flatnonzero(frac >= p)
+    if hits.size and hits[0] > 0:
+        # The run of near points that contains the crossing (either bracketing point).
+        i = int(hits[0]) if near[hits[0]] else int(hits[0]) - 1
+        if not near[i]:
+            return False
+        lo = hi = i
+        while lo > 0 and near[lo - 1]:
+            lo -= 1
+        while hi < len(near) - 1 and near[hi + 1]:
+            hi += 1
+        span = np.log10(priors[hi]) - np.log10(priors[lo])
+    else:
+        if not near.any():
+            return False
+        span = np.log10(priors[near]).max() - np.log10(priors[near]).min()
+    return bool(span >= ILL_RANGE_DEX - 1e-9)
+
+
 def run_cell(cell, transits: pd.DataFrame, source, s: CellSettings,
              *, keep_scatter: bool = False,
              radius_deg: float | None = None) -> tuple[pd.DataFrame, pd.DataFrame | None]:
@@ -241,8 +340,9 @@ def run_cell(cell, transits: pd.DataFrame, source, s: CellSettings,
     # a list, so adding, removing or reordering cases or cells changes no other result.
     star_ss = np.random.SeedSequence(s.seed, spawn_key=(*cell.key, _STAR_STREAM))
     radius = cell_radius(source, cell, s)[0] if radius_deg is None else radius_deg
+    more = {"min_draw": s.min_stars} if getattr(source, "draws_from_density", False) else {}
     stars = source.sample_cone(d.l_deg, d.b_deg, radius, cell.g_min, cell.g_max,
-                               np.random.default_rng(star_ss), max_stars=s.max_stars)
+                               np.random.default_rng(star_ss), max_stars=s.max_stars, **more)
     n_in_cone = int(stars.attrs.get("n_in_cone", len(stars)))
     n_groups = int(transits["group"].nunique()) if len(transits) else 0
     grid = np.asarray(s.prior_grid_mas, float)
@@ -259,10 +359,21 @@ def run_cell(cell, transits: pd.DataFrame, source, s: CellSettings,
             normals[case] = _normal_equations(geom, d.ra_deg, d.dec_deg, stars, s,
                                               np.random.default_rng(case_ss))
 
-    curves = {case: prior_curve(*normals[case], grid, s) for case in normals}
+    curves, f90_flags = {}, None
+    for case in normals:
+        if case == s.f90_case:
+            curves[case], *f90_flags = prior_curve(*normals[case], grid, s, return_inside=True)
+        else:
+            curves[case] = prior_curve(*normals[case], grid, s)
+    f90_lo = f90_hi = float("nan")
+    ill = False
     if s.f90_case in curves:
-        f90, flag = sigma_f90_from_curve(grid, curves[s.f90_case]["fraction_inside"],
-                                         s.confidence, s.interpolation)
+        c = curves[s.f90_case]
+        f90, flag = sigma_f90_from_curve(grid, c["fraction_inside"], s.confidence, s.interpolation)
+        boot_rng = np.random.default_rng(np.random.SeedSequence(s.seed, spawn_key=(*cell.key, _BOOTSTRAP_STREAM)))
+        f90_lo, f90_hi = sigma_f90_interval(grid, *f90_flags, s.confidence, s.interpolation,
+                                            s.n_bootstrap, boot_rng)
+        ill = ill_determined(grid, c["fraction_inside"], c["n_valid"], s.confidence)
     else:
         f90, flag = float("nan"), "no_transits" if len(stars) else "no_stars"
 
@@ -278,7 +389,9 @@ def run_cell(cell, transits: pd.DataFrame, source, s: CellSettings,
                               "p_error_mas": np.nan,
                               "median_semi_major_mas": np.nan, "at_f90": False})
         frames.append(c.assign(case=case))
-    table = pd.concat(frames, ignore_index=True).assign(**base, sigma_f90_mas=f90, f90_flag=flag)
+    table = pd.concat(frames, ignore_index=True).assign(**base, sigma_f90_mas=f90, f90_flag=flag,
+                                                          sigma_f90_lo_mas=f90_lo, sigma_f90_hi_mas=f90_hi,
+                                                          ill_determined=ill)
     table = table[CURVE_COLUMNS]
 
     scatter = None

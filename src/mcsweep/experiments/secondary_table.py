@@ -23,6 +23,8 @@ from typing import Mapping, Sequence
 import numpy as np
 import pandas as pd
 
+from ..astrometry.confidence import binomial_interval
+
 __all__ = [
     "PRIORS",
     "SOLUTION_COLUMNS",
@@ -83,7 +85,10 @@ PAPER_TABLE2: Mapping[tuple[str, str], tuple[tuple[float, ...], tuple[float, ...
 
 #: Columns of ``table2.csv``, in order.
 TABLE2_COLUMNS = ("subset", "prior", "g_class", "n_stars", "fraction_inside", "p90_error_mas",
-                  "paper_fraction_inside", "paper_p90_error_mas", "error_percentile")
+                  "paper_fraction_inside", "paper_p90_error_mas", "error_percentile", "fraction_lo",
+                  "fraction_hi")
+#: Probability of the Clopper-Pearson interval on each fraction (fraction_lo/hi).
+FRACTION_INTERVAL = 0.68
 #: Columns of ``no_prior.csv`` (five-parameter solution without prior), in order.
 NO_PRIOR_COLUMNS = ("subset", "g_class", "n_stars", "n_unsolved", "fraction_unsolved",
                     "fraction_inside", "p90_error_mas", "error_percentile")
@@ -154,9 +159,12 @@ def table2_rows(per_class: Sequence[tuple[float, pd.DataFrame]], confidence: flo
     for subset in SUBSETS:
         for prior in PRIORS:
             for g, stars, m in masks:
-                _, frac, p90 = _stats(stars, m[subset], SOLUTION_COLUMNS[prior], q)
+                n_bad, frac, p90 = _stats(stars, m[subset], SOLUTION_COLUMNS[prior], q)
                 pf, pp = paper_value(subset, prior, g, confidence)
-                rows.append((subset, prior, g_label(g), int(m[subset].sum()), frac, p90, pf, pp, q))
+                n_valid = int(m[subset].sum()) - n_bad
+                lo, hi = binomial_interval(round(frac * n_valid) if n_valid else 0, n_valid, FRACTION_INTERVAL)
+                rows.append((subset, prior, g_label(g), int(m[subset].sum()), frac, p90, pf, pp, q,
+                             float(lo), float(hi)))
     return pd.DataFrame(rows, columns=list(TABLE2_COLUMNS))
 
 
@@ -176,15 +184,18 @@ def no_prior_rows(per_class: Sequence[tuple[float, pd.DataFrame]], confidence: f
     return pd.DataFrame(rows, columns=list(NO_PRIOR_COLUMNS))
 
 
-def _cell(ours: float, paper: float, fmt: str, scale: float = 1.0) -> str:
+def _cell(ours: float, paper: float, fmt: str, scale: float = 1.0, interval=None) -> str:
     o = "–" if not np.isfinite(ours) else format(ours * scale, fmt)
+    if interval is not None and np.isfinite(ours) and np.all(np.isfinite(interval)):
+        o += f" [{format(interval[0] * scale, fmt)}-{format(interval[1] * scale, fmt)}]"
     return o if not np.isfinite(paper) else f"{o} ({format(paper * scale, fmt)})"
 
 
 def table2_layout(table: pd.DataFrame, confidence: float) -> dict[str, pd.DataFrame]:
     """The paper's layout of ``table2.csv``: per subset, priors x (fraction | percentile) per class.
 
-    Every cell reads ``ours (paper)``; fractions in per cent, percentiles in mas.
+    Every cell reads ``ours (paper)``; fractions in per cent with their Clopper-Pearson
+    interval (FRACTION_INTERVAL) as ``ours [lo-hi] (paper)``, percentiles in mas.
     """
     classes = list(dict.fromkeys(table["g_class"]))
     pct = f"{100 * confidence:g}"
@@ -196,8 +207,9 @@ def table2_layout(table: pd.DataFrame, confidence: float) -> dict[str, pd.DataFr
             r = part[part["prior"] == prior].set_index("g_class")
             row = {"prior sigma_plx,p": PRIOR_LABELS[prior]}
             for g in classes:
+                iv = (r.at[g, "fraction_lo"], r.at[g, "fraction_hi"]) if "fraction_lo" in r else None
                 row[f"in {pct} % ellipse, G~{g} [%]"] = _cell(r.at[g, "fraction_inside"],
-                                                              r.at[g, "paper_fraction_inside"], ".1f", 100.0)
+                                                              r.at[g, "paper_fraction_inside"], ".1f", 100.0, iv)
             for g in classes:
                 row[f"p{pct} error, G~{g} [mas]"] = _cell(r.at[g, "p90_error_mas"], r.at[g, "paper_p90_error_mas"],
                                                        ".3g")

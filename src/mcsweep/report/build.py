@@ -43,7 +43,9 @@ TABLE1_GROUP_STARTS_UTC = ("2014-10-30T17:00", "2014-11-20T17:00", "2014-12-19T1
 def _f90_table(cells: pd.DataFrame) -> pd.DataFrame:
     base = cells.drop_duplicates("cell_id")[["cell_id", "l_deg", "b_deg", "ra_deg", "dec_deg", "g_min",
                                              "g_max", "n_stars", "n_in_cone", "radius_deg", "n_groups",
-                                             "sigma_f90_mas", "f90_flag"]]
+                                             "sigma_f90_mas", "f90_flag"]
+                                            + [c for c in ("sigma_f90_lo_mas", "sigma_f90_hi_mas",
+                                                           "ill_determined") if c in cells]]
     at = cells[cells["at_f90"]].pivot_table(index="cell_id", columns="case", values="fraction_inside")
     at.columns = [f"fraction_at_f90_{c}" for c in at.columns]
     return base.merge(at, left_on="cell_id", right_index=True, how="left").reset_index(drop=True)
@@ -69,17 +71,32 @@ def sweep_section(doc: Document, run_dir: Path, prov: dict) -> None:
              f"{f90[['g_min', 'g_max']].drop_duplicates().shape[0]} G bins); sigma_F90 found in {n_ok} "
              f"(flags: {flags}). Confidence level P = {p:g}, R = {cfg.get('ratio_R')} /yr, "
              f"sigma_F90 fixed from the '{cfg.get('observations', {}).get('f90_case', 'two')}' case.")
+    if {"sigma_f90_lo_mas", "sigma_f90_hi_mas"} <= set(f90.columns):
+        with np.errstate(divide="ignore", invalid="ignore"):
+            half = 0.5 * np.log10(f90["sigma_f90_hi_mas"] / f90["sigma_f90_lo_mas"])
+        half = half[np.isfinite(half)]
+        n_ill = int(f90["ill_determined"].sum()) if "ill_determined" in f90 else 0
+        if len(half):
+            doc.para(f"Monte Carlo precision: half-width of the 16-84 % bootstrap interval of sigma_F90 "
+                     f"(stars resampled, `cell.n_bootstrap`) median {np.median(half):.3f} dex, 90th percentile "
+                     f"{np.percentile(half, 90):.3f} dex over {len(half)} cells; {n_ill} cells ill-determined "
+                     "(fraction within 2 binomial sigma of P over >= 1 dex of priors around the crossing).")
     n_bins = int(fit.terms["s0"].notna().sum())
     if n_bins < 4:
         doc.para(f"Only {n_bins} G bins have an Eq. 14 fit: the polynomials of Eqs. 15-17 need at least "
                  "4 (s1 is cubic), so coefficients that cannot be determined are left empty.")
-    doc.table(fit.coefficients, "Coefficients of Eqs. 15-17 (increasing powers of G): ours vs the paper's",
-              {"fitted": ".5g", "paper": ".5g", "difference": "+.4g"})
+    doc.table(fit.coefficients, "Coefficients of Eqs. 15-17 (increasing powers of G): ours vs the paper's; "
+              "fitted_lo/hi: 16-84 % bootstrap interval over the cells (paper_inside: the paper's value "
+              "lies in it)",
+              {"fitted": ".5g", "fitted_lo": ".5g", "fitted_hi": ".5g", "paper": ".5g", "difference": "+.4g"})
     doc.table(fit.rms, "log10(sigma_F90 ours / paper formula) per G bin, cells with a valid sigma_F90",
               {"mean_diff_dex": "+.3f", "rms_diff_dex": ".3f"})
-    doc.table(fit.terms[["g", "s0", "s1", "s2", "n_cells", "rms_dex"]],
-              "Eq. 14 fitted per G bin (rms_dex: scatter of the cells about the fit)",
-              {"s0": ".4f", "s1": ".4f", "s2": ".4f", "rms_dex": ".3f"})
+    term_cols = ["g"] + [c for name in ("s0", "s1", "s2") for c in (name, f"{name}_lo", f"{name}_hi")
+                         if c in fit.terms] + ["n_cells", "rms_dex"]
+    doc.table(fit.terms[term_cols],
+              "Eq. 14 fitted per G bin, with 16-84 % bootstrap intervals (rms_dex: scatter of the cells "
+              "about the fit)",
+              {c: ".4f" for c in term_cols if c[:2] in ("s0", "s1", "s2")} | {"rms_dex": ".3f"})
     if fit.terms["s0"].notna().sum() > 0:
         for name, fn, cap in (
             ("fig4_latitude.png", figures.plot_fig4_latitude, "log sigma_F90 against |sin b| per G bin (Fig. 4 left)"),
@@ -91,10 +108,12 @@ def sweep_section(doc: Document, run_dir: Path, prov: dict) -> None:
             doc.figure(f"{FIG_DIR}/{name}", cap)
     worst = fit.compared[fit.compared["f90_flag"] == "ok"].reindex(
         fit.compared["diff_dex"].abs().sort_values(ascending=False).index).dropna(subset=["diff_dex"]).head(10)
-    doc.table(worst[["l_deg", "b_deg", "g_min", "g_max", "n_stars", "radius_deg", "sigma_f90_mas",
-                     "paper_sigma_f90_mas", "diff_dex"]],
+    doc.table(worst[["l_deg", "b_deg", "g_min", "g_max", "n_stars", "radius_deg", "sigma_f90_mas"]
+                    + [c for c in ("sigma_f90_lo_mas", "sigma_f90_hi_mas") if c in worst]
+                    + ["paper_sigma_f90_mas", "diff_dex"]],
               "Cells that disagree most with the paper's formula",
               {"l_deg": ".1f", "b_deg": ".1f", "radius_deg": ".2f", "sigma_f90_mas": ".3g",
+               "sigma_f90_lo_mas": ".3g", "sigma_f90_hi_mas": ".3g",
                "paper_sigma_f90_mas": ".3g", "diff_dex": "+.2f"})
     frac_cols = [c for c in f90.columns if c.startswith("fraction_at_f90_")]
     if frac_cols:

@@ -11,6 +11,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from matplotlib.patches import Ellipse  # noqa: E402
+from ..astrometry.confidence import binomial_interval  # noqa: E402
 
 from .fit import PAPER_COEFFICIENTS, FitResult, direction_design, evaluate_formula  # noqa: E402
 
@@ -120,6 +121,21 @@ def plot_sky_difference(fit: FitResult, path: Path) -> Path:
     return _save(fig, path)
 
 
+#: Probability of the shaded binomial band of the fraction inside (as the 16-84 %
+#: interval of sigma_F90).
+BAND_LEVEL = 0.68
+
+
+def _f90_band(ax, curves: pd.DataFrame, label: bool = False) -> None:
+    """Shade the bootstrap interval of sigma_F90 (columns sigma_f90_lo/hi_mas) if present."""
+    if not {"sigma_f90_lo_mas", "sigma_f90_hi_mas"} <= set(curves.columns):
+        return
+    lo, hi = float(curves["sigma_f90_lo_mas"].iloc[0]), float(curves["sigma_f90_hi_mas"].iloc[0])
+    if np.isfinite(lo) and np.isfinite(hi):
+        ax.axvspan(lo, hi, color="0.5", alpha=0.25, lw=0,
+                   label=f"σF90 16-84 %: {lo:.3g}-{hi:.3g} mas" if label else None)
+
+
 def plot_showcase_curves(curves: pd.DataFrame, case: str, f90: float, path: Path, p: float) -> Path:
     """Fig. 1: P-th percentile of actual errors and median semi-major axis vs the prior."""
     c = curves[(curves["case"] == case) & ~curves["at_f90"]]
@@ -129,6 +145,7 @@ def plot_showcase_curves(curves: pd.DataFrame, case: str, f90: float, path: Path
             label=f"semi-major axis of {100*p:g}% ellipse (median)")
     if np.isfinite(f90):
         ax.axvline(f90, color="k", lw=1, label=f"σF90 = {f90:.3g} mas")
+        _f90_band(ax, curves, label=True)
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel(r"parallax prior $\sigma_{\varpi,p}$ [mas]")
@@ -182,6 +199,10 @@ def plot_showcase_cases(curves: pd.DataFrame, f90: float, path: Path, p: float) 
         row[0].set_yscale("log")
         row[0].set_ylabel("[mas]")
         row[1].plot(c["sigma_prior_mas"], 100 * c["fraction_inside"], "k-")
+        if {"n_inside", "n_valid"} <= set(c.columns):
+            lo, hi = binomial_interval(c["n_inside"], c["n_valid"], BAND_LEVEL)
+            row[1].fill_between(c["sigma_prior_mas"], 100 * lo, 100 * hi, color="0.6", alpha=0.5, lw=0,
+                                label=f"binomial {100 * BAND_LEVEL:g} % band")
         row[1].axhline(100 * p, color="gray", lw=0.8)
         row[1].set_ylim(0, 100)
         row[1].set_ylabel("% inside ellipse")
@@ -189,6 +210,7 @@ def plot_showcase_cases(curves: pd.DataFrame, f90: float, path: Path, p: float) 
             ax.set_xscale("log")
             if np.isfinite(f90):
                 ax.axvline(f90, color="k", lw=1)
+                _f90_band(ax, curves)
             ax.set_title(_CASE_LABELS.get(case, case), fontsize=9)
     for ax in axes[-1]:
         ax.set_xlabel(r"$\sigma_{\varpi,p}$ [mas]")

@@ -4,6 +4,11 @@ Two least-squares steps, as in Sect. 3.4: per G bin over the directions,
 ``log10 sigma_F90 = s0 + s1 |sin b| + s2 cos b cos l`` (Eq. 14); then the coefficients
 against G with the polynomial degrees of Eqs. 15-17 (2, 3 and 1). G of a bin is its
 centre. The comparison with the paper evaluates Eqs. 14-17 at each cell's (l, b, G).
+
+Uncertainties: the whole chain is repeated on bootstrap resamples of the cells (within
+each G bin, directions drawn with replacement), which carries both the Monte Carlo noise
+of each cell's sigma_F90 and the scatter of the cells about Eq. 14. Intervals are the
+16th-84th percentiles of the resampled coefficients (FIT_INTERVAL).
 """
 
 from __future__ import annotations
@@ -27,10 +32,19 @@ __all__ = [
     "rms_table",
     "FitResult",
     "fit_all",
+    "bootstrap_fit",
+    "FIT_BOOTSTRAP",
+    "FIT_INTERVAL",
 ]
 
 #: Polynomial degree in G of s0, s1, s2 (Eqs. 15-17).
 POLY_DEGREES = {"s0": 2, "s1": 3, "s2": 1}
+#: Bootstrap resamples of the cells for the fit's uncertainties, and their fixed seed
+#: (the report only reads a run: the same run always gives the same intervals).
+FIT_BOOTSTRAP = 400
+FIT_BOOTSTRAP_SEED = 14
+#: Percentiles of the bootstrap distribution reported as the interval (68 %).
+FIT_INTERVAL = (16.0, 84.0)
 
 def direction_design(l_deg, b_deg) -> np.ndarray:
     """Columns of Eq. 14: 1, |sin b|, cos b cos l."""
@@ -77,13 +91,55 @@ def evaluate_formula(coefficients, l_deg, b_deg, g) -> np.ndarray:
     return sigma_from_coefficients(l_deg, b_deg, g, coefficients)
 
 
-def coefficient_table(fitted: dict[str, np.ndarray]) -> pd.DataFrame:
+def coefficient_table(fitted: dict[str, np.ndarray], boot: dict[str, np.ndarray] | None = None) -> pd.DataFrame:
+    """Fitted and paper coefficients; with ``boot`` (name -> (n_resamples, degree + 1))
+    also ``fitted_lo``, ``fitted_hi`` (FIT_INTERVAL) and whether the paper's value lies inside."""
     rows = []
     for name in ("s0", "s1", "s2"):
         for power, paper in enumerate(PAPER_COEFFICIENTS[name]):
             ours = float(fitted[name][power])
-            rows.append(dict(term=f"{name}_c{power}", fitted=ours, paper=paper, difference=ours - paper))
+            row = dict(term=f"{name}_c{power}", fitted=ours, paper=paper, difference=ours - paper)
+            if boot is not None:
+                lo, hi = _interval(boot[name][:, power])
+                row.update(fitted_lo=lo, fitted_hi=hi, paper_inside=bool(lo <= paper <= hi))
+            rows.append(row)
     return pd.DataFrame(rows)
+
+
+def _interval(values) -> tuple[float, float]:
+    v = np.asarray(values, float)
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return float("nan"), float("nan")
+    lo, hi = np.percentile(v, FIT_INTERVAL)
+    return float(lo), float(hi)
+
+
+def bootstrap_fit(usable: pd.DataFrame, n_resamples: int = FIT_BOOTSTRAP, seed: int = FIT_BOOTSTRAP_SEED):
+    """Eq. 14 terms and Eqs. 15-17 coefficients on resamples of the cells (module notes).
+
+    Returns ``(terms, coefficients)``: terms (n_resamples, n_bins, 3) for s0, s1, s2 per
+    G bin, and name -> (n_resamples, degree + 1).
+    """
+    rng = np.random.default_rng(seed)
+    bins = []
+    for (g0, g1), grp in usable.groupby(["g_min", "g_max"], sort=True):
+        bins.append(((g0 + g1) / 2, direction_design(grp["l_deg"].to_numpy(float), grp["b_deg"].to_numpy(float)),
+                     np.log10(grp["sigma_f90_mas"].to_numpy(float))))
+    terms = np.full((n_resamples, len(bins), 3), np.nan)
+    coefs = {name: np.full((n_resamples, deg + 1), np.nan) for name, deg in POLY_DEGREES.items()}
+    g = np.array([b[0] for b in bins])
+    for k in range(n_resamples):
+        for i, (_, a, y) in enumerate(bins):
+            idx = rng.integers(0, len(y), len(y))
+            # Same rule as fit_direction_terms: no fit below 3 cells or rank 3.
+            if len(y) >= 3 and np.linalg.matrix_rank(a[idx]) == 3:
+                terms[k, i] = np.linalg.lstsq(a[idx], y[idx], rcond=None)[0]
+        ok = np.isfinite(terms[k]).all(axis=1)
+        for j, (name, deg) in enumerate(POLY_DEGREES.items()):
+            if ok.sum() > deg:
+                coefs[name][k] = np.polynomial.polynomial.polyfit(g[ok], terms[k, ok, j], deg)
+    return terms, coefs
 
 
 def compare_cells(f90: pd.DataFrame, fitted: dict[str, np.ndarray]) -> pd.DataFrame:
@@ -124,5 +180,9 @@ def fit_all(f90: pd.DataFrame) -> FitResult:
     usable = f90[(f90["f90_flag"] == "ok") & np.isfinite(f90["sigma_f90_mas"])]
     terms = fit_direction_terms(usable)
     fitted = fit_polynomials(terms)
+    boot_terms, boot_coefs = bootstrap_fit(usable)
+    for j, name in enumerate(("s0", "s1", "s2")):
+        iv = np.array([_interval(boot_terms[:, i, j]) for i in range(len(terms))]).reshape(-1, 2)
+        terms[f"{name}_lo"], terms[f"{name}_hi"] = iv[:, 0], iv[:, 1]
     compared = compare_cells(f90, fitted)
-    return FitResult(terms, fitted, coefficient_table(fitted), compared, rms_table(compared))
+    return FitResult(terms, fitted, coefficient_table(fitted, boot_coefs), compared, rms_table(compared))

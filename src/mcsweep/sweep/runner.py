@@ -58,6 +58,7 @@ def build_settings(config: Config) -> CellSettings:
         min_stars=cell.min_stars,
         max_radius_deg=cell.max_radius_deg,
         interpolation=cell.interpolation,
+        n_bootstrap=cell.n_bootstrap,
         reference_epoch=obs.reference_epoch,
         fixed_epoch_tcb_jd=tcb_jd(obs.fixed_epoch, "observations.fixed_epoch"),
         noise=NoiseModel.from_config(config.noise),

@@ -244,16 +244,20 @@ class CellConf:
     #: Radius of the pencil beam (Table 1: 1 deg).
     beam_radius_deg: float = 1.0
     #: Cap on the stars drawn per cell (an unbiased subsample of the cone).
-    max_stars: int = 2000
+    max_stars: int = 20000
     #: Bright cells hold few stars: widen the beam around the same centre until this
     #: many stars are expected (all observed with the centre's transits).
-    min_stars: int = 1000
+    min_stars: int = 10000
     #: Largest radius the widening may reach.
     max_radius_deg: float = 20.0
     #: Interpolation of sigma_F90 between grid points: 'log' (in log sigma) or 'none'.
     interpolation: str = "log"
+    #: Bootstrap resamples of the cell's stars for the sigma_F90 interval (0 = none).
+    n_bootstrap: int = 200
 
     def __post_init__(self):
+        _require(self.n_bootstrap >= 0, "cell.n_bootstrap", self.n_bootstrap,
+                 "a number of resamples >= 0")
         _require(0 < self.beam_radius_deg <= 90, "cell.beam_radius_deg", self.beam_radius_deg,
                  "a radius in (0, 90] deg")
         _require(self.max_stars > 0, "cell.max_stars", self.max_stars, "a positive number of stars")

@@ -258,7 +258,11 @@ class GalaxyModel:
             out[comp.label] = out.get(comp.label, 0.0) + float(per[k])
         return out
 
-    def sample_cone(self, l_deg, b_deg, radius_deg, g_min, g_max, rng, max_stars=None):
+    #: More stars of a cone can be drawn from the model's density than one realisation
+    #: holds (``min_draw`` of :meth:`sample_cone`); catalogues cannot do this.
+    draws_from_density = True
+
+    def sample_cone(self, l_deg, b_deg, radius_deg, g_min, g_max, rng, max_stars=None, *, min_draw=None):
         """Draw the stars of a cone and G range.
 
         Parameters
@@ -273,6 +277,12 @@ class GalaxyModel:
             Source of randomness.
         max_stars : int, optional
             Cap on the number of stars returned; the kept stars are an unbiased sample.
+        min_draw : int, optional, keyword-only
+            Draw at least this many stars (still capped by ``max_stars``): when one
+            realisation of the cone holds fewer, the extra stars are further independent
+            draws from the same density, so the cone keeps its size (the pencil-beam rule
+            of :mod:`mcsweep.experiments.pencil_beam`). ``n_in_cone`` stays the count of
+            one realisation.
 
         Returns
         -------
@@ -288,7 +298,8 @@ class GalaxyModel:
         los, shape, cum = self._cumulative(q)
         total = float(cum[-1])
         n_in = int(rng.poisson(total)) if self.params["count"] == "poisson" else int(round(total))
-        n = n_in if q.max_stars is None else min(n_in, q.max_stars)
+        n = n_in if min_draw is None or total <= 0 else max(n_in, int(min_draw))
+        n = n if q.max_stars is None else min(n, q.max_stars)
         if n > MAX_DRAW:
             raise UserInputError(f"the query holds {n_in} stars, more than {MAX_DRAW} can be drawn "
                                  "at once; expected max_stars (an unbiased subsample) or a "

@@ -1,0 +1,110 @@
+"""The prior scan against the 5 x 5 Cholesky solver and against an exact rational solve."""
+
+from fractions import Fraction
+
+import numpy as np
+import pytest
+
+from mcsweep.astrometry.prior_scan import prior_scan
+from mcsweep.astrometry.solve import solve_with_prior
+
+#: Agreement of the scan with the direct solver (relative to the largest element of
+#: each star's position or covariance), wherever the problem allows it (below).
+RTOL_SCAN = 1e-10
+#: Scaled condition number of N0 + N_p up to which two backward-stable methods must
+#: agree to RTOL_SCAN: their forward errors are ~ kappa * eps (1e5 * 2.2e-16 = 2e-11).
+KAPPA_MAX = 1e5
+#: Beyond that (loose priors with 1-2 transits, kappa up to ~1e10) no float64 method
+#: is accurate to 1e-10; the scan must then be within kappa * eps * FORWARD_FACTOR of
+#: the exact solution. FORWARD_FACTOR covers the few-dozen roundings of either path.
+FORWARD_FACTOR = 1e3
+EPS = np.finfo(float).eps
+PRIORS = np.geomspace(0.01, 1000.0, 9)
+
+
+def _normals(rng, n, rows, *, singular_pos=False):
+    """Normal equations of ``rows`` random measurements per star (rank <= rows)."""
+    a = rng.normal(size=(n, rows, 5)) * np.array([10.0, 10.0, 8.0, 3.0, 3.0])
+    if singular_pos:
+        a[:, :, 1] = 0.7 * a[:, :, 0]  # position block of rank 1
+    h = rng.normal(size=(n, rows)) + a @ np.array([0.0, 0.0, 2.0, 15.0, -8.0])
+    return np.einsum("nri,nrj->nij", a, a), np.einsum("nri,nr->ni", a, h)
+
+
+def _rel(new, ref, floor=None):
+    """Largest error of each star relative to its largest element, shape (n,).
+
+    ``floor`` (n,): a smallest scale. Positions are compared relative to the larger of
+    their size and their standard deviation: a position error much smaller than its
+    own uncertainty is a difference of large terms, and what the fraction inside
+    uses is ``dpos / sigma`` (Sect. 2.4).
+    """
+    n = len(ref)
+    if n == 0:
+        return np.zeros(0)
+    scale = np.abs(ref).reshape(n, -1).max(axis=1, initial=0.0)
+    if floor is not None:
+        scale = np.maximum(scale, floor)
+    return np.abs(new - ref).reshape(n, -1).max(axis=1, initial=0.0) / scale
+
+
+@pytest.mark.parametrize("rows", [2, 3, 4, 12])
+def test_scan_equals_direct_solver(rows):
+    rng = np.random.default_rng(rows)
+    n0, b0 = _normals(rng, 400, rows)
+    scan = prior_scan(n0, b0, 10.0)
+    for sigma in PRIORS:
+        sol = solve_with_prior(n0, b0, sigma, 10.0, with_condition=True)
+        dpos, cov = scan.position(sigma)
+        np.testing.assert_array_equal(np.isfinite(dpos[:, 0]), sol.ok)
+        use = sol.ok & (sol.condition <= KAPPA_MAX)
+        sd = np.sqrt(np.maximum(sol.cov[use, 0, 0], sol.cov[use, 1, 1]))
+        assert _rel(dpos[use], sol.x[use, :2], sd).max(initial=0.0) <= RTOL_SCAN
+        assert _rel(cov[use], sol.cov[use, :2, :2]).max(initial=0.0) <= RTOL_SCAN
+    # The singular N0 (rank 1-4 < 5) must have reached the tested range for some prior.
+    assert (solve_with_prior(n0, b0, PRIORS[0], 10.0, with_condition=True).condition <= KAPPA_MAX).any()
+
+
+def test_singular_position_block_has_no_solution():
+    n0, b0 = _normals(np.random.default_rng(3), 50, 6, singular_pos=True)
+    dpos, cov = prior_scan(n0, b0).position(1.0)
+    assert not solve_with_prior(n0, b0, 1.0).ok.any()
+    assert np.isnan(dpos).all() and np.isnan(cov).all()
+
+
+def _exact(N, b, sigma, R):
+    """Position and its covariance of (N + N_p) x = b in exact rational arithmetic."""
+    w = [0.0, 0.0, sigma**-2, (R * sigma) ** -2, (R * sigma) ** -2]
+    m = [[Fraction(float(N[r, c])) + (Fraction(w[r]) if r == c else 0) for c in range(5)]
+         + [Fraction(float(b[r]))] + [Fraction(int(r == k)) for k in range(2)] for r in range(5)]
+    for c in range(5):
+        m[c] = [v / m[c][c] for v in m[c]]
+        for r in range(5):
+            if r != c and m[r][c] != 0:
+                f = m[r][c]
+                m[r] = [x - f * y for x, y in zip(m[r], m[c])]
+    return np.array([float(m[0][5]), float(m[1][5])]), np.array([[float(m[i][6 + j]) for j in range(2)]
+                                                                 for i in range(2)])
+
+
+@pytest.mark.parametrize("rows", [2, 3, 12])
+def test_scan_against_exact_solution(rows):
+    n0, b0 = _normals(np.random.default_rng(10 + rows), 6, rows)
+    scan = prior_scan(n0, b0, 10.0)
+    for sigma in PRIORS[::2]:
+        kappa = solve_with_prior(n0, b0, sigma, 10.0, with_condition=True).condition
+        dpos, cov = scan.position(sigma)
+        for i in range(len(n0)):
+            x_ref, c_ref = _exact(n0[i], b0[i], sigma, 10.0)
+            tol = max(RTOL_SCAN, FORWARD_FACTOR * kappa[i] * EPS)
+            sd = np.sqrt(c_ref.diagonal().max())
+            assert _rel(dpos[i:i + 1], x_ref[None], sd)[0] <= tol
+            assert _rel(cov[i:i + 1], c_ref[None])[0] <= tol
+
+
+def test_batching_does_not_change_results():
+    n0, b0 = _normals(np.random.default_rng(5), 300, 3)
+    whole = prior_scan(n0, b0).position(3.0)
+    parts = [prior_scan(n0[sl], b0[sl]).position(3.0) for sl in (slice(0, 117), slice(117, 300))]
+    np.testing.assert_array_equal(whole[0], np.concatenate([p[0] for p in parts]))
+    np.testing.assert_array_equal(whole[1], np.concatenate([p[1] for p in parts]))

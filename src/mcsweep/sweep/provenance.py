@@ -2,7 +2,7 @@
 
 ``provenance.json`` holds the resolved config, the hash of its scientific part (every
 key except ``execution``, which must not change results), the package version, the
-git commit when the package runs from a checkout, the seeds, per-stage timings and a
+git commit when the package runs from a checkout, the built-in galaxy model's version, the seeds, per-stage timings and a
 manifest (size and SHA-256) of the result files. The hash also guards a run directory
 against mixing the results of two configs.
 """
@@ -20,6 +20,7 @@ from typing import Any
 
 from .. import __version__
 from ..errors import UserInputError
+from ..population.galaxy.parameters import MODEL_VERSION as GALAXY_MODEL_VERSION
 from .store import atomic_write_bytes
 
 __all__ = ["config_hash", "git_commit", "Provenance", "PROVENANCE_FILE"]
@@ -114,6 +115,8 @@ class Provenance:
             "config_hash": self.hash,
             "config": self.cfg,
             "mcsweep_version": __version__,
+            # the built-in model's parameter set (its user values are in config.population)
+            "galaxy_model_version": GALAXY_MODEL_VERSION,
             "git_commit": git_commit(),
             "python": platform.python_version(),
             "seeds": self.seeds,

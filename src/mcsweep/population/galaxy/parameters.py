@@ -34,7 +34,16 @@ __all__ = [
     "GIANT_MV_MAX",
     "MASS_MIN_MSUN",
     "MULTIPLICITY_FREQUENCY",
+    "LOCAL_GIANT_DENSITY_PC3",
+    "MODEL_VERSION",
 ]
+
+#: Version of the built-in model's parameter set, recorded in every run's provenance
+#: (``galaxy_model_version``). Bump it whenever a number below or a default in
+#: :data:`.model.DEFAULT_PARAMS` changes. History (docs/galaxy_model.md):
+#: ``besancon-r03-1`` issue #4 model; ``besancon-r03-2`` issue #14 calibration (local
+#: giant density of Bovy 2017; dust A_V 1.1 mag/kpc chosen against the all-sky counts).
+MODEL_VERSION = "besancon-r03-2"
 
 # --- Sun and rotation ------------------------------------------------------------------
 #: Galactocentric distance of the Sun, kpc (R03 Sect. 2: 8.5 kpc) [C].
@@ -68,6 +77,11 @@ OLD_METAL_POOR_TURNOFF_MV = 4.0
 #: 4.3e-4 stars/pc^3, close to the local giant density 3.9e-4 pc^-3 of Bovy (2017,
 #: MNRAS 470, 1360) [V abstract].
 GIANT_MV_MAX = 1.0
+#: Local number density of giants, stars/pc^3: Bovy (2017, MNRAS 470, 1360) [V abstract],
+#: from Gaia DR1 TGAS. The Wielen/Allen bins with M_V <= GIANT_MV_MAX hold 4.3e-4; they
+#: are scaled to this value (issue #14: the model's bright all-sky counts were 1.25-1.46
+#: times the real ones; giants dominate G < 10).
+LOCAL_GIANT_DENSITY_PC3 = 3.9e-4
 #: G - V of giants: the dwarf-sequence G - V at BP - RP = 1.19 (K3V row of Mamajek's
 #: table [V]); red-clump and red-giant-branch stars have BP - RP ~ 1.1-1.3 [M].
 GIANT_G_MINUS_V = -0.31

@@ -6,14 +6,10 @@ the dust mid-plane at the solar radius, and the extinction per unit length there
 
 * h_R = 3.192 kpc, h_z = 103 pc and the Sun 23 pc above the dust mid-plane: Li et al.
   (2018, ApJ 858, 75), fit to the LAMOST value-added catalogue [V abstract];
-* A_V / s = 1.1 mag/kpc in the mid-plane near the Sun, calibrated (issue #14,
-  docs/galaxy_model.md) between two published values: 0.7 mag/kpc (E(B-V) = 0.23 mag/kpc
-  with R_V = 3.1, the local value of the Galaxia dust model, Sharma et al. 2011, ApJ 730,
-  3) [C] and the classical mean of about 1.8 mag/kpc for long sight-lines in the plane
-  (Whittet 2003, Dust in the Galactic Environment, Sect. 3) [M]. 1.1 makes the model's
-  N(G < 20) equal GUMS-10's 1.1e9 (Robin et al. 2012) and keeps N(G < 21) at least the
-  1.81e9 sources of Gaia DR3 (an incomplete catalogue there); 1.8 would meet the bright
-  (Tycho-2) counts but fall 30 % below Gaia DR3 at G < 21, which a model must not;
+* A_V / s = 0.7 mag/kpc in the mid-plane near the Sun (E(B-V) = 0.23 mag/kpc with
+  R_V = 3.1, the local value of the Galaxia dust model, Sharma et al. 2011, ApJ 730, 3)
+  [C]; it gives E(B-V) ~ 0.02 mag towards the Galactic poles, as in the Schlegel et al.
+  (1998) maps;
 * A_G / A_V = 0.789: Wang & Chen (2019, ApJ 877, 116) [C].
 
 A smooth disc cannot reproduce local clouds (Taurus, Ophiuchus, Aquila Rift): expect
@@ -39,7 +35,7 @@ __all__ = [
 DUST_SCALE_LENGTH_KPC = 3.192
 DUST_SCALE_HEIGHT_PC = 103.0
 SUN_ABOVE_DUST_PC = 23.0
-AV_PER_KPC = 1.1
+AV_PER_KPC = 0.7
 AG_OVER_AV = 0.789
 
 

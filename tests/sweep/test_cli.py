@@ -74,6 +74,15 @@ def test_report_summarises_the_manifest_which_stays_in_provenance(small_run):
 
 
 @pytest.mark.slow
+def test_provenance_records_the_galaxy_model_version(small_run):
+    from mcsweep.population.galaxy.parameters import MODEL_VERSION
+
+    record = json.loads((small_run / "provenance.json").read_text())
+    assert record["galaxy_model_version"] == MODEL_VERSION
+    assert record["config"]["population"]["params"]["thin_disc_scale_height_factor"] == 1.15
+
+
+@pytest.mark.slow
 def test_result_files_are_readable_by_group_and_others_under_umask_022(small_run):
     files = [p for p in small_run.rglob("*") if p.is_file()]
     assert len(files) > 20

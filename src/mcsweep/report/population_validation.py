@@ -6,7 +6,7 @@ Writes ``report.md``, ``ratio_cells.csv``, ``counts.csv`` and three PNG figures.
 Checks (issue #4):
 
 1. Table 1 beam: 1 deg around (l, b) = (245.7, 46.5) deg, G = 15 +- 0.5 holds 458 GUMS
-   stars; the model should give 458 within +-25 %.
+   stars; the model should give 458 within +-10 % (issue #14).
 2. Median proper motion / parallax at G = 15: about 10 /yr in GUMS (paper Sect. 3.1);
    accepted range 6-15 /yr.
 3. The paper's footnote (Sect. 3.4): sigma_F90(l, b, G) of Eqs. 14-17 is about 0.5-0.8
@@ -17,6 +17,10 @@ Checks (issue #4):
    most 20 deg) with the sweep's own rule (:func:`mcsweep.experiments.pencil_beam.beam_radius`);
    up to 2000 stars are drawn per cell.
 4. All-sky counts per G magnitude against the published totals cited in the report.
+5. Issue #14 calibration facts (:mod:`.published_counts`): all-sky counts per 1-mag G
+   bin against Tycho-2/UCAC4 (``published_counts.csv``, ``published_counts.png``), the
+   sources within 100 pc against the Gaia Catalogue of Nearby Stars, and the model
+   version.
 
 It lives in the report stage because it uses the stages after the population: the prior
 (Eqs. 14-17), the sweep's directions and the pencil-beam widening.
@@ -33,6 +37,8 @@ import pandas as pd
 
 from ..experiments.pencil_beam import beam_radius
 from ..population import GalaxyModel
+from ..population.galaxy.parameters import MODEL_VERSION
+from . import published_counts as pc
 from ..prior import sigma_f90
 from ..sweep.cells import sky_directions
 from ..sweep.schema import SkyConf
@@ -42,7 +48,7 @@ __all__ = ["healpix48_centres", "ratio_table", "main"]
 #: Paper Table 1 beam and its GUMS count.
 BEAM = dict(l_deg=245.7, b_deg=46.5, radius_deg=1.0, g_min=14.5, g_max=15.5)
 GUMS_BEAM_COUNT = 458
-BEAM_TOLERANCE = 0.25
+BEAM_TOLERANCE = 0.10
 MU_PLX_RANGE = (6.0, 15.0)       # 1/yr
 RATIO_RANGE = (0.4, 1.0)         # accepted range of sigma_F90 / p90 (issue)
 FOOTNOTE_RANGE = (0.5, 0.8)      # the paper's footnote
@@ -175,7 +181,41 @@ def _figures(out, cells, counts, published, model):
     plt.close(fig)
 
 
-def _report(out, beam, mu_plx_sky, cells, counts, published):
+def _published_section(out, model):
+    """Issue #14 facts: counts per G vs Tycho-2/UCAC4 (CSV + PNG) and the GCNS density."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    comp = pc.count_comparison(model, range(4, 15))
+    comp.to_csv(out / "published_counts.csv", index=False)
+    fig, ax = plt.subplots(figsize=(6, 4.5))
+    g = comp["G_min"] + 0.5
+    ax.errorbar(g, np.ones(len(g)), yerr=comp["rel_uncertainty"], fmt="none", color="0.6",
+                label="published +- (G - V syst., Poisson)")
+    ax.plot(g, comp["ratio"], "ko-", label=f"model {MODEL_VERSION}")
+    ax.axhspan(0.9, 1.1, color="tab:green", alpha=0.15, label="+-10 % target")
+    ax.set_xlabel("G [mag] (1-mag bins)")
+    ax.set_ylabel("model / Tycho-2+UCAC4 all-sky count")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(out / "published_counts.png", dpi=110)
+    plt.close(fig)
+    local = pc.local_sources_within(model)
+    return [
+        "## 5. Calibration facts (issue #14; docs/galaxy_model.md)", "",
+        f"Model version `{MODEL_VERSION}`.", "",
+        "| G bin | model | published (Tycho-2/UCAC4, G - V = -0.25) | +- | model / published |",
+        "|---|---|---|---|---|",
+        *[f"| {c.G_min}-{c.G_min + 1} | {c.model:.4g} | {c.published:.4g} | "
+          f"{100 * c.rel_uncertainty:.0f} % | {c.ratio:.2f} |" for c in comp.itertuples()], "",
+        f"- sources with M_G < {pc.GCNS_MG_LIMIT} within 100 pc: model **{local:.0f}**, GCNS "
+        f"{pc.GCNS_WITHIN_100PC:.0f} +- {pc.GCNS_SYST:.0f} (ratio {local / pc.GCNS_WITHIN_100PC:.2f})",
+        "", "![published counts](published_counts.png)", "",
+    ]
+
+
+def _report(out, beam, mu_plx_sky, cells, counts, published, extra=()):
     exp, by_pop, n_drawn, mu_plx, variants = beam
     lo, hi = GUMS_BEAM_COUNT * (1 - BEAM_TOLERANCE), GUMS_BEAM_COUNT * (1 + BEAM_TOLERANCE)
     r = cells["ratio"]
@@ -219,6 +259,7 @@ def _report(out, beam, mu_plx_sky, cells, counts, published):
         "are incomplete (EDR3 is essentially complete for 12 < G < 17) and non-stellar "
         "sources; GUMS-10 is the closer comparison for the paper.", "",
         "![counts](allsky_counts.png)", "", "![lf](luminosity_functions.png)", "",
+        *extra,
     ]
     (out / "report.md").write_text("\n".join(lines))
     return frac, frac_fn
@@ -243,7 +284,8 @@ def main(argv=None):
     cells.to_csv(out / "ratio_cells.csv", index=False)
     counts.to_csv(out / "counts.csv", index=False)
     _figures(out, cells, counts, published, model)
-    frac, frac_fn = _report(out, beam, mu_plx_sky, cells, counts, published)
+    extra = _published_section(out, model)
+    frac, frac_fn = _report(out, beam, mu_plx_sky, cells, counts, published, extra)
     print(f"Table 1 beam: {beam[0]:.0f} expected (GUMS {GUMS_BEAM_COUNT}); "
           f"median mu/plx beam {beam[3]:.1f}, sky {mu_plx_sky:.1f} /yr; "
           f"ratio in {RATIO_RANGE}: {frac:.2f} of cells (footnote range: {frac_fn:.2f}); "

@@ -3,7 +3,8 @@
 ``provenance.json`` holds the resolved config, the hash of its scientific part (every
 key except ``execution``, ``resume`` and ``prior_maps``, which do not change the cells, and
 the keys the experiment never reads, :data:`~mcsweep.sweep.schema.IGNORED_BY_EXPERIMENT`), the
-package version, the git commit when the package runs from a checkout, the seeds,
+package version, the git commit when the package runs from a checkout, the built-in
+galaxy model's version, the seeds,
 per-stage timings, a manifest (size and SHA-256) of the result files, and how many
 cells each code version computed (``cell_code_versions``: a resumed run may mix
 versions when the user allows it). The hash also guards a run directory against
@@ -23,6 +24,7 @@ from typing import Any
 from .. import __version__
 from ..errors import UserInputError
 from .schema import IGNORED_BY_EXPERIMENT
+from ..population.galaxy.parameters import MODEL_VERSION as GALAXY_MODEL_VERSION
 from .store import atomic_write_bytes
 from .version import git_commit
 
@@ -125,6 +127,8 @@ class Provenance:
             "config_hash": self.hash,
             "config": self.cfg,
             "mcsweep_version": __version__,
+            # the built-in model's parameter set (its user values are in config.population)
+            "galaxy_model_version": GALAXY_MODEL_VERSION,
             "git_commit": git_commit(),
             "python": platform.python_version(),
             "seeds": self.seeds,

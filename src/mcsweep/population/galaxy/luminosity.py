@@ -5,7 +5,9 @@ Method (a justified simplification of the Besancon population synthesis):
 1. The local luminosity function phi(M_V) of all stars near the Sun (Wielen 1974 as
    tabulated in Allen's Astrophysical Quantities; ``data/lf_wielen_allen.ecsv``) fixes
    the number of stars per magnitude at the Sun. Bins with M_V <= 1 are giants, the
-   fainter ones main-sequence dwarfs (see :data:`.parameters.GIANT_MV_MAX`).
+   fainter ones main-sequence dwarfs (see :data:`.parameters.GIANT_MV_MAX`); the giant
+   bins are scaled to the local giant density of Bovy (2017),
+   :data:`.parameters.LOCAL_GIANT_DENSITY_PC3` (issue #14).
 2. The local stars of each magnitude bin are shared among the components present at
    the Sun in proportion to the weight
 
@@ -207,6 +209,8 @@ def build_luminosity_table(components, *, local=None):
     dwarf = mv > P.GIANT_MV_MAX
     dwarf_mv, dwarf_phi = mv[dwarf], phi[dwarf]
     giant_mv, giant_phi = mv[~dwarf], phi[~dwarf]
+    # 1-mag bins: the sum of phi is the giants' density; scaled to Bovy (2017)
+    giant_phi = giant_phi * (P.LOCAL_GIANT_DENSITY_PC3 / giant_phi.sum())
 
     w_local_d = np.zeros(dwarf_mv.size)
     w_local_g = 0.0

@@ -56,7 +56,7 @@ DEFAULT_PARAMS = {
     "r0_kpc": P.R0_KPC,
     "z_sun_pc": P.Z_SUN_PC,
     "v_circ_kms": P.V_CIRC_KMS,
-    "thin_disc_scale_height_factor": 1.0,
+    "thin_disc_scale_height_factor": P.THIN_DISC_THICKNESS_FACTOR,
     "extinction": True,
     "dust_av_per_kpc": AV_PER_KPC,
     "dust_scale_length_kpc": DUST_SCALE_LENGTH_KPC,
@@ -149,8 +149,10 @@ class GalaxyModel:
         self.components = tuple(c for c in P.COMPONENTS if c.label in keep)
         local = [c for c in P.COMPONENTS if c.law != "bulge"]
         lf = build_luminosity_table(self.components, local=local)
-        # sources (single stars and unresolved systems) per component star
-        self.lf = type(lf)(lf.names, lf.mg, lf.cdf / (1.0 + float(p["multiplicity_frequency"])))
+        # sources (single stars and unresolved systems) per component star, normalised
+        # to the local density of the Gaia Catalogue of Nearby Stars (parameters.py)
+        scale = P.LOCAL_DENSITY_SCALE / (1.0 + float(p["multiplicity_frequency"]))
+        self.lf = type(lf)(lf.names, lf.mg, lf.cdf * scale)
         self.dust = DustModel(
             av_per_kpc=p["dust_av_per_kpc"] if p["extinction"] else 0.0,
             scale_length_kpc=p["dust_scale_length_kpc"], scale_height_pc=p["dust_scale_height_pc"],

@@ -34,7 +34,19 @@ __all__ = [
     "GIANT_MV_MAX",
     "MASS_MIN_MSUN",
     "MULTIPLICITY_FREQUENCY",
+    "LOCAL_GIANT_DENSITY_PC3",
+    "LOCAL_DENSITY_SCALE",
+    "THIN_DISC_THICKNESS_FACTOR",
+    "MODEL_VERSION",
 ]
+
+#: Version of the built-in model's parameter set, recorded in every run's provenance
+#: (``galaxy_model_version``). Bump it whenever a number below or a default in
+#: :data:`.model.DEFAULT_PARAMS` changes. History (docs/galaxy_model.md):
+#: ``besancon-r03-1`` issue #4 model; ``besancon-r03-2`` issue #14 calibration (local
+#: giant density of Bovy 2017; local density scaled to the GCNS; thin-disc thickness
+#: x 1.15 to keep the Table 1 beam).
+MODEL_VERSION = "besancon-r03-2"
 
 # --- Sun and rotation ------------------------------------------------------------------
 #: Galactocentric distance of the Sun, kpc (R03 Sect. 2: 8.5 kpc) [C].
@@ -68,6 +80,25 @@ OLD_METAL_POOR_TURNOFF_MV = 4.0
 #: 4.3e-4 stars/pc^3, close to the local giant density 3.9e-4 pc^-3 of Bovy (2017,
 #: MNRAS 470, 1360) [V abstract].
 GIANT_MV_MAX = 1.0
+#: Local number density of giants, stars/pc^3: Bovy (2017, MNRAS 470, 1360) [V abstract],
+#: from Gaia DR1 TGAS. The Wielen/Allen bins with M_V <= GIANT_MV_MAX hold 4.3e-4; they
+#: are scaled to this value (issue #14: the model's bright all-sky counts were 1.25-1.46
+#: times the real ones; giants dominate G < 10).
+LOCAL_GIANT_DENSITY_PC3 = 3.9e-4
+#: Scale applied to every component's luminosity function (sources per pc^3), set from
+#: the Gaia Catalogue of Nearby Stars (Gaia Collaboration, Smart et al. 2021, A&A 649,
+#: A6) [V abstract]: 331 312 objects, of which about 9 % lie beyond 100 pc, complete to
+#: >= 92 % down to M9 (M_G ~ 15.5 at 100 pc, G ~ 20.5): about 301 500 sources within
+#: 100 pc. Unscaled, the model holds 401 400 sources with M_G < 15.5 in that sphere; the
+#: ratio is 0.751. The same factor brings the all-sky counts at G = 6-10 within 10 % of
+#: Hipparcos/Tycho-2 (docs/galaxy_model.md), which were 1.27-1.46 times too high.
+LOCAL_DENSITY_SCALE = 0.75
+#: Default thickness factor of the thin disc (multiplies the seven Einasto axis ratios of
+#: R03). Chosen (issue #14) so the paper's Table 1 beam keeps its 458 GUMS stars after the
+#: GCNS scaling above (451 expected; 1.0 gives 369): the R03 old-disc Einasto laws have an
+#: exponential-equivalent scale height of about 250 pc, Juric et al. (2008, ApJ 673, 864)
+#: find 300 pc [V]; x 1.15 stays between the two.
+THIN_DISC_THICKNESS_FACTOR = 1.15
 #: G - V of giants: the dwarf-sequence G - V at BP - RP = 1.19 (K3V row of Mamajek's
 #: table [V]); red-clump and red-giant-branch stars have BP - RP ~ 1.1-1.3 [M].
 GIANT_G_MINUS_V = -0.31

@@ -136,7 +136,11 @@ def test_dask_info_lines_go_to_the_log_file_not_the_terminal(tmp_path):
              "execution.n_jobs=2", "execution.progress=false"])
     assert r.returncode == 0, r.stderr[-2000:]
     terminal = r.stdout + r.stderr
-    assert "distributed." not in terminal, terminal[:2000]
+    # Warnings stay visible by design (e.g. a nanny killing a slow worker on a loaded
+    # machine); INFO lines of third-party loggers must not reach the terminal.
+    third_party_info = [ln for ln in terminal.splitlines() if "distributed." in ln and "WARNING" not in ln
+                        and "ERROR" not in ln]
+    assert not third_party_info, terminal[:2000]
     assert terminal.strip().splitlines()[-1].startswith("mcsweep: results in")
     log = "".join(p.read_text() for p in out.glob("*.log"))
     assert "distributed.scheduler" in log  # kept in the run's log

@@ -16,3 +16,21 @@ def rng():
     import numpy as np
 
     return np.random.default_rng(20150821)
+
+
+#: Printed at the top of every run (and so of CI's log): CI resolves the newest releases
+#: on the day it runs, and a drift in one of these is the first thing to look at.
+KEY_PACKAGES = ("numpy", "scipy", "astropy", "pandas", "pyarrow", "hydra-core", "joblib", "matplotlib",
+                "dask", "distributed")
+
+
+def pytest_report_header(config):
+    from importlib.metadata import PackageNotFoundError, version
+
+    def v(name):
+        try:
+            return version(name)
+        except PackageNotFoundError:
+            return "not installed"
+
+    return "resolved packages: " + ", ".join(f"{name} {v(name)}" for name in KEY_PACKAGES)

@@ -22,6 +22,7 @@ from .errors import UserInputError, report_user_error
 from .report.build import build_report
 from .sweep.provenance import PROVENANCE_FILE, Provenance
 from .sweep.runner import run_sweep
+from .sweep.logs import quiet_third_party_console
 from .sweep.schema import register_configs
 from .sweep.secondary_runner import run_secondary
 from .sweep.validate import preflight, to_config
@@ -68,6 +69,7 @@ def run_job(cfg: DictConfig, run_dir: Path) -> Path:
 
 @hydra.main(config_path="conf", config_name="config", version_base="1.3")
 def _hydra_entry(cfg: DictConfig) -> None:
+    quiet_third_party_console()
     run_dir = Path(HydraConfig.get().runtime.output_dir)
     fresh = not (run_dir / PROVENANCE_FILE).exists()
     try:

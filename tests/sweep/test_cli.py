@@ -1,5 +1,7 @@
 """The ``mcsweep`` entry point end to end: outputs, resume, n_jobs invariance, bad input."""
 
+import hashlib
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -22,7 +24,8 @@ def run(args, **kw):
 @pytest.fixture(scope="module")
 def small_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("run") / "sweep"
-    r = run([f"hydra.run.dir={out}", *SMALL, "execution.n_jobs=2"])
+    # The usual umask, stated so the mode test below does not depend on the caller's shell.
+    r = run([f"hydra.run.dir={out}", *SMALL, "execution.n_jobs=2"], umask=0o022)
     assert r.returncode == 0, r.stderr[-3000:]
     return out
 
@@ -39,7 +42,30 @@ def test_small_sweep_writes_cells_coefficients_and_report(small_run):
     table = pd.read_parquet(small_run / "cells.parquet")
     assert set(table["case"]) == {"one", "two", "two_diluted", "four", "eight"}
     assert table["fraction_inside"].between(0, 1).all()
-    assert "Provenance" in (small_run / "report.md").read_text()
+    report = (small_run / "report.md").read_text()
+    assert "Provenance" in report
+
+
+@pytest.mark.slow
+def test_report_summarises_the_manifest_which_stays_in_provenance(small_run):
+    report = (small_run / "report.md").read_text()
+    # The report summarises the computation's files as they were when it was written
+    # (the report stage's own outputs come after it).
+    manifest = [m for m in json.loads((small_run / "provenance.json").read_text())["manifest"]
+                if m["path"].startswith(("cells/", "cells.parquet", "showcase/"))]
+    assert len(manifest) == 4 * 4 + 1 + len(list((small_run / "showcase").glob("*")))
+    assert "cells/cell_" not in report  # no file-by-file listing in the report
+    assert f"Result files of the computation (before this report): {len(manifest)} files" in report
+    digest = hashlib.sha256("\n".join(sorted(f"{m['path']}:{m['sha256']}" for m in manifest)).encode())
+    assert digest.hexdigest()[:16] in report
+
+
+@pytest.mark.slow
+def test_result_files_are_readable_by_group_and_others_under_umask_022(small_run):
+    files = [p for p in small_run.rglob("*") if p.is_file()]
+    assert len(files) > 20
+    private = [str(p.relative_to(small_run)) for p in files if (p.stat().st_mode & 0o777) != 0o644]
+    assert not private, private
 
 
 @pytest.mark.slow
@@ -54,7 +80,7 @@ def test_rerun_skips_finished_cells_and_njobs_does_not_matter(small_run, tmp_pat
     assert r.returncode == 0, r.stderr[-2000:]
     a = pd.read_parquet(small_run / "cells.parquet").sort_values(["cell_id", "case", "sigma_prior_mas"])
     b = pd.read_parquet(one / "cells.parquet").sort_values(["cell_id", "case", "sigma_prior_mas"])
-    pd.testing.assert_frame_equal(a.reset_index(drop=True), b.reset_index(drop=True))
+    pd.testing.assert_frame_equal(a.reset_index(drop=True), b.reset_index(drop=True), check_exact=True)
 
 
 @pytest.mark.slow
@@ -77,3 +103,18 @@ def test_bad_overrides_exit_2_with_one_line_and_no_output(tmp_path, bad):
     assert len(lines) == 1, r.stderr
     assert "Traceback" not in r.stderr
     assert not out.exists()
+
+
+@pytest.mark.slow
+def test_dask_info_lines_go_to_the_log_file_not_the_terminal(tmp_path):
+    pytest.importorskip("dask.distributed")
+    out = tmp_path / "dask"
+    r = run([f"hydra.run.dir={out}", "sky=custom", "sky.directions=[[245.7,46.5]]", "magnitudes.edges=[14,15]",
+             "prior_grid.n=7", "cell.max_stars=100", "cell.min_stars=50", "execution=dask",
+             "execution.n_jobs=2", "execution.progress=false"])
+    assert r.returncode == 0, r.stderr[-2000:]
+    terminal = r.stdout + r.stderr
+    assert "distributed." not in terminal, terminal[:2000]
+    assert terminal.strip().splitlines()[-1].startswith("mcsweep: results in")
+    log = "".join(p.read_text() for p in out.glob("*.log"))
+    assert "distributed.scheduler" in log  # kept in the run's log

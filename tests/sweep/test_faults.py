@@ -47,8 +47,10 @@ def test_sigkill_then_rerun_gives_identical_results(reference, tmp_path, kill_af
     proc.wait(timeout=60)
     r = subprocess.run(_cmd(out), capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr[-3000:]
-    pd.testing.assert_frame_equal(_sorted(out / "cells.parquet"), _sorted(reference / "cells.parquet"))
-    pd.testing.assert_frame_equal(pd.read_csv(out / "coefficients.csv"), pd.read_csv(reference / "coefficients.csv"))
+    pd.testing.assert_frame_equal(_sorted(out / "cells.parquet"), _sorted(reference / "cells.parquet"),
+                                  check_exact=True)
+    pd.testing.assert_frame_equal(pd.read_csv(out / "coefficients.csv"), pd.read_csv(reference / "coefficients.csv"),
+                                  check_exact=True)
     assert not list((out / "cells").glob(".*.tmp"))  # temporaries of killed writes are not left as cells
 
 
@@ -66,4 +68,4 @@ def test_dask_local_cluster_matches_loky_cell_by_cell(reference, tmp_path):
     ref_cells = sorted((reference / "cells").glob("cell_*.parquet"))
     assert [p.name for p in dask_cells] == [p.name for p in ref_cells] and len(ref_cells) == 9
     for a, b in zip(dask_cells, ref_cells):
-        pd.testing.assert_frame_equal(pd.read_parquet(a), pd.read_parquet(b), obj=a.name)
+        pd.testing.assert_frame_equal(pd.read_parquet(a), pd.read_parquet(b), obj=a.name, check_exact=True)

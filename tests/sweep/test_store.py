@@ -3,7 +3,9 @@
 import pandas as pd
 import pytest
 
-from mcsweep.sweep.store import CellStore
+import os
+
+from mcsweep.sweep.store import CellStore, atomic_write_bytes, current_umask
 
 
 def _table():
@@ -39,3 +41,17 @@ def test_foreign_and_other_config_files_are_not_taken(tmp_path):
     _table().to_parquet(tmp_path / "cell_4.parquet")  # a plain Parquet file without our metadata
     with pytest.warns(UserWarning, match="unreadable"):
         assert store.read("cell_4") is None
+
+
+@pytest.mark.parametrize("mask, mode", [(0o022, 0o644), (0o027, 0o640), (0o077, 0o600)])
+def test_atomic_write_gives_the_mode_of_a_normally_created_file(tmp_path, mask, mode):
+    old = os.umask(mask)
+    try:
+        assert current_umask() == mask
+        atomic_write_bytes(tmp_path / "sub" / "f.csv", b"a,b\n")
+        with open(tmp_path / "plain.csv", "w") as f:  # what the OS gives a file created normally
+            f.write("a,b\n")
+    finally:
+        os.umask(old)
+    assert (tmp_path / "sub" / "f.csv").stat().st_mode & 0o777 == mode
+    assert (tmp_path / "plain.csv").stat().st_mode & 0o777 == mode

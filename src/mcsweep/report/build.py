@@ -8,6 +8,7 @@ the secondary solution) add sections through :data:`SECTION_BUILDERS`.
 
 from __future__ import annotations
 
+import hashlib
 import json
 from pathlib import Path
 from typing import Callable
@@ -130,9 +131,22 @@ def provenance_section(doc: Document, run_dir: Path, prov: dict) -> None:
                   {"seconds": ".1f"})
     man = prov.get("manifest", [])
     if man:
-        doc.table(pd.DataFrame(man)[["path", "bytes", "sha256"]].assign(sha256=lambda d: d["sha256"].str[:16]),
-                  "Result files (manifest at the end of the computation)")
+        doc.para(manifest_summary(man))
     doc.pre(json.dumps(prov.get("config", {}), indent=1, default=str))
+
+
+def manifest_summary(manifest: list[dict]) -> str:
+    """One sentence on the result files; the file-by-file list stays in provenance.json.
+
+    The digest is SHA-256 over the sorted ``path:sha256`` lines, so two runs with the
+    same results show the same digest whatever order their files were listed in.
+    """
+    lines = sorted(f"{m['path']}:{m['sha256']}" for m in manifest)
+    digest = hashlib.sha256("\n".join(lines).encode()).hexdigest()
+    total = sum(int(m["bytes"]) for m in manifest)
+    return (f"Result files of the computation (before this report): {len(manifest)} files, {total / 1e6:.2f} MB in all, manifest digest "
+            f"{digest[:16]} (SHA-256 over the sorted path:sha256 lines); each file's size and SHA-256 "
+            "are listed under `manifest` in provenance.json.")
 
 
 #: Extra sections by run kind; each takes (doc, run_dir, provenance dict).

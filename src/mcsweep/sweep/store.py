@@ -21,7 +21,7 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-__all__ = ["CellStore", "atomic_write_bytes", "table_checksum"]
+__all__ = ["CellStore", "atomic_write_bytes", "current_umask", "table_checksum"]
 
 _META_KEY = b"mcsweep"
 
@@ -34,11 +34,33 @@ def table_checksum(df: pd.DataFrame) -> str:
     return h.hexdigest()
 
 
+def current_umask() -> int:
+    """The process's file-creation mask, read without changing it where the OS allows."""
+    try:
+        # Linux >= 4.7 reports it; setting and restoring os.umask would briefly leave a
+        # mask of 0 for every other thread of the process.
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("Umask:"):
+                return int(line.split()[1], 8)
+    except OSError:
+        pass
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
 def atomic_write_bytes(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` so readers see either the old file or the whole new one.
+
+    The file gets the mode of a file created normally (``0o666 & ~umask``: 0644 under
+    the usual 022), not the 0600 of its private temporary name, so colleagues sharing
+    the run directory on a cluster file system can read it.
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
+        os.fchmod(fd, 0o666 & ~current_umask())
         with os.fdopen(fd, "wb") as f:
             f.write(data)
             f.flush()

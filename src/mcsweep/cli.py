@@ -5,12 +5,16 @@
 whole-sky secondary solution of Sect. 4.1. Outputs go to Hydra's run directory
 (``hydra.run.dir=PATH``); ``mcsweep -m confidence=0.8,0.9,0.95`` runs one job per
 value. Bad values end the command with one line on stderr and exit status 2 before
-any output is written (:func:`mcsweep.sweep.validate.preflight`).
+any output is written (:func:`mcsweep.sweep.validate.preflight`); a user error found
+once the job has started (a catalogue, a run directory) removes exactly the paths this
+command created and puts back what Hydra rewrote (:mod:`mcsweep.sweep.rundir`), never
+a file or directory that was there before.
 """
 
 from __future__ import annotations
 
-import shutil
+import logging
+import os
 import sys
 from pathlib import Path
 
@@ -20,35 +24,51 @@ from omegaconf import DictConfig, OmegaConf
 
 from .errors import UserInputError, report_user_error
 from .report.build import build_report
+from .experiments.secondary import OUTPUTS as SECONDARY_OUTPUTS
 from .sweep.provenance import PROVENANCE_FILE, Provenance
-from .sweep.runner import run_sweep
+from .sweep.rundir import release, snapshot_for
+from .sweep.runner import OUTPUTS, run_sweep
 from .sweep.logs import quiet_third_party_console
 from .sweep.schema import register_configs
 from .sweep.secondary_runner import run_secondary
-from .sweep.validate import preflight, to_config
+from .sweep.validate import ignored_settings, preflight, to_config
 
 __all__ = ["main"]
 
 register_configs()
 
 
-def _remove_fresh_outputs(run_dir: Path) -> None:
-    """Undo what this job and Hydra wrote into a run directory it created (no partial output)."""
-    from .experiments.secondary import OUTPUTS as SECONDARY_OUTPUTS
-    from .sweep.runner import OUTPUTS
+def refuse_foreign_outputs(run_dir: Path, outputs) -> None:
+    """Refuse a run directory that already holds files named like our outputs but is no run.
 
-    for name in (".hydra", *OUTPUTS, *SECONDARY_OUTPUTS):
-        p = run_dir / name
-        if p.is_dir():
-            shutil.rmtree(p, ignore_errors=True)
-        else:
-            p.unlink(missing_ok=True)
-    for log in run_dir.glob("*.log"):
-        log.unlink(missing_ok=True)
-    try:
-        run_dir.rmdir()  # only if now empty
-    except OSError:
-        pass
+    Without ``provenance.json`` nothing there was written by mcsweep, so a ``report.md``
+    or a non-empty ``figures/`` is the user's own and a successful run would overwrite it.
+    """
+    if (run_dir / PROVENANCE_FILE).exists():
+        return
+    taken = [n for n in outputs if (p := run_dir / n).is_file() or (p.is_dir() and any(p.iterdir()))]
+    if taken:
+        raise UserInputError(
+            f"run directory {run_dir} already holds {', '.join(taken)} but is not an mcsweep run (no "
+            f"{PROVENANCE_FILE}); expected a new or empty directory, or an mcsweep run to resume: "
+            "choose another hydra.run.dir")
+
+
+def _log_to_files(logger: logging.Logger, msg: str, exc_info) -> None:
+    """Write ``msg`` and the traceback to the log files only (the terminal gets Hydra's copy)."""
+    record = logger.makeRecord(logger.name, logging.ERROR, __file__, 0, msg, (), exc_info)
+    for h in logging.getLogger().handlers:
+        if isinstance(h, logging.FileHandler):
+            h.handle(record)
+            h.flush()
+
+
+def _undo(run_dir: Path) -> None:
+    """Remove what this command wrote for the refused job; keep everything that was there."""
+    snap = snapshot_for(run_dir)
+    snap.undo(run_dir)
+    if snap.root != Path(os.path.abspath(run_dir)) and set(snap.new_paths()) <= {"multirun.yaml", "."}:
+        snap.undo()  # a multirun stopped at its first job: its sweep directory goes too
 
 
 def run_job(cfg: DictConfig, run_dir: Path) -> Path:
@@ -57,6 +77,7 @@ def run_job(cfg: DictConfig, run_dir: Path) -> Path:
     raw = OmegaConf.to_container(cfg, resolve=True)
     name = config.experiment.name
     prov = Provenance(run_dir, raw, kind=name)
+    refuse_foreign_outputs(run_dir, OUTPUTS if name == "f90_sweep" else SECONDARY_OUTPUTS)
     prov.check_compatible()
     run = {"f90_sweep": run_sweep, "secondary": run_secondary}[name]
     run(config, raw, run_dir, prov=prov)
@@ -71,19 +92,27 @@ def run_job(cfg: DictConfig, run_dir: Path) -> Path:
 def _hydra_entry(cfg: DictConfig) -> None:
     quiet_third_party_console()
     run_dir = Path(HydraConfig.get().runtime.output_dir)
-    fresh = not (run_dir / PROVENANCE_FILE).exists()
+    snapshot_for(run_dir)  # taken before Hydra wrote, by RunDirGuard; else now
     try:
         report = run_job(cfg, run_dir)
     except UserInputError as exc:
-        if fresh:
-            _remove_fresh_outputs(run_dir)
+        _undo(run_dir)
         sys.exit(report_user_error(exc))
+    except Exception:
+        # A bug, not a user error: the outputs stay (a rerun resumes), the traceback is
+        # printed by Hydra (exit status 1) and kept in the run's log for the bug report.
+        _log_to_files(logging.getLogger(__name__), "mcsweep stopped on an unexpected error", sys.exc_info())
+        raise
+    finally:
+        release(run_dir)
     print(f"mcsweep: results in {run_dir} (report: {report})", file=sys.stderr)
 
 
 def main() -> None:
     try:
-        preflight(sys.argv[1:])
+        configs = preflight(sys.argv[1:])
     except UserInputError as exc:
         sys.exit(report_user_error(exc))
+    for line in ignored_settings(sys.argv[1:], configs):
+        print(f"mcsweep: warning: {line}", file=sys.stderr)
     _hydra_entry()

@@ -5,7 +5,7 @@ import pytest
 from astropy.time import Time
 
 from mcsweep.errors import UserInputError
-from mcsweep.experiments.epoch import resolve_reference_epoch
+from mcsweep.experiments.epoch import describe_reference_epoch, resolve_reference_epoch
 
 START, END = 2456863.9, 2458690.1  # TCB JD
 
@@ -31,3 +31,14 @@ def test_iso_date_is_read_as_tcb_and_bad_values_are_one_line_user_errors():
     with pytest.raises(UserInputError, match="'mid-mission'.*dataset_mean") as err:
         resolve_reference_epoch("mid-mission", START, END)
     assert "\n" not in str(err.value)
+
+
+def test_description_for_provenance_and_report():
+    mid = describe_reference_epoch("dataset_mean", START, END)
+    assert mid["tcb_jd"] == pytest.approx(0.5 * (START + END), rel=0, abs=1e-9)
+    assert mid["iso"] == Time(0.5 * (START + END), format="jd", scale="tcb").isot
+    assert mid["text"] == f"{mid['iso'][:10]} (mid-point of the data set, TCB)"
+    assert describe_reference_epoch("star_mean", START, END)["tcb_jd"] is None
+    assert describe_reference_epoch("2016-01-01", START, END)["text"] == "2016-01-01 (fixed date, TCB)"
+    assert describe_reference_epoch("2016-01-01T06:00:00", START, END)["text"] == \
+        "2016-01-01T06:00:00 (fixed date, TCB)"

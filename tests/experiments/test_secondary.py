@@ -1,5 +1,6 @@
 """The whole-sky secondary solution of paper Sect. 4.1 (Table 2), reduced in size."""
 
+import dataclasses
 import math
 import subprocess
 import sys
@@ -271,3 +272,112 @@ def test_bad_formula_through_cli_exits_2_and_leaves_no_output(tmp_path):
     lines = [ln for ln in r.stderr.strip().splitlines() if ln]
     assert len(lines) == 1 and "f90_formula" in lines[0] and "Traceback" not in r.stderr
     assert not out.exists()
+
+
+# ----------------------------------------------------------------------------- reference epoch
+#: Two code paths (the solution at one epoch, the closed-form propagation of the solution
+#: at another) agree to rounding of a 5x5 inverse with condition up to ~1e6.
+RTOL_EPOCHS = 1e-7
+DAYS_PER_YEAR = 365.25  # Julian year, the unit of the proper motions
+
+
+def _one_star_rows(settings, days):
+    """One star at (ra, dec) = (40, -20) deg with FoV transits ``days`` after the mission start."""
+    from mcsweep.scanning.ephemeris import gaia_position_au
+
+    t = settings.start_jd + np.asarray(days, dtype=float)
+    st = {"ra": np.array([40.0]), "dec": np.array([-20.0]), "parallax": np.array([2.0]),
+          "pmra": np.array([8.0]), "pmdec": np.array([-5.0]), "phot_g_mean_mag": np.array([15.0]),
+          "l": np.array([0.0]), "b": np.array([0.0])}
+    rows = {"star": np.zeros(t.size, dtype=int), "col": np.arange(t.size), "t": t,
+            "psi": np.linspace(10.0, 170.0, t.size), "obs": gaia_position_au(t)}
+    return st, rows, t
+
+
+def _normals(settings, setting, st, rows):
+    s = dataclasses.replace(settings, reference_epoch=setting)
+    return S._block_normals(st, np.array([0]), rows, rows["t"].size, s, np.random.default_rng(3))
+
+
+def _times_seen_by_design(settings, setting, st, rows, monkeypatch):
+    """The t - t_ep [yr] of the star's transits that go into its design matrix (Eq. 1)."""
+    seen = []
+    real = S.design_matrix
+
+    def spy(*args, **kw):
+        seen.append(np.asarray(args[2])[kw["mask"]])
+        return real(*args, **kw)
+    with monkeypatch.context() as m:
+        m.setattr(S, "design_matrix", spy)
+        _normals(settings, setting, st, rows)
+    return seen[0]
+
+
+def test_reference_epoch_setting_reaches_the_design_of_the_solutions(settings, monkeypatch):
+    # A star observed only in the first year: under dataset_mean (epoch = mid-mission, 2.5 yr
+    # after the start) every transit is before the epoch; under star_mean they straddle it.
+    st, rows, t = _one_star_rows(settings, [20.0, 90.0, 200.0, 300.0])
+    seen = {setting: _times_seen_by_design(settings, setting, st, rows, monkeypatch)
+            for setting in ("dataset_mean", "star_mean", "2016-01-01T00:00:00")}
+    mid = 0.5 * (settings.start_jd + settings.end_jd)
+    np.testing.assert_allclose(seen["dataset_mean"], (t - mid) / DAYS_PER_YEAR, rtol=RTOL_EPOCHS)
+    assert (seen["dataset_mean"] < 0).all()
+    assert seen["star_mean"].min() < 0 < seen["star_mean"].max()
+    assert abs(seen["star_mean"].mean()) < 1e-9
+    # An ISO date (TCB) is used as given: 2016-01-01 is after every transit of 2014.
+    assert (seen["2016-01-01T00:00:00"] < 0).all()
+    assert settings.reference_epoch == "dataset_mean"  # the default
+
+
+def _propagated(cov, dt_yr):
+    """cov of (pos(t1), plx, pm) from cov of (pos(t0), plx, pm): pos(t1) = pos(t0) + dt pm."""
+    T = np.eye(5)
+    T[0, 3] = T[1, 4] = dt_yr
+    return T @ cov @ T.T
+
+
+@pytest.mark.parametrize("days, symmetric", [
+    ([30.0, 400.0, 913.125, 1826.25 - 400.0, 1826.25 - 30.0], True),  # symmetric about mid-mission
+    ([20.0, 90.0, 200.0, 300.0, 700.0], False),                       # early and lopsided
+])
+def test_position_covariance_moves_between_epochs_as_the_closed_form(settings, days, symmetric):
+    st, rows, t = _one_star_rows(settings, days)
+    assert settings.end_jd - settings.start_jd == pytest.approx(1826.25, rel=1e-12)
+    N_ds, b_ds = _normals(settings, "dataset_mean", st, rows)
+    N_sm, b_sm = _normals(settings, "star_mean", st, rows)
+    dt = (0.5 * (settings.start_jd + settings.end_jd) - t.mean()) / DAYS_PER_YEAR
+    sig = np.array([1.5])
+    for solve in (lambda N, b: S.solve_no_prior(N, b), lambda N, b: S.solve_with_prior(N, b, sig, 10.0),
+                  lambda N, b: S.solve_with_prior(N, b, 10 * sig, 10.0)):
+        ds, sm = solve(N_ds, b_ds), solve(N_sm, b_sm)
+        assert ds.ok.all() and sm.ok.all()
+        expected = _propagated(sm.cov[0], dt)
+        np.testing.assert_allclose(ds.cov[0], expected, rtol=RTOL_EPOCHS, atol=RTOL_EPOCHS * np.abs(expected).max())
+        # Same noise realisation: the errors (truth: position 0 at each setting's epoch) move
+        # the same way, err_pos(t1) = err_pos(t0) + dt err_pm.
+        err_sm = sm.x[0] - np.array([0.0, 0.0, 2.0, 8.0, -5.0])
+        np.testing.assert_allclose(ds.position[0], err_sm[:2] + dt * err_sm[3:5], rtol=RTOL_EPOCHS,
+                                   atol=RTOL_EPOCHS * np.abs(sm.x[0]).max())
+        if symmetric:
+            assert abs(dt) < 1e-9
+            np.testing.assert_allclose(ds.position_cov[0], sm.position_cov[0], rtol=RTOL_EPOCHS)
+        else:
+            # Far from its transits the position is less well known.
+            assert np.trace(ds.position_cov[0]) > 2 * np.trace(sm.position_cov[0])
+
+
+@pytest.mark.parametrize("value", ["mid-mission", "2016-02-30", "2040-01-01"])
+def test_bad_reference_epoch_is_a_one_line_config_error(value):
+    with pytest.raises(UserInputError, match=r"reference_epoch=.*dataset_mean.*star_mean.*ISO") as err:
+        _config([f"experiment.secondary.reference_epoch={value}"])
+    assert value in str(err.value) and "\n" not in str(err.value)
+
+
+def test_reference_epoch_recorded_in_provenance_table2_and_report(cli_run):
+    import json
+    prov = json.loads((cli_run / "provenance.json").read_text())
+    ep = prov["derived"]["secondary"]["reference_epoch"]
+    assert ep["setting"] == "dataset_mean" and ep["iso"].startswith("2017-01-23T13:30")
+    text = "reference epoch: 2017-01-23 (mid-point of the data set, TCB)"
+    assert text in (cli_run / "table2.md").read_text()
+    assert text.replace("reference", "Reference") in (cli_run / "report.md").read_text()

@@ -90,6 +90,8 @@ CONFIGS = [
     (["sky=nowhere"], "sky"), (["population=gums"], "population"), (["execution.backend=spark"], "backend"),
     (["prior_grid.min_mas=-0.01"], "min_mas"), (["observations.start=2014-13-01"], "observations.start"),
     (["scanning.precession_S=0.5"], "precession_S"), (["experiment.secondary.dilution=1.5"], "dilution"),
+    (["experiment=secondary", "experiment.secondary.reference_epoch=2016-02-30"], "reference_epoch"),
+    (["experiment=secondary", "experiment.secondary.reference_epoch=mid"], "reference_epoch"),
 ]
 
 

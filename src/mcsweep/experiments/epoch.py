@@ -14,7 +14,7 @@ from astropy.time import Time
 from ..astrometry.design import reference_epoch
 from ..errors import UserInputError
 
-__all__ = ["resolve_reference_epoch"]
+__all__ = ["resolve_reference_epoch", "describe_reference_epoch"]
 
 
 def resolve_reference_epoch(setting: str, start_tcb_jd: float, end_tcb_jd: float, tcb_jd=None,
@@ -38,3 +38,20 @@ def resolve_reference_epoch(setting: str, start_tcb_jd: float, end_tcb_jd: float
         raise UserInputError(f"reference_epoch={setting!r} is not accepted; expected 'dataset_mean', "
                              "'star_mean' or an ISO date (TCB) such as '2015-01-01T00:00:00'") from None
     return np.full(n, jd)
+
+
+def describe_reference_epoch(setting: str, start_tcb_jd: float, end_tcb_jd: float) -> dict:
+    """What a setting resolves to, for provenance and the report.
+
+    Returns ``{"setting", "tcb_jd", "iso", "text"}``; ``tcb_jd`` and ``iso`` are None for
+    ``'star_mean'`` (one epoch per star). ``text`` reads e.g. "2017-01-23 (mid-point of
+    the data set, TCB)".
+    """
+    if setting == "star_mean":
+        return {"setting": setting, "tcb_jd": None, "iso": None,
+                "text": "each star's own mean epoch of its retained transits (star_mean)"}
+    jd = float(resolve_reference_epoch(setting, start_tcb_jd, end_tcb_jd)[0])
+    iso = Time(jd, format="jd", scale="tcb").isot
+    what = "mid-point of the data set" if setting == "dataset_mean" else "fixed date"
+    shown = iso[:10] if setting == "dataset_mean" or iso[11:19] == "00:00:00" else iso[:19]
+    return {"setting": setting, "tcb_jd": jd, "iso": iso, "text": f"{shown} ({what}, TCB)"}

@@ -20,8 +20,12 @@ The attitude is known from an earlier solution, so each star is solved on its ow
    with the counter-based hash of :func:`mcsweep.scanning.timeline.keep_after_dilution`
    from the star's index in its class.
 4. *Solutions.* Stars with at least one retained transit: AL (and AC, per the noise
-   config) measurements of :class:`~mcsweep.astrometry.noise.NoiseModel` at the mean epoch
-   of the retained transits, ``x_true = (0, 0, parallax, pmra, pmdec)``, one noise
+   config) measurements of :class:`~mcsweep.astrometry.noise.NoiseModel`, the astrometric
+   parameters referred to the epoch of ``reference_epoch``
+   (:func:`~mcsweep.experiments.epoch.resolve_reference_epoch`; default ``dataset_mean``,
+   the mid-point of the mission, one epoch for every star as in a global solution,
+   Sect. 2.1; ``star_mean`` is the mean epoch of each star's retained transits),
+   ``x_true = (0, 0, parallax, pmra, pmdec)`` (position zero at that epoch), one noise
    realisation shared by every solution: position only (the "none" row), priors of
    0.01 mas, sigma_F90 (Eqs. 14-17, or our own fitted coefficients), 10 sigma_F90 and
    1000 mas with R = sigma_mu / sigma_plx (Eq. 18), and five parameters without prior
@@ -52,7 +56,7 @@ import pandas as pd
 from astropy.time import Time
 
 from ..astrometry.confidence import chi2_threshold, mahalanobis_sq
-from ..astrometry.design import design_matrix, reference_epoch, years_since
+from ..astrometry.design import design_matrix, years_since
 from ..astrometry.measurements import simulate
 from ..astrometry.noise import G_MAX, NoiseModel
 from ..astrometry.solve import normal_equations, solve_no_prior, solve_position_only, solve_with_prior
@@ -61,6 +65,7 @@ from ..prior import G_FIT_MAX, PAPER_COEFFICIENTS, sigma_f90, sigma_from_coeffic
 from ..scanning import ScanningLaw, find_transits
 from ..scanning.ephemeris import TABLE_END_JD_TCB, TABLE_START_JD_TCB, gaia_position_au
 from ..scanning.timeline import dilution_key, keep_after_dilution
+from .epoch import resolve_reference_epoch
 from .secondary_table import SOLUTION_COLUMNS, g_label
 
 __all__ = [
@@ -109,6 +114,12 @@ class SecondarySettings:
     ratio_R: float
     #: Coefficients of Eqs. 15-17 as ((name, (c0, c1, ...)), ...); None = the paper's.
     f90_coefficients: tuple | None = None
+    #: Reference epoch setting (:func:`~mcsweep.experiments.epoch.resolve_reference_epoch`).
+    reference_epoch: str = "dataset_mean"
+
+    def epoch_tcb_jd(self, tcb_jd=None, mask=None) -> np.ndarray:
+        """Reference epoch (TCB JD) of each star of ``tcb_jd (n, k)`` (one value without it)."""
+        return resolve_reference_epoch(self.reference_epoch, self.start_jd, self.end_jd, tcb_jd, mask)
 
     def sigma_f90_mas(self, l_deg, b_deg, g) -> np.ndarray:
         """The sigma_F90 prior of each star [mas] (G > 20 uses G = 20, as the paper says)."""
@@ -183,7 +194,8 @@ def build_settings(config) -> SecondarySettings:
         noise=NoiseModel(al_scale=config.noise.al_scale, ac_scale=config.noise.ac_scale,
                          use_ac=config.noise.use_ac),
         confidence=float(config.confidence), ratio_R=float(config.ratio_R),
-        f90_coefficients=load_f90_coefficients(sec.f90_formula))
+        f90_coefficients=load_f90_coefficients(sec.f90_formula),
+        reference_epoch=str(sec.reference_epoch))
 
 
 # --------------------------------------------------------------------------- stars
@@ -254,7 +266,7 @@ def _block_normals(st: dict, sel: np.ndarray, rows: dict, k: int, settings: Seco
     mask = np.zeros(shape, dtype=bool)
     r, c = rows["star"], rows["col"]
     t[r, c], psi[r, c], obs[r, c], mask[r, c] = rows["t"], rows["psi"], rows["obs"], True
-    t_yr = years_since(t, reference_epoch(t, mask))
+    t_yr = years_since(t, settings.epoch_tcb_jd(t, mask))
     s_al, s_ac = settings.noise.design_sigmas(st["phot_g_mean_mag"][sel])
     A = design_matrix(st["ra"][sel], st["dec"][sel], t_yr, psi, obs, sigma_al_mas=s_al,
                       sigma_ac_mas=s_ac, mask=mask)

@@ -22,7 +22,7 @@ from .document import Document
 from .fit import fit_all
 from .secondary_section import secondary_section
 
-__all__ = ["build_report", "SECTION_BUILDERS", "sweep_section", "provenance_section"]
+__all__ = ["build_report", "SECTION_BUILDERS", "REQUIRED_RESULTS", "sweep_section", "provenance_section"]
 
 FIG_DIR = "figures"
 
@@ -151,6 +151,11 @@ def manifest_summary(manifest: list[dict]) -> str:
 
 #: Extra sections by run kind; each takes (doc, run_dir, provenance dict).
 SECTION_BUILDERS: dict[str, list[Callable]] = {"f90_sweep": [sweep_section], "secondary": [secondary_section]}
+#: Result files each run kind's sections read: all must exist before anything is written.
+REQUIRED_RESULTS: dict[str, tuple[str, ...]] = {
+    "f90_sweep": ("cells.parquet",),
+    "secondary": ("table2.csv", "no_prior.csv", "secondary_summary.csv"),
+}
 
 
 def build_report(run_dir) -> Path:
@@ -160,8 +165,21 @@ def build_report(run_dir) -> Path:
     if not pfile.exists():
         raise UserInputError(f"{run_dir} is not an mcsweep run directory (no provenance.json); "
                              "expected the directory of a finished run")
-    prov = json.loads(pfile.read_text())
+    try:
+        prov = json.loads(pfile.read_text())
+    except (OSError, ValueError) as exc:
+        raise UserInputError(f"{pfile} is unreadable ({type(exc).__name__}: {exc}); expected the JSON "
+                             "record written by mcsweep") from None
     kind = prov.get("kind", "f90_sweep")
+    if kind not in SECTION_BUILDERS:
+        raise UserInputError(f"{pfile}: unknown run kind {kind!r}; expected one of {', '.join(SECTION_BUILDERS)}")
+    missing = [n for n in REQUIRED_RESULTS.get(kind, ()) if not (run_dir / n).is_file()]
+    if missing:
+        # An unfinished or interrupted run: provenance is written when the inputs are
+        # accepted, the results only at the end. Nothing is written here.
+        raise UserInputError(
+            f"{run_dir} is an unfinished {kind} run: {', '.join(missing)} not written yet; expected a "
+            f"finished run (run mcsweep again with hydra.run.dir={run_dir} and the same config to resume)")
     doc = Document(f"mcsweep report: {kind} ({run_dir.name})")
     for section in SECTION_BUILDERS.get(kind, []):
         section(doc, run_dir, prov)

@@ -34,7 +34,11 @@ def secondary_section(doc: Document, run_dir: Path, prov: dict) -> None:
         f"'{cfg.get('scanning', {}).get('name')}' scanning law, each transit removed with probability "
         f"{sec.get('dilution')}; attitude known. Priors: sigma_F90 from '{sec.get('f90_formula')}', "
         f"R = {cfg.get('ratio_R')} /yr. Fractions are inside the P = {p:g} confidence ellipse; errors are "
-        "the 90th percentile of |estimated - true position|. Each cell: ours (paper).")
+        f"the {100 * p:g}th percentile of |estimated - true position| at the reference epoch (the paper's "
+        "values are shown only at its P = 0.9). Each cell: ours (paper).")
+    # Runs made before the setting existed referred each star to its own mean epoch.
+    epoch = prov.get("derived", {}).get("secondary", {}).get("reference_epoch", {})
+    doc.para(f"Reference epoch: {epoch.get('text') or sec.get('reference_epoch', 'star_mean (not recorded)')}.")
     for subset, df in table2_layout(table, p).items():
         n = table[table["subset"] == subset].drop_duplicates("g_class")
         counts = ", ".join(f"G~{g}: {int(v)}" for g, v in zip(n["g_class"], n["n_stars"]))
@@ -44,7 +48,7 @@ def secondary_section(doc: Document, run_dir: Path, prov: dict) -> None:
     if no_prior_file.exists():
         doc.table(pd.read_csv(no_prior_file),
                   "Five-parameter solution without prior: stars it cannot solve (singular or condition "
-                  "number > 1e6) and, for the others, fraction inside and 90th percentile [mas]",
+                  f"number > 1e6) and, for the others, fraction inside and {100 * p:g}th percentile [mas]",
                   {"fraction_unsolved": ".3f", "fraction_inside": ".3f", "p90_error_mas": ".3g"})
     cols = ["g_class", "n_stars", "g_faintest", "mean_transits_undiluted", "mean_fov_retained",
             "mean_fov_retained_observed", "n_no_transit", "n_le4", "n_gt4", "median_sigma_f90_mas"]

@@ -1,10 +1,13 @@
 """What a run directory records about how its results were made.
 
 ``provenance.json`` holds the resolved config, the hash of its scientific part (every
-key except ``execution``, which must not change results), the package version, the
-git commit when the package runs from a checkout, the seeds, per-stage timings and a
-manifest (size and SHA-256) of the result files. The hash also guards a run directory
-against mixing the results of two configs.
+key except ``execution`` and ``resume``, which must not change results, and the keys
+the experiment never reads, :data:`~mcsweep.sweep.schema.IGNORED_BY_EXPERIMENT`), the
+package version, the git commit when the package runs from a checkout, the seeds,
+per-stage timings, a manifest (size and SHA-256) of the result files, and how many
+cells each code version computed (``cell_code_versions``: a resumed run may mix
+versions when the user allows it). The hash also guards a run directory against
+mixing the results of two configs.
 """
 
 from __future__ import annotations
@@ -12,7 +15,6 @@ from __future__ import annotations
 import hashlib
 import json
 import platform
-import subprocess
 import time
 from contextlib import contextmanager
 from pathlib import Path
@@ -20,35 +22,38 @@ from typing import Any
 
 from .. import __version__
 from ..errors import UserInputError
+from .schema import IGNORED_BY_EXPERIMENT
 from .store import atomic_write_bytes
+from .version import git_commit
 
 __all__ = ["config_hash", "git_commit", "Provenance", "PROVENANCE_FILE"]
 
 PROVENANCE_FILE = "provenance.json"
-_EXCLUDED_KEYS = ("execution",)
+_EXCLUDED_KEYS = ("execution", "resume")
 
 
 def _science_part(cfg: dict) -> dict:
-    return {k: v for k, v in cfg.items() if k not in _EXCLUDED_KEYS}
+    """The keys that can change results: not execution/resume, nor what the experiment ignores."""
+    out = {k: v for k, v in cfg.items() if k not in _EXCLUDED_KEYS}
+    name = (cfg.get("experiment") or {}).get("name", "f90_sweep")
+    for dotted in IGNORED_BY_EXPERIMENT.get(name, ()):
+        *parents, leaf = dotted.split(".")
+        node = out
+        for k in parents:
+            if not isinstance(node.get(k), dict):
+                break
+            child = dict(node[k])  # copy on the way down: cfg itself stays whole
+            node[k] = child
+            node = child
+        else:
+            node.pop(leaf, None)
+    return out
 
 
 def config_hash(cfg: dict) -> str:
     """Hash of the config keys that can change results (execution excluded)."""
     blob = json.dumps(_science_part(cfg), sort_keys=True, default=str).encode()
     return hashlib.sha256(blob).hexdigest()[:16]
-
-
-def git_commit() -> str | None:
-    """Commit of the checkout the package was imported from, if any (+ '-dirty')."""
-    src = Path(__file__).resolve().parent
-    try:
-        sha = subprocess.run(["git", "-C", str(src), "rev-parse", "HEAD"], capture_output=True,
-                             text=True, timeout=10, check=True).stdout.strip()
-        dirty = subprocess.run(["git", "-C", str(src), "status", "--porcelain", "--untracked-files=no"],
-                               capture_output=True, text=True, timeout=10).stdout.strip()
-        return sha + ("-dirty" if dirty else "")
-    except (OSError, subprocess.SubprocessError):
-        return None
 
 
 def _diff_keys(a: Any, b: Any, prefix: str = "") -> list[str]:
@@ -70,6 +75,10 @@ class Provenance:
         self.hash = config_hash(cfg)
         self.timings: dict[str, float] = {}
         self.seeds: dict[str, Any] = {"seed": cfg.get("seed")}
+        #: Cells (or chunks) per code version that computed them, filled at aggregation.
+        self.cell_versions: dict[str, int] = {}
+        #: Values derived from the config that a reader needs (e.g. a resolved reference epoch).
+        self.derived: dict[str, Any] = {}
 
     @property
     def path(self) -> Path:
@@ -82,7 +91,8 @@ class Provenance:
         old = json.loads(self.path.read_text())
         if old.get("config_hash") != self.hash:
             diffs = _diff_keys(_science_part(old.get("config", {})), _science_part(self.cfg))
-            what = "; ".join(diffs[:3]) + (" ..." if len(diffs) > 3 else "")
+            what = "; ".join(diffs[:3]) + (" ..." if len(diffs) > 3 else "") if diffs else \
+                f"same values, hash {old.get('config_hash')} by {old.get('mcsweep_version')} vs {self.hash}"
             raise UserInputError(
                 f"run directory {self.run_dir} holds results of a different config ({what}); "
                 "expected the same config to resume, or a new hydra.run.dir"
@@ -117,6 +127,8 @@ class Provenance:
             "git_commit": git_commit(),
             "python": platform.python_version(),
             "seeds": self.seeds,
+            **({"cell_code_versions": self.cell_versions} if self.cell_versions else {}),
+            "derived": self.derived,
             "timings_s": self.timings,
             **(extra or {}),
             "manifest": self.manifest() if with_manifest else [],

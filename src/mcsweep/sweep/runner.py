@@ -16,7 +16,6 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 from astropy.time import Time
-from tqdm.auto import tqdm
 
 from ..astrometry.noise import NoiseModel
 from ..errors import UserInputError
@@ -25,6 +24,7 @@ from ..population import CatalogueSource, make_source
 from ..scanning import ScanningLaw, find_transits
 from .cells import Cell, Direction, enumerate_cells, sky_directions
 from .execution import executor
+from .progress import progress, stage_line
 from .provenance import Provenance
 from .schema import Config
 from .store import CellStore, atomic_write_bytes
@@ -107,10 +107,10 @@ def _pop_dict(config: Config) -> dict:
 
 
 def _cell_task(job):
-    cell, transits, pop_frozen, settings, store_dir, chash, keep_scatter, radius = job
+    # The store travels with the job so a worker stamps the parent's code version.
+    cell, transits, pop_frozen, settings, store, keep_scatter, radius = job
     source = _source(pop_frozen)
     table, scatter = run_cell(cell, transits, source, settings, keep_scatter=keep_scatter, radius_deg=radius)
-    store = CellStore(store_dir, chash)
     if scatter is not None:
         store.write(cell.cell_id + "_scatter", scatter)
     store.write(cell.cell_id, table)
@@ -127,9 +127,10 @@ def run_sweep(config: Config, raw_cfg: dict, run_dir: Path, *, prov: Provenance 
         _source(_freeze(_pop_dict(config)))
     settings = build_settings(config)
     cells = enumerate_cells(config.sky, config.magnitudes)
-    store = CellStore(run_dir / CELLS_DIR, prov.hash)
+    keep = config.resume.accept_other_versions
+    store = CellStore(run_dir / CELLS_DIR, prov.hash, accept_other_versions=keep)
     show = showcase_cell(config) if config.experiment.showcase.enabled else None
-    show_store = CellStore(run_dir / SHOWCASE_DIR, prov.hash)
+    show_store = CellStore(run_dir / SHOWCASE_DIR, prov.hash, accept_other_versions=keep)
     for st in (store, show_store):  # run start: no other writer may be active in run_dir
         st.remove_stale_temporaries()
 
@@ -155,24 +156,33 @@ def run_sweep(config: Config, raw_cfg: dict, run_dir: Path, *, prov: Provenance 
     dirs = {c.direction.index: c.direction for c in todo}
     if show_todo:
         dirs[show.direction.index] = show.direction
+    show_progress = config.execution.progress
+    if dirs:
+        stage_line("transits", f"scanning law over {len(dirs)} direction{'s' * (len(dirs) != 1)}, {config.observations.start} to "
+                   f"{config.observations.end} (TCB)", enabled=show_progress)
     with prov.stage("transits"):
         transits = direction_transits(config, list(dirs.values()))
+    if dirs:
+        n_tr = sum(len(t) for t in transits.values())
+        stage_line("transits", f"{n_tr} FoV transits found in {prov.timings['transits']:.1f} s",
+                   enabled=show_progress)
 
     pop = _freeze(_pop_dict(config))
-    jobs = [(c, transits[c.direction.index], pop, settings, run_dir / CELLS_DIR, prov.hash, False,
-             radii.get(c.cell_id)) for c in todo]
+    jobs = [(c, transits[c.direction.index], pop, settings, store, False, radii.get(c.cell_id)) for c in todo]
     if show_todo:
-        jobs.insert(0, (show, transits[show.direction.index], pop, settings, run_dir / SHOWCASE_DIR,
-                        prov.hash, True, radii.get(show.cell_id)))
+        jobs.insert(0, (show, transits[show.direction.index], pop, settings, show_store, True,
+                        radii.get(show.cell_id)))
     with prov.stage("cells"), executor(config.execution) as run:
-        bar = tqdm(total=len(cells) + (show is not None), initial=len(cells) + (show is not None) - len(jobs),
-                   desc="cells", unit="cell", disable=not config.execution.progress)
+        bar = progress(len(cells) + (show is not None), initial=len(cells) + (show is not None) - len(jobs),
+                       desc="cells", unit="cells", enabled=config.execution.progress)
         for _ in run(_cell_task, jobs):
             bar.update(1)
         bar.close()
 
     with prov.stage("aggregate"):
+        store.versions_read.clear()
         tables = [store.read(c.cell_id) for c in cells]
+        prov.cell_versions = dict(store.versions_read)
         missing = [c.cell_id for c, t in zip(cells, tables) if t is None]
         if missing:  # pragma: no cover - would mean a worker wrote a bad file
             raise RuntimeError(f"{len(missing)} cells have no valid result, e.g. {missing[0]}")

@@ -35,7 +35,9 @@ __all__ = [
     "SecondaryConf",
     "ExperimentConf",
     "ExecutionConf",
+    "ResumeConf",
     "Config",
+    "IGNORED_BY_EXPERIMENT",
     "register_configs",
 ]
 
@@ -58,6 +60,17 @@ def _tcb_jd(key: str, iso: str) -> float:
                              "'2015-01-01T00:00:00' (TCB)") from None
     _require(TABLE_START_JD_TCB <= jd <= TABLE_END_JD_TCB, key, iso, "a date within 2013-2031 (TCB)")
     return jd
+
+
+def _check_reference_epoch(key: str, value: str) -> None:
+    """A reference-epoch setting: 'dataset_mean', 'star_mean' or an ISO date within 2013-2031 (TCB)."""
+    if value in ("dataset_mean", "star_mean"):
+        return
+    try:
+        _tcb_jd(key, value)
+    except UserInputError:
+        raise UserInputError(f"{key}={value!r} is not accepted; expected 'dataset_mean', 'star_mean' or an "
+                             "ISO date within 2013-2031 (TCB) such as '2017-01-23T00:00:00'") from None
 
 
 @dataclass
@@ -291,8 +304,13 @@ class SecondaryConf:
     mission_start: str = "2014-07-25T10:30:00"
     #: 'paper' (Eqs. 14-17) or the path of a run directory's coefficients.csv.
     f90_formula: str = "paper"
+    #: Reference epoch of the astrometric parameters (Sect. 2.1): 'dataset_mean' (mid-point
+    #: of the mission, one epoch for all stars), 'star_mean' (each star's mean epoch) or an
+    #: ISO date (TCB).
+    reference_epoch: str = "dataset_mean"
 
     def __post_init__(self):
+        _check_reference_epoch("experiment.secondary.reference_epoch", self.reference_epoch)
         _require(self.class_size > 0, "experiment.secondary.class_size", self.class_size, "a positive number")
         _require(len(self.g_classes) > 0 and all(0 <= g < G_MAX for g in self.g_classes),
                  "experiment.secondary.g_classes", list(self.g_classes), f"G values within 0..{G_MAX:g}")
@@ -334,6 +352,13 @@ class ExecutionConf:
 
 
 @dataclass
+class ResumeConf:
+    #: Keep finished cells written by another mcsweep version when resuming a run
+    #: (default: refuse them, naming both versions). Not part of the config hash.
+    accept_other_versions: bool = False
+
+
+@dataclass
 class Config:
     sky: SkyConf = field(default_factory=SkyConf)
     magnitudes: MagnitudesConf = field(default_factory=MagnitudesConf)
@@ -345,6 +370,7 @@ class Config:
     cell: CellConf = field(default_factory=CellConf)
     experiment: ExperimentConf = field(default_factory=ExperimentConf)
     execution: ExecutionConf = field(default_factory=ExecutionConf)
+    resume: ResumeConf = field(default_factory=ResumeConf)
     #: Master seed; every cell derives its own stream from (seed, cell identity).
     seed: int = 20150821
     #: Confidence level P of the ellipses (Sect. 2.4: 0.9).
@@ -358,6 +384,19 @@ class Config:
         _require(self.ratio_R > 0 and math.isfinite(self.ratio_R), "ratio_R", self.ratio_R,
                  "a positive, finite ratio in 1/yr")
         _require(self.seed >= 0, "seed", self.seed, "a non-negative integer")
+
+
+#: Config keys (dotted, a whole group or one key) each experiment never reads. They are
+#: left out of the config hash (:func:`mcsweep.sweep.provenance.config_hash`), and a
+#: command line setting them gets a one-line warning (:func:`mcsweep.sweep.validate.ignored_settings`).
+#: ``observations.reference_epoch`` is not listed: the global experiments take their
+#: reference epoch from the config (issue 11).
+IGNORED_BY_EXPERIMENT: Dict[str, tuple] = {
+    "f90_sweep": (),
+    "secondary": ("sky", "magnitudes", "prior_grid", "cell", "experiment.showcase", "observations.cases",
+                  "observations.f90_case", "observations.start", "observations.end",
+                  "observations.fixed_epoch"),
+}
 
 
 def register_configs() -> None:

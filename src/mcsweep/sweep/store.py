@@ -6,6 +6,12 @@ leaves either no file or a whole one. A file counts as finished only if it parse
 Parquet, carries this run's config hash and the cell's identity in its metadata, and
 its table checksum matches; anything else (truncated, foreign, from another config)
 is recomputed with a warning.
+
+Each file also records the code version that wrote it (:func:`mcsweep.sweep.version.code_version`).
+A finished cell of another version is refused with one line naming both versions
+(:class:`~mcsweep.errors.UserInputError`), unless the store was opened with
+``accept_other_versions=True`` (the user's ``resume.accept_other_versions=true``): a
+resumed run after an upgrade must not mix results of two codes silently.
 """
 
 from __future__ import annotations
@@ -15,11 +21,15 @@ import json
 import os
 import tempfile
 import warnings
+from collections import Counter
 from pathlib import Path
 
 import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
+
+from ..errors import UserInputError
+from .version import code_version
 
 __all__ = ["CellStore", "atomic_write_bytes", "current_umask", "table_checksum"]
 
@@ -74,9 +84,14 @@ def atomic_write_bytes(path: Path, data: bytes) -> None:
 class CellStore:
     """Directory of per-cell Parquet files for one config (identified by its hash)."""
 
-    def __init__(self, directory: Path, config_hash: str):
+    def __init__(self, directory: Path, config_hash: str, *, version: str | None = None,
+                 accept_other_versions: bool = False):
         self.directory = Path(directory)
         self.config_hash = config_hash
+        self.version = version if version is not None else code_version()
+        self.accept_other_versions = accept_other_versions
+        #: Finished files read, per code version that wrote them.
+        self.versions_read: Counter = Counter()
 
     def path(self, cell_id: str) -> Path:
         return self.directory / f"{cell_id}.parquet"
@@ -84,7 +99,7 @@ class CellStore:
     def write(self, cell_id: str, df: pd.DataFrame) -> Path:
         df = df.reset_index(drop=True)
         meta = {"config_hash": self.config_hash, "cell_id": cell_id,
-                "checksum": table_checksum(df), "n_rows": len(df)}
+                "checksum": table_checksum(df), "n_rows": len(df), "code_version": self.version}
         table = pa.Table.from_pandas(df, preserve_index=False)
         table = table.replace_schema_metadata({**(table.schema.metadata or {}),
                                                _META_KEY: json.dumps(meta).encode()})
@@ -115,6 +130,13 @@ class CellStore:
         if problem:
             warnings.warn(f"recomputing {path.name}: {problem}", stacklevel=2)
             return None
+        written_by = meta.get("code_version") or "an mcsweep too old to record its version"
+        if written_by != self.version and not self.accept_other_versions:
+            raise UserInputError(
+                f"{self.directory.name}/{path.name} was computed by {written_by}, this is {self.version}; "
+                "expected cells of one code version: resume with resume.accept_other_versions=true to keep "
+                "them, or use a new hydra.run.dir")
+        self.versions_read[written_by] += 1
         return df
 
     def remove_stale_temporaries(self) -> int:

@@ -4,6 +4,13 @@ Hydra reports a bad override with a multi-line message and exit status 1, after 
 has created the run directory. :func:`preflight` composes every job of a command line
 first (each combination of a multirun sweep), so a bad value ends the command with one
 line and exit status 2 before any output exists.
+
+Only errors a user can cause become that one line: :class:`~mcsweep.errors.UserInputError`
+raised by the schema's checks, and Hydra's and OmegaConf's own errors about the
+command line or the config (unknown option, unparsable override, wrong type, unknown
+key). An error whose root cause is anything else (a ``ZeroDivisionError`` in a
+``__post_init__``, a ``KeyError`` in our code) is a bug: it propagates with its
+traceback and the command ends with Python's status 1.
 """
 
 from __future__ import annotations
@@ -12,18 +19,37 @@ import itertools
 import re
 from typing import Iterable
 
+from hydra.errors import HydraException
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 from ..errors import UserInputError
-from .schema import Config, register_configs
+from .schema import IGNORED_BY_EXPERIMENT, Config, register_configs
 
-__all__ = ["to_config", "compose_config", "preflight", "CONFIG_MODULE"]
+__all__ = ["to_config", "compose_config", "preflight", "ignored_settings", "CONFIG_MODULE"]
 
 CONFIG_MODULE = "mcsweep.conf"
 # Hydra command-line flags that take a value as the next token.
 _FLAGS_WITH_VALUE = {"--config-path", "-cp", "--config-name", "-cn", "--config-dir", "-cd",
                      "--experimental-rerun", "--package", "-p", "--info", "-i"}
+
+
+_CONFIG_ERRORS = (HydraException, OmegaConfBaseException)
+
+
+def _is_config_error(exc: BaseException) -> bool:
+    """True if ``exc`` and every exception it was raised *from* are Hydra/OmegaConf/user errors.
+
+    Only explicit causes count: OmegaConf converts a user's ``ValueError`` ("abc" is no
+    float) into its own error inside an ``except`` block, so implicit context is expected.
+    """
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        seen.add(id(exc))
+        if not isinstance(exc, (*_CONFIG_ERRORS, UserInputError)):
+            return False
+        exc = exc.__cause__
+    return True
 
 
 def _one_line(exc: BaseException) -> str:
@@ -44,6 +70,8 @@ def to_config(cfg: DictConfig) -> Config:
         cause = exc.__cause__ or exc.__context__
         if isinstance(cause, UserInputError):
             raise cause from None
+        if not _is_config_error(exc):
+            raise  # a bug behind OmegaConf's wrapper: keep the traceback
         raise UserInputError(f"invalid config: {_one_line(exc)}") from None
     if not isinstance(obj, Config):  # pragma: no cover - base_config missing from defaults
         raise UserInputError("config is not based on base_config; expected conf/config.yaml's defaults")
@@ -73,10 +101,12 @@ def compose_config(overrides: Iterable[str] = ()) -> DictConfig:
             return compose(config_name="config", overrides=list(overrides))
     except UserInputError:
         raise
-    except Exception as exc:  # hydra's MissingConfigException, ConfigCompositionException, ...
+    except _CONFIG_ERRORS as exc:  # hydra's MissingConfigException, ConfigCompositionException, ...
         cause = exc.__cause__
         if isinstance(cause, UserInputError):
             raise cause from None
+        if not _is_config_error(exc):
+            raise  # a bug reached through Hydra's composition: keep the traceback
         msg = _unknown_option_message(exc)
         if isinstance(cause, OmegaConfBaseException):
             msg = f"{msg}: {_one_line(cause)}"
@@ -108,7 +138,7 @@ def _expand_sweeps(overrides: list[str]) -> list[list[str]]:
 
     try:
         parsed = OverridesParser.create().parse_overrides(overrides)
-    except Exception as exc:
+    except _CONFIG_ERRORS as exc:
         raise UserInputError(f"cannot parse overrides {overrides}: {_one_line(exc)}") from None
     choices = []
     for ov in parsed:
@@ -118,6 +148,29 @@ def _expand_sweeps(overrides: list[str]) -> list[list[str]]:
         else:
             choices.append([ov.input_line])
     return [list(combo) for combo in itertools.product(*choices)] or [[]]
+
+
+def _override_key(override: str) -> str:
+    return override.split("=", 1)[0].lstrip("+~").split("@", 1)[0]
+
+
+def ignored_settings(argv: list[str], configs: list[Config]) -> list[str]:
+    """One warning line per experiment for command-line settings it never reads.
+
+    ``configs`` are :func:`preflight`'s, one per job of the command line, in order.
+    """
+    jobs = _expand_sweeps(_split_argv(argv)) if configs else []
+    found: dict[str, list[str]] = {}
+    for job, config in zip(jobs, configs):
+        ignored = IGNORED_BY_EXPERIMENT.get(config.experiment.name, ())
+        for ov in job:
+            key = _override_key(ov)
+            if any(key == k or key.startswith(k + ".") for k in ignored):
+                names = found.setdefault(config.experiment.name, [])
+                if ov not in names:
+                    names.append(ov)
+    return [f"experiment={name} ignores {', '.join(ovs)}: they change neither its results nor its config hash"
+            for name, ovs in found.items()]
 
 
 def preflight(argv: list[str]) -> list[Config]:

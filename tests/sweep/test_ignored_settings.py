@@ -1,0 +1,67 @@
+"""Settings an experiment never reads: a one-line warning, and the config hash does not move."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+from omegaconf import OmegaConf
+
+from mcsweep.sweep.provenance import config_hash
+from mcsweep.sweep.validate import compose_config, ignored_settings, preflight
+
+BIN = Path(sys.executable).parent
+IGNORED = ["sky=single", "cell.max_stars=77", "prior_grid.n=5", "observations.f90_case=one",
+           "magnitudes=g15", "experiment.showcase.enabled=false"]
+
+
+def _hash(overrides):
+    return config_hash(OmegaConf.to_container(compose_config(overrides), resolve=True))
+
+
+def test_ignored_settings_do_not_change_the_secondary_hash():
+    base = _hash(["experiment=secondary"])
+    for ov in IGNORED:
+        assert _hash(["experiment=secondary", ov]) == base, ov
+    # ... while the settings it reads do, and the sweep still hashes everything it reads.
+    assert _hash(["experiment=secondary", "confidence=0.8"]) != base
+    assert _hash(["experiment=secondary", "experiment.secondary.dilution=0.9"]) != base
+    assert _hash(["sky=single"]) != _hash([])
+
+
+def test_ignored_settings_get_one_warning_line_per_experiment():
+    argv = ["experiment=secondary", *IGNORED, "confidence=0.8"]
+    lines = ignored_settings(argv, preflight(argv))
+    assert len(lines) == 1
+    assert all(ov in lines[0] for ov in IGNORED) and "confidence" not in lines[0]
+    assert ignored_settings(["sky=single"], preflight(["sky=single"])) == []
+
+
+def test_multirun_warns_only_for_the_jobs_that_ignore():
+    argv = ["-m", "experiment=f90_sweep,secondary", "sky=single"]
+    lines = ignored_settings(argv, preflight(argv))
+    assert lines == ["experiment=secondary ignores sky=single: they change neither its results nor its config hash"]
+
+
+def test_cli_prints_the_warning_once_before_running(tmp_path):
+    r = subprocess.run([str(BIN / "mcsweep"), f"hydra.run.dir={tmp_path / 'run'}", "experiment=secondary",
+                        "sky=single", "cell.max_stars=7", "population=catalogue", "population.path=typo.fits"],
+                       capture_output=True, text=True, timeout=120)
+    lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+    assert r.returncode == 2, r.stderr[-2000:]
+    assert lines[0] == ("mcsweep: warning: experiment=secondary ignores sky=single, cell.max_stars=7: they change "
+                        "neither its results nor its config hash")
+    assert len(lines) == 2 and "typo.fits" in lines[1]
+
+
+def test_same_values_under_an_older_hash_rule_are_explained(tmp_path):
+    import json
+
+    import pytest
+
+    from mcsweep.errors import UserInputError
+    from mcsweep.sweep.provenance import Provenance
+
+    (tmp_path / "provenance.json").write_text(json.dumps({"config_hash": "0ld", "config": {"seed": 1},
+                                                          "mcsweep_version": "0.1"}))
+    with pytest.raises(UserInputError, match="same values, hash 0ld by 0.1"):
+        Provenance(tmp_path, {"seed": 1}, kind="secondary").check_compatible()

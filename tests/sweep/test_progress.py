@@ -1,0 +1,68 @@
+"""Progress in logs that are not a terminal: whole lines every few per cent, no carriage returns."""
+
+import io
+
+from mcsweep.sweep.progress import STEP_PERCENT, LineProgress, progress, stage_line
+
+
+class _Tty(io.StringIO):
+    def isatty(self):
+        return True
+
+
+def test_non_terminal_gets_one_line_per_step_and_no_carriage_return():
+    out = io.StringIO()
+    bar = progress(480, desc="cells", unit="cells", file=out)
+    assert isinstance(bar, LineProgress)
+    for _ in range(480):
+        bar.update(1)
+    bar.close()
+    text = out.getvalue()
+    lines = text.splitlines()
+    assert "\r" not in text
+    assert len(lines) == 100 // STEP_PERCENT
+    assert lines[0].startswith("cells: 48/480 cells ( 10 %)")
+    assert lines[-1].startswith("cells: 480/480 cells (100 %)")
+
+
+def test_resumed_run_reports_from_where_it_restarts_and_ends_with_the_total():
+    out = io.StringIO()
+    bar = progress(48, initial=45, desc="cells", unit="cells", file=out)
+    for _ in range(3):
+        bar.update(1)
+    bar.close()
+    lines = out.getvalue().splitlines()
+    assert lines == [ln for ln in lines if "\r" not in ln] and lines[-1].startswith("cells: 48/48 cells (100 %)")
+    assert len(lines) == 1
+
+
+def test_partial_last_step_is_reported_at_close():
+    out = io.StringIO()
+    bar = progress(1000, desc="chunks", unit="chunks", file=out)
+    for _ in range(105):  # 10.5 %: the 10 % line, nothing more until close
+        bar.update(1)
+    assert len(out.getvalue().splitlines()) == 1
+    bar.close()
+    bar.close()
+    lines = out.getvalue().splitlines()
+    assert len(lines) == 2 and lines[-1].startswith("chunks: 105/1000 chunks ( 10 %)")
+
+
+def test_terminal_keeps_the_live_bar_and_disabled_prints_nothing():
+    tty = _Tty()
+    bar = progress(10, desc="cells", file=tty)
+    bar.update(10)
+    bar.close()
+    assert "\r" in tty.getvalue()
+    quiet = io.StringIO()
+    bar = progress(10, desc="cells", enabled=False, file=quiet)
+    bar.update(10)
+    bar.close()
+    assert quiet.getvalue() == ""
+
+
+def test_stage_line_is_one_plain_line_and_silent_when_disabled():
+    out = io.StringIO()
+    stage_line("transits", "scanning law over 3 directions", file=out)
+    stage_line("transits", "hidden", enabled=False, file=out)
+    assert out.getvalue() == "transits: scanning law over 3 directions\n"

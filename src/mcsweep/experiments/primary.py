@@ -23,8 +23,12 @@ The attitude is now *not* known: stars and attitude are solved together
    space), coefficients ``N(0, attitude_amplitude_mas^2)`` per axis. Only the part the
    solver's spline cannot follow matters (the model is linear in the small correction:
    a constant or a slowly varying rotation is absorbed exactly), so the amplitude is not
-   critical; the default 10 mas with a 6 h time scale (twice the default knot interval)
-   keeps the unmodelled part well below the measurement noise of bright stars. The
+   critical. The default, 10 mas on a 24 h time scale (8 default knot intervals), is
+   smooth on the knot scale as Gaia's attitude is on its tens-of-seconds knots: the
+   unmodelled part (~amplitude x (knot / time scale)^4, a few microarcsec) stays below
+   the noise. A time scale close to the knot interval leaves mas-level unmodelled
+   attitude (measured: 3-4 mas RMS with 6 h against 12 h knots), which then dominates
+   every error; the sensitivity is a config value away. The
    solution starts from the scanning law (as AGIS starts from the commanded attitude).
 4. *Solution.* Unknowns: five astrometric parameters per star at one reference epoch
    (:func:`~mcsweep.experiments.epoch.resolve_reference_epoch`, default the mid-point
@@ -235,8 +239,12 @@ def _true_attitude(settings: PrimarySettings, t_jd: np.ndarray) -> np.ndarray:
     return spline.evaluate(coef, t_jd)
 
 
-def prepare(settings: PrimarySettings, stars: pd.DataFrame, transits: dict) -> PreparedData:
-    """Dead time, observations of the stars with >= 1 transit, truth and noisy measurements."""
+def prepare(settings: PrimarySettings, stars: pd.DataFrame, transits: dict, *,
+            with_noise: bool = True) -> PreparedData:
+    """Dead time, observations of the stars with >= 1 transit, truth and noisy measurements.
+
+    ``with_noise=False`` leaves the measurement noise out (tests).
+    """
     n = len(stars)
     star, t, psi = transits["star"], transits["t"], transits["psi"]
     dead = draw_dead_time(settings.start_jd, settings.end_jd, settings.dead_time_fraction,
@@ -270,6 +278,8 @@ def prepare(settings: PrimarySettings, stars: pd.DataFrame, transits: dict) -> P
                               stars["pmdec"].to_numpy()[solved]])
     true_att = _true_attitude(settings, obs.tcb_jd)
     noise = np.random.default_rng(stream_seed(settings.seed, NOISE_STREAM)).standard_normal(obs.size)
+    if not with_noise:
+        noise[:] = 0.0
     # Normalised measurements: rows of the partials are already divided by sigma.
     h = np.einsum("mi,mi->m", obs.src, x_true[obs.star]) + np.einsum("mi,mi->m", obs.att, true_att) + noise
     return PreparedData(stars=stars, solved=solved, obs=obs, h=h, x_true=x_true, spline=spline,
@@ -280,7 +290,10 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
     """One global solution for the prior ``label``: (per-star results, history, attitude errors).
 
     Per-star results (all stars of ``data.stars``): ``inside`` (1/0, -1 not solved),
-    ``err_mas`` (position error after the frame correction), ``sigma_prior_mas``.
+    ``err_mas`` (position error after the frame correction), ``err_parallax_mas``
+    (estimated - true parallax), ``sigma_prior_mas``. ``extra``: iterations, convergence,
+    attitude error RMS per axis [uas], fitted frame rotation and spin; the last element is
+    (measurement epochs, attitude error (m, 3) [mas]).
     """
     st = data.stars
     s = data.solved
@@ -304,11 +317,14 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
     inside[s[good]] = (q[good] < chi2_threshold(settings.confidence, 2)).astype(np.int8)
     err = np.full(n, np.nan)
     err[s] = np.hypot(dx[:, 0], dx[:, 1])
+    err_plx = np.full(n, np.nan)
+    err_plx[s] = dx[:, 2]
     sigma_prior = np.full(n, np.nan)
     sigma_prior[s] = sig
     res = pd.DataFrame({"star": np.arange(n, dtype=np.int32), "class_key": st["class_key"].to_numpy(),
                         "n_fov": st["n_fov"].to_numpy().astype(np.int16), "inside": inside,
-                        "err_mas": err.astype(np.float32), "sigma_prior_mas": sigma_prior.astype(np.float32)})
+                        "err_mas": err.astype(np.float32),
+                        "err_parallax_mas": err_plx.astype(np.float32), "sigma_prior_mas": sigma_prior.astype(np.float32)})
     t = data.obs.tcb_jd
     att_err = (data.spline.evaluate(sol.attitude, t) - data.true_attitude
                - frame_attitude(eps, omega, t, data.t_ref_jd))

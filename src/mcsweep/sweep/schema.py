@@ -337,7 +337,7 @@ class PrimaryConf:
     reference_epoch: str = "dataset_mean"
     knot_interval_hours: float = 3.0
     attitude_amplitude_mas: float = 10.0
-    attitude_timescale_hours: float = 6.0
+    attitude_timescale_hours: float = 24.0
     solver_rtol: float = 1e-8
     solver_update_tol_uas: float = 1e-2
     solver_max_iter: int = 2000

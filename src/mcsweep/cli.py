@@ -24,12 +24,14 @@ from omegaconf import DictConfig, OmegaConf
 
 from .errors import UserInputError, report_user_error
 from .report.build import build_report
+from .experiments.primary import OUTPUTS as PRIMARY_OUTPUTS
 from .experiments.secondary import OUTPUTS as SECONDARY_OUTPUTS
 from .sweep.provenance import PROVENANCE_FILE, Provenance
 from .sweep.rundir import release, snapshot_for
 from .sweep.runner import OUTPUTS, run_sweep
 from .sweep.logs import quiet_third_party_console
 from .sweep.schema import register_configs
+from .sweep.primary_runner import run_primary
 from .sweep.secondary_runner import run_secondary
 from .sweep.validate import ignored_settings, preflight, to_config
 
@@ -77,9 +79,10 @@ def run_job(cfg: DictConfig, run_dir: Path) -> Path:
     raw = OmegaConf.to_container(cfg, resolve=True)
     name = config.experiment.name
     prov = Provenance(run_dir, raw, kind=name)
-    refuse_foreign_outputs(run_dir, OUTPUTS if name == "f90_sweep" else SECONDARY_OUTPUTS)
+    refuse_foreign_outputs(run_dir, {"f90_sweep": OUTPUTS, "secondary": SECONDARY_OUTPUTS,
+                                     "primary": PRIMARY_OUTPUTS}[name])
     prov.check_compatible()
-    run = {"f90_sweep": run_sweep, "secondary": run_secondary}[name]
+    run = {"f90_sweep": run_sweep, "secondary": run_secondary, "primary": run_primary}[name]
     run(config, raw, run_dir, prov=prov)
     prov.write()
     with prov.stage("report"):

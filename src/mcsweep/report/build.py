@@ -24,6 +24,7 @@ from ..sweep.store import atomic_write_bytes
 from . import figures
 from .document import Document
 from .fit import fit_all
+from .primary_section import primary_section
 from .secondary_section import secondary_section
 
 __all__ = ["build_report", "SECTION_BUILDERS", "REQUIRED_RESULTS", "sweep_section", "provenance_section",
@@ -244,11 +245,13 @@ def manifest_summary(manifest: list[dict]) -> str:
 
 
 #: Extra sections by run kind; each takes (doc, run_dir, provenance dict).
-SECTION_BUILDERS: dict[str, list[Callable]] = {"f90_sweep": [sweep_section], "secondary": [secondary_section]}
+SECTION_BUILDERS: dict[str, list[Callable]] = {"f90_sweep": [sweep_section], "secondary": [secondary_section],
+                                               "primary": [primary_section]}
 #: Result files each run kind's sections read: all must exist before anything is written.
 REQUIRED_RESULTS: dict[str, tuple[str, ...]] = {
     "f90_sweep": ("cells.parquet",),
     "secondary": ("table2.csv", "no_prior.csv", "secondary_summary.csv"),
+    "primary": ("table3.csv", "primary_summary.csv", "primary_convergence.csv"),
 }
 
 

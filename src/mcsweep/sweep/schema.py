@@ -320,15 +320,58 @@ class SecondaryConf:
 
 
 @dataclass
+class PrimaryConf:
+    """One-year global solution with the attitude of Sect. 4.2 (Table 3); documented in
+    conf/experiment/primary.yaml and :mod:`mcsweep.experiments.primary`."""
+
+    class_size: int = 2000
+    g_classes: List[float] = field(default_factory=lambda: [11.0, 15.0, 19.0])
+    primary_sources: int = 20000
+    primary_g_min: float = 13.0
+    mission_years: float = 1.0
+    mission_start: str = "2014-07-25T10:30:00"
+    dead_time_fraction: float = 0.2
+    dead_time_block_days: float = 0.25
+    priors: List[str] = field(default_factory=lambda: ["F90", "10F90", "1000mas"])
+    f90_formula: str = "paper"
+    reference_epoch: str = "dataset_mean"
+    knot_interval_hours: float = 3.0
+    attitude_amplitude_mas: float = 10.0
+    attitude_timescale_hours: float = 24.0
+    solver_rtol: float = 1e-8
+    solver_update_tol_uas: float = 1e-2
+    solver_max_iter: int = 2000
+
+    def __post_init__(self):
+        _check_reference_epoch("experiment.primary.reference_epoch", self.reference_epoch)
+        for key in ("class_size", "primary_sources", "solver_max_iter"):
+            _require(getattr(self, key) > 0, f"experiment.primary.{key}", getattr(self, key), "a positive number")
+        _require(len(self.g_classes) > 0 and all(0 <= g < G_MAX for g in self.g_classes),
+                 "experiment.primary.g_classes", list(self.g_classes), f"G values within 0..{G_MAX:g}")
+        _require(0 <= self.dead_time_fraction < 1, "experiment.primary.dead_time_fraction",
+                 self.dead_time_fraction, "a fraction in [0, 1)")
+        _require(0 < self.mission_years <= 10, "experiment.primary.mission_years", self.mission_years,
+                 "a length in (0, 10] years")
+        for key in ("dead_time_block_days", "knot_interval_hours", "attitude_timescale_hours", "solver_rtol",
+                    "solver_update_tol_uas"):
+            v = getattr(self, key)
+            _require(v > 0 and math.isfinite(v), f"experiment.primary.{key}", v, "a positive finite number")
+        _require(self.attitude_amplitude_mas >= 0 and math.isfinite(self.attitude_amplitude_mas),
+                 "experiment.primary.attitude_amplitude_mas", self.attitude_amplitude_mas,
+                 "a non-negative finite angle in mas")
+
+
+@dataclass
 class ExperimentConf:
-    #: 'f90_sweep' (Sect. 3, main job) or 'secondary' (Sect. 4.1).
+    #: 'f90_sweep' (Sect. 3, main job), 'secondary' (Sect. 4.1) or 'primary' (Sect. 4.2).
     name: str = "f90_sweep"
     showcase: ShowcaseConf = field(default_factory=ShowcaseConf)
     secondary: SecondaryConf = field(default_factory=SecondaryConf)
+    primary: PrimaryConf = field(default_factory=PrimaryConf)
 
     def __post_init__(self):
-        _require(self.name in ("f90_sweep", "secondary"), "experiment", self.name,
-                 "'f90_sweep' or 'secondary'")
+        _require(self.name in ("f90_sweep", "secondary", "primary"), "experiment", self.name,
+                 "'f90_sweep', 'secondary' or 'primary'")
 
 
 @dataclass
@@ -406,10 +449,15 @@ class Config:
 #: ``observations.reference_epoch`` is not listed: the global experiments take their
 #: reference epoch from the config (issue 11).
 IGNORED_BY_EXPERIMENT: Dict[str, tuple] = {
-    "f90_sweep": (),
-    "secondary": ("sky", "magnitudes", "prior_grid", "cell", "experiment.showcase", "observations.cases",
+    # experiment.primary (added later) is ignored by the others so their config hashes stay as they were.
+    "f90_sweep": ("experiment.primary",),
+    "secondary": ("sky", "magnitudes", "prior_grid", "cell", "experiment.showcase", "experiment.primary",
+                  "observations.cases",
                   "observations.f90_case", "observations.start", "observations.end",
                   "observations.fixed_epoch", "prior_maps"),
+    "primary": ("sky", "magnitudes", "prior_grid", "cell", "experiment.showcase", "experiment.secondary",
+                "observations.cases", "observations.f90_case", "observations.start", "observations.end",
+                "observations.fixed_epoch", "prior_maps"),
 }
 
 

@@ -1,0 +1,338 @@
+"""One-year global (primary) solution with the attitude from the same data (paper Sect. 4.2, Table 3).
+
+The attitude is now *not* known: stars and attitude are solved together
+(:mod:`mcsweep.solver`, AGIS-style PCG). Procedure, following Sect. 4.2:
+
+1. *Stars.* The three classes of Table 2 (the ``class_size`` brightest stars fainter
+   than G0 = 11, 15, 19 over the whole sky, drawn exactly as in the secondary
+   experiment by :func:`~mcsweep.experiments.secondary.select_class_stars`) plus
+   ``primary_sources`` well-observed stars that carry the attitude (the ``n`` brightest
+   stars fainter than ``primary_g_min``; AGIS takes bright, well-behaved stars as
+   primaries, Lindegren et al. 2012, Sect. 2.2). The paper: 5e5 per class and (issue
+   12) 1.5e6 primaries; our default is reduced (2000 per class, 20000 primaries) so the
+   run takes minutes on 2 cores; ``conf/experiment/primary.yaml`` shows the full scale.
+2. *Observations.* FoV transits of the configured scanning law (default the flown NSL)
+   over ``mission_years`` (1) from ``mission_start`` (start of routine operations,
+   2014-07-25; Prusti et al. 2016), 20 % dead time as blocks of the time line
+   (:func:`mcsweep.scanning.timeline.draw_dead_time`; paper Sect. 4.2), one AL
+   measurement per FoV transit and one AC measurement where the noise config uses AC,
+   with the uncertainties of :class:`~mcsweep.astrometry.noise.NoiseModel`.
+3. *True attitude.* The scanning law plus a smooth random rotation about all three axes:
+   a cubic spline with knot interval ``attitude_timescale_hours`` whose knots are
+   shifted by a random fraction of an interval (so it is *not* inside the solver's spline
+   space), coefficients ``N(0, attitude_amplitude_mas^2)`` per axis. Only the part the
+   solver's spline cannot follow matters (the model is linear in the small correction:
+   a constant or a slowly varying rotation is absorbed exactly), so the amplitude is not
+   critical. The default, 10 mas on a 24 h time scale (8 default knot intervals), is
+   smooth on the knot scale as Gaia's attitude is on its tens-of-seconds knots: the
+   unmodelled part (~amplitude x (knot / time scale)^4, a few microarcsec) stays below
+   the noise. A time scale close to the knot interval leaves mas-level unmodelled
+   attitude (measured: 3-4 mas RMS with 6 h against 12 h knots), which then dominates
+   every error; the sensitivity is a config value away. The
+   solution starts from the scanning law (as AGIS starts from the commanded attitude).
+4. *Solution.* Unknowns: five astrometric parameters per star at one reference epoch
+   (:func:`~mcsweep.experiments.epoch.resolve_reference_epoch`, default the mid-point
+   of the data set, Sect. 2.1) with the prior of Eq. 18 (same prior rule for every
+   star, primaries included), and cubic-spline attitude corrections (Lindegren et al.
+   2012, Sect. 3.3) with ``knot_interval_hours``. No instrument calibration (none is
+   simulated). Frame: zero mean rotation and spin of the corrections over all sources
+   (:mod:`mcsweep.solver.frame`). One PCG solution per prior of ``priors``
+   (``'<k>F90'`` = k sigma_F90, ``'<s>mas'`` = a fixed sigma; default the rows of
+   Table 3: F90, 10F90, 1000mas).
+5. *Evaluation.* As the frame rotator: the rotation and spin fitted to (estimated -
+   true) over all sources are removed; each star's formal covariance is its own block
+   ``(N_ss + N_p)^-1`` with the attitude taken as known (as AGIS gives it). Per star:
+   inside the P ellipse, position error at the reference epoch.
+
+Knot interval: AGIS uses intervals of tens of seconds for ~1e8 primaries (Lindegren et
+al. 2012, Sect. 3.3), i.e. of order 1e3 observations per knot and axis. Our reduced
+default (26000 stars, ~14 transits each per year, AL + AC) gives ~100 measurements per
+hour, so 3 h keeps a few hundred measurements per knot (the attitude noise is then well
+below the single-measurement noise); at full scale (3e6 stars) 60 s gives the same.
+
+Reproducibility: SeedSequence(seed, spawn_key=(42, stream, ...)): population of a class
+(stream 0, class key round(100 G0); primaries key 0), dead time (1), true attitude (2),
+measurement noise (3). All are drawn in-process in a fixed order, so results do not
+depend on n_jobs or chunking (the transit search is chunked over stars and re-assembled
+in star order).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import re
+
+import numpy as np
+import pandas as pd
+from astropy.time import Time
+
+from ..astrometry.confidence import chi2_threshold, mahalanobis_sq
+from ..astrometry.noise import G_MAX, NoiseModel
+from ..astrometry.solve import prior_diagonal
+from ..errors import UserInputError
+from ..prior import G_FIT_MAX, sigma_f90, sigma_from_coefficients
+from ..scanning import ScanningLaw, find_transits
+from ..scanning.ephemeris import TABLE_END_JD_TCB, TABLE_START_JD_TCB, gaia_position_au
+from ..scanning.timeline import draw_dead_time
+from ..solver import (AttitudeSpline, GlobalProblem, build_observations, fit_frame, frame_attitude,
+                      frame_offsets, solve_global)
+from ..solver.source_update import solve_sources, source_normals
+from .epoch import resolve_reference_epoch
+from .secondary import load_f90_coefficients
+
+__all__ = [
+    "CHUNKS_DIR",
+    "OUTPUTS",
+    "PRIMARY_KEY",
+    "PrimarySettings",
+    "PreparedData",
+    "build_settings",
+    "parse_prior",
+    "prior_sigma_mas",
+    "stream_seed",
+    "transits_of",
+    "prepare",
+    "solve_prior",
+]
+
+#: Sub-directory of the run directory holding one result file per prior.
+CHUNKS_DIR = "primary_chunks"
+OUTPUTS = (CHUNKS_DIR, "table3.csv", "table3.md", "primary_convergence.csv", "primary_summary.csv",
+           "report.md", "report.html", "provenance.json")
+#: Class key of the primary sources in the seeds and the results.
+PRIMARY_KEY = 0
+_TAG = 42  # Sect. 4.2
+POPULATION_STREAM, DEAD_STREAM, ATTITUDE_STREAM, NOISE_STREAM = 0, 1, 2, 3
+STAR_COLUMNS = ("ra", "dec", "l", "b", "parallax", "pmra", "pmdec", "phot_g_mean_mag")
+_PRIOR_RE = re.compile(r"^(?:(?P<k>\d+(?:\.\d*)?(?:[eE][-+]?\d+)?)?F90|(?P<s>\d+(?:\.\d*)?(?:[eE][-+]?\d+)?)mas)$")
+
+
+def stream_seed(seed: int, stream: int, *key: int) -> np.random.SeedSequence:
+    return np.random.SeedSequence(seed, spawn_key=(_TAG, stream, *key))
+
+
+def parse_prior(label: str) -> tuple[str, float]:
+    """``'10F90'`` -> ('F90', 10.0); ``'1000mas'`` -> ('mas', 1000.0); user error otherwise."""
+    m = _PRIOR_RE.match(str(label).strip())
+    value = None
+    if m:
+        kind, value = ("F90", float(m["k"] or 1.0)) if m["s"] is None else ("mas", float(m["s"]))
+    if value is None or not (math.isfinite(value) and value > 0):
+        raise UserInputError(f"experiment.primary.priors entry {label!r} is not accepted; expected "
+                             "'<k>F90' (k times sigma_F90, e.g. F90, 10F90) or '<sigma>mas' (e.g. 1000mas) "
+                             "with a positive number")
+    return kind, value
+
+
+@dataclasses.dataclass(frozen=True)
+class PrimarySettings:
+    """Everything the experiment needs besides its stars."""
+
+    seed: int
+    start_jd: float
+    end_jd: float
+    law: ScanningLaw
+    dead_time_fraction: float
+    dead_time_block_days: float
+    noise: NoiseModel
+    confidence: float
+    ratio_R: float
+    priors: tuple
+    knot_interval_days: float
+    attitude_amplitude_mas: float
+    attitude_timescale_days: float
+    rtol: float
+    update_tol_uas: float
+    max_iter: int
+    f90_coefficients: tuple | None = None
+    reference_epoch: str = "dataset_mean"
+
+    @property
+    def t_ref_jd(self) -> float:
+        return float(np.ravel(resolve_reference_epoch(self.reference_epoch, self.start_jd, self.end_jd))[0])
+
+    def sigma_f90_mas(self, l_deg, b_deg, g) -> np.ndarray:
+        if self.f90_coefficients is None:
+            return sigma_f90(l_deg, b_deg, g)
+        return sigma_from_coefficients(l_deg, b_deg, g, dict(self.f90_coefficients), g_max=G_FIT_MAX)
+
+
+def build_settings(config) -> PrimarySettings:
+    """Settings from a checked :class:`~mcsweep.sweep.schema.Config`; user errors raised here."""
+    pri = config.experiment.primary
+    try:
+        start_jd = float(Time(pri.mission_start, scale="tcb").jd)
+    except ValueError:
+        raise UserInputError(f"experiment.primary.mission_start={pri.mission_start!r} is not accepted; "
+                             "expected an ISO date (TCB) such as '2014-07-25T10:30:00'") from None
+    end_jd = start_jd + 365.25 * pri.mission_years
+    if start_jd < TABLE_START_JD_TCB + 1.0 or end_jd > TABLE_END_JD_TCB - 1.0:
+        raise UserInputError(f"experiment.primary.mission_start={pri.mission_start!r} with mission_years="
+                             f"{pri.mission_years:g} is not accepted; expected a mission within 2013-2031 "
+                             "(the observer ephemeris)")
+    if pri.reference_epoch == "star_mean":
+        raise UserInputError("experiment.primary.reference_epoch='star_mean' is not accepted; a global "
+                             "solution has one reference epoch: expected 'dataset_mean' or an ISO date")
+    priors = tuple(str(p) for p in pri.priors)
+    for p in priors:
+        parse_prior(p)
+    if len(set(priors)) != len(priors) or not priors:
+        raise UserInputError(f"experiment.primary.priors={list(priors)} is not accepted; expected a "
+                             "non-empty list of distinct priors")
+    if max(list(pri.g_classes) + [pri.primary_g_min]) >= G_MAX:
+        raise UserInputError(f"experiment.primary.g_classes={list(pri.g_classes)} / primary_g_min="
+                             f"{pri.primary_g_min:g} is not accepted; expected magnitudes below {G_MAX:g}")
+    return PrimarySettings(
+        seed=int(config.seed), start_jd=start_jd, end_jd=end_jd,
+        law=ScanningLaw.from_config(dataclasses.asdict(config.scanning)),
+        dead_time_fraction=float(pri.dead_time_fraction), dead_time_block_days=float(pri.dead_time_block_days),
+        noise=NoiseModel(al_scale=config.noise.al_scale, ac_scale=config.noise.ac_scale,
+                         use_ac=config.noise.use_ac),
+        confidence=float(config.confidence), ratio_R=float(config.ratio_R), priors=priors,
+        knot_interval_days=float(pri.knot_interval_hours) / 24.0,
+        attitude_amplitude_mas=float(pri.attitude_amplitude_mas),
+        attitude_timescale_days=float(pri.attitude_timescale_hours) / 24.0,
+        rtol=float(pri.solver_rtol), update_tol_uas=float(pri.solver_update_tol_uas),
+        max_iter=int(pri.solver_max_iter),
+        f90_coefficients=load_f90_coefficients(pri.f90_formula) if pri.f90_formula != "paper" else None,
+        reference_epoch=str(pri.reference_epoch))
+
+
+def prior_sigma_mas(settings: PrimarySettings, label: str, sigma_f90_mas: np.ndarray) -> np.ndarray:
+    """Parallax prior sigma of every star for one entry of ``priors``."""
+    kind, value = parse_prior(label)
+    return value * sigma_f90_mas if kind == "F90" else np.full(sigma_f90_mas.shape, value)
+
+
+# --------------------------------------------------------------------------- data
+def transits_of(job) -> tuple[int, dict]:
+    """FoV transits of one chunk of stars (executor task): (chunk index, arrays)."""
+    index, first, ra, dec, start_jd, end_jd, law = job
+    tr = find_transits(ra, dec, start_jd, end_jd, law=law, compact=True)
+    return index, {"star": first + tr["source_index"].to_numpy().astype(np.int64),
+                   "t": tr["tcb_jd"].to_numpy(), "psi": tr["scan_angle_deg"].to_numpy().astype(float)}
+
+
+@dataclasses.dataclass
+class PreparedData:
+    """Stars, observations and noisy measurements shared by every prior's solution."""
+
+    stars: pd.DataFrame      # STAR_COLUMNS + 'class_key' (round(100 G0), 0 = primary) + 'n_fov'
+    solved: np.ndarray       # indices into ``stars`` of the stars in the solution (>= 1 transit)
+    obs: object              # solver.Observations of the solved stars
+    h: np.ndarray            # normalised measurements (observed minus computed from the law)
+    x_true: np.ndarray       # (n_solved, 5)
+    spline: AttitudeSpline
+    true_attitude: np.ndarray  # (m, 3) true rotation at each measurement [mas]
+    t_ref_jd: float
+    dead_days: float
+
+
+def _true_attitude(settings: PrimarySettings, t_jd: np.ndarray) -> np.ndarray:
+    """The smooth random rotation (module notes, step 3) at ``t_jd`` [mas], (m, 3)."""
+    rng = np.random.default_rng(stream_seed(settings.seed, ATTITUDE_STREAM))
+    tau = settings.attitude_timescale_days
+    shift = rng.uniform(0.0, tau)  # knots off the solver's grid
+    spline = AttitudeSpline(settings.start_jd - shift, settings.end_jd + tau, tau)
+    coef = rng.normal(0.0, settings.attitude_amplitude_mas, (spline.n_coef, 3))
+    return spline.evaluate(coef, t_jd)
+
+
+def prepare(settings: PrimarySettings, stars: pd.DataFrame, transits: dict, *,
+            with_noise: bool = True) -> PreparedData:
+    """Dead time, observations of the stars with >= 1 transit, truth and noisy measurements.
+
+    ``with_noise=False`` leaves the measurement noise out (tests).
+    """
+    n = len(stars)
+    star, t, psi = transits["star"], transits["t"], transits["psi"]
+    dead = draw_dead_time(settings.start_jd, settings.end_jd, settings.dead_time_fraction,
+                          block_days=settings.dead_time_block_days,
+                          rng=np.random.default_rng(stream_seed(settings.seed, DEAD_STREAM)))
+    keep = ~dead.is_dead(t)
+    star, t, psi = star[keep], t[keep], psi[keep]
+    n_fov = np.bincount(star, minlength=n)
+    stars = stars.copy()
+    stars["n_fov"] = n_fov
+    g = stars["phot_g_mean_mag"].to_numpy()
+    solved = np.flatnonzero(n_fov > 0)
+    if settings.noise.use_ac is False:  # AL only: a position needs two transits
+        solved = np.flatnonzero(n_fov > 1)
+    new = np.full(n, -1)
+    new[solved] = np.arange(solved.size)
+    sel = new[star] >= 0
+    star, t, psi = new[star[sel]], t[sel], psi[sel]
+    gs = g[solved]
+    s_al = settings.noise.sigma_al_mas(gs)[star]
+    s_ac = settings.noise.sigma_ac_mas(gs)[star] if settings.noise.use_ac else None
+    spline = AttitudeSpline(settings.start_jd, settings.end_jd, settings.knot_interval_days)
+    t_ref = settings.t_ref_jd
+    ra, dec = stars["ra"].to_numpy()[solved], stars["dec"].to_numpy()[solved]
+    obs = build_observations(ra, dec, star, t, psi, gaia_position_au(t), t_ref_jd=t_ref, sigma_al_mas=s_al,
+                             sigma_ac_mas=s_ac, spline=spline, n_stars=solved.size)
+    # Truth: position zero at the reference epoch (the offsets are what is solved for),
+    # the population's parallax and proper motion.
+    x_true = np.column_stack([np.zeros(solved.size), np.zeros(solved.size),
+                              stars["parallax"].to_numpy()[solved], stars["pmra"].to_numpy()[solved],
+                              stars["pmdec"].to_numpy()[solved]])
+    true_att = _true_attitude(settings, obs.tcb_jd)
+    noise = np.random.default_rng(stream_seed(settings.seed, NOISE_STREAM)).standard_normal(obs.size)
+    if not with_noise:
+        noise[:] = 0.0
+    # Normalised measurements: rows of the partials are already divided by sigma.
+    h = np.einsum("mi,mi->m", obs.src, x_true[obs.star]) + np.einsum("mi,mi->m", obs.att, true_att) + noise
+    return PreparedData(stars=stars, solved=solved, obs=obs, h=h, x_true=x_true, spline=spline,
+                        true_attitude=true_att, t_ref_jd=t_ref, dead_days=dead.total_days)
+
+
+def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=None):
+    """One global solution for the prior ``label``: (per-star results, history, attitude errors).
+
+    Per-star results (all stars of ``data.stars``): ``inside`` (1/0, -1 not solved),
+    ``err_mas`` (position error after the frame correction), ``err_parallax_mas``
+    (estimated - true parallax), ``sigma_prior_mas``. ``extra``: iterations, convergence,
+    attitude error RMS per axis [uas], fitted frame rotation and spin; the last element is
+    (measurement epochs, attitude error (m, 3) [mas]).
+    """
+    st = data.stars
+    s = data.solved
+    sig = prior_sigma_mas(settings, label, settings.sigma_f90_mas(
+        st["l"].to_numpy()[s], st["b"].to_numpy()[s], st["phot_g_mean_mag"].to_numpy()[s]))
+    prior = prior_diagonal(sig, settings.ratio_R)
+    ok = solve_sources(source_normals(data.obs), np.zeros((s.size, 5)), prior)[2]
+    if not ok.all():  # pragma: no cover - every solved star has >= 1 AL+AC or 2 AL measurements
+        raise RuntimeError(f"{int((~ok).sum())} stars have singular source blocks under prior {label}")
+    ra, dec = st["ra"].to_numpy()[s], st["dec"].to_numpy()[s]
+    problem = GlobalProblem(data.obs, prior, ra, dec)
+    sol = solve_global(problem, data.h, rtol=settings.rtol, update_tol_uas=settings.update_tol_uas,
+                       max_iter=settings.max_iter, log=log)
+    dx = sol.x - data.x_true
+    eps, omega = fit_frame(dx, ra, dec)  # the frame rotator (Lindegren et al. 2012, Sect. 6.1)
+    dx = dx - frame_offsets(ra, dec, eps, omega)
+    q = mahalanobis_sq(dx[:, :2], sol.cov[:, :2, :2])
+    n = len(st)
+    inside = np.full(n, -1, dtype=np.int8)
+    good = np.isfinite(q)
+    inside[s[good]] = (q[good] < chi2_threshold(settings.confidence, 2)).astype(np.int8)
+    err = np.full(n, np.nan)
+    err[s] = np.hypot(dx[:, 0], dx[:, 1])
+    err_plx = np.full(n, np.nan)
+    err_plx[s] = dx[:, 2]
+    sigma_prior = np.full(n, np.nan)
+    sigma_prior[s] = sig
+    res = pd.DataFrame({"star": np.arange(n, dtype=np.int32), "class_key": st["class_key"].to_numpy(),
+                        "n_fov": st["n_fov"].to_numpy().astype(np.int16), "inside": inside,
+                        "err_mas": err.astype(np.float32),
+                        "err_parallax_mas": err_plx.astype(np.float32), "sigma_prior_mas": sigma_prior.astype(np.float32)})
+    t = data.obs.tcb_jd
+    att_err = (data.spline.evaluate(sol.attitude, t) - data.true_attitude
+               - frame_attitude(eps, omega, t, data.t_ref_jd))
+    hist = pd.DataFrame([dataclasses.asdict(r) for r in sol.history])
+    hist.insert(0, "prior", label)
+    extra = {"converged": bool(sol.converged), "iterations": len(sol.history),
+             "attitude_rms_uas": (1e3 * np.sqrt(np.mean(att_err ** 2, axis=0))).tolist() if t.size else [],
+             "frame_rotation_mas": eps.tolist(), "frame_spin_mas_yr": omega.tolist(),
+             "residual_rms": float(np.sqrt(np.mean(sol.residuals ** 2))) if sol.residuals.size else float("nan"),
+             "seconds": float(sol.history[-1].seconds) if sol.history else 0.0}
+    return res, hist, extra, (t, att_err)

@@ -1,0 +1,50 @@
+"""solver stage: the global (primary) astrometric solution, stars and attitude together.
+
+Paper Sect. 4.2 (Table 3): one year of observations, the attitude determined from the
+same observations as the stars. The solver follows AGIS (Lindegren et al. 2012, A&A
+538, A78) as Bombrun et al. (2012, A&A 538, A77) read it: the normal equations of all
+unknowns are solved by conjugate gradients, preconditioned with the block updates of
+AGIS (the per-star 5 x 5 source blocks with the Eq. 18 prior, and the banded attitude
+block).
+
+Modules
+-------
+attitude_spline
+    Cubic B-spline basis in time for the three small-angle attitude corrections.
+observations
+    Flat per-observation partial derivatives (source and attitude) of AL/AC measurements.
+source_update
+    Per-star normal blocks with the prior and their batched solution (the AGIS S block).
+attitude_update
+    Banded attitude normal matrix in LAPACK storage and its solution (the AGIS A block).
+frame
+    Orientation and spin (6 dof): the frame constraint and the frame-rotator fit.
+cg
+    The normal-equations operator and the preconditioned conjugate-gradient iteration.
+
+Only :mod:`mcsweep.astrometry` (and :mod:`mcsweep.scanning` through it) is imported.
+"""
+
+from .attitude_spline import AttitudeSpline
+from .attitude_update import attitude_band, band_to_dense
+from .cg import ConvergenceRecord, GlobalProblem, solve_global
+from .frame import fit_frame, frame_attitude, frame_offsets
+from .observations import Observations, attitude_partials, build_observations
+from .source_update import solve_sources, source_normals
+
+__all__ = [
+    "AttitudeSpline",
+    "Observations",
+    "attitude_partials",
+    "build_observations",
+    "source_normals",
+    "solve_sources",
+    "attitude_band",
+    "band_to_dense",
+    "fit_frame",
+    "frame_offsets",
+    "frame_attitude",
+    "GlobalProblem",
+    "ConvergenceRecord",
+    "solve_global",
+]

@@ -1,0 +1,91 @@
+"""The attitude block of AGIS: banded normal equations of the spline coefficients.
+
+Unknowns are ordered coefficient by coefficient, the three axes interleaved (index
+``3 j + axis``). A cubic B-spline coefficient couples only to its 3 neighbours on each
+side, so every measurement touches 12 consecutive unknowns and the attitude normal
+matrix is banded with ``BANDWIDTH = 11`` super-diagonals (Lindegren et al. 2012,
+Sect. 5.3). It is stored in LAPACK's upper band form (``ab[u + i - j, j] = N[i, j]``)
+for :func:`scipy.linalg.cholesky_banded` / :func:`scipy.linalg.cho_solve_banded`.
+
+Coefficients whose support holds no measurement (inside dead time) are not
+determined by the data; they are held at zero (unit diagonal, zero right-hand side),
+as AGIS breaks the attitude into segments at data gaps.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.linalg import cho_solve_banded, cholesky_banded
+
+from .observations import Observations
+
+__all__ = ["BANDWIDTH", "attitude_band", "attitude_rhs", "band_to_dense", "free_coefficients",
+           "BandedAttitudeSolver"]
+
+_AX = 3
+_NB = 4  # basis functions per epoch (cubic)
+#: Super-diagonals of the attitude normal matrix (12 consecutive unknowns per measurement).
+BANDWIDTH = _AX * _NB - 1
+
+
+def attitude_band(obs: Observations) -> np.ndarray:
+    """Upper band storage ``(BANDWIDTH + 1, 3 n_coef)`` of ``sum A_a' A_a``."""
+    n = _AX * obs.n_coef
+    g = obs.attitude_rows().reshape(obs.size, _AX * _NB)  # unknowns 3 j0 .. 3 j0 + 11
+    base = _AX * obs.j0
+    ab = np.zeros((BANDWIDTH + 1, n))
+    for r in range(_AX * _NB):
+        for s in range(r, _AX * _NB):
+            col = base + s
+            ab[BANDWIDTH + r - s] += np.bincount(col, g[:, r] * g[:, s], minlength=n)
+    return ab
+
+
+def attitude_rhs(obs: Observations, r) -> np.ndarray:
+    """``A_a' r`` (n_coef, 3) for normalised residuals ``r`` (m,)."""
+    r = np.asarray(r, dtype=float)
+    out = np.zeros((obs.n_coef, _AX))
+    for k in range(_NB):
+        idx = obs.j0 + k
+        w = obs.bval[:, k] * r
+        for c in range(_AX):
+            out[:, c] += np.bincount(idx, w * obs.att[:, c], minlength=obs.n_coef)
+    return out
+
+
+def band_to_dense(ab) -> np.ndarray:
+    """Dense symmetric matrix from upper band storage (for tests and small problems)."""
+    u, n = ab.shape[0] - 1, ab.shape[1]
+    N = np.zeros((n, n))
+    for d in range(u + 1):
+        i = np.arange(n - d)
+        N[i, i + d] = ab[u - d, d:]
+        N[i + d, i] = ab[u - d, d:]
+    return N
+
+
+def free_coefficients(ab) -> np.ndarray:
+    """(n_coef, 3) bool: coefficients with at least one measurement in their support."""
+    return (ab[-1] > 0).reshape(-1, _AX)
+
+
+class BandedAttitudeSolver:
+    """Cholesky factor of the attitude block, reused for every solve.
+
+    Parameters
+    ----------
+    ab : ndarray
+        Upper band storage of the attitude normal matrix (:func:`attitude_band`).
+    """
+
+    def __init__(self, ab):
+        ab = np.array(ab, dtype=float)
+        self.free = free_coefficients(ab)
+        fixed = ~self.free.ravel()
+        ab[-1, fixed] = 1.0  # rows/columns of unobserved coefficients are already zero
+        self.cholesky = cholesky_banded(ab, lower=False)
+
+    def solve(self, rhs) -> np.ndarray:
+        """``N_aa^-1 rhs`` for ``rhs (n_coef, 3)``; unobserved coefficients stay zero."""
+        rhs = np.where(self.free, rhs, 0.0)
+        return cho_solve_banded((self.cholesky, False), rhs.ravel()).reshape(-1, _AX)

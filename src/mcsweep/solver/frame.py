@@ -1,0 +1,69 @@
+"""Reference frame: orientation and spin (Lindegren et al. 2012, Sect. 6.1).
+
+Rotating all star positions by a small rotation vector ``eps`` and the attitude by
+the same ``eps`` leaves every measurement unchanged; so does a spin ``omega`` added to
+all proper motions with the attitude rotated by ``omega (t - t_ref)`` (the common
+reference epoch ``t_ref``). The data therefore leave 6 degrees of freedom undetermined
+(the prior on the proper motions, Eq. 18, fixes the spin only weakly).
+
+* Constraint used in the solution: zero mean rotation of the position corrections and
+  of the proper-motion corrections over all sources, ``sum_i K_i' dpos_i = 0`` and
+  ``sum_i K_i' dmu_i = 0``, added to the normal equations as a penalty (exact for the
+  orientation, whose direction the data do not see at all).
+* Evaluation: as the frame rotator does after AGIS, the rotation and spin fitted by
+  least squares to (estimated - true) over all sources are removed before errors are
+  computed (:func:`fit_frame`, :func:`frame_offsets`).
+
+``K_i`` (2 x 3) maps ``eps`` to ``(dalpha*, ddelta) = (eps . q_i, -eps . p_i)`` with
+``p, q`` local east and north (``eps x r`` projected on the tangent plane).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..astrometry.design import tangent_triad
+
+__all__ = ["rotation_matrices", "frame_offsets", "fit_frame", "frame_attitude"]
+
+
+def rotation_matrices(ra_deg, dec_deg) -> np.ndarray:
+    """``K (n, 2, 3)``: position offsets (dalpha*, ddelta) of a rotation vector (module notes)."""
+    p, q, _ = tangent_triad(ra_deg, dec_deg)
+    return np.stack([q, -p], axis=-2)
+
+
+def frame_offsets(ra_deg, dec_deg, eps_mas, omega_mas_yr) -> np.ndarray:
+    """Parameter offsets ``(n, 5)`` of a rotation ``eps`` [mas] and spin ``omega`` [mas/yr]."""
+    K = rotation_matrices(ra_deg, dec_deg)
+    out = np.zeros(K.shape[:1] + (5,))
+    out[:, 0:2] = K @ np.asarray(eps_mas, dtype=float)
+    out[:, 3:5] = K @ np.asarray(omega_mas_yr, dtype=float)
+    return out
+
+
+def fit_frame(dx, ra_deg, dec_deg, select=None) -> tuple[np.ndarray, np.ndarray]:
+    """Least-squares rotation ``eps`` [mas] and spin ``omega`` [mas/yr] of parameter differences.
+
+    Parameters
+    ----------
+    dx : array_like (n, 5)
+        Estimated minus true parameters.
+    ra_deg, dec_deg : array_like (n,)
+    select : array_like of bool (n,), optional
+        Sources used in the fit (default all with finite ``dx``).
+    """
+    dx = np.asarray(dx, dtype=float)
+    K = rotation_matrices(ra_deg, dec_deg)
+    sel = np.all(np.isfinite(dx), axis=1) if select is None else np.asarray(select, dtype=bool)
+    Ks = K[sel]
+    M = np.einsum("nij,nik->jk", Ks, Ks)
+    eps = np.linalg.solve(M, np.einsum("nij,ni->j", Ks, dx[sel, 0:2]))
+    omega = np.linalg.solve(M, np.einsum("nij,ni->j", Ks, dx[sel, 3:5]))
+    return eps, omega
+
+
+def frame_attitude(eps_mas, omega_mas_yr, tcb_jd, t_ref_jd: float) -> np.ndarray:
+    """Attitude rotation (m, 3) [mas] matching a frame rotation ``eps`` and spin ``omega``."""
+    t_yr = (np.asarray(tcb_jd, dtype=float) - t_ref_jd) / 365.25
+    return np.asarray(eps_mas, dtype=float) + t_yr[:, None] * np.asarray(omega_mas_yr, dtype=float)

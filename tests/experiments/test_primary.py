@@ -1,0 +1,138 @@
+"""The one-year global (primary) experiment of paper Sect. 4.2 (Table 3), reduced in size."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from omegaconf import OmegaConf
+
+from mcsweep.errors import UserInputError
+from mcsweep.experiments import primary as P
+from mcsweep.experiments.primary_table import PAPER_TABLE3, TABLE3_COLUMNS, binomial_sigma, paper_value3
+from mcsweep.sweep.validate import compose_config, to_config
+
+BIN = Path(sys.executable).parent
+#: A few hundred stars per class, 1500 primaries, 1 day knots: a run of under a minute.
+TINY = ["experiment=primary", "experiment.primary.class_size=150", "experiment.primary.primary_sources=1500",
+        "experiment.primary.knot_interval_hours=24", "experiment.primary.attitude_timescale_hours=192",
+        "experiment.primary.priors=[F90,10F90]", "execution.progress=false", "execution.n_jobs=1"]
+#: The unit tests' settings: a quarter of a year, 12 h knots, 4 day perturbations.
+SHORT = ["experiment.primary.mission_years=0.25", "experiment.primary.knot_interval_hours=12",
+         "experiment.primary.attitude_timescale_hours=96"]
+#: Noiseless recovery of the truth after the frame correction [microarcsec].
+RECOVERY_UAS = 1.0
+
+
+def _config(overrides):
+    cfg = compose_config([*TINY, *SHORT, *overrides])
+    return to_config(cfg), OmegaConf.to_container(cfg, resolve=True)
+
+
+def _synthetic_stars(n, seed):
+    rng = np.random.default_rng(seed)
+    ra = rng.uniform(0.0, 360.0, n)
+    dec = np.degrees(np.arcsin(rng.uniform(-1.0, 1.0, n)))
+    return pd.DataFrame({"ra": ra, "dec": dec, "l": ra, "b": dec, "parallax": rng.uniform(0.1, 5.0, n),
+                         "pmra": rng.normal(0.0, 10.0, n), "pmdec": rng.normal(0.0, 10.0, n),
+                         "phot_g_mean_mag": rng.uniform(12.0, 18.0, n), "class_key": 1500})
+
+
+def _catalogue(path, n=8000, seed=3):
+    """A whole-sky catalogue (G 10.5-20.5) so the run does not spend its time in the galaxy model."""
+    stars = _synthetic_stars(n, seed)
+    stars["phot_g_mean_mag"] = np.random.default_rng(seed + 1).uniform(10.5, 20.5, n)
+    stars.drop(columns="class_key").to_csv(path, index=False)
+    return path
+
+
+@pytest.fixture(scope="module")
+def cli_run(tmp_path_factory):
+    base = tmp_path_factory.mktemp("primary")
+    out = base / "run"
+    cat = _catalogue(base / "stars.csv")
+    r = subprocess.run([str(BIN / "mcsweep"), f"hydra.run.dir={out}", *TINY, "population=catalogue",
+                        f"population.path={cat}"], capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr[-3000:]
+    return out
+
+
+@pytest.mark.slow
+def test_tiny_run_through_cli_writes_table3_and_report(cli_run):
+    table = pd.read_csv(cli_run / "table3.csv")
+    assert list(table.columns) == list(TABLE3_COLUMNS)
+    assert len(table) == 2 * 2 * 3  # subsets x priors x classes
+    assert set(table["prior"]) == {"F90", "10F90"}
+    ok = table["n_valid"] > 0
+    f, n = table.loc[ok, "fraction_inside"], table.loc[ok, "n_valid"]
+    np.testing.assert_allclose(table.loc[ok, "fraction_sigma"], np.sqrt(f * (1 - f) / n), rtol=1e-12)
+    assert table["paper_fraction_inside"].notna().all()  # P = 0.9 and the paper's classes
+    summary = pd.read_csv(cli_run / "primary_summary.csv")
+    assert summary["converged"].all()
+    conv = pd.read_csv(cli_run / "primary_convergence.csv")
+    assert set(conv["prior"]) == {"F90", "10F90"}
+    report = (cli_run / "report.md").read_text()
+    assert "Table 3" in report and "PCG" in report
+    assert (cli_run / "table3.md").read_text().count("(") > 12
+
+
+def test_bad_prior_through_cli_exits_2_in_one_line_and_leaves_no_output(tmp_path):
+    out = tmp_path / "bad"
+    r = subprocess.run([str(BIN / "mcsweep"), f"hydra.run.dir={out}", *TINY, "experiment.primary.priors=[F90,ten]"],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 2, r.stderr[-2000:]
+    lines = [ln for ln in r.stderr.strip().splitlines() if ln]
+    assert len(lines) == 1 and "priors" in lines[0] and "Traceback" not in r.stderr
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("override, key", [
+    ("experiment.primary.knot_interval_hours=0", "knot_interval_hours"),
+    ("experiment.primary.dead_time_fraction=1.0", "dead_time_fraction"),
+    ("experiment.primary.reference_epoch=star_mean", "reference_epoch"),
+    ("experiment.primary.priors=[0F90]", "priors"),
+])
+def test_bad_settings_are_user_errors(override, key):
+    with pytest.raises(UserInputError, match=key):
+        P.build_settings(_config([override])[0])
+
+
+def test_prior_grammar():
+    assert P.parse_prior("F90") == ("F90", 1.0)
+    assert P.parse_prior("10F90") == ("F90", 10.0)
+    assert P.parse_prior("2.5F90") == ("F90", 2.5)
+    assert P.parse_prior("1000mas") == ("mas", 1000.0)
+
+
+def test_paper_table3_transcription():
+    # Spot checks against the LaTeX source of Table 3 (Sect. 4.2).
+    assert PAPER_TABLE3[(">4", "F90")][0] == (32.3, 53.3, 88.0)
+    assert PAPER_TABLE3[("<=4", "10F90")][1] == (1.4, 1.1, 4.2)
+    assert paper_value3(">4", "10F90", 11.0, 0.9) == pytest.approx((0.886, 0.1))
+    assert np.isnan(paper_value3(">4", "10F90", 11.0, 0.95)[0])
+    assert binomial_sigma(0.9, 100) == pytest.approx(0.03)
+
+
+def test_noiseless_data_recover_the_truth_and_the_attitude():
+    # Zero parallax and proper motion (a prior centred on the truth cannot bias it), no
+    # noise, the default smooth attitude perturbation (10 mas on 8 knot intervals, not in
+    # the solver's spline space): the frame-corrected solution is the truth to well below
+    # a microarcsecond, the attitude too (the unmodelled part is what remains).
+    config, _ = _config(["experiment.primary.solver_rtol=1e-10", "experiment.primary.solver_update_tol_uas=1e-3",
+                         "experiment.primary.solver_max_iter=3000"])
+    settings = P.build_settings(config)
+    stars = _synthetic_stars(3000, 7)
+    stars[["parallax", "pmra", "pmdec"]] = 0.0
+    _, tr = P.transits_of((0, 0, stars["ra"].to_numpy(), stars["dec"].to_numpy(), settings.start_jd,
+                           settings.end_jd, settings.law))
+    data = P.prepare(settings, stars, tr, with_noise=False)
+    assert 1e3 * np.sqrt(np.mean(data.true_attitude ** 2)) > 1000 * RECOVERY_UAS  # a real perturbation
+    res, _, extra, _ = P.solve_prior(settings, data, "F90")
+    assert extra["converged"]
+    solved = res["inside"].to_numpy() >= 0
+    assert solved.sum() == data.solved.size > 2000
+    assert 1e3 * np.nanmax(res["err_mas"].to_numpy()[solved]) < RECOVERY_UAS
+    assert 1e3 * np.nanmax(np.abs(res["err_parallax_mas"].to_numpy()[solved])) < RECOVERY_UAS
+    assert max(extra["attitude_rms_uas"]) < RECOVERY_UAS

@@ -1,0 +1,46 @@
+"""A small global problem from the real scanning law: a few thousand stars, a few weeks."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from mcsweep.astrometry.noise import NoiseModel
+from mcsweep.scanning import find_transits
+from mcsweep.scanning.ephemeris import gaia_position_au
+from mcsweep.solver import AttitudeSpline, build_observations
+
+START_JD = 2456863.9375  # 2014-07-25 10:30 TCB, start of routine operations (Prusti et al. 2016)
+
+
+def make_problem(n_stars=20000, days=10.0, knot_days=0.5, seed=5, min_transits=4, use_ac=True):
+    """Random stars over the sky, their FoV transits, and the partials; truth drawn separately."""
+    rng = np.random.default_rng(seed)
+    ra = rng.uniform(0.0, 360.0, n_stars)
+    dec = np.degrees(np.arcsin(rng.uniform(-1.0, 1.0, n_stars)))
+    tr = find_transits(ra, dec, START_JD, START_JD + days)
+    src = tr["source_index"].to_numpy()
+    count = np.bincount(src, minlength=n_stars)
+    keep_star = count >= min_transits
+    new_index = np.cumsum(keep_star) - 1
+    sel = keep_star[src]
+    tr = tr[sel]
+    ra, dec = ra[keep_star], dec[keep_star]
+    n = ra.size
+    g = rng.uniform(12.0, 19.0, n)
+    noise = NoiseModel(use_ac=use_ac)
+    star = new_index[tr["source_index"].to_numpy()]
+    t = tr["tcb_jd"].to_numpy()
+    s_al = noise.sigma_al_mas(g)[star]
+    s_ac = noise.sigma_ac_mas(g)[star] if use_ac else None
+    spline = AttitudeSpline(START_JD, START_JD + days, knot_days)
+    t_ref = START_JD + 0.5 * days
+    obs = build_observations(ra, dec, star, t, tr["scan_angle_deg"].to_numpy(), gaia_position_au(t),
+                             t_ref_jd=t_ref, sigma_al_mas=s_al, sigma_ac_mas=s_ac, spline=spline)
+    return {"ra": ra, "dec": dec, "g": g, "obs": obs, "spline": spline, "t_ref": t_ref, "rng": rng,
+            "transits": tr, "star": star, "s_al": s_al, "s_ac": s_ac}
+
+
+@pytest.fixture(scope="session")
+def small_problem():
+    return make_problem()

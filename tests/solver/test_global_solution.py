@@ -1,0 +1,181 @@
+"""The global solver against independent references (issue 12's list of tests)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from scipy.interpolate import BSpline
+from scipy.sparse.linalg import spsolve
+
+from mcsweep.astrometry.design import design_matrix
+from mcsweep.astrometry.solve import normal_equations, prior_diagonal, solve_with_prior
+from mcsweep.solver import (GlobalProblem, attitude_band, band_to_dense, fit_frame, frame_attitude,
+                            frame_offsets, solve_global)
+from mcsweep.solver.frame import rotation_matrices
+from mcsweep.solver.source_update import solve_sources, source_normals, source_rhs
+from mcsweep.solver.attitude_update import attitude_rhs
+from mcsweep.scanning.ephemeris import gaia_position_au
+
+#: Band storage and dense products of the same sums (different summation order).
+RTOL_SUMS = 1e-12
+#: Iterative (CG, converged to a relative residual 1e-12) versus direct sparse solution.
+RTOL_ITER_DIRECT = 1e-6
+#: Source update with the attitude fixed versus astrometry.solve (same sums, other code).
+RTOL_SECONDARY = 1e-9
+#: Recovery of noiseless truth after the frame correction [microarcsec].
+RECOVERY_UAS = 1.0
+
+
+def _sparse_design(P):
+    """The full design matrix built element by element from the partials (independent of cg.py)."""
+    obs = P["obs"]
+    n, m = obs.n_stars, obs.size
+    rows = np.repeat(np.arange(m), 5)
+    cols = (5 * obs.star[:, None] + np.arange(5)).ravel()
+    vals = obs.src.ravel()
+    ra = np.repeat(np.arange(m), 12)
+    ca = (5 * n + 3 * (obs.j0[:, None, None] + np.arange(4)[None, :, None]) + np.arange(3)[None, None, :]).ravel()
+    va = (obs.bval[:, :, None] * obs.att[:, None, :]).ravel()
+    return sp.csr_matrix((np.concatenate([vals, va]), (np.concatenate([rows, ra]), np.concatenate([cols, ca]))),
+                         shape=(m, 5 * n + 3 * obs.n_coef))
+
+
+def _truth(P, rng, zero_motion=True):
+    n, obs = P["obs"].n_stars, P["obs"]
+    x = np.column_stack([rng.normal(0, 5, n), rng.normal(0, 5, n), rng.uniform(0.2, 3.0, n),
+                         rng.normal(0, 5, n), rng.normal(0, 5, n)])
+    if zero_motion:  # a prior centred on the truth cannot bias the solution
+        x[:, 2:] = 0.0
+    a = rng.normal(0, 10.0, (obs.n_coef, 3))
+    return x, a
+
+
+def test_spline_basis_matches_scipy_bspline(small_problem):
+    spline, t = small_problem["spline"], small_problem["obs"].tcb_jd
+    coef = np.random.default_rng(1).normal(size=(spline.n_coef, 3))
+    ref = BSpline(spline.knots, coef, 3)(t)
+    np.testing.assert_allclose(spline.evaluate(coef, t), ref, rtol=0, atol=1e-12)
+    lin = spline.evaluate(spline.greville()[:, None], t)[:, 0]  # f(t) = t is in the space
+    np.testing.assert_allclose(lin, t, rtol=1e-14)
+
+
+def test_banded_attitude_normal_matrix_equals_dense(small_problem):
+    obs = small_problem["obs"]
+    A = _sparse_design(small_problem)[:, 5 * obs.n_stars:]
+    dense = (A.T @ A).toarray()
+    band = band_to_dense(attitude_band(obs))
+    np.testing.assert_allclose(band, dense, rtol=RTOL_SUMS, atol=RTOL_SUMS * np.abs(dense).max())
+    r = np.random.default_rng(2).normal(size=obs.size)
+    np.testing.assert_allclose(attitude_rhs(obs, r).ravel(), A.T @ r, rtol=RTOL_SUMS,
+                               atol=RTOL_SUMS * np.abs(A.T @ r).max())
+
+
+def test_noiseless_recovery_of_attitude_in_spline_space(small_problem):
+    P = small_problem
+    obs, rng = P["obs"], np.random.default_rng(11)
+    x_true, a_true = _truth(P, rng)
+    problem = GlobalProblem(obs, prior_diagonal(10.0, 10.0), P["ra"], P["dec"])
+    a_true[~problem.att.free] = 0.0  # unobserved coefficients are held at zero by construction
+    h = problem.forward(problem.join(x_true, a_true))
+    sol = solve_global(problem, h, rtol=1e-12, max_iter=3000)
+    assert sol.converged
+    dx = sol.x - x_true
+    eps, omega = fit_frame(dx, P["ra"], P["dec"])
+    dx -= frame_offsets(P["ra"], P["dec"], eps, omega)
+    t = obs.tcb_jd
+    att_err = P["spline"].evaluate(sol.attitude - a_true, t) - frame_attitude(eps, omega, t, P["t_ref"])
+    assert 1e3 * np.sqrt(np.mean(att_err ** 2)) < RECOVERY_UAS
+    assert 1e3 * np.sqrt(np.mean(dx[:, :2] ** 2)) < RECOVERY_UAS
+    assert 1e3 * np.abs(dx).max() < 10 * RECOVERY_UAS
+
+
+def test_iterative_equals_direct_sparse_solution(small_problem):
+    P = small_problem
+    obs, rng = P["obs"], np.random.default_rng(12)
+    x_true, a_true = _truth(P, rng, zero_motion=False)
+    prior = prior_diagonal(2.0, 10.0)
+    problem = GlobalProblem(obs, prior, P["ra"], P["dec"])
+    a_true[~problem.att.free] = 0.0
+    h = problem.forward(problem.join(x_true, a_true)) + rng.normal(size=obs.size)
+    sol = solve_global(problem, h, rtol=1e-12, max_iter=5000)
+    assert sol.converged
+    # Direct: the same normal equations from the sparse design, the prior, and the frame
+    # penalty as a bordered (KKT) system so that the rank-6 dense penalty is never formed.
+    n = obs.n_stars
+    A = _sparse_design(P)
+    free = np.concatenate([np.ones(5 * n, bool), problem.att.free.ravel()])
+    A = A[:, free]
+    N = (A.T @ A).tocsc() + sp.diags(np.concatenate([np.tile(prior, n), np.zeros(int(free.sum()) - 5 * n)]))
+    K = rotation_matrices(P["ra"], P["dec"])  # (n, 2, 3)
+    C = np.zeros((6, int(free.sum())))
+    for c in range(3):  # the six constraint rows (a loop over the 3 axes only)
+        C[c, 0:5 * n:5], C[c, 1:5 * n:5] = K[:, 0, c], K[:, 1, c]
+        C[3 + c, 3:5 * n:5], C[3 + c, 4:5 * n:5] = K[:, 0, c], K[:, 1, c]
+    W = sp.diags(np.r_[np.full(3, 1 / problem.w_pos), np.full(3, 1 / problem.w_pm)])
+    kkt = sp.bmat([[N, sp.csr_matrix(C).T], [sp.csr_matrix(C), -W]]).tocsc()
+    rhs = np.concatenate([A.T @ h, np.zeros(6)])
+    direct = spsolve(kkt, rhs)[:free.sum()]
+    iterative = problem.join(sol.x, sol.attitude)[free]
+    scale = np.linalg.norm(direct)
+    assert np.linalg.norm(iterative - direct) / scale < RTOL_ITER_DIRECT
+
+
+def test_attitude_fixed_to_truth_reproduces_secondary_solution(small_problem):
+    P = small_problem
+    obs, rng = P["obs"], np.random.default_rng(13)
+    x_true, a_true = _truth(P, rng, zero_motion=False)
+    problem = GlobalProblem(obs, prior_diagonal(1.0, 10.0), P["ra"], P["dec"])
+    noise = rng.normal(size=obs.size)
+    h = problem.forward(problem.join(x_true, a_true)) + noise
+    _, a_part = problem.split(problem.join(np.zeros_like(x_true), a_true))
+    h_att = h - problem.forward(problem.join(np.zeros_like(x_true), a_part))
+    x, cov, ok = solve_sources(source_normals(obs), source_rhs(obs, h_att), prior_diagonal(1.0, 10.0))
+    # Secondary solution: padded per-star design of astrometry.design, the same noise.
+    n = obs.n_stars
+    al = ~obs.is_ac
+    order = np.argsort(obs.star[al], kind="stable")
+    star_al = obs.star[al][order]
+    count = np.bincount(star_al, minlength=n)
+    k = count.max()
+    col = np.arange(star_al.size) - np.concatenate([[0], np.cumsum(count)])[star_al]
+    tr, s = P["transits"], P["star"]
+    assert np.array_equal(s, obs.star[al])
+    t, psi = tr["tcb_jd"].to_numpy()[order], tr["scan_angle_deg"].to_numpy()[order]
+    T, PSI, MASK = np.zeros((n, k)), np.zeros((n, k)), np.zeros((n, k), bool)
+    OBS = np.zeros((n, k, 3))
+    SAL, SAC = np.ones((n, k)), np.ones((n, k))
+    T[star_al, col], PSI[star_al, col], MASK[star_al, col] = t, psi, True
+    OBS[star_al, col] = gaia_position_au(t)
+    SAL[star_al, col], SAC[star_al, col] = P["s_al"][order], P["s_ac"][order]
+    A = design_matrix(P["ra"], P["dec"], (T - P["t_ref"]) / 365.25, PSI, OBS, sigma_al_mas=SAL,
+                      sigma_ac_mas=SAC, mask=MASK)
+    xt = x_true
+    H = np.einsum("nmi,ni->nm", A, xt)
+    ac = obs.is_ac
+    H[star_al, col] += noise[al][order]
+    ac_order = np.argsort(obs.star[ac], kind="stable")
+    H[star_al, k + col] += noise[ac][ac_order]  # every transit here has an AC measurement
+    sec = solve_with_prior(*normal_equations(A, H), 1.0, 10.0)
+    assert ok.all() and sec.ok.all()
+    np.testing.assert_allclose(x, sec.x, rtol=RTOL_SECONDARY, atol=RTOL_SECONDARY * np.abs(sec.x).max())
+    np.testing.assert_allclose(cov, sec.cov, rtol=RTOL_SECONDARY, atol=RTOL_SECONDARY * np.abs(sec.cov).max())
+
+
+def test_global_rotation_and_spin_of_truth_leave_errors_unchanged(small_problem):
+    P = small_problem
+    obs, rng = P["obs"], np.random.default_rng(14)
+    x_true, a_true = _truth(P, rng, zero_motion=False)
+    problem = GlobalProblem(obs, prior_diagonal(2.0, 10.0), P["ra"], P["dec"])
+    noise = rng.normal(size=obs.size)
+    errors = []
+    for eps, omega in (((0, 0, 0), (0, 0, 0)), ((3.0, -2.0, 5.0), (0.4, 0.7, -0.3))):
+        x_rot = x_true + frame_offsets(P["ra"], P["dec"], eps, omega)
+        h = problem.forward(problem.join(x_rot, a_true)) + noise
+        sol = solve_global(problem, h, rtol=1e-12, max_iter=5000)
+        assert sol.converged
+        dx = sol.x - x_rot
+        e, w = fit_frame(dx, P["ra"], P["dec"])
+        errors.append(dx - frame_offsets(P["ra"], P["dec"], e, w))
+    scale = np.abs(errors[0]).max()
+    np.testing.assert_allclose(errors[1], errors[0], rtol=0, atol=RTOL_ITER_DIRECT * scale)

@@ -136,3 +136,19 @@ def test_bad_input_one_line_exit_2_nothing_written(tmp_path):
         lines = r.stderr.strip().splitlines()
         assert len(lines) == 1 and needle in lines[0] and "Traceback" not in r.stderr, (argv, r.stderr)
         assert set(tmp_path.rglob("*")) == before, argv  # no output, no temporary left
+
+
+@pytest.mark.parametrize("suffix", [".fits", ".vot", ".ecsv", ".csv", ".parquet"])
+def test_command_writes_every_output_format(tmp_path, suffix):
+    # Through the command: its output goes to a temporary file that already exists (empty)
+    # before the writer runs; astropy's writers refuse that unless told to overwrite.
+    t = _stars()
+    src, out = tmp_path / "in.csv", tmp_path / f"out{suffix}"
+    t.to_pandas().to_csv(src, index=False)
+    r = run("annotate", src, "--out", out, "--paper")
+    assert r.returncode == 0, r.stderr[-2000:]
+    got = Table.read(out) if suffix != ".csv" else Table.from_pandas(pd.read_csv(out))
+    np.testing.assert_allclose(np.asarray(got["sigma_f90_parallax"], float), _expected(t), rtol=FRAME_RTOL, atol=0)
+    if suffix in (".fits", ".vot", ".ecsv", ".parquet"):
+        assert got["sigma_f90_parallax"].unit == u.mas
+    assert [p.name for p in tmp_path.iterdir()] and not list(tmp_path.glob(".*.tmp"))

@@ -212,6 +212,7 @@ def _astropy_whole(src, dst, prior, source, fmt_in, fmt_out) -> int:
     t[PM_COLUMN] = pm * (u.mas / u.yr)
     t[PARALLAX_COLUMN].description = f"parallax prior sigma_F90 (Michalik et al. 2015 Eqs. 14-17; {prior.origin})"
     t[PM_COLUMN].description = f"proper-motion prior R sigma_F90, R = {prior.ratio_R:g}/yr (Eq. 18)"
-    kw = {"serialize_meta": True} if fmt_out == "parquet" else {}  # keeps units in Parquet
-    t.write(dst, format=_ASTROPY_FORMAT[fmt_out], **kw)
+    # dst is the command's own temporary file (created empty by mkstemp), so overwrite it.
+    # astropy's Parquet writer keeps the units in the file's table metadata by itself.
+    t.write(dst, format=_ASTROPY_FORMAT[fmt_out], overwrite=True)
     return len(t)

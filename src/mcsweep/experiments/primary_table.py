@@ -22,12 +22,11 @@ from typing import Mapping, Sequence
 import numpy as np
 import pandas as pd
 
-from .secondary_table import SUBSETS, error_percentile, g_label, subset_masks
+from .secondary_table import PAPER_CONFIDENCE, PAPER_G_CLASSES, SUBSETS, error_percentile, g_label, subset_masks
 
 __all__ = ["PAPER_TABLE3", "PAPER_G_CLASSES", "TABLE3_COLUMNS", "paper_value3", "binomial_sigma",
            "table3_rows", "table3_markdown", "prior_label"]
 
-PAPER_G_CLASSES = (11.0, 15.0, 19.0)
 #: Table 3 transcribed from the LaTeX source: (subset, prior) -> (fractions in per cent
 #: for G ~ 11, 15, 19; 90th percentiles of the position errors in mas).
 PAPER_TABLE3: Mapping[tuple[str, str], tuple[tuple[float, ...], tuple[float, ...]]] = MappingProxyType({
@@ -41,7 +40,6 @@ PAPER_TABLE3: Mapping[tuple[str, str], tuple[tuple[float, ...], tuple[float, ...
 TABLE3_COLUMNS = ("subset", "prior", "g_class", "n_stars", "n_valid", "n_inside", "fraction_inside",
                   "fraction_sigma", "p90_error_mas", "paper_fraction_inside", "paper_p90_error_mas",
                   "error_percentile")
-_PAPER_P = 0.9
 
 
 def prior_label(prior: str) -> str:
@@ -59,7 +57,7 @@ def paper_value3(subset: str, prior: str, g_class: float, confidence: float) -> 
     except ValueError:
         return float("nan"), float("nan")
     key = (subset, "F90" if prior == "1F90" else prior)
-    if key not in PAPER_TABLE3 or abs(confidence - _PAPER_P) >= 1e-12:
+    if key not in PAPER_TABLE3 or abs(confidence - PAPER_CONFIDENCE) >= 1e-12:
         return float("nan"), float("nan")
     frac, p90 = PAPER_TABLE3[key]
     return frac[i] / 100.0, p90[i]

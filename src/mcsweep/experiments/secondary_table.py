@@ -32,10 +32,10 @@ __all__ = [
     "SUBSET_SPLIT",
     "PRIOR_LABELS",
     "PAPER_G_CLASSES",
+    "PAPER_CONFIDENCE",
     "PAPER_TABLE2",
     "TABLE2_COLUMNS",
     "NO_PRIOR_COLUMNS",
-    "PERCENTILE",
     "paper_value",
     "subset_masks",
     "table2_rows",
@@ -60,11 +60,6 @@ SUBSET_SPLIT = 4
 PRIOR_LABELS: Mapping[str, str] = MappingProxyType({
     "none": "none (2 parameters)", "0.01mas": "0.01 mas", "F90": "sigma_F90",
     "10F90": "10 sigma_F90", "1000mas": "1000 mas"})
-#: Percentile of the actual position errors in the paper's Table 2 (its columns 5-7), at
-#: its P = 0.9; a run reports the 100 P-th percentile (column ``p90_error_mas``, named
-#: for the paper, and ``error_percentile`` saying which).
-PERCENTILE = 90.0
-
 #: The magnitude classes of Table 2.
 PAPER_G_CLASSES = (11.0, 15.0, 19.0)
 #: Table 2 of the paper, transcribed from the LaTeX source: (subset, prior) ->
@@ -94,7 +89,7 @@ NO_PRIOR_COLUMNS = ("subset", "g_class", "n_stars", "n_unsolved", "fraction_unso
                     "fraction_inside", "p90_error_mas", "error_percentile")
 
 # The paper's confidence level; its fractions are comparable only at this P.
-_PAPER_P = 0.9
+PAPER_CONFIDENCE = 0.9
 
 
 def g_label(g: float):
@@ -114,7 +109,7 @@ def paper_value(subset: str, prior: str, g_class: float, confidence: float) -> t
     except ValueError:
         return float("nan"), float("nan")
     frac_pct, p90 = PAPER_TABLE2[(subset, prior)]
-    if abs(confidence - _PAPER_P) >= 1e-12:
+    if abs(confidence - PAPER_CONFIDENCE) >= 1e-12:
         return float("nan"), float("nan")
     return frac_pct[i] / 100.0, p90[i]
 
@@ -168,7 +163,7 @@ def table2_rows(per_class: Sequence[tuple[float, pd.DataFrame]], confidence: flo
     return pd.DataFrame(rows, columns=list(TABLE2_COLUMNS))
 
 
-def no_prior_rows(per_class: Sequence[tuple[float, pd.DataFrame]], confidence: float = _PAPER_P) -> pd.DataFrame:
+def no_prior_rows(per_class: Sequence[tuple[float, pd.DataFrame]], confidence: float = PAPER_CONFIDENCE) -> pd.DataFrame:
     """``no_prior.csv``: the five-parameter solution without prior, per subset and class.
 
     Errors are summarised by their 100 P-th percentile, P = ``confidence``.

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserInputError
+from .columns import finite_column
 from .frames import galactic_from_icrs
 from .model import Prior
 
@@ -89,14 +90,7 @@ def _values(col, name: str, source: str, unit, angle: bool) -> np.ndarray:
         except (u.UnitConversionError, ValueError, TypeError):
             raise UserInputError(f"{source}: column {name} in {unit} is not accepted; expected "
                                  f"{'an angle (deg)' if angle else 'magnitudes (mag)'}") from None
-    try:
-        v = np.asarray(col, dtype=float)
-    except (TypeError, ValueError):
-        raise UserInputError(f"{source}: column {name} has non-numeric values; expected numbers") from None
-    bad = ~np.isfinite(v)
-    if bad.any():
-        raise UserInputError(f"{source}: column {name} has {int(bad.sum())} NaN or infinite value(s) "
-                             f"(first at row {int(np.argmax(bad))} of its batch); expected finite values in every row")
+    v = finite_column(col, name, source, where=" of its batch")
     return v * factor if factor != 1.0 else v
 
 

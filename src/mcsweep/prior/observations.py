@@ -42,6 +42,7 @@ from ..astrometry.solve import normal_equations, solve_no_prior, solve_position_
 from ..errors import UserInputError
 from ..scanning.ephemeris import gaia_position_au
 from .annotate import _ASTROPY_FORMAT, detect_format
+from .columns import finite_column
 from .frames import galactic_from_icrs
 from .model import Prior
 
@@ -76,18 +77,7 @@ def read_table(path) -> pd.DataFrame:
 
 
 def _numeric(df: pd.DataFrame, cols, source: str) -> dict[str, np.ndarray]:
-    out = {}
-    for c in cols:
-        try:
-            v = df[c].to_numpy(dtype=float)
-        except (TypeError, ValueError):
-            raise UserInputError(f"{source}: column {c} has non-numeric values; expected numbers") from None
-        bad = ~np.isfinite(v)
-        if bad.any():
-            raise UserInputError(f"{source}: column {c} has {int(bad.sum())} NaN or infinite value(s) "
-                                 f"(first in row {int(np.argmax(bad))}); expected finite values")
-        out[c] = v
-    return out
+    return {c: finite_column(df[c], c, source) for c in cols}
 
 
 def _require_columns(df, cols, source, what):

@@ -65,9 +65,9 @@ import re
 
 import numpy as np
 import pandas as pd
-from astropy.time import Time
 
-from ..astrometry.confidence import chi2_threshold, mahalanobis_sq
+from ..astrometry.confidence import inside as inside_ellipse
+from ..astrometry.confidence import mahalanobis_sq
 from ..astrometry.noise import G_MAX, NoiseModel
 from ..astrometry.solve import prior_diagonal
 from ..errors import UserInputError
@@ -75,6 +75,7 @@ from ..prior import G_FIT_MAX, sigma_f90, sigma_from_coefficients
 from ..scanning import ScanningLaw, find_transits
 from ..scanning.ephemeris import TABLE_END_JD_TCB, TABLE_START_JD_TCB, gaia_position_au
 from ..scanning.timeline import draw_dead_time
+from ..scanning.timescale import tcb_jd
 from ..solver import (AttitudeSpline, GlobalProblem, build_observations, fit_frame, frame_attitude,
                       frame_offsets, solve_global)
 from ..solver.source_update import solve_sources, source_normals
@@ -161,11 +162,7 @@ class PrimarySettings:
 def build_settings(config) -> PrimarySettings:
     """Settings from a checked :class:`~mcsweep.sweep.schema.Config`; user errors raised here."""
     pri = config.experiment.primary
-    try:
-        start_jd = float(Time(pri.mission_start, scale="tcb").jd)
-    except ValueError:
-        raise UserInputError(f"experiment.primary.mission_start={pri.mission_start!r} is not accepted; "
-                             "expected an ISO date (TCB) such as '2014-07-25T10:30:00'") from None
+    start_jd = tcb_jd(str(pri.mission_start), "experiment.primary.mission_start")
     end_jd = start_jd + 365.25 * pri.mission_years
     if start_jd < TABLE_START_JD_TCB + 1.0 or end_jd > TABLE_END_JD_TCB - 1.0:
         raise UserInputError(f"experiment.primary.mission_start={pri.mission_start!r} with mission_years="
@@ -187,8 +184,7 @@ def build_settings(config) -> PrimarySettings:
         seed=int(config.seed), start_jd=start_jd, end_jd=end_jd,
         law=ScanningLaw.from_config(dataclasses.asdict(config.scanning)),
         dead_time_fraction=float(pri.dead_time_fraction), dead_time_block_days=float(pri.dead_time_block_days),
-        noise=NoiseModel(al_scale=config.noise.al_scale, ac_scale=config.noise.ac_scale,
-                         use_ac=config.noise.use_ac),
+        noise=NoiseModel.from_config(config.noise),
         confidence=float(config.confidence), ratio_R=float(config.ratio_R), priors=priors,
         knot_interval_days=float(pri.knot_interval_hours) / 24.0,
         attitude_amplitude_mas=float(pri.attitude_amplitude_mas),
@@ -310,11 +306,11 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
     dx = sol.x - data.x_true
     eps, omega = fit_frame(dx, ra, dec)  # the frame rotator (Lindegren et al. 2012, Sect. 6.1)
     dx = dx - frame_offsets(ra, dec, eps, omega)
-    q = mahalanobis_sq(dx[:, :2], sol.cov[:, :2, :2])
+    # The project's one inside rule; -1 marks a star without a confidence region.
+    good = np.isfinite(mahalanobis_sq(dx[:, :2], sol.cov[:, :2, :2]))
     n = len(st)
     inside = np.full(n, -1, dtype=np.int8)
-    good = np.isfinite(q)
-    inside[s[good]] = (q[good] < chi2_threshold(settings.confidence, 2)).astype(np.int8)
+    inside[s[good]] = inside_ellipse(dx[good, :2], sol.cov[good, :2, :2], settings.confidence)
     err = np.full(n, np.nan)
     err[s] = np.hypot(dx[:, 0], dx[:, 1])
     err_plx = np.full(n, np.nan)

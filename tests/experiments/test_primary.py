@@ -12,7 +12,7 @@ from omegaconf import OmegaConf
 
 from mcsweep.errors import UserInputError
 from mcsweep.experiments import primary as P
-from mcsweep.experiments.primary_table import PAPER_TABLE3, TABLE3_COLUMNS, binomial_sigma, paper_value3
+from mcsweep.experiments.primary_table import PAPER_TABLE3, TABLE3_COLUMNS, cell_statistics, paper_value3
 from mcsweep.sweep.validate import compose_config, to_config
 
 BIN = Path(sys.executable).parent
@@ -67,8 +67,10 @@ def test_tiny_run_through_cli_writes_table3_and_report(cli_run):
     assert len(table) == 2 * 2 * 3  # subsets x priors x classes
     assert set(table["prior"]) == {"F90", "10F90"}
     ok = table["n_valid"] > 0
-    f, n = table.loc[ok, "fraction_inside"], table.loc[ok, "n_valid"]
-    np.testing.assert_allclose(table.loc[ok, "fraction_sigma"], np.sqrt(f * (1 - f) / n), rtol=1e-12)
+    f = table.loc[ok, "fraction_inside"]
+    assert ((table.loc[ok, "fraction_lo"] <= f) & (f <= table.loc[ok, "fraction_hi"])).all()
+    e = table.loc[ok, "p90_error_mas"]
+    assert ((table.loc[ok, "p90_error_lo_mas"] <= e) & (e <= table.loc[ok, "p90_error_hi_mas"])).all()
     assert table["paper_fraction_inside"].notna().all()  # P = 0.9 and the paper's classes
     summary = pd.read_csv(cli_run / "primary_summary.csv")
     assert summary["converged"].all()
@@ -126,7 +128,49 @@ def test_paper_table3_transcription():
     assert _table3_from_latex() == dict(PAPER_TABLE3)
     assert paper_value3(">4", "10F90", 11.0, 0.9) == pytest.approx((0.886, 0.1))
     assert np.isnan(paper_value3(">4", "10F90", 11.0, 0.95)[0])
-    assert binomial_sigma(0.9, 100) == pytest.approx(0.03)
+
+
+#: Two implementations of the same exact interval (beta quantiles vs. scipy's binomtest).
+RTOL_INTERVAL = 1e-9
+
+
+def test_cell_statistics_intervals_are_table2s():
+    # The fraction's interval is the Clopper-Pearson one (checked against scipy's own
+    # binomtest, an independent implementation), the percentile's the order statistics
+    # whose ranks are the binomial quantiles (Conover 1999, Sect. 3.2); -1 flags are left
+    # out of both, as Table 2 does.
+    from scipy import stats
+    rng = np.random.default_rng(5)
+    n = 400
+    err = rng.rayleigh(size=n)
+    inside = (rng.uniform(size=n) < 0.8).astype(np.int8)
+    inside[:7] = -1
+    n_valid, n_in, frac, lo, hi, p90, plo, phi = cell_statistics(inside, err, 0.9)
+    assert (n_valid, n_in) == (n - 7, int((inside == 1).sum()))
+    ci = stats.binomtest(n_in, n_valid).proportion_ci(0.68, method="exact")
+    np.testing.assert_allclose([lo, hi], [ci.low, ci.high], rtol=RTOL_INTERVAL)
+    x = np.sort(err[7:])
+    assert p90 == pytest.approx(np.percentile(x, 90.0), rel=RTOL_INTERVAL)
+    # Ranks r <= s with P(r <= B < s) >= 0.68 for B ~ Bin(n, 0.9): plo = x_(r), phi = x_(s).
+    r, s = np.searchsorted(x, plo) + 1, np.searchsorted(x, phi) + 1
+    assert x[r - 1] == plo and x[s - 1] == phi
+    cover = stats.binom.cdf(s - 1, n_valid, 0.9) - stats.binom.cdf(r - 1, n_valid, 0.9)
+    assert cover >= 0.68
+    assert plo < p90 < phi
+
+
+def test_percentile_interval_covers_the_true_percentile():
+    # 2000 seeded samples of 300 Rayleigh errors: the 68 % rank interval of the 90th
+    # percentile covers the closed form sqrt(-2 ln 0.1) at least at its nominal rate
+    # (order-statistic intervals are conservative), within 3 binomial sigma.
+    from mcsweep.astrometry.confidence import percentile_interval
+    rng = np.random.default_rng(11)
+    truth = np.sqrt(-2.0 * np.log(0.1))
+    hits = 0
+    for _ in range(2000):
+        lo, hi = percentile_interval(rng.rayleigh(size=300), 90.0, 0.68)
+        hits += lo <= truth <= hi
+    assert hits / 2000 > 0.68 - 3 * np.sqrt(0.68 * 0.32 / 2000)
 
 
 def test_noiseless_data_recover_the_truth_and_the_attitude():

@@ -31,6 +31,7 @@ __all__ = [
     "ellipse_semi_axes",
     "error_percentile",
     "binomial_interval",
+    "percentile_interval",
 ]
 
 
@@ -184,3 +185,24 @@ def binomial_interval(n_inside, n_valid, level: float = 0.68) -> tuple[np.ndarra
         hi = np.where(k < n, stats.beta.ppf(1.0 - a, k + 1, n - k), 1.0)
     bad = ~(n > 0)
     return np.where(bad, np.nan, lo), np.where(bad, np.nan, hi)
+
+
+def percentile_interval(errors, q, level: float = 0.68) -> tuple[float, float]:
+    """Distribution-free interval of the q-th percentile of ``errors`` (order statistics).
+
+    The interval between the order statistics whose ranks are the binomial quantiles
+    of ``Bin(n, q/100)`` (Conover 1999, Practical Nonparametric Statistics, Sect. 3.2),
+    central with probability at least ``level``; this is the interval of
+    :func:`scipy.stats.quantile_test`, used here. Non-finite values are left out; NaN
+    for an empty sample and for a bound beyond the sample (too few values for ``level``).
+    """
+    lv = check_probability(level)
+    qf = float(q)
+    if not (0.0 < qf < 100.0):
+        raise UserInputError(f"percentile q={q!r} is not accepted; expected a number strictly between 0 and 100")
+    x = np.asarray(errors, dtype=float).ravel()
+    x = x[np.isfinite(x)]
+    if x.size == 0:
+        return float("nan"), float("nan")
+    ci = stats.quantile_test(x, q=float(np.percentile(x, qf)), p=qf / 100.0).confidence_interval(lv)
+    return float(ci.low), float(ci.high)

@@ -8,10 +8,14 @@ actual position errors [mas]. Columns as Table 2
 (:mod:`mcsweep.experiments.secondary_table`); here the transits are all those of one
 year minus the dead time (no dilution).
 
-Every fraction carries its binomial 1-sigma interval ``sqrt(f (1 - f) / n)`` (n the
-stars with a confidence region in the cell). The paper gives no uncertainties; at its
-5e5 stars per class the binomial sigma of a 90 % fraction is 0.04 % or more (fewer stars
-per subset).
+Uncertainties exactly as Table 2's: every fraction carries its Clopper-Pearson interval
+(:func:`~mcsweep.astrometry.confidence.binomial_interval`, probability
+:data:`~mcsweep.experiments.secondary_table.FRACTION_INTERVAL`) over the stars with a
+confidence region in the cell, and every percentile of the errors its distribution-free
+order-statistic (rank) interval of the same probability
+(:func:`~mcsweep.astrometry.confidence.percentile_interval`). The paper gives no
+uncertainties; at its 5e5 stars per class the binomial sigma of a 90 % fraction is 0.04 %
+or more (fewer stars per subset).
 """
 
 from __future__ import annotations
@@ -22,10 +26,12 @@ from typing import Mapping, Sequence
 import numpy as np
 import pandas as pd
 
-from .secondary_table import PAPER_CONFIDENCE, PAPER_G_CLASSES, SUBSETS, error_percentile, g_label, subset_masks
+from ..astrometry.confidence import binomial_interval, percentile_interval
+from .secondary_table import (FRACTION_INTERVAL, PAPER_CONFIDENCE, PAPER_G_CLASSES, SUBSETS, error_percentile,
+                              g_label, subset_masks, table_cell)
 
-__all__ = ["PAPER_TABLE3", "PAPER_G_CLASSES", "TABLE3_COLUMNS", "paper_value3", "binomial_sigma",
-           "table3_rows", "table3_markdown", "prior_label"]
+__all__ = ["PAPER_TABLE3", "PAPER_G_CLASSES", "TABLE3_COLUMNS", "paper_value3", "cell_statistics",
+           "table3_rows", "table3_layout", "table3_markdown", "prior_label"]
 
 #: Table 3 transcribed from the LaTeX source: (subset, prior) -> (fractions in per cent
 #: for G ~ 11, 15, 19; 90th percentiles of the position errors in mas).
@@ -38,8 +44,8 @@ PAPER_TABLE3: Mapping[tuple[str, str], tuple[tuple[float, ...], tuple[float, ...
     (">4", "1000mas"): ((88.7, 89.4, 90.0), (0.1, 0.2, 1.1)),
 })
 TABLE3_COLUMNS = ("subset", "prior", "g_class", "n_stars", "n_valid", "n_inside", "fraction_inside",
-                  "fraction_sigma", "p90_error_mas", "paper_fraction_inside", "paper_p90_error_mas",
-                  "error_percentile")
+                  "fraction_lo", "fraction_hi", "p90_error_mas", "p90_error_lo_mas", "p90_error_hi_mas",
+                  "paper_fraction_inside", "paper_p90_error_mas", "error_percentile")
 
 
 def prior_label(prior: str) -> str:
@@ -63,13 +69,28 @@ def paper_value3(subset: str, prior: str, g_class: float, confidence: float) -> 
     return frac[i] / 100.0, p90[i]
 
 
-def binomial_sigma(f: float, n: int) -> float:
-    """1-sigma binomial uncertainty of a fraction ``f`` of ``n`` stars."""
-    return float(np.sqrt(f * (1.0 - f) / n)) if n > 0 and np.isfinite(f) else float("nan")
+def cell_statistics(inside: np.ndarray, err_mas: np.ndarray, confidence: float) -> tuple:
+    """(n_valid, n_inside, fraction, fraction_lo, fraction_hi, percentile, percentile_lo, percentile_hi).
+
+    ``inside``: per-star flags (1 inside, 0 outside, -1 no confidence region: left out,
+    the NaN rule of :func:`~mcsweep.astrometry.confidence.inside_counts`); ``err_mas``: the
+    position errors. Fraction with its Clopper-Pearson interval, the 100 P-th percentile
+    of the errors with its rank interval, both of probability ``FRACTION_INTERVAL`` as
+    Table 2.
+    """
+    ok = np.asarray(inside) >= 0
+    n_valid, n_in = int(ok.sum()), int((np.asarray(inside) == 1).sum())
+    frac = n_in / n_valid if n_valid else float("nan")
+    lo, hi = binomial_interval(n_in, n_valid, FRACTION_INTERVAL)
+    q = error_percentile(confidence)
+    err = np.asarray(err_mas, dtype=float)[ok]
+    p = float(np.percentile(err, q)) if n_valid else float("nan")
+    plo, phi = percentile_interval(err, q, FRACTION_INTERVAL)
+    return n_valid, n_in, frac, float(lo), float(hi), p, plo, phi
 
 
 def table3_rows(results: Mapping[str, pd.DataFrame], g_classes: Sequence[float], confidence: float) -> pd.DataFrame:
-    """``table3.csv``: one row per subset x prior x class (the primary sources are not tabulated).
+    """``table3.csv``: one row per subset x prior x class (extra primary sources are not tabulated).
 
     ``results[prior]`` holds the per-star results of one solution (columns ``class_key``,
     ``n_fov``, ``inside``, ``err_mas``; :func:`mcsweep.experiments.primary.solve_prior`).
@@ -81,30 +102,14 @@ def table3_rows(results: Mapping[str, pd.DataFrame], g_classes: Sequence[float],
             masks = subset_masks(res["n_fov"].to_numpy())
             for g in g_classes:
                 sel = masks[subset] & (res["class_key"].to_numpy() == int(round(100 * g)))
-                inside = res["inside"].to_numpy()[sel]
-                err = res["err_mas"].to_numpy()[sel].astype(float)
-                ok = inside >= 0
-                n_valid, n_in = int(ok.sum()), int((inside == 1).sum())
-                frac = n_in / n_valid if n_valid else float("nan")
-                p90 = float(np.percentile(err[ok], q)) if n_valid else float("nan")
+                stats = cell_statistics(res["inside"].to_numpy()[sel], res["err_mas"].to_numpy()[sel], confidence)
                 pf, pp = paper_value3(subset, prior, g, confidence)
-                rows.append((subset, prior, g_label(g), int(sel.sum()), n_valid, n_in, frac,
-                             binomial_sigma(frac, n_valid), p90, pf, pp, q))
+                rows.append((subset, prior, g_label(g), int(sel.sum()), *stats, pf, pp, q))
     return pd.DataFrame(rows, columns=list(TABLE3_COLUMNS))
 
 
-def _cell_fraction(f, s, paper) -> str:
-    o = "–" if not np.isfinite(f) else f"{100 * f:.1f} ± {100 * s:.1f}"
-    return o if not np.isfinite(paper) else f"{o} ({100 * paper:.1f})"
-
-
-def _cell_error(e, paper) -> str:
-    o = "–" if not np.isfinite(e) else f"{e:.3g}"
-    return o if not np.isfinite(paper) else f"{o} ({paper:.3g})"
-
-
 def table3_layout(table: pd.DataFrame, confidence: float) -> dict[str, pd.DataFrame]:
-    """Per subset: priors x (fraction ± 1 sigma | percentile) per class, ``ours (paper)``."""
+    """Per subset: priors x (fraction | percentile) per class, ``ours [lo-hi] (paper)`` as Table 2."""
     classes = list(dict.fromkeys(table["g_class"]))
     pct = f"{100 * confidence:g}"
     out = {}
@@ -115,11 +120,13 @@ def table3_layout(table: pd.DataFrame, confidence: float) -> dict[str, pd.DataFr
             r = part[part["prior"] == prior].set_index("g_class")
             row = {"prior sigma_plx,p": prior_label(prior)}
             for g in classes:
-                row[f"in {pct} % ellipse, G~{g} [%]"] = _cell_fraction(
-                    r.at[g, "fraction_inside"], r.at[g, "fraction_sigma"], r.at[g, "paper_fraction_inside"])
+                row[f"in {pct} % ellipse, G~{g} [%]"] = table_cell(
+                    r.at[g, "fraction_inside"], r.at[g, "paper_fraction_inside"], ".1f", 100.0,
+                    (r.at[g, "fraction_lo"], r.at[g, "fraction_hi"]))
             for g in classes:
-                row[f"p{pct} error, G~{g} [mas]"] = _cell_error(r.at[g, "p90_error_mas"],
-                                                                r.at[g, "paper_p90_error_mas"])
+                row[f"p{pct} error, G~{g} [mas]"] = table_cell(
+                    r.at[g, "p90_error_mas"], r.at[g, "paper_p90_error_mas"], ".3g", 1.0,
+                    (r.at[g, "p90_error_lo_mas"], r.at[g, "p90_error_hi_mas"]))
             rows.append(row)
         out[subset] = pd.DataFrame(rows)
     return out
@@ -127,7 +134,7 @@ def table3_layout(table: pd.DataFrame, confidence: float) -> dict[str, pd.DataFr
 
 def table3_markdown(table: pd.DataFrame, confidence: float, notes: Sequence[str] = ()) -> str:
     """``table3.md``: our Table 3 next to the paper's (in parentheses)."""
-    lines = ["# Table 3: one-year global solution, attitude from the same data (ours ± binomial 1 sigma, "
+    lines = ["# Table 3: one-year global solution, attitude from the same data (ours [68 % interval], "
              "paper in parentheses)", ""]
     lines += list(notes) + ([""] if notes else [])
     for subset, df in table3_layout(table, confidence).items():

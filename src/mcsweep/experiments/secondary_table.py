@@ -44,6 +44,8 @@ __all__ = [
     "table2_layout",
     "table2_markdown",
     "error_percentile",
+    "FRACTION_INTERVAL",
+    "table_cell",
 ]
 
 #: The rows of Table 2, in the paper's order (values of the ``prior`` column).
@@ -179,7 +181,8 @@ def no_prior_rows(per_class: Sequence[tuple[float, pd.DataFrame]], confidence: f
     return pd.DataFrame(rows, columns=list(NO_PRIOR_COLUMNS))
 
 
-def _cell(ours: float, paper: float, fmt: str, scale: float = 1.0, interval=None) -> str:
+def table_cell(ours: float, paper: float, fmt: str, scale: float = 1.0, interval=None) -> str:
+    """``ours [lo-hi] (paper)`` as the tables print a cell (interval and paper optional)."""
     o = "–" if not np.isfinite(ours) else format(ours * scale, fmt)
     if interval is not None and np.isfinite(ours) and np.all(np.isfinite(interval)):
         o += f" [{format(interval[0] * scale, fmt)}-{format(interval[1] * scale, fmt)}]"
@@ -203,10 +206,10 @@ def table2_layout(table: pd.DataFrame, confidence: float) -> dict[str, pd.DataFr
             row = {"prior sigma_plx,p": PRIOR_LABELS[prior]}
             for g in classes:
                 iv = (r.at[g, "fraction_lo"], r.at[g, "fraction_hi"]) if "fraction_lo" in r else None
-                row[f"in {pct} % ellipse, G~{g} [%]"] = _cell(r.at[g, "fraction_inside"],
+                row[f"in {pct} % ellipse, G~{g} [%]"] = table_cell(r.at[g, "fraction_inside"],
                                                               r.at[g, "paper_fraction_inside"], ".1f", 100.0, iv)
             for g in classes:
-                row[f"p{pct} error, G~{g} [mas]"] = _cell(r.at[g, "p90_error_mas"], r.at[g, "paper_p90_error_mas"],
+                row[f"p{pct} error, G~{g} [mas]"] = table_cell(r.at[g, "p90_error_mas"], r.at[g, "paper_p90_error_mas"],
                                                        ".3g")
             rows.append(row)
         out[subset] = pd.DataFrame(rows)

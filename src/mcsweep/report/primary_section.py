@@ -2,7 +2,7 @@
 
 Reads ``table3.csv``, ``primary_summary.csv`` and ``primary_convergence.csv`` of a run
 directory (written by :func:`mcsweep.sweep.primary_runner.run_primary`): our Table 3 next
-to the paper's (fractions with binomial 1-sigma intervals), the attitude error RMS, the
+to the paper's (fractions and percentiles with their 68 % intervals, as Table 2), the attitude error RMS, the
 PCG iterations and the knot interval.
 """
 
@@ -35,8 +35,8 @@ def primary_section(doc: Document, run_dir: Path, prov: dict) -> None:
         f"interval; true attitude = law + {pri.get('attitude_amplitude_mas')} mas random rotation on a "
         f"{pri.get('attitude_timescale_hours')} h time scale. Errors after removing the fitted frame rotation "
         f"and spin; formal covariances from each star's own block with the attitude taken as known. Fractions "
-        f"inside the P = {p:g} ellipse ± binomial 1 sigma; errors = {100 * p:g}th percentile [mas]. "
-        "Each cell: ours (paper).")
+        f"inside the P = {p:g} ellipse (Clopper-Pearson 68 % interval); errors = {100 * p:g}th percentile [mas] "
+        "(order-statistic 68 % interval). Each cell: ours [interval] (paper).")
     epoch = prov.get("derived", {}).get("primary", {}).get("reference_epoch", {})
     doc.para(f"Reference epoch: {epoch.get('text') or pri.get('reference_epoch')}.")
     for subset, df in table3_layout(table, p).items():

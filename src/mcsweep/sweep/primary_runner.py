@@ -49,7 +49,8 @@ def run_primary(config, raw_cfg: dict, run_dir, *, prov=None) -> Path:
         source = make_source(dataclasses.asdict(config.population))
         parts = []
         groups = [(float(g), pri.class_size, class_key(g)) for g in pri.g_classes]
-        groups.append((float(pri.primary_g_min), pri.primary_sources, PRIMARY_KEY))
+        if pri.primary_sources > 0:  # optional extra attitude carriers (0: the paper's three classes only)
+            groups.append((float(pri.primary_g_min), pri.primary_sources, PRIMARY_KEY))
         for g, n, key in groups:
             rng = np.random.default_rng(stream_seed(settings.seed, POPULATION_STREAM, key))
             df = select_class_stars(source, g, n, rng)[list(STAR_COLUMNS)]

@@ -344,8 +344,10 @@ class PrimaryConf:
 
     def __post_init__(self):
         _check_reference_epoch("experiment.primary.reference_epoch", self.reference_epoch)
-        for key in ("class_size", "primary_sources", "solver_max_iter"):
+        for key in ("class_size", "solver_max_iter"):
             _require(getattr(self, key) > 0, f"experiment.primary.{key}", getattr(self, key), "a positive number")
+        _require(self.primary_sources >= 0, "experiment.primary.primary_sources", self.primary_sources,
+                 "a number >= 0 (0: the magnitude classes only, as the paper)")
         _require(len(self.g_classes) > 0 and all(0 <= g < G_MAX for g in self.g_classes),
                  "experiment.primary.g_classes", list(self.g_classes), f"G values within 0..{G_MAX:g}")
         _require(0 <= self.dead_time_fraction < 1, "experiment.primary.dead_time_fraction",

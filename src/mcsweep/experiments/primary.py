@@ -100,11 +100,11 @@ __all__ = [
 #: Sub-directory of the run directory holding one result file per prior.
 CHUNKS_DIR = "primary_chunks"
 OUTPUTS = (CHUNKS_DIR, "table3.csv", "table3.md", "primary_convergence.csv", "primary_summary.csv",
-           "report.md", "report.html", "provenance.json")
+           "primary_factor.csv", "primary_factor_curves.csv", "report.md", "report.html", "provenance.json")
 #: Class key of the primary sources in the seeds and the results.
 PRIMARY_KEY = 0
 _TAG = 42  # Sect. 4.2
-POPULATION_STREAM, DEAD_STREAM, ATTITUDE_STREAM, NOISE_STREAM = 0, 1, 2, 3
+POPULATION_STREAM, DEAD_STREAM, ATTITUDE_STREAM, NOISE_STREAM, FACTOR_STREAM = 0, 1, 2, 3, 4
 STAR_COLUMNS = ("ra", "dec", "l", "b", "parallax", "pmra", "pmdec", "phot_g_mean_mag")
 _PRIOR_RE = re.compile(r"^(?:(?P<k>\d+(?:\.\d*)?(?:[eE][-+]?\d+)?)?F90|(?P<s>\d+(?:\.\d*)?(?:[eE][-+]?\d+)?)mas)$")
 

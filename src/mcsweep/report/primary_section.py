@@ -50,3 +50,15 @@ def primary_section(doc: Document, run_dir: Path, prov: dict) -> None:
     doc.table(summary[cols], "Global solutions: PCG iterations, attitude error RMS per axis (x, y, z) [uas] "
               "after the frame correction, RMS of the normalised residuals",
               {"residual_rms": ".4f", "seconds": ".1f", "dead_fraction": ".3f"})
+    factor_file = run_dir / "primary_factor.csv"
+    if factor_file.exists():
+        fac = pd.read_csv(factor_file)
+        grid = ", ".join(f"{k:g}" for k in pri.get("factor_grid", []))
+        doc.heading("Beyond the paper: the smallest factor k of sigma_F90 (primary solution)", level=3)
+        doc.para(f"One global solution per k of the grid ({grid}; coarse: each k costs a solution); per cell the "
+                 f"fraction inside the P = {p:g} ellipse against k and its crossing of P, linear in log k "
+                 "(as sigma_F90, Sect. 3.3), with a bootstrap interval over the cell's stars "
+                 f"({pri.get('factor_resamples')} resamples). The row 'all' is the largest cell value: the "
+                 "smallest k that keeps P inside in every cell. Flags: below_grid = the smallest k already "
+                 "reaches P (an upper limit); never_reached = above the grid. Curves: primary_factor_curves.csv.")
+        doc.table(fac, "Smallest factor k per G class and subset", {"k_min": ".3g", "k_lo": ".3g", "k_hi": ".3g"})

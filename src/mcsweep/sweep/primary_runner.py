@@ -18,8 +18,9 @@ import numpy as np
 import pandas as pd
 
 from ..experiments.epoch import describe_reference_epoch
-from ..experiments.primary import (CHUNKS_DIR, POPULATION_STREAM, PRIMARY_KEY, STAR_COLUMNS, build_settings,
-                                   prepare, solve_prior, stream_seed, transits_of)
+from ..experiments.primary import (CHUNKS_DIR, FACTOR_STREAM, POPULATION_STREAM, PRIMARY_KEY, STAR_COLUMNS,
+                                   build_settings, prepare, solve_prior, stream_seed, transits_of)
+from ..experiments.primary_factor import factor_curves, factor_label, factor_rows, overall_factor
 from ..experiments.primary_table import table3_markdown, table3_rows
 from ..experiments.secondary import class_key, select_class_stars
 from ..population import make_source
@@ -73,7 +74,9 @@ def run_primary(config, raw_cfg: dict, run_dir, *, prov=None) -> Path:
         data = prepare(settings, stars, transits)
         del transits
     results, histories, extras = {}, [], {}
-    for label in settings.priors:
+    # The factor search (experiment.primary.factor_grid) shares solutions with Table 3's priors.
+    factors = {float(k): factor_label(k) for k in pri.factor_grid}
+    for label in dict.fromkeys([*settings.priors, *factors.values()]):
         cid = _prior_id(label)
         with prov.stage(f"solve {label}"):
             res = store.read(cid)
@@ -91,7 +94,17 @@ def run_primary(config, raw_cfg: dict, run_dir, *, prov=None) -> Path:
             extras[label] = json.loads(extra_file.read_text())
     with prov.stage("aggregate"):
         prov.cell_versions = dict(store.versions_read)
-        table = table3_rows(results, pri.g_classes, settings.confidence)
+        table = table3_rows({k: results[k] for k in settings.priors}, pri.g_classes, settings.confidence)
+        if factors:
+            by_k = {k: results[lab] for k, lab in factors.items()}
+            rng = np.random.default_rng(stream_seed(settings.seed, FACTOR_STREAM))
+            fac = factor_rows(by_k, pri.g_classes, settings.confidence, n_resamples=pri.factor_resamples, rng=rng)
+            k_all, flag = overall_factor(fac)
+            fac = pd.concat([fac, pd.DataFrame([{"subset": "all", "g_class": "all", "k_min": k_all, "flag": flag}])],
+                            ignore_index=True)
+            atomic_write_bytes(run_dir / "primary_factor.csv", fac.to_csv(index=False).encode())
+            atomic_write_bytes(run_dir / "primary_factor_curves.csv",
+                               factor_curves(by_k, pri.g_classes).to_csv(index=False).encode())
         n_obs = data.obs.size
         summary = pd.DataFrame([{"prior": k, **{kk: (json.dumps(v) if isinstance(v, list) else v)
                                                 for kk, v in e.items()}} for k, e in extras.items()])
@@ -125,5 +138,6 @@ def run_primary(config, raw_cfg: dict, run_dir, *, prov=None) -> Path:
         "dead_time": "SeedSequence(seed, spawn_key=(42, 1))",
         "true_attitude": "SeedSequence(seed, spawn_key=(42, 2))",
         "noise": "SeedSequence(seed, spawn_key=(42, 3))",
+        "factor_bootstrap": "SeedSequence(seed, spawn_key=(42, 4))",
     }
     return run_dir / "table3.csv"

@@ -341,9 +341,17 @@ class PrimaryConf:
     solver_rtol: float = 1e-8
     solver_update_tol_uas: float = 1e-2
     solver_max_iter: int = 2000
+    factor_grid: List[float] = field(default_factory=list)
+    factor_resamples: int = 200
 
     def __post_init__(self):
         _check_reference_epoch("experiment.primary.reference_epoch", self.reference_epoch)
+        _require(all(math.isfinite(k) and k > 0 for k in self.factor_grid)
+                 and len(set(self.factor_grid)) == len(self.factor_grid),
+                 "experiment.primary.factor_grid", list(self.factor_grid),
+                 "distinct positive factors k of sigma_F90 (empty: no factor search)")
+        _require(self.factor_resamples >= 0, "experiment.primary.factor_resamples", self.factor_resamples,
+                 "a number of bootstrap resamples >= 0")
         for key in ("class_size", "solver_max_iter"):
             _require(getattr(self, key) > 0, f"experiment.primary.{key}", getattr(self, key), "a positive number")
         _require(self.primary_sources >= 0, "experiment.primary.primary_sources", self.primary_sources,

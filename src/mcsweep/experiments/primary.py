@@ -46,10 +46,11 @@ The attitude is now *not* known: stars and attitude are solved together
    inside the P ellipse, position error at the reference epoch.
 
 Knot interval: AGIS uses intervals of tens of seconds for ~1e8 primaries (Lindegren et
-al. 2012, Sect. 3.3), i.e. of order 1e3 observations per knot and axis. Our reduced
-default (26000 stars, ~14 transits each per year, AL + AC) gives ~100 measurements per
-hour, so 3 h keeps a few hundred measurements per knot (the attitude noise is then well
-below the single-measurement noise); at full scale (3e6 stars) 60 s gives the same.
+al. 2012, Sect. 3.3), i.e. of order 1e3 observations per knot and axis; the paper does not
+give AGISLab's. Our reduced default (3 x 10000 stars, ~14 transits each per year, AL + AC)
+gives ~50 FoV transits per hour, so 3 h keeps ~140 transits per knot; at full scale
+(1.5e6 stars) 0.06 h gives the same. The attitude's noise scales as 1/sqrt(stars x knot
+interval), the attitude error the prior's bias causes does not (docs/table3.md).
 
 Reproducibility: SeedSequence(seed, spawn_key=(42, stream, ...)): population of a class
 (stream 0, class key round(100 G0); primaries key 0), dead time (1), true attitude (2),

@@ -34,8 +34,8 @@ CURVE_COLUMNS = ("subset", "g_class", "k", "n_valid", "n_inside", "fraction_insi
 
 
 def factor_label(k: float) -> str:
-    """The ``priors`` entry of factor ``k`` (``'3F90'``), so solutions are shared with Table 3's."""
-    return f"{float(k):g}F90"
+    """The ``priors`` entry of factor ``k`` (``'3F90'``; ``'F90'`` for 1), so solutions are shared with Table 3's."""
+    return "F90" if float(k) == 1.0 else f"{float(k):g}F90"
 
 
 def _flags(results: Mapping[float, pd.DataFrame], subset: str, g: float) -> tuple[np.ndarray, np.ndarray]:

@@ -96,10 +96,21 @@ def test_bad_prior_through_cli_exits_2_in_one_line_and_leaves_no_output(tmp_path
     ("experiment.primary.dead_time_fraction=1.0", "dead_time_fraction"),
     ("experiment.primary.reference_epoch=star_mean", "reference_epoch"),
     ("experiment.primary.priors=[0F90]", "priors"),
+    ("experiment.primary.primary_sources=-1", "primary_sources"),
+    ("experiment.primary.factor_grid=[1,0]", "factor_grid"),
+    ("experiment.primary.factor_grid=[2,2]", "factor_grid"),
 ])
 def test_bad_settings_are_user_errors(override, key):
     with pytest.raises(UserInputError, match=key):
         P.build_settings(_config([override])[0])
+
+
+def test_default_is_the_papers_three_classes_only():
+    # Sect. 4: one solution of the three classes; extra attitude carriers are an option.
+    cfg = to_config(compose_config(["experiment=primary"]))
+    assert cfg.experiment.primary.primary_sources == 0
+    assert list(cfg.experiment.primary.g_classes) == [11.0, 15.0, 19.0]
+    assert list(cfg.experiment.primary.factor_grid) == []
 
 
 def test_prior_grammar():

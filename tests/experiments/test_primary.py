@@ -70,7 +70,9 @@ def test_tiny_run_through_cli_writes_table3_and_report(cli_run):
     f = table.loc[ok, "fraction_inside"]
     assert ((table.loc[ok, "fraction_lo"] <= f) & (f <= table.loc[ok, "fraction_hi"])).all()
     e = table.loc[ok, "p90_error_mas"]
-    assert ((table.loc[ok, "p90_error_lo_mas"] <= e) & (e <= table.loc[ok, "p90_error_hi_mas"])).all()
+    hi = table.loc[ok, "p90_error_hi_mas"]  # NaN: too few stars for an upper bound (documented)
+    assert ((table.loc[ok, "p90_error_lo_mas"] <= e) & ((e <= hi) | hi.isna())).all()
+    assert hi[table.loc[ok, "n_valid"] >= 50].notna().all()
     assert table["paper_fraction_inside"].notna().all()  # P = 0.9 and the paper's classes
     summary = pd.read_csv(cli_run / "primary_summary.csv")
     assert summary["converged"].all()

@@ -28,9 +28,12 @@ def primary_section(doc: Document, run_dir: Path, prov: dict) -> None:
     summary = pd.read_csv(run_dir / "primary_summary.csv")
     doc.heading("One-year global solution with the attitude (paper Sect. 4.2, Table 3)")
     doc.para(
-        f"{pri.get('class_size')} stars per class (paper: 5e5) and {pri.get('primary_sources')} primary sources "
-        f"(G >= {pri.get('primary_g_min')}); {pri.get('mission_years')} year(s) from {pri.get('mission_start')} "
-        f"(TCB), {100 * float(pri.get('dead_time_fraction', 0.2)):g} % dead time; one AL (and AC) measurement "
+        f"{pri.get('class_size')} stars per class (paper: 5e5), the attitude from the same stars"
+        + (f" and {pri.get('primary_sources')} extra stars G >= {pri.get('primary_g_min')} (not in the paper)"
+           if pri.get("primary_sources") else " (as the paper)")
+        + f"; {pri.get('mission_years')} year(s) from {pri.get('mission_start')} "
+        f"(TCB), {100 * float(pri.get('dead_time_fraction', 0.2)):g} % dead time; one AL "
+        f"{'and one AC measurement' if cfg.get('noise', {}).get('use_ac', True) else 'measurement (AL only)'} "
         f"per FoV transit; attitude solved as cubic splines with a {pri.get('knot_interval_hours')} h knot "
         f"interval; true attitude = law + {pri.get('attitude_amplitude_mas')} mas random rotation on a "
         f"{pri.get('attitude_timescale_hours')} h time scale. Errors after removing the fitted frame rotation "

@@ -54,8 +54,10 @@ def cli_run(tmp_path_factory):
     base = tmp_path_factory.mktemp("primary")
     out = base / "run"
     cat = _catalogue(base / "stars.csv")
+    # factor_grid = the two priors: the factor search reuses their solutions (no extra solve).
     r = subprocess.run([str(BIN / "mcsweep"), f"hydra.run.dir={out}", *TINY, "population=catalogue",
-                        f"population.path={cat}"], capture_output=True, text=True, timeout=600)
+                        f"population.path={cat}", "experiment.primary.factor_grid=[1,10]",
+                        "experiment.primary.factor_resamples=20"], capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr[-3000:]
     return out
 
@@ -79,7 +81,16 @@ def test_tiny_run_through_cli_writes_table3_and_report(cli_run):
     conv = pd.read_csv(cli_run / "primary_convergence.csv")
     assert set(conv["prior"]) == {"F90", "10F90"}
     report = (cli_run / "report.md").read_text()
-    assert "Table 3" in report and "PCG" in report
+    assert "Table 3" in report and "PCG" in report and "smallest factor k" in report
+    fac = pd.read_csv(cli_run / "primary_factor.csv")
+    assert len(fac) == 2 * 3 + 1 and fac["subset"].iloc[-1] == "all"
+    curves = pd.read_csv(cli_run / "primary_factor_curves.csv")
+    # k = 1 and 10 are the solutions of F90 and 10F90: the curves are Table 3's fractions.
+    for k, prior in ((1.0, "F90"), (10.0, "10F90")):
+        a = curves[curves["k"] == k].set_index(["subset", "g_class"])["fraction_inside"]
+        b = table[table["prior"] == prior].set_index(["subset", "g_class"])["fraction_inside"]
+        pd.testing.assert_series_equal(a.sort_index(), b.sort_index(), check_names=False)
+    assert len(summary) == 2  # no extra solution for the factor grid
     assert (cli_run / "table3.md").read_text().count("(") > 12
 
 

@@ -24,17 +24,19 @@ The attitude is now *not* known: stars and attitude are solved together
    space), coefficients ``N(0, attitude_amplitude_mas^2)`` per axis. Only the part the
    solver's spline cannot follow matters (the model is linear in the small correction:
    a constant or a slowly varying rotation is absorbed exactly), so the amplitude is not
-   critical. The default, 10 mas on a 24 h time scale (8 default knot intervals), is
-   smooth on the knot scale as Gaia's attitude is on its tens-of-seconds knots: the
-   unmodelled part (~amplitude x (knot / time scale)^4, a few microarcsec) stays below
-   the noise. A time scale close to the knot interval leaves mas-level unmodelled
+   critical. The default, 10 mas on a 24 h time scale (8 default knot intervals), is a
+   choice, not a published figure (no published spectrum of Gaia's attitude
+   perturbations on hour-to-day scales was found; docs/table3.md): it is smooth on the
+   knot scale as Gaia's attitude is on its tens-of-seconds knots, and the unmodelled part
+   stays below the noise (measured: 100 mas instead of 10 leaves the attitude error
+   unchanged to 0.01 uas, docs/table3.md). A time scale close to the knot interval leaves mas-level unmodelled
    attitude (measured: 3-4 mas RMS with 6 h against 12 h knots), which then dominates
    every error; the sensitivity is a config value away. The
    solution starts from the scanning law (as AGIS starts from the commanded attitude).
 4. *Solution.* Unknowns: five astrometric parameters per star at one reference epoch
    (:func:`~mcsweep.experiments.epoch.resolve_reference_epoch`, default the mid-point
    of the data set, Sect. 2.1) with the prior of Eq. 18 (same prior rule for every
-   star, primaries included), and cubic-spline attitude corrections (Lindegren et al.
+   star, extra stars included), and cubic-spline attitude corrections (Lindegren et al.
    2012, Sect. 3.3) with ``knot_interval_hours``. No instrument calibration (none is
    simulated). Frame: zero mean rotation and spin of the corrections over all sources
    (:mod:`mcsweep.solver.frame`). One PCG solution per prior of ``priors``

@@ -29,10 +29,10 @@ The attitude is now *not* known: stars and attitude are solved together
    perturbations on hour-to-day scales was found; docs/table3.md): it is smooth on the
    knot scale as Gaia's attitude is on its tens-of-seconds knots, and the unmodelled part
    stays below the noise (measured: 100 mas instead of 10 leaves the attitude error
-   unchanged to the 0.1 uas printed, docs/table3.md). A time scale close to the knot interval leaves mas-level unmodelled
-   attitude (measured: 3-4 mas RMS with 6 h against 12 h knots), which then dominates
-   every error; the sensitivity is a config value away. The
-   solution starts from the scanning law (as AGIS starts from the commanded attitude).
+   unchanged to the 0.1 uas printed, docs/table3.md). A time scale close to the knot
+   interval leaves mas-level unmodelled attitude (measured: 3-4 mas RMS with 6 h against
+   12 h knots), which then dominates every error; the sensitivity is a config value
+   away. The solution starts from the scanning law (as AGIS starts from the commanded attitude).
 4. *Solution.* Unknowns: five astrometric parameters per star at one reference epoch
    (:func:`~mcsweep.experiments.epoch.resolve_reference_epoch`, default the mid-point
    of the data set, Sect. 2.1) with the prior of Eq. 18 (same prior rule for every

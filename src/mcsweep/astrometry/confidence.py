@@ -29,6 +29,7 @@ __all__ = [
     "fraction_inside",
     "inside_counts",
     "ellipse_semi_axes",
+    "ellipse_position_angle_deg",
     "error_percentile",
     "binomial_interval",
 ]
@@ -147,6 +148,17 @@ def ellipse_semi_axes(cov2, P) -> tuple[np.ndarray, np.ndarray]:
     with np.errstate(invalid="ignore", divide="ignore"):
         lam_min = np.minimum((a * e - b * b) / lam_max, lam_max)
     return np.sqrt(k * lam_max), np.sqrt(k * np.clip(lam_min, 0.0, None))
+
+
+def ellipse_position_angle_deg(cov2) -> np.ndarray:
+    """Position angle of the ellipse's major axis, degrees from north through east, in [0, 180).
+
+    For the covariance of (dalpha*, ddelta) = (east, north) components,
+    ``PA = 0.5 atan2(2 C_ad, C_dd - C_aa)``.
+    """
+    c = np.asarray(cov2, dtype=float)
+    pa = 0.5 * np.degrees(np.arctan2(2.0 * c[:, 0, 1], c[:, 1, 1] - c[:, 0, 0]))
+    return np.mod(pa, 180.0)
 
 
 def error_percentile(dpos, q) -> float:

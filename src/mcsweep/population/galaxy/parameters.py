@@ -130,7 +130,7 @@ GCNS_MG_LIMIT = 15.5
 GIANT_THICKNESS_FACTOR = 0.45
 #: Default thickness factor of the thin disc (multiplies the seven Einasto axis ratios of
 #: R03). Chosen (issue #14) so the paper's Table 1 beam keeps its 458 GUMS stars after the
-#: GCNS scaling (r03-3: 470 expected; 1.0 gives about 390): the R03 old-disc Einasto
+#: GCNS scaling (r03-3: 470 expected; 1.0 gives 379): the R03 old-disc Einasto
 #: laws have an exponential-equivalent scale height of about 250 pc, Juric et al. (2008,
 #: ApJ 673, 864) find 300 pc [V]; x 1.15 stays between the two.
 THIN_DISC_THICKNESS_FACTOR = 1.15

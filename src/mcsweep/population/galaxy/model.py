@@ -152,11 +152,12 @@ class GalaxyModel:
     Every number comes from a published source named in :mod:`.parameters`,
     :mod:`.luminosity`, :mod:`.extinction` and :mod:`.kinematics`.
 
-    The model counts *sources*: the local luminosity function (component stars) is
-    divided by 1 + ``multiplicity_frequency`` so that an unresolved multiple system counts
-    once, as in Gaia and GUMS. The correction is uniform in magnitude, a simplification:
-    companions are mostly faint M dwarfs, so it removes slightly too many bright sources
-    and too few faint ones. Set ``multiplicity_frequency=0`` to count stars.
+    The model counts *sources* (an unresolved multiple system counts once, as in Gaia
+    and GUMS): its local luminosity function is calibrated to source counts (Bovy 2017
+    for giants and main-sequence stars above 1 Msun, the GCNS for the fainter dwarfs;
+    issue #14). ``multiplicity_frequency`` other than its default (0.27) rescales every
+    magnitude by 1.27 / (1 + f), uniformly: ``multiplicity_frequency=0`` counts
+    component stars (a simplification: companions are mostly faint M dwarfs).
     """
 
     def __init__(self, params=None, **kwargs):

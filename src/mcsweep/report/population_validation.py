@@ -270,7 +270,8 @@ def _published_section(out, model, rng):
         f"{pc.CNS5_25PC['white_dwarfs']}.", "",
         "### Parallaxes of the bright stars, G = 6-7 (issue #14: the model's 90th percentile was "
         "0.71-0.82 of the real one in each band)", "",
-        "| abs(b) [deg] | stars drawn (from the density) | 90th percentile parallax [mas] | median parallax [mas] |",
+        "| abs(b) [deg] | stars drawn (from the density) | 90th percentile parallax [mas] "
+        "| median parallax [mas] |",
         "|---|---|---|---|",
         *[f"| {r.abs_b_lo}-{r.abs_b_hi} | {r.n} | {r.p90_parallax_mas:.1f} | {r.median_parallax_mas:.2f} |"
           for r in bright.itertuples()], "",

@@ -27,7 +27,9 @@ def test_issue14_section_writes_its_tables_and_figures(tmp_path):
 
     lines = _published_section(tmp_path, GalaxyModel(), np.random.default_rng(14))
     for name in ("published_counts.csv", "published_counts.png", "local_lf.csv", "local_lf.png",
-                 "local_census.csv", "bright_parallax.csv"):
+                 "local_census.csv", "bright_parallax.csv", "local_density_by_class.csv",
+                 "local_density_by_class.png"):
         assert (tmp_path / name).stat().st_size > 0, name
     text = "\n".join(lines)
     assert "Bovy 2017 MS" in text and "GCNS 60 pc" in text and "CNS5 25 pc" in text
+    assert "Local density per spectral class" in text

@@ -22,7 +22,9 @@ Checks (issue #4):
    sources within 100 pc against the Gaia Catalogue of Nearby Stars, the local
    luminosity function per 1-mag M_G bin against Bovy (2017) (``local_lf.csv``,
    ``local_lf.png``), the local content against the GCNS within 60 pc and the CNS5
-   within 25 pc (``local_census.csv``), the 90th percentile of parallax at G = 6-7 per
+   within 25 pc (``local_census.csv``), the local density per spectral class against
+   Mamajek's volume-complete samples and Holberg et al. (2002) for white dwarfs
+   (``local_density_by_class.csv``/``.png``), the 90th percentile of parallax at G = 6-7 per
    |b| band (``bright_parallax.csv``), and the model version.
 
 It lives in the report stage because it uses the stages after the population: the prior
@@ -199,6 +201,26 @@ def _bright_parallax(model, rng, n=300_000):
     return pd.DataFrame(rows)
 
 
+def _class_figure(path, by_class):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    ok = by_class.dropna(subset=["ratio", "ratio_sigma"])
+    fig, ax = plt.subplots(figsize=(6, 4.5))
+    x = np.arange(len(ok))
+    ax.errorbar(x, np.ones(len(ok)), yerr=ok["ratio_sigma"], fmt="none", color="0.6",
+                label="published +- 1 sigma")
+    ax.plot(x, ok["ratio"], "ko", label=f"model {MODEL_VERSION}")
+    ax.axhspan(0.8, 1.2, color="tab:green", alpha=0.15, label="+-20 % target")
+    ax.set_xticks(x, [f"{c}\n({n})" for c, n in zip(ok["cls"], ok["counts"])], fontsize=7)
+    ax.set_ylabel("model / published local density")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
 def _published_section(out, model, rng):
     """Issue #14 facts: counts per G vs Tycho-2/UCAC4, the local LF and censuses (CSV + PNG)."""
     import matplotlib
@@ -241,6 +263,9 @@ def _published_section(out, model, rng):
     fig.savefig(out / "local_lf.png", dpi=110)
     plt.close(fig)
     local = pc.local_sources_within(model)
+    by_class = pc.local_density_by_class(model)
+    by_class.to_csv(out / "local_density_by_class.csv", index=False)
+    _class_figure(out / "local_density_by_class.png", by_class)
     fmt = lambda v: "" if not np.isfinite(v) else f"{v:.3g}"  # noqa: E731
     return [
         "## 5. Calibration facts (issue #14; docs/galaxy_model.md)", "",
@@ -261,6 +286,21 @@ def _published_section(out, model, rng):
         *[f"| {r.M_G_lo}-{r.M_G_lo + 1} | {r.model:.3g} | {r.model_thin_giants:.3g} | {r.model_dwarfs:.3g} | "
           f"{fmt(r.bovy_ms)} | {fmt(r.ratio_to_bovy)} |" for r in lf.itertuples()], "",
         "![local LF](local_lf.png)", "",
+        "### Local density per spectral class (stars or sources pc^-3 at the Sun)", "",
+        "Mamajek's compilation of volume-complete samples (Hipparcos-2, RECONS 10 pc) and "
+        "Holberg et al. (2002) for white dwarfs (published_counts.py); each class spans the "
+        "M_G range of its dwarf subtypes. Target: within 20 %.", "",
+        "| class | M_G range | counts | published | +- | model | model / published | sample |",
+        "|---|---|---|---|---|---|---|---|",
+        *[f"| {r.cls} | {fmt(r.M_G_lo)}-{fmt(r.M_G_hi)} | {r.counts} | {r.published:.3g} | "
+          f"{fmt(r.uncertainty)} | {fmt(r.model)} | {fmt(r.ratio)} | {r.sample} |"
+          for r in by_class.itertuples()], "",
+        "The model has no white-dwarf population: the Wielen/Allen bins its faint dwarfs "
+        "come from count the white dwarfs among the stars of their M_V, so they sit in the "
+        "M-dwarf range (the 'M + white dwarfs' row). At G < 20 this changes little for the "
+        "prior: white dwarfs (M_G ~ 10-16) lie at the distances and have the old-disc "
+        "kinematics of M dwarfs of the same M_G, and they are ~7 % of the stars in that range.", "",
+        "![local density by class](local_density_by_class.png)", "",
         "### Local content against independent censuses", "",
         "| quantity | published | +- (Poisson) | model | model / published |", "|---|---|---|---|---|",
         *[f"| {r.quantity} | {r.published:.4g} | {r.uncertainty:.2g} | {r.model:.4g} | {r.ratio:.2f} |"

@@ -34,6 +34,18 @@ compilation of the cited catalogue; [M] standard value, not re-checked here.
 * Local giants: 3.9e-4 +- 0.1e-4 pc^-3 and main-sequence stars above 1 Msun
   dn/dM = 0.016 (M/Msun)^-4.7 pc^-3 Msun^-1 (Bovy 2017, MNRAS 470, 1360, abstract [V];
   Gaia DR1 TGAS): also used by the model, shown per 1-mag bin.
+* Local densities per spectral class (the nearest substitute found for a per-bin
+  GCNS luminosity function): E. Mamajek, "Star densities in the solar neighbourhood"
+  (www.pas.rochester.edu/~emamajek/memo_star_dens.html, table "Star Type / Density")
+  [S]: A stars 4.9e-4 +- 0.66e-4 pc^-3 (Hipparcos-2, M_V < 4, d < 30 pc, N = 55),
+  F dwarfs 2.4e-3 +- 0.3e-3, G dwarfs 3.3e-3 +- 0.4e-3 (Mamajek et al. 2008, 16 pc,
+  N = 57), K dwarfs 1.05e-2 +- 0.16e-2 (RECONS 10 pc, N = 44), M dwarfs 6.76e-2 +-
+  0.40e-2 (RECONS 10 pc, N = 283, 2018.3); red giants (K/M III and later) 2.7e-4 (the
+  author's figshare note 3206527, no uncertainty quoted). The G/K/M samples are
+  "likely complete even accounting for multiplicity" (component stars); the A/F
+  samples are not corrected for unresolved multiplicity (sources). White dwarfs:
+  5.0e-3 +- 0.7e-3 pc^-3 (Holberg, Oswalt & Sion 2002, ApJ 571, 512, abstract in the
+  CDS ReadMe J/ApJ/571/512 [V]); the model has no white-dwarf population.
 * Not found in the sources searched for issue #14: the GCNS luminosity function per
   1-mag M_G bin (the paper's figure values or a CDS table), and published all-sky
   counts per G magnitude at G = 15-19 or per Galactic-latitude band.
@@ -69,6 +81,10 @@ __all__ = [
     "bovy_bright_dwarfs_per_mv_bin",
     "local_lf_comparison",
     "local_census_comparison",
+    "DENSITY_BY_CLASS",
+    "HOLBERG_WD_PC3",
+    "MAMAJEK_GIANTS_PC3",
+    "local_density_by_class",
 ]
 
 #: (V-like magnitude m, N(< m) over the whole sky): Tycho-2 + UCAC4 [S].
@@ -236,4 +252,72 @@ def local_census_comparison(model):
     out["uncertainty"] = np.sqrt(out["published"])
     out.loc[out.quantity.str.startswith("Bovy"), "uncertainty"] = BOVY_GIANTS_ERR_PC3 * 1e4
     out["ratio"] = out["model"] / out["published"]
+    return out
+
+
+#: Local densities per spectral class [S] (module notes): (class, M_V range of the class
+#: on the Mamajek dwarf sequence (edges half-way between the last and first tabulated
+#: subtypes: B9V/A0V, A7V/F0V, F8V/G0V, G8V/K0V, K7V/M0V, M9.5V + 0.25), density and
+#: uncertainty [pc^-3], what the sample counts ("sources" or component "stars"),
+#: sample).
+DENSITY_BY_CLASS = (
+    ("A", 0.745, 2.40, 4.9e-4, 0.66e-4, "sources", "Hipparcos-2, d < 30 pc, N = 55"),
+    ("F", 2.40, 4.265, 2.4e-3, 0.3e-3, "sources", "F dwarfs, Hipparcos 30 pc"),
+    ("G", 4.265, 5.54, 3.3e-3, 0.4e-3, "stars", "Mamajek et al. 2008, 16 pc, N = 57"),
+    ("K", 5.54, 8.50, 1.05e-2, 0.16e-2, "stars", "RECONS 10 pc, N = 44"),
+    ("M", 8.50, 20.0, 6.76e-2, 0.40e-2, "stars", "RECONS 10 pc, N = 283"),
+)
+#: Local white-dwarf density and uncertainty, pc^-3 (Holberg et al. 2002) [V].
+HOLBERG_WD_PC3, HOLBERG_WD_ERR_PC3 = 5.0e-3, 0.7e-3
+#: Local density of red giants (K/M III and later), pc^-3 (Mamajek) [S].
+MAMAJEK_GIANTS_PC3 = 2.7e-4
+
+
+def local_density_by_class(model):
+    """The model's local density per spectral class next to the published ones.
+
+    The model's dwarfs (all components at the Sun except the thin-disc giant
+    components and the bulge) are integrated over each class's M_G range (its M_V range
+    through the dwarf sequence's G - V). Samples that count component stars are
+    compared with the model's sources times (1 + multiplicity frequency), as the model
+    turns stars into sources (population/galaxy/parameters.py).
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns ``cls``, ``M_G_lo``, ``M_G_hi``, ``published``, ``uncertainty``
+        [pc^-3], ``counts``, ``model`` (sources or stars, as the sample counts),
+        ``ratio``, ``ratio_sigma`` (the published uncertainty relative), ``sample``.
+        Extra rows: "M + white dwarfs" (the Wielen/Allen bins the faint dwarfs come
+        from hold the white dwarfs among their stars), white dwarfs (no model value)
+        and red giants (the model's giants, all classes).
+    """
+    lf = model.lf
+    keep = [i for i, n in enumerate(lf.names) if n != "bulge" and not n.endswith("_giants")]
+    giants = [i for i, n in enumerate(lf.names) if n.endswith("_giants")]
+    cdf = lf.cdf[keep].sum(axis=0)
+    seq_mv, seq_gv, _ = load_dwarf_sequence()
+    stars_per_source = 1.0 + float(model.params["multiplicity_frequency"])
+    rows = []
+    for cls, v_lo, v_hi, dens, err, counts, sample in DENSITY_BY_CLASS:
+        g_lo = v_lo + float(np.interp(v_lo, seq_mv, seq_gv))
+        g_hi = v_hi + float(np.interp(v_hi, seq_mv, seq_gv))
+        n = float(np.interp(g_hi, lf.mg, cdf) - np.interp(g_lo, lf.mg, cdf))
+        n *= stars_per_source if counts == "stars" else 1.0
+        rows.append(dict(cls=cls, M_G_lo=g_lo, M_G_hi=g_hi, published=dens, uncertainty=err,
+                         counts=counts, model=n, sample=sample))
+    m = rows[-1]
+    rows.append(dict(cls="M + white dwarfs", M_G_lo=m["M_G_lo"], M_G_hi=m["M_G_hi"],
+                     published=m["published"] + HOLBERG_WD_PC3,
+                     uncertainty=float(np.hypot(m["uncertainty"], HOLBERG_WD_ERR_PC3)),
+                     counts="stars", model=m["model"], sample=m["sample"] + " + Holberg et al. 2002"))
+    rows.append(dict(cls="white dwarfs", M_G_lo=np.nan, M_G_hi=np.nan, published=HOLBERG_WD_PC3,
+                     uncertainty=HOLBERG_WD_ERR_PC3, counts="stars", model=np.nan,
+                     sample="Holberg et al. 2002, 13-20 pc (no white-dwarf population in the model)"))
+    rows.append(dict(cls="red giants", M_G_lo=np.nan, M_G_hi=np.nan, published=MAMAJEK_GIANTS_PC3,
+                     uncertainty=np.nan, counts="sources", model=float(lf.cdf[giants, -1].sum()),
+                     sample="K/M III and later (Mamajek); model: all thin-disc giants (Bovy 2017)"))
+    out = pd.DataFrame(rows)
+    out["ratio"] = out["model"] / out["published"]
+    out["ratio_sigma"] = out["uncertainty"] / out["published"]
     return out

@@ -149,3 +149,17 @@ def test_rotation_direction_and_lags():
     lags = [mean_lag_kms(c) for c in P.THIN_DISC]
     assert all(0 < x < 15 for x in lags)   # Jeans drift of the thin disc: a few km/s
     assert lags[-1] > lags[1]               # hotter populations lag more
+
+
+def test_giant_kinematics_follow_their_thinner_discs():
+    # isothermal disc (Spitzer 1942): thickness ~ sigma_W^2 at a given surface density, so
+    # a disc GIANT_THICKNESS_FACTOR as thick has sigma_W^2 smaller by the same factor
+    # (closed form); the ellipsoid keeps each age bin's shape (R03 Table 2)
+    for dwarf, giant in zip(P.THIN_DISC, P.THIN_DISC_GIANTS):
+        assert giant.eps / dwarf.eps == pytest.approx(P.GIANT_THICKNESS_FACTOR, rel=1e-12)
+        assert (giant.sigma_uvw[2] / dwarf.sigma_uvw[2]) ** 2 == pytest.approx(
+            giant.eps / dwarf.eps, rel=1e-12)
+        assert np.divide(giant.sigma_uvw, giant.sigma_uvw[2]) == pytest.approx(
+            np.divide(dwarf.sigma_uvw, dwarf.sigma_uvw[2]), rel=1e-12)
+        # colder populations lag less (Jeans asymmetric drift)
+        assert 0 < mean_lag_kms(giant) < mean_lag_kms(dwarf)

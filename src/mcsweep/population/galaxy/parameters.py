@@ -42,6 +42,7 @@ __all__ = [
     "GCNS_SOURCES_WITHIN_100PC",
     "GCNS_MG_LIMIT",
     "GIANT_THICKNESS_FACTOR",
+    "GIANT_VELOCITY_FACTOR",
     "THIN_DISC_THICKNESS_FACTOR",
     "MODEL_VERSION",
 ]
@@ -54,8 +55,9 @@ __all__ = [
 #: x 1.15 to keep the Table 1 beam); ``besancon-r03-3`` issue #14 bright end: giants
 #: and main-sequence stars above 1 Msun at the local densities of Bovy (2017) as sources,
 #: only the fainter dwarfs scaled to the GCNS, giants in a thinner disc
-#: (:data:`GIANT_THICKNESS_FACTOR`).
-MODEL_VERSION = "besancon-r03-3"
+#: (:data:`GIANT_THICKNESS_FACTOR`); ``besancon-r03-4`` issue #14: the giants' velocity
+#: ellipsoids scaled to their thinner discs (:data:`GIANT_VELOCITY_FACTOR`).
+MODEL_VERSION = "besancon-r03-4"
 
 # --- Sun and rotation ------------------------------------------------------------------
 #: Galactocentric distance of the Sun, kpc (R03 Sect. 2: 8.5 kpc) [C].
@@ -128,6 +130,23 @@ GCNS_MG_LIMIT = 15.5
 #: at 0.88 h = 132 pc); with the convention sech^2(z / 2h) it would be 264 pc. The
 #: abstract does not say which; the counts decide (docs/galaxy_model.md).
 GIANT_THICKNESS_FACTOR = 0.45
+#: Factor on the velocity dispersions (U, V and W) of the giant-only thin-disc components,
+#: so that their kinematics match their thinner discs (issue #14). The thickness of an
+#: isothermal disc scales with sigma_W^2 at a given surface density: the self-gravitating
+#: isothermal sheet rho = rho0 sech^2(z / z0) has z0 = sigma_W^2 / (pi G Sigma) (Spitzer
+#: 1942, ApJ 95, 329; Binney & Tremaine 2008, Sect. 4.10 problems) [M], and a tracer far
+#: from the mid-plane of such a sheet falls off as exp(-2 |z| / z0 * sigma_sheet^2 /
+#: sigma_W^2), again with scale height ~ sigma_W^2. A disc x GIANT_THICKNESS_FACTOR as thick
+#: therefore has sigma_W x sqrt(GIANT_THICKNESS_FACTOR) = 0.67. sigma_U and sigma_V are
+#: scaled alike, keeping each age bin's ellipsoid shape of R03 Table 2 (sigma_U/sigma_W
+#: 2.5-2.8; scaling sigma_W alone would make it 3.7-4.2, unlike any measured disc
+#: population, e.g. 2.2 for the thin disc in Bensby et al. 2003 Table 1 [V]).
+#: R03's own age bins give eps ~ sigma_W^1.37 (a least-squares fit to the six older bins of
+#: the table below), which would mean x 0.56; the sigma^2 rule is the milder of the two.
+#: Effect (docs/galaxy_model.md): median total proper motion of G = 6-7 stars per |b| band
+#: 0-10/10-30/30-60/60-90 deg 17.8/26.1/40.1/51.8 -> 14.1/20.5/31.9/42.1 mas/yr; parallaxes,
+#: counts and the Table 1 beam unchanged.
+GIANT_VELOCITY_FACTOR = GIANT_THICKNESS_FACTOR ** 0.5
 #: Default thickness factor of the thin disc (multiplies the seven Einasto axis ratios of
 #: R03). Chosen (issue #14) so the paper's Table 1 beam keeps its 458 GUMS stars after the
 #: GCNS scaling (r03-3: 470 expected; 1.0 gives 379): the R03 old-disc Einasto
@@ -232,10 +251,11 @@ THIN_DISC = tuple(
     for i, (age, rho, eps, sig) in enumerate(_THIN)
 )
 #: The giants of each thin-disc age bin, a component of their own: same age, mass
-#: density (which sets their share of the local giants), IMF and kinematics, but axis
-#: ratio x GIANT_THICKNESS_FACTOR (issue #14).
+#: density (which sets their share of the local giants) and IMF, but axis ratio
+#: x GIANT_THICKNESS_FACTOR and velocity dispersions x GIANT_VELOCITY_FACTOR (issue #14).
 THIN_DISC_GIANTS = tuple(
-    replace(c, name=f"{c.name}_giants", eps=c.eps * GIANT_THICKNESS_FACTOR, lf_part="giants")
+    replace(c, name=f"{c.name}_giants", eps=c.eps * GIANT_THICKNESS_FACTOR, lf_part="giants",
+            sigma_uvw=tuple(s * GIANT_VELOCITY_FACTOR for s in c.sigma_uvw))
     for c in THIN_DISC
 )
 

@@ -136,8 +136,10 @@ GIANT_THICKNESS_FACTOR = 0.45
 #: isothermal sheet rho = rho0 sech^2(z / z0) has z0 = sigma_W^2 / (pi G Sigma) (Spitzer
 #: 1942, ApJ 95, 329; Binney & Tremaine 2008, Sect. 4.10 problems) [M], and a tracer far
 #: from the mid-plane of such a sheet falls off as exp(-2 |z| / z0 * sigma_sheet^2 /
-#: sigma_W^2), again with scale height ~ sigma_W^2. A disc x GIANT_THICKNESS_FACTOR as thick
-#: therefore has sigma_W x sqrt(GIANT_THICKNESS_FACTOR) = 0.67. sigma_U and sigma_V are
+#: sigma_W^2), again with scale height ~ sigma_W^2 (near the mid-plane, where the potential
+#: is harmonic, a tracer's thickness goes as sigma_W instead: x 0.45, the colder bound).
+#: A disc x GIANT_THICKNESS_FACTOR as thick therefore has sigma_W x
+#: sqrt(GIANT_THICKNESS_FACTOR) = 0.67. sigma_U and sigma_V are
 #: scaled alike, keeping each age bin's ellipsoid shape of R03 Table 2 (sigma_U/sigma_W
 #: 2.5-2.8; scaling sigma_W alone would make it 3.7-4.2, unlike any measured disc
 #: population, e.g. 2.2 for the thin disc in Bensby et al. 2003 Table 1 [V]).

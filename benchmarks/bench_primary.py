@@ -68,7 +68,7 @@ def make(n_stars: int, days: float, knot_days: float, seed: int = 5):
     x = np.column_stack([rng.normal(0, 1, ra.size), rng.normal(0, 1, ra.size), rng.uniform(0.1, 3, ra.size),
                          rng.normal(0, 5, ra.size), rng.normal(0, 5, ra.size)])
     a = rng.normal(0, 10.0, (obs.n_coef, 3))
-    a[~problem.att.free] = 0.0
+    a[~problem.free] = 0.0
     h = problem.forward(problem.join(x, a)) + rng.standard_normal(obs.size)
     return problem, h, prior, ra, dec
 
@@ -82,7 +82,7 @@ def sparse_design(problem):
                             + np.arange(3)[None, None, :]).ravel()])
     vals = np.concatenate([obs.src.ravel(), (obs.bval[:, :, None] * obs.att[:, None, :]).ravel()])
     A = sp.csr_matrix((vals, (rows, cols)), shape=(m, 5 * n + 3 * obs.n_coef))
-    free = np.concatenate([np.ones(5 * n, bool), problem.att.free.ravel()])
+    free = np.concatenate([np.ones(5 * n, bool), problem.free.ravel()])
     return A[:, free], free
 
 

@@ -76,7 +76,7 @@ def test_noiseless_recovery_of_attitude_in_spline_space(small_problem):
     obs, rng = P["obs"], np.random.default_rng(11)
     x_true, a_true = _truth(P, rng)
     problem = GlobalProblem(obs, prior_diagonal(10.0, 10.0), P["ra"], P["dec"])
-    a_true[~problem.att.free] = 0.0  # unobserved coefficients are held at zero by construction
+    a_true[~problem.free] = 0.0  # unobserved coefficients are held at zero by construction
     h = problem.forward(problem.join(x_true, a_true))
     sol = solve_global(problem, h, rtol=1e-12, max_iter=3000)
     assert sol.converged
@@ -96,7 +96,7 @@ def test_iterative_equals_direct_sparse_solution(small_problem):
     x_true, a_true = _truth(P, rng, zero_motion=False)
     prior = prior_diagonal(2.0, 10.0)
     problem = GlobalProblem(obs, prior, P["ra"], P["dec"])
-    a_true[~problem.att.free] = 0.0
+    a_true[~problem.free] = 0.0
     h = problem.forward(problem.join(x_true, a_true)) + rng.normal(size=obs.size)
     sol = solve_global(problem, h, rtol=1e-12, max_iter=5000)
     assert sol.converged
@@ -104,7 +104,7 @@ def test_iterative_equals_direct_sparse_solution(small_problem):
     # penalty as a bordered (KKT) system so that the rank-6 dense penalty is never formed.
     n = obs.n_stars
     A = _sparse_design(P)
-    free = np.concatenate([np.ones(5 * n, bool), problem.att.free.ravel()])
+    free = np.concatenate([np.ones(5 * n, bool), problem.free.ravel()])
     A = A[:, free]
     N = (A.T @ A).tocsc() + sp.diags(np.concatenate([np.tile(prior, n), np.zeros(int(free.sum()) - 5 * n)]))
     K = rotation_matrices(P["ra"], P["dec"])  # (n, 2, 3)

@@ -6,10 +6,12 @@ all proper motions with the attitude rotated by ``omega (t - t_ref)`` (the commo
 reference epoch ``t_ref``). The data therefore leave 6 degrees of freedom undetermined
 (the prior on the proper motions, Eq. 18, fixes the spin only weakly).
 
-* Constraint used in the solution: zero mean rotation of the position corrections and
-  of the proper-motion corrections over all sources, ``sum_i K_i' dpos_i = 0`` and
-  ``sum_i K_i' dmu_i = 0``, added to the normal equations as a penalty (exact for the
-  orientation, whose direction the data do not see at all).
+* Constraint used in the solution: zero weighted mean rotation of the position
+  corrections and of the proper-motion corrections over all sources,
+  ``sum_i g_i K_i' dpos_i = 0`` and ``sum_i g'_i K_i' dmu_i = 0`` with ``g_i`` (``g'_i``)
+  the star's formal position (proper-motion) precision normalised to mean 1
+  (:class:`mcsweep.solver.cg.GlobalProblem`), added to the normal equations as a
+  penalty (exact for the orientation, whose direction the data do not see at all).
 * Evaluation: as the frame rotator does after AGIS, the rotation and spin fitted by
   least squares to (estimated - true) over all sources are removed before errors are
   computed (:func:`fit_frame`, :func:`frame_offsets`).

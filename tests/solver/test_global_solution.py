@@ -214,3 +214,25 @@ def test_global_rotation_and_spin_of_truth_leave_errors_unchanged(small_problem)
         errors.append(dx - frame_offsets(P["ra"], P["dec"], e, w))
     scale = np.abs(errors[0]).max()
     np.testing.assert_allclose(errors[1], errors[0], rtol=0, atol=RTOL_ITER_DIRECT * scale)
+
+
+def test_solution_is_bit_identical_for_any_chunking_and_workers(weak_problem):
+    # The promise of mcsweep.solver.reduction: fixed blocks summed in a fixed tree, so the
+    # chunk size, the backend and the number of workers cannot change a bit.
+    from mcsweep.sweep.execution import executor
+    from mcsweep.sweep.schema import ExecutionConf
+
+    P = weak_problem
+    rng = np.random.default_rng(31)
+    problem = GlobalProblem(P["obs"], prior_diagonal(1000.0, 10.0), P["ra"], P["dec"], block_stars=128)
+    assert len(problem.blocks) > 8
+    x_true, a_true = _truth(P, rng, zero_motion=False)
+    h = problem.forward(problem.join(x_true, a_true)) + rng.normal(size=P["obs"].size)
+    kw = dict(rtol=1e-10, update_tol_uas=1e-3, max_iter=300)
+    ref = solve_global(problem, h, **kw)
+    runs = [solve_global(problem, h, chunk_stars=c, **kw) for c in (128, 512, 100000)]
+    with executor(ExecutionConf(backend="loky", n_jobs=2)) as run:
+        runs.append(solve_global(problem, h, run=run, chunk_stars=256, **kw))
+    for sol in runs:
+        assert np.array_equal(sol.x, ref.x) and np.array_equal(sol.attitude, ref.attitude)
+        assert np.array_equal(sol.residuals, ref.residuals) and len(sol.history) == len(ref.history)

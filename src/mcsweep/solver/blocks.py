@@ -75,11 +75,23 @@ class StarBlock:
 
 
 # ------------------------------------------------------------------ elementary products
+# Short sums are written as explicit element-wise accumulations in a fixed order, not
+# einsum/matmul: numpy's SIMD reductions may round differently with the memory
+# alignment of their operands, which differs between processes (pickled copies), and
+# the results must be bit-identical on any worker (:mod:`~mcsweep.solver.reduction`).
+def _rowdot(a, b) -> np.ndarray:
+    """``sum_k a[..., k] * b[..., k]`` over the last axis, accumulated left to right."""
+    out = a[..., 0] * b[..., 0]
+    for k in range(1, a.shape[-1]):
+        out += a[..., k] * b[..., k]
+    return out
+
+
 def att_forward(blk: StarBlock, p) -> np.ndarray:
     """``A_a p`` (m,) for attitude coefficients ``p (n_coef, 3)``."""
     out = np.zeros(blk.j0.size)
     for k in range(_NB):
-        out += blk.bval[:, k] * np.einsum("mc,mc->m", blk.att, p[blk.j0 + k])
+        out += blk.bval[:, k] * _rowdot(blk.att, p[blk.j0 + k])
     return out
 
 
@@ -105,7 +117,7 @@ def att_diagonal(blk: StarBlock) -> np.ndarray:
 
 def src_forward(blk: StarBlock, x) -> np.ndarray:
     """``A_s x`` (m,) for per-star parameters ``x (n, 5)``."""
-    return np.einsum("mi,mi->m", blk.src, x[blk.star])
+    return _rowdot(blk.src, x[blk.star])
 
 
 def src_adjoint(blk: StarBlock, v) -> np.ndarray:
@@ -114,7 +126,7 @@ def src_adjoint(blk: StarBlock, v) -> np.ndarray:
 
 
 def _binv(blk: StarBlock, x) -> np.ndarray:
-    return np.einsum("nij,nj->ni", blk.binv, x)
+    return _rowdot(blk.binv, x[:, None, :])
 
 
 # ------------------------------------------------------------------ setup
@@ -154,7 +166,10 @@ def _schur_band(blk: StarBlock, batch_stars: int = 512) -> np.ndarray:
         for i in range(_NP):
             for r in range(_AX * _NB):
                 H[:, i, r] = np.bincount(cl, a[:, i] * G[:, r], minlength=uniq.size)
-        T = np.einsum("cir,cij,cjs->crs", H, blk.binv[uniq // blk.n_coef], H)
+        BH = _rowdot(blk.binv[uniq // blk.n_coef][:, :, None, :], np.swapaxes(H, 1, 2)[:, None, :, :])
+        T = H[:, 0, :, None] * BH[:, 0, None, :]  # H' B^-1 H, (clusters, 12, 12)
+        for i in range(1, _NP):
+            T += H[:, i, :, None] * BH[:, i, None, :]
         _band_add(ab, _AX * (uniq % blk.n_coef), None, sign=-1.0, weights=T)
     return ab
 

@@ -196,8 +196,9 @@ class GlobalProblem:
         """``F x`` (n, 5): the penalty of the weighted zero-mean rotation and spin constraint."""
         out = np.zeros_like(xs)
         g = self.frame_weights
-        c_pos = np.einsum("n,nij,ni->j", g[:, 0], self.K, xs[:, 0:2])
-        c_pm = np.einsum("n,nij,ni->j", g[:, 1], self.K, xs[:, 3:5])
+        # sums written so that their rounding does not depend on memory alignment (_dot)
+        c_pos = np.sum((g[:, 0, None] * xs[:, 0:2])[:, :, None] * self.K, axis=(0, 1))
+        c_pm = np.sum((g[:, 1, None] * xs[:, 3:5])[:, :, None] * self.K, axis=(0, 1))
         out[:, 0:2] = self.w_pos * g[:, 0, None] * (self.K @ c_pos)
         out[:, 3:5] = self.w_pm * g[:, 1, None] * (self.K @ c_pm)
         return out
@@ -248,9 +249,28 @@ def _residual_task(item):
     return ci, [B.block_residuals(b, h, x_s[b.first - blocks[0].first:][:b.n], x_a) for b, h in zip(blocks, hs)]
 
 
+def _dot(a, b) -> float:
+    """``sum(a * b)`` by numpy's pairwise add-reduce, whose rounding, unlike BLAS ``ddot`` or
+    einsum, does not depend on the operands' memory alignment."""
+    return float(np.sum(np.multiply(a, b)))
+
+
+def _fresh(obj):
+    """Arrays copied into new allocations: results unpickled from a worker may sit at any
+    memory alignment, and numpy's SIMD reductions (dot, einsum) may round differently
+    with alignment; fresh copies behave as arrays computed in this process."""
+    if isinstance(obj, np.ndarray):
+        return np.array(obj, copy=True)
+    if isinstance(obj, (list, tuple)):
+        return type(obj)(_fresh(o) for o in obj)
+    if isinstance(obj, dict):
+        return {k: _fresh(v) for k, v in obj.items()}
+    return obj
+
+
 def _ordered(run, fn, items) -> list:
     """Results of ``run(fn, items)`` (any completion order) in item order."""
-    out = dict((r[0], r[1:]) for r in run(fn, items))
+    out = dict((r[0], _fresh(r[1:])) for r in run(fn, items))
     return [out[i] for i in range(len(items))]
 
 
@@ -291,7 +311,7 @@ def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_u
     free = pb.free
     b_s = np.concatenate([r[1] for r in res])
     b_a = np.where(free, glob["b_a"], 0.0)
-    b_norm = float(np.sqrt(b_s.ravel() @ b_s.ravel() + b_a.ravel() @ b_a.ravel())) or 1.0
+    b_norm = float(np.sqrt(_dot(b_s, b_s) + _dot(b_a, b_a))) or 1.0
     band = glob["band"]
     fixed = ~free.ravel()
     band[:, fixed] = 0.0
@@ -321,11 +341,11 @@ def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_u
     x_s, x_a = np.zeros_like(b_s), np.zeros_like(b_a)
     r_s, r_a = b_s.copy(), b_a.copy()
     p_s, p_a, q_s, q_a = precondition(r_s, r_a)
-    rz = float(np.vdot(r_s, p_s) + np.vdot(r_a, p_a))
+    rz = float(_dot(r_s, p_s) + _dot(r_a, p_a))
     history, converged = [], False
     t0 = time.perf_counter()
     for it in range(1, max_iter + 1):
-        pq = float(np.vdot(p_s, q_s) + np.vdot(p_a, q_a))
+        pq = float(_dot(p_s, q_s) + _dot(p_a, q_a))
         if pq <= 0.0:  # exact solution reached (or loss of positive definiteness)
             break
         alpha = rz / pq
@@ -334,8 +354,8 @@ def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_u
         r_s -= alpha * q_s
         r_a -= alpha * q_a
         # |h - A x|^2 = h'h - 2 x'b + x'A'A x with A'A x = b - r - (N_p + F) x_s
-        res2 = (hh - float(np.vdot(x_s, b_s + r_s) + np.vdot(x_a, b_a + r_a))
-                - float(np.vdot(x_s, extra_s(x_s))))
+        res2 = (hh - float(_dot(x_s, b_s + r_s) + _dot(x_a, b_a + r_a))
+                - _dot(x_s, extra_s(x_s)))
         step_s, step_a = alpha * p_s, alpha * p_a
         rec = ConvergenceRecord(
             iteration=it,
@@ -344,7 +364,7 @@ def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_u
             update_rms_position_uas=UAS_PER_MAS * float(np.sqrt(np.mean(np.sum(step_s[:, :2] ** 2, axis=1)))),
             update_rms_attitude_uas=UAS_PER_MAS * float(np.sqrt(np.mean(np.sum(step_a ** 2, axis=1)))),
             residual_rms=float(np.sqrt(max(res2, 0.0) / h.size)) if h.size else 0.0,
-            relative_residual=float(np.sqrt(np.vdot(r_s, r_s) + np.vdot(r_a, r_a))) / b_norm,
+            relative_residual=float(np.sqrt(_dot(r_s, r_s) + _dot(r_a, r_a))) / b_norm,
             seconds=time.perf_counter() - t0)
         history.append(rec)
         if log is not None:
@@ -353,7 +373,7 @@ def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_u
             converged = True
             break
         z_s, z_a, nz_s, nz_a = precondition(r_s, r_a)
-        rz_new = float(np.vdot(r_s, z_s) + np.vdot(r_a, z_a))
+        rz_new = float(_dot(r_s, z_s) + _dot(r_a, z_a))
         beta = rz_new / rz
         p_s, p_a = z_s + beta * p_s, z_a + beta * p_a
         q_s, q_a = nz_s + beta * q_s, nz_a + beta * q_a   # N p without another pass

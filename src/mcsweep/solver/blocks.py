@@ -99,7 +99,7 @@ def att_adjoint(blk: StarBlock, v) -> np.ndarray:
     """``A_a' v`` (n_coef, 3) for values ``v (m,)`` of the block's measurements."""
     out = np.zeros((blk.n_coef, _AX))
     for c in range(_AX):
-        wc = blk.att[:, c] * v
+        wc = blk.att[:, c] * np.asarray(v, dtype=float)
         for k in range(_NB):
             out[k:, c] += np.bincount(blk.j0, blk.bval[:, k] * wc, minlength=blk.n_coef)[:blk.n_coef - k]
     return out
@@ -110,7 +110,7 @@ def att_diagonal(blk: StarBlock) -> np.ndarray:
     out = np.zeros((blk.n_coef, _AX))
     for c in range(_AX):
         for k in range(_NB):
-            out[k:, c] += np.bincount(blk.j0, (blk.bval[:, k] * blk.att[:, c]) ** 2,
+            out[k:, c] += np.bincount(blk.j0, (blk.bval[:, k].astype(float) * blk.att[:, c]) ** 2,
                                       minlength=blk.n_coef)[:blk.n_coef - k]
     return out
 
@@ -157,11 +157,11 @@ def _schur_band(blk: StarBlock, batch_stars: int = 512) -> np.ndarray:
         hi = min(lo + batch_stars, blk.n)
         sel = slice(np.searchsorted(blk.star, lo), np.searchsorted(blk.star, hi))
         star, j0 = blk.star[sel].astype(np.int64), blk.j0[sel].astype(np.int64)
-        G = (blk.bval[sel, :, None] * blk.att[sel, None, :]).reshape(-1, _AX * _NB)
+        G = (blk.bval[sel, :, None].astype(float) * blk.att[sel, None, :]).reshape(-1, _AX * _NB)
         _band_add(ab, _AX * j0, G)
         key = star * blk.n_coef + j0
         uniq, cl = np.unique(key, return_inverse=True)
-        a = blk.src[sel]
+        a = blk.src[sel].astype(float)
         H = np.empty((uniq.size, _NP, _AX * _NB))
         for i in range(_NP):
             for r in range(_AX * _NB):

@@ -242,3 +242,12 @@ def test_solution_is_bit_identical_for_any_chunking_and_workers(weak_problem):
     for sol in runs:
         assert np.array_equal(sol.x, ref.x) and np.array_equal(sol.attitude, ref.attitude)
         assert np.array_equal(sol.residuals, ref.residuals) and len(sol.history) == len(ref.history)
+
+
+def test_with_prior_equals_a_problem_built_for_that_prior(weak_problem):
+    P = weak_problem
+    h = np.random.default_rng(41).normal(size=P["obs"].size)
+    a = GlobalProblem(P["obs"], prior_diagonal(1.0, 10.0), P["ra"], P["dec"]).with_prior(prior_diagonal(1000.0, 10.0))
+    b = GlobalProblem(P["obs"], prior_diagonal(1000.0, 10.0), P["ra"], P["dec"])
+    sa, sb = (solve_global(p, h, rtol=1e-8, max_iter=50) for p in (a, b))
+    assert np.array_equal(sa.x, sb.x) and np.array_equal(sa.attitude, sb.attitude)

@@ -60,6 +60,7 @@ residual).
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import time
 from functools import partial
@@ -160,12 +161,23 @@ class GlobalProblem:
                  compact: bool = True):
         self.obs = obs
         n = obs.n_stars
+        self.N_src = source_normals(obs)
+        self.K = rotation_matrices(ra_deg, dec_deg)
+        self._set_prior(prior_diagonal)
+        self.blocks = _make_blocks(obs, self.src_inv, int(block_stars), bool(compact))
+        self.n_src = 5 * n
+        self.n_att = 3 * obs.n_coef
+        self.size = self.n_src + self.n_att
+        # Coefficients whose support holds no measurement (inside dead time) are held at
+        # zero (identity rows), as AGIS breaks the attitude into segments at data gaps.
+        self.free = pairwise_sum(B.att_diagonal(b) for b in self.blocks) > 0
+
+    def _set_prior(self, prior_diagonal):
+        n, N_src = self.obs.n_stars, self.N_src
         self.prior = np.broadcast_to(np.asarray(prior_diagonal, dtype=float), (n, 5))
-        N_src = source_normals(obs)
         _, self.src_inv, ok = solve_sources(N_src, np.zeros((n, 5)), self.prior)
         if not ok.all():
             raise ValueError(f"{int((~ok).sum())} stars have singular source blocks; remove them first")
-        self.K = rotation_matrices(ra_deg, dec_deg)
         # Frame constraint weights (module notes, "Frame"): each star's formal precision of
         # position and proper motion (attitude as known), normalised to mean 1.
         c = self.src_inv
@@ -177,14 +189,15 @@ class GlobalProblem:
         # as a star (any positive weight gives the same stars for the orientation).
         self.w_pos = float(np.median(N_src[:, 0, 0] + N_src[:, 1, 1])) / (2.0 * n)
         self.w_pm = float(np.median(N_src[:, 3, 3] + N_src[:, 4, 4] + 2 * self.prior[:, 3])) / (2.0 * n)
-        del N_src
-        self.blocks = _make_blocks(obs, self.src_inv, int(block_stars), bool(compact))
-        self.n_src = 5 * n
-        self.n_att = 3 * obs.n_coef
-        self.size = self.n_src + self.n_att
-        # Coefficients whose support holds no measurement (inside dead time) are held at
-        # zero (identity rows), as AGIS breaks the attitude into segments at data gaps.
-        self.free = pairwise_sum(B.att_diagonal(b) for b in self.blocks) > 0
+
+    def with_prior(self, prior_diagonal) -> "GlobalProblem":
+        """The same measurements under another prior, sharing the stored partials (the
+        per-star inverses and frame weights are new): one problem serves every prior of
+        Table 3, and the caller may drop its Observations' partials after building it."""
+        new = copy.copy(self)
+        new._set_prior(prior_diagonal)
+        new.blocks = [dataclasses.replace(b, binv=new.src_inv[b.first:b.first + b.n]) for b in self.blocks]
+        return new
 
     # ------------------------------------------------------------ layout
     def split(self, v):

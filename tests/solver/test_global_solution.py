@@ -239,6 +239,7 @@ def test_solution_is_bit_identical_for_any_chunking_and_workers(weak_problem):
     runs = [solve_global(problem, h, chunk_stars=c, **kw) for c in (128, 512, 100000)]
     with executor(ExecutionConf(backend="loky", n_jobs=2)) as run:
         runs.append(solve_global(problem, h, run=run, chunk_stars=256, **kw))
+        runs.append(solve_global(problem, h, run=run, run_iterations=run, chunk_stars=512, **kw))
     for sol in runs:
         assert np.array_equal(sol.x, ref.x) and np.array_equal(sol.attitude, ref.attitude)
         assert np.array_equal(sol.residuals, ref.residuals) and len(sol.history) == len(ref.history)

@@ -317,7 +317,7 @@ def _ordered(run, fn, items) -> list:
 # ---------------------------------------------------------------------- solver
 def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_uas: float = 1e-3,
                  max_iter: int = 500, min_iter: int = 2, log=None, run: Callable | None = None,
-                 chunk_stars: int | None = None) -> GlobalSolution:
+                 chunk_stars: int | None = None, run_iterations: Callable | None = None) -> GlobalSolution:
     """Solve ``N x = A' h`` by PCG from ``x = 0`` (module notes).
 
     Parameters
@@ -332,12 +332,21 @@ def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_u
         Called with each :class:`ConvergenceRecord`.
     run : callable, optional, keyword-only
         Executor ``run(fn, items) -> iterator of fn(item)`` in any order, e.g. from
-        :func:`mcsweep.sweep.execution.executor`; default in-process.
+        :func:`mcsweep.sweep.execution.executor`, for the one-off passes (the setup pass
+        that accumulates the right-hand sides and the banded Schur block, and the final
+        residuals); default in-process.
+    run_iterations : callable, optional, keyword-only
+        Executor for the two passes of every iteration; default in-process. Measured
+        (16000 stars, 1.4e5 measurements, 2 chunks): joblib loky with 2 workers took 5.8x
+        the wall time of in-process, threads 1.2x: a map-like executor re-sends every
+        chunk's measurements each call, which costs more than the pass itself. Pass
+        ``run`` here only for an executor whose workers keep their data.
     chunk_stars : int, optional, keyword-only
         Stars per chunk task (rounded down to a power of two of blocks); default one
         block per task. Results do not depend on it.
     """
     run = run or sequential_run
+    run_it = run_iterations or sequential_run
     h = np.asarray(h, dtype=float)
     pb = problem
     ranges = pb.chunks(chunk_stars)
@@ -367,10 +376,10 @@ def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_u
 
     def precondition(r_s, r_a):
         """``z = M^-1 r`` (symmetric block Gauss-Seidel with the banded Schur block) and ``N z``."""
-        fwd = _ordered(run, _forward_task, [(i, bl, r_s[sl]) for i, (bl, sl) in enumerate(zip(chunks, stars))])
+        fwd = _ordered(run_it, _forward_task, [(i, bl, r_s[sl]) for i, (bl, sl) in enumerate(zip(chunks, stars))])
         w_a = np.where(free, r_a - pairwise_sum(f[0] for f in fwd), 0.0)
         z_a = np.where(free, cho_solve_banded((chol, False), w_a.ravel()).reshape(-1, 3), 0.0)
-        back = _ordered(run, _back_task, [(i, bl, r_s[sl], z_a) for i, (bl, sl) in enumerate(zip(chunks, stars))])
+        back = _ordered(run_it, _back_task, [(i, bl, r_s[sl], z_a) for i, (bl, sl) in enumerate(zip(chunks, stars))])
         z_s = np.concatenate([o[0] for o in back])
         nz_s = np.concatenate([o[1] for o in back]) + extra_s(z_s)
         nz_a = pairwise_sum(o[2] for o in back)

@@ -43,13 +43,14 @@ class StarBlock:
         Index of each measurement in the :class:`~mcsweep.solver.observations.Observations` order.
     star : ndarray (m,) int32
         Star of each measurement within the block (0 .. n - 1).
-    src : ndarray (m, 5)
-        Normalised source partials.
-    att : ndarray (m, 3)
+    src : ndarray (5, m)
+        Normalised source partials (one contiguous row per parameter: the passes read
+        them column by column).
+    att : ndarray (3, m)
         Normalised attitude axis partials.
     j0 : ndarray (m,) int32
         First spline coefficient touching the epoch.
-    bval : ndarray (m, 4)
+    bval : ndarray (4, m)
         B-spline values.
     binv : ndarray (n, 5, 5)
         ``(N_ss + N_p)^-1`` per star.
@@ -90,8 +91,10 @@ def _rowdot(a, b) -> np.ndarray:
 def att_forward(blk: StarBlock, p) -> np.ndarray:
     """``A_a p`` (m,) for attitude coefficients ``p (n_coef, 3)``."""
     out = np.zeros(blk.j0.size)
+    pt = np.ascontiguousarray(np.asarray(p, dtype=float).T)
     for k in range(_NB):
-        out += blk.bval[:, k] * _rowdot(blk.att, p[blk.j0 + k])
+        j = blk.j0 + k
+        out += blk.bval[k] * (blk.att[0] * pt[0][j] + blk.att[1] * pt[1][j] + blk.att[2] * pt[2][j])
     return out
 
 
@@ -99,9 +102,9 @@ def att_adjoint(blk: StarBlock, v) -> np.ndarray:
     """``A_a' v`` (n_coef, 3) for values ``v (m,)`` of the block's measurements."""
     out = np.zeros((blk.n_coef, _AX))
     for c in range(_AX):
-        wc = blk.att[:, c] * np.asarray(v, dtype=float)
+        wc = blk.att[c] * np.asarray(v, dtype=float)
         for k in range(_NB):
-            out[k:, c] += np.bincount(blk.j0, blk.bval[:, k] * wc, minlength=blk.n_coef)[:blk.n_coef - k]
+            out[k:, c] += np.bincount(blk.j0, blk.bval[k] * wc, minlength=blk.n_coef)[:blk.n_coef - k]
     return out
 
 
@@ -110,19 +113,23 @@ def att_diagonal(blk: StarBlock) -> np.ndarray:
     out = np.zeros((blk.n_coef, _AX))
     for c in range(_AX):
         for k in range(_NB):
-            out[k:, c] += np.bincount(blk.j0, (blk.bval[:, k].astype(float) * blk.att[:, c]) ** 2,
+            out[k:, c] += np.bincount(blk.j0, (blk.bval[k].astype(float) * blk.att[c]) ** 2,
                                       minlength=blk.n_coef)[:blk.n_coef - k]
     return out
 
 
 def src_forward(blk: StarBlock, x) -> np.ndarray:
     """``A_s x`` (m,) for per-star parameters ``x (n, 5)``."""
-    return _rowdot(blk.src, x[blk.star])
+    xt = np.asarray(x, dtype=float).T
+    out = blk.src[0] * xt[0][blk.star]
+    for i in range(1, _NP):
+        out += blk.src[i] * xt[i][blk.star]
+    return out
 
 
 def src_adjoint(blk: StarBlock, v) -> np.ndarray:
     """``A_s' v`` (n, 5)."""
-    return np.stack([np.bincount(blk.star, blk.src[:, i] * v, minlength=blk.n) for i in range(_NP)], axis=1)
+    return np.stack([np.bincount(blk.star, blk.src[i] * v, minlength=blk.n) for i in range(_NP)], axis=1)
 
 
 def _binv(blk: StarBlock, x) -> np.ndarray:
@@ -157,11 +164,11 @@ def _schur_band(blk: StarBlock, batch_stars: int = 512) -> np.ndarray:
         hi = min(lo + batch_stars, blk.n)
         sel = slice(np.searchsorted(blk.star, lo), np.searchsorted(blk.star, hi))
         star, j0 = blk.star[sel].astype(np.int64), blk.j0[sel].astype(np.int64)
-        G = (blk.bval[sel, :, None].astype(float) * blk.att[sel, None, :]).reshape(-1, _AX * _NB)
+        G = (blk.bval[:, None, sel].astype(float) * blk.att[None, :, sel]).reshape(_AX * _NB, -1).T
         _band_add(ab, _AX * j0, G)
         key = star * blk.n_coef + j0
         uniq, cl = np.unique(key, return_inverse=True)
-        a = blk.src[sel].astype(float)
+        a = blk.src[:, sel].T.astype(float)
         H = np.empty((uniq.size, _NP, _AX * _NB))
         for i in range(_NP):
             for r in range(_AX * _NB):

@@ -127,8 +127,9 @@ def _make_blocks(obs: Observations, binv, block_stars: int, compact: bool) -> li
         rows = order[lo:hi]
         out.append(B.StarBlock(first=first, n=last - first, rows=rows.astype(np.int32 if obs.size < 2**31 else np.int64),
                                star=(obs.star[rows] - first).astype(star_int),
-                               src=obs.src[rows].astype(real), att=obs.att[rows].astype(real),
-                               j0=obs.j0[rows].astype(np.int32), bval=obs.bval[rows].astype(real),
+                               src=np.ascontiguousarray(obs.src[rows].T, dtype=real),
+                               att=np.ascontiguousarray(obs.att[rows].T, dtype=real),
+                               j0=obs.j0[rows].astype(np.int32), bval=np.ascontiguousarray(obs.bval[rows].T, dtype=real),
                                binv=binv[first:last], n_coef=obs.n_coef))
     return out
 
@@ -219,12 +220,14 @@ class GlobalProblem:
     def frame_penalty(self, xs) -> np.ndarray:
         """``F x`` (n, 5): the penalty of the weighted zero-mean rotation and spin constraint."""
         out = np.zeros_like(xs)
-        g = self.frame_weights
-        # sums written so that their rounding does not depend on memory alignment (_dot)
-        c_pos = np.sum((g[:, 0, None] * xs[:, 0:2])[:, :, None] * self.K, axis=(0, 1))
-        c_pm = np.sum((g[:, 1, None] * xs[:, 3:5])[:, :, None] * self.K, axis=(0, 1))
-        out[:, 0:2] = self.w_pos * g[:, 0, None] * (self.K @ c_pos)
-        out[:, 3:5] = self.w_pm * g[:, 1, None] * (self.K @ c_pm)
+        g, K = self.frame_weights, self.K
+        # element-wise products and axis sums in a fixed order (rounding independent of
+        # memory alignment, see _dot), not einsum / matmul
+        for col, gk, w in ((0, g[:, 0], self.w_pos), (3, g[:, 1], self.w_pm)):
+            t = (gk * xs[:, col])[:, None] * K[:, 0, :] + (gk * xs[:, col + 1])[:, None] * K[:, 1, :]
+            c = np.sum(t, axis=0)
+            rot = K[:, :, 0] * c[0] + K[:, :, 1] * c[1] + K[:, :, 2] * c[2]  # (n, 2)
+            out[:, col:col + 2] = (w * gk)[:, None] * rot
         return out
 
     def apply(self, v) -> np.ndarray:
@@ -244,7 +247,7 @@ class GlobalProblem:
         src, att, bval = np.empty((m, 5)), np.empty((m, 3)), np.empty((m, 4))
         for b in self.blocks:
             star[b.rows], j0[b.rows] = b.star + b.first, b.j0
-            src[b.rows], att[b.rows], bval[b.rows] = b.src, b.att, b.bval
+            src[b.rows], att[b.rows], bval[b.rows] = b.src.T, b.att.T, b.bval.T
         return star, src, att, j0, bval
 
     @property

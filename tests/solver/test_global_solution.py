@@ -123,10 +123,10 @@ def _direct_solution(P, problem, h, prior):
     return y[:nf], free
 
 
-def _agreement(P, prior, seed, max_iter=2000):
+def _agreement(P, prior, seed, max_iter=2000, compact=False):
     obs, rng = P["obs"], np.random.default_rng(seed)
     x_true, a_true = _truth(P, rng, zero_motion=False)
-    problem = GlobalProblem(obs, prior, P["ra"], P["dec"])
+    problem = GlobalProblem(obs, prior, P["ra"], P["dec"], compact=compact)
     a_true[~problem.free] = 0.0
     h = problem.forward(problem.join(x_true, a_true)) + rng.normal(size=obs.size)
     sol = solve_global(problem, h, rtol=1e-10, update_tol_uas=1e-3, max_iter=max_iter)
@@ -252,3 +252,13 @@ def test_with_prior_equals_a_problem_built_for_that_prior(weak_problem):
     b = GlobalProblem(P["obs"], prior_diagonal(1000.0, 10.0), P["ra"], P["dec"])
     sa, sb = (solve_global(p, h, rtol=1e-8, max_iter=50) for p in (a, b))
     assert np.array_equal(sa.x, sb.x) and np.array_equal(sa.attitude, sb.attitude)
+
+
+def test_compact_storage_solves_its_own_normal_equations(weak_problem):
+    # float32 attitude partials: the stored (rounded) partials define the problem solved
+    P = weak_problem
+    sol, rel = _agreement(P, prior_diagonal(1000.0, 10.0), 21, compact=True)
+    assert sol.converged and rel < RTOL_ITER_DIRECT
+    full = GlobalProblem(P["obs"], prior_diagonal(1000.0, 10.0), P["ra"], P["dec"])
+    small = GlobalProblem(P["obs"], prior_diagonal(1000.0, 10.0), P["ra"], P["dec"], compact=True)
+    assert small.nbytes_per_measurement < full.nbytes_per_measurement - 27

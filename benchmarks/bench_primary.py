@@ -12,7 +12,8 @@ only 1-4 transits), AL + AC, noisy measurements, the prior of Eq. 18 (R = 10 /yr
 2. the direct solution of the same normal equations (scipy.sparse ``splu`` of the
    equilibrated bordered system plus two refinement steps): CPU ratio and agreement;
 3. ``scipy.sparse.linalg.lsqr`` on the same weighted design plus prior rows: CPU ratio;
-4. executor overhead: the same solve in-process and through joblib (loky, 2 workers);
+4. executor overhead: the same solve in-process and with the one-off passes through joblib
+   (loky, 2 workers; the iteration passes stay in-process);
 5. scaling with the number of stars (3 sizes): ms per iteration, ns per measurement and
    iteration, bytes per measurement held by the solver, peak traced memory;
 6. an extrapolation to the issue's full scale.
@@ -241,13 +242,15 @@ def main():
     m_full = m_per_star_day * FULL_STARS * FULL_DAYS * FULL_LIVE
     ns = rows[-1][1] / rows[-1][0]
     it_total = sum(iters[k] for k in ("F90 (1 mas)", "10 F90 (10 mas)", "1000 mas"))
+    per_star = 8 * 25 / (m_full / FULL_STARS)  # the per-star inverse blocks, spread over the measurements
+    store = 106 + per_star
     print(f"  ~{m_full:.2e} measurements ({m_per_star_day:.3f} per star and day), {ns * 1e9:.0f} ns/(measurement "
-          f"iteration) -> {ns * m_full:.0f} s per iteration on one core; iterations for the 3 priors here: "
-          f"{it_total} -> {ns * m_full * it_total / 60:.0f} min on one core, /2 with 2 workers if the chunk work "
-          f"parallelises perfectly; solver storage {rows[-1][2] * m_full / 2**30:.1f} GB plus the experiment's "
-          f"Observations (121 B/measurement: {121 * m_full / 2**30:.1f} GB)")
-    print("  (iteration counts grow with the problem's size and knot density; those here are a lower bound)")
-
+          f"iteration) -> {ns * m_full:.0f} s per iteration (iterations run in-process on one core); iterations "
+          f"for the 3 priors here: {it_total} -> {ns * m_full * it_total / 60:.0f} min")
+    print(f"  memory: solver {store:.0f} B/measurement -> {store * m_full / 2**30:.1f} GB (compact=True: "
+          f"{(store - 28) * m_full / 2**30:.1f} GB), plus the experiment's Observations (121 B/measurement, "
+          f"{121 * m_full / 2**30:.1f} GB) while it keeps them")
+    print("  (iteration counts may grow with the problem's size and knot density)")
 
 if __name__ == "__main__":
     main()

@@ -54,6 +54,11 @@ class StarBlock:
         B-spline values.
     binv : ndarray (n, 5, 5)
         ``(N_ss + N_p)^-1`` per star.
+    seg, seg_j0 : ndarray
+        The measurements are in time order (``j0`` ascending, then by star): run ``r`` of
+        equal ``j0`` starts at ``seg[r]`` and has ``j0 = seg_j0[r]``. The attitude sums are
+        then segment sums (:func:`numpy.add.reduceat`, sequential memory access) instead
+        of scatters over the whole attitude vector.
     n_coef : int
         Spline coefficients per axis.
     """
@@ -68,6 +73,8 @@ class StarBlock:
     bval: np.ndarray
     binv: np.ndarray
     n_coef: int
+    seg: np.ndarray
+    seg_j0: np.ndarray
 
     @property
     def nbytes(self) -> int:
@@ -101,10 +108,12 @@ def att_forward(blk: StarBlock, p) -> np.ndarray:
 def att_adjoint(blk: StarBlock, v) -> np.ndarray:
     """``A_a' v`` (n_coef, 3) for values ``v (m,)`` of the block's measurements."""
     out = np.zeros((blk.n_coef, _AX))
+    if blk.j0.size == 0:
+        return out
     for c in range(_AX):
         wc = blk.att[c] * np.asarray(v, dtype=float)
         for k in range(_NB):
-            out[k:, c] += np.bincount(blk.j0, blk.bval[k] * wc, minlength=blk.n_coef)[:blk.n_coef - k]
+            out[blk.seg_j0 + k, c] += np.add.reduceat(blk.bval[k] * wc, blk.seg)
     return out
 
 
@@ -160,9 +169,11 @@ def _schur_band(blk: StarBlock, batch_stars: int = 512) -> np.ndarray:
     """
     n_att = _AX * blk.n_coef
     ab = np.zeros((BANDWIDTH + 1, n_att))
+    order = np.argsort(blk.star, kind="stable")
+    star_sorted = blk.star[order]
     for lo in range(0, blk.n, batch_stars):  # bounds temporary memory; fixed order
         hi = min(lo + batch_stars, blk.n)
-        sel = slice(np.searchsorted(blk.star, lo), np.searchsorted(blk.star, hi))
+        sel = order[np.searchsorted(star_sorted, lo):np.searchsorted(star_sorted, hi)]
         star, j0 = blk.star[sel].astype(np.int64), blk.j0[sel].astype(np.int64)
         G = (blk.bval[:, None, sel].astype(float) * blk.att[None, :, sel]).reshape(_AX * _NB, -1).T
         _band_add(ab, _AX * j0, G)

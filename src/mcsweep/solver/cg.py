@@ -125,12 +125,15 @@ def _make_blocks(obs: Observations, binv, block_stars: int, compact: bool) -> li
         last = min(first + block_stars, obs.n_stars)
         lo, hi = np.searchsorted(star_sorted, [first, last])
         rows = order[lo:hi]
+        rows = rows[np.argsort(obs.j0[rows], kind="stable")]  # time order within the block (StarBlock)
+        j0 = obs.j0[rows]
+        seg = np.flatnonzero(np.r_[True, j0[1:] != j0[:-1]]) if j0.size else np.zeros(0, np.int64)
         out.append(B.StarBlock(first=first, n=last - first, rows=rows.astype(np.int32 if obs.size < 2**31 else np.int64),
                                star=(obs.star[rows] - first).astype(star_int),
                                src=np.ascontiguousarray(obs.src[rows].T, dtype=np.float64),
                                att=np.ascontiguousarray(obs.att[rows].T, dtype=real),
                                j0=obs.j0[rows].astype(np.int32), bval=np.ascontiguousarray(obs.bval[rows].T, dtype=real),
-                               binv=binv[first:last], n_coef=obs.n_coef))
+                               binv=binv[first:last], n_coef=obs.n_coef, seg=seg, seg_j0=j0[seg].astype(np.int64)))
     return out
 
 

@@ -262,3 +262,20 @@ def test_compact_storage_solves_its_own_normal_equations(weak_problem):
     full = GlobalProblem(P["obs"], prior_diagonal(1000.0, 10.0), P["ra"], P["dec"])
     small = GlobalProblem(P["obs"], prior_diagonal(1000.0, 10.0), P["ra"], P["dec"], compact=True)
     assert small.nbytes_per_measurement < full.nbytes_per_measurement - 27
+
+
+def test_weighted_frame_fit_ignores_imprecise_stars(small_problem):
+    # A known rotation and spin plus arcsec-level errors on a tenth of the stars, whose
+    # weights are 1e-8 of the others': the weighted fit recovers the rotation and spin.
+    P = small_problem
+    rng = np.random.default_rng(51)
+    eps, omega = np.array([0.3, -0.2, 0.5]), np.array([0.04, 0.07, -0.03])
+    dx = frame_offsets(P["ra"], P["dec"], eps, omega)
+    weak = rng.uniform(size=dx.shape[0]) < 0.1
+    dx[weak] += rng.normal(0.0, 3000.0, (int(weak.sum()), 5))
+    w = np.where(weak[:, None], 1e-8, 1.0) * np.ones((dx.shape[0], 2))
+    e, o = fit_frame(dx, P["ra"], P["dec"], weights=w)
+    np.testing.assert_allclose(e, eps, atol=1e-3)
+    np.testing.assert_allclose(o, omega, atol=1e-3)
+    e0, _ = fit_frame(dx, P["ra"], P["dec"])
+    assert np.abs(e0 - eps).max() > 1.0  # unweighted, the imprecise stars set it

@@ -234,7 +234,7 @@ def test_solution_is_bit_identical_for_any_chunking_and_workers(weak_problem):
     assert len(problem.blocks) > 8
     x_true, a_true = _truth(P, rng, zero_motion=False)
     h = problem.forward(problem.join(x_true, a_true)) + rng.normal(size=P["obs"].size)
-    kw = dict(rtol=1e-10, update_tol_uas=1e-3, max_iter=300)
+    kw = dict(rtol=1e-10, update_tol_uas=1e-3, max_iter=12)  # bit identity needs no convergence
     ref = solve_global(problem, h, **kw)
     runs = [solve_global(problem, h, chunk_stars=c, **kw) for c in (128, 512, 100000)]
     with executor(ExecutionConf(backend="loky", n_jobs=2)) as run:

@@ -75,7 +75,8 @@ def test_zero_parallax_stars_are_never_under_covered(table1):
 
 def test_table1_beam_behaves_as_the_paper_describes(table1):
     config, cell, transits = table1
-    curves, _ = run_cell(cell, transits, GalaxyModel(), build_settings(config))
+    # Grid statistics as in the showcase cell (the sweep's cells have them at F90 only).
+    curves, _ = run_cell(cell, transits, GalaxyModel(), build_settings(config), grid_statistics=True)
     two = curves[(curves["case"] == "two") & ~curves["at_f90"]].set_index("sigma_prior_mas")
     # Fig. 2 A: a 0.01 mas prior is a two-parameter solution whose ellipse misses most errors.
     assert two["fraction_inside"].iloc[0] < 0.2

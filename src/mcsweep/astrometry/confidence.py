@@ -28,6 +28,7 @@ __all__ = [
     "inside",
     "fraction_inside",
     "inside_counts",
+    "inside_components",
     "ellipse_semi_axes",
     "error_percentile",
     "binomial_interval",
@@ -117,6 +118,37 @@ def inside_counts(dpos, cov2, P) -> tuple[int, int]:
     q = mahalanobis_sq(dpos, cov2)
     valid = np.isfinite(q)
     return int(np.count_nonzero(q[valid] < k)), int(np.count_nonzero(valid))
+
+
+def inside_components(dx, dy, caa, cad, cdd, P, *, inside_out=None, valid_out=None):
+    """Per-star ``inside`` and ``valid`` flags from star-last components (hot loops).
+
+    The rule of :func:`mahalanobis_sq`, :func:`inside` and :func:`inside_counts` for
+    a position error ``(dx, dy)`` and covariance ``[[caa, cad], [cad, cdd]]`` given as
+    separate contiguous arrays of shape (n,): ``valid`` where the covariance is positive
+    definite and ``Q`` is finite, ``inside`` where valid and ``Q < k(P)``. The sums
+    ``inside.sum(), valid.sum()`` are ``inside_counts`` of the same stars. Written for
+    the prior scan's inner loop (:mod:`mcsweep.astrometry.prior_scan`): the optional
+    boolean outputs avoid allocations.
+
+    Returns
+    -------
+    inside, valid : ndarray of bool, shape (n,)
+    """
+    k = chi2_threshold(P, 2)
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        det = caa * cdd
+        det -= cad * cad
+        q = cdd * dx * dx
+        q -= 2.0 * cad * dx * dy
+        q += caa * dy * dy
+        q /= det
+        valid = np.greater(det, 0.0, out=valid_out)
+        valid &= caa > 0.0
+        valid &= np.isfinite(q)
+        ins = np.less(q, k, out=inside_out)
+    ins &= valid
+    return ins, valid
 
 
 def fraction_inside(dpos, cov2, P) -> float:

@@ -254,6 +254,9 @@ class CellConf:
     interpolation: str = "log"
     #: Bootstrap resamples of the cell's stars for the sigma_F90 interval (0 = none).
     n_bootstrap: int = 200
+    #: p_error_mas and median_semi_major_mas on every grid row of every cell (true), or
+    #: only at sigma_F90 and in the showcase cell (false: NaN on the other grid rows).
+    grid_statistics: bool = False
 
     def __post_init__(self):
         _require(self.n_bootstrap >= 0, "cell.n_bootstrap", self.n_bootstrap,

@@ -244,6 +244,11 @@ def scan_curve(scan: PriorScan, priors_mas, s: CellSettings, *, statistics: bool
     table : pandas.DataFrame
     inside, valid : ndarray of bool, shape (n_priors, n_stars)
     """
+    arrays, inside_flags, valid_flags = _scan_arrays(scan, priors_mas, s, statistics=statistics)
+    return pd.DataFrame(arrays), inside_flags, valid_flags
+
+
+def _scan_arrays(scan: PriorScan, priors_mas, s: CellSettings, *, statistics: bool):
     priors = np.atleast_1d(np.asarray(priors_mas, float))
     inside_flags, valid_flags = scan.inside_flags(priors, s.confidence)
     err = semi = None
@@ -256,11 +261,11 @@ def scan_curve(scan: PriorScan, priors_mas, s: CellSettings, *, statistics: bool
             # position is the actual error (Sect. 3.2).
             err[i] = np.hypot(dpos[:, 0], dpos[:, 1])
             semi[i] = ellipse_semi_axes(cov2, s.confidence)[0]
-    return _curve_table(priors, inside_flags.sum(axis=1), valid_flags.sum(axis=1), err, semi, s), \
+    return _curve_arrays(priors, inside_flags.sum(axis=1), valid_flags.sum(axis=1), err, semi, s), \
         inside_flags, valid_flags
 
 
-def _curve_table(priors, n_in, n_valid, err, semi_major, s: CellSettings) -> pd.DataFrame:
+def _curve_arrays(priors, n_in, n_valid, err, semi_major, s: CellSettings) -> dict:
     n_in = np.asarray(n_in, dtype=np.int64)
     n_valid = np.asarray(n_valid, dtype=np.int64)
     if err is None or err.shape[1] == 0:
@@ -273,14 +278,18 @@ def _curve_table(priors, n_in, n_valid, err, semi_major, s: CellSettings) -> pd.
         med = median(semi_major, axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
         frac = np.where(n_valid > 0, n_in / np.maximum(n_valid, 1), np.nan)
-    return pd.DataFrame({
-        "sigma_prior_mas": priors,
+    return {
+        "sigma_prior_mas": np.asarray(priors, float),
         "fraction_inside": frac,
         "p_error_mas": p_err,
         "median_semi_major_mas": med,
         "n_inside": n_in,
         "n_valid": n_valid,
-    })
+    }
+
+
+def _curve_table(priors, n_in, n_valid, err, semi_major, s: CellSettings) -> pd.DataFrame:
+    return pd.DataFrame(_curve_arrays(priors, n_in, n_valid, err, semi_major, s))
 
 
 def prior_curve(n0, b0, priors_mas, s: CellSettings, *, method: str = "scan", return_inside: bool = False,
@@ -469,7 +478,7 @@ def run_cell(cell, transits: pd.DataFrame, source, s: CellSettings,
 
     curves, f90_flags = {}, None
     for case, scan in scans.items():
-        curves[case], *flags = scan_curve(scan, grid, s, statistics=stats_on_grid)
+        curves[case], *flags = _scan_arrays(scan, grid, s, statistics=stats_on_grid)
         if case == s.f90_case:
             f90_flags = flags
     f90_lo = f90_hi = float("nan")
@@ -484,22 +493,33 @@ def run_cell(cell, transits: pd.DataFrame, source, s: CellSettings,
     else:
         f90, flag = float("nan"), "no_transits" if len(stars) else "no_stars"
 
-    frames = []
+    # One DataFrame for the whole cell, built from numpy columns (pandas per case costs
+    # more than a cell's arithmetic).
+    empty = _curve_arrays(grid, np.zeros(len(grid)), np.zeros(len(grid)), None, None, s)
+    empty["fraction_inside"] = np.full(len(grid), np.nan)
+    parts, at_f90, case_col = [], [], []
+
+    def add(part, case, at):
+        parts.append(part)
+        at_f90.append(np.full(len(part["sigma_prior_mas"]), at))
+        case_col.extend([case] * len(part["sigma_prior_mas"]))
+
     for case in s.cases:
         if case in curves:
-            c = curves[case].assign(at_f90=False)
+            add(curves[case], case, False)
             if math.isfinite(f90):
-                at = scan_curve(scans[case], [f90], s, statistics=True)[0].assign(at_f90=True)
-                c = pd.concat([c, at], ignore_index=True)
+                add(_scan_arrays(scans[case], [f90], s, statistics=True)[0], case, True)
         else:
-            c = pd.DataFrame({"sigma_prior_mas": grid, "fraction_inside": np.nan, "n_inside": 0, "n_valid": 0,
-                              "p_error_mas": np.nan,
-                              "median_semi_major_mas": np.nan, "at_f90": False})
-        frames.append(c.assign(case=case))
-    table = pd.concat(frames, ignore_index=True).assign(**base, sigma_f90_mas=f90, f90_flag=flag,
-                                                          sigma_f90_lo_mas=f90_lo, sigma_f90_hi_mas=f90_hi,
-                                                          ill_determined=ill)
-    table = table[CURVE_COLUMNS]
+            add(empty, case, False)
+    cols = {k: np.concatenate([p[k] for p in parts]) for k in empty}
+    n_rows = len(cols["sigma_prior_mas"])
+    cols["at_f90"] = np.concatenate(at_f90)
+    cols["case"] = np.array(case_col, dtype=object)
+    scalars = dict(base, sigma_f90_mas=f90, f90_flag=flag, sigma_f90_lo_mas=f90_lo, sigma_f90_hi_mas=f90_hi,
+                   ill_determined=ill)
+    for k, v in scalars.items():
+        cols[k] = np.full(n_rows, v, dtype=object if isinstance(v, str) else None)
+    table = pd.DataFrame({k: cols[k] for k in CURVE_COLUMNS})
 
     scatter = None
     if keep_scatter and s.f90_case in normals:

@@ -52,7 +52,7 @@ from .confidence import inside_components
 from .linalg import PIVOT_TOLERANCE
 from .solve import DEFAULT_RATIO_R, _check_normal, prior_diagonal
 
-__all__ = ["JACOBI_SWEEPS", "JACOBI_NEGLIGIBLE", "BLOCK_STARS", "PriorScan", "prior_scan"]
+__all__ = ["JACOBI_SWEEPS", "JACOBI_NEGLIGIBLE", "BLOCK_STARS", "REDUCE_BLOCK", "PriorScan", "prior_scan"]
 
 #: Most cyclic Jacobi sweeps for a 3 x 3 symmetric matrix. Convergence is quadratic
 #: after the first sweep (Golub & Van Loan, Sect. 8.5.4); 3 x 3 matrices reach the
@@ -63,8 +63,11 @@ JACOBI_SWEEPS = 8
 #: changes no eigenvalue or eigenvector beyond rounding.
 JACOBI_NEGLIGIBLE = 1e-18
 #: Stars per block of :meth:`PriorScan.inside_flags`: the block's work arrays
-#: (~25 x BLOCK_STARS doubles) stay in a core's L2 cache.
-BLOCK_STARS = 2048
+#: (~15 x n_priors x BLOCK_STARS doubles) stay in a core's L2 cache.
+BLOCK_STARS = 256
+#: Stars per block of the reduction (:func:`prior_scan`): its temporaries (vectors of
+#: REDUCE_BLOCK doubles) stay in cache.
+REDUCE_BLOCK = 4096
 
 
 def _jacobi3(t):
@@ -194,44 +197,52 @@ class PriorScan:
         # where min(lam) + t <= 0 or the star is not ok (then -inf).
         lam_min = np.min(self.lam, axis=0)
         worst = np.where(self.ok, lam_min, -np.inf)
+        bs = min(BLOCK_STARS, n)
+        # Work arrays allocated once (a fresh array per block would be an mmap each time).
+        X = np.empty((3, 5, bs))
+        base = np.empty((5, 1, bs))
+        w_all = np.empty((3, m, bs))
+        y_all = np.empty((5, m, bs))
+        tmp_all = np.empty((5, m, bs))
+        work_all = (np.empty((m, bs)), np.empty((m, bs)), np.empty((m, bs)), np.empty((m, bs), dtype=bool))
+        ins_all = np.empty((m, bs), dtype=bool)
+        val_all = np.empty((m, bs), dtype=bool)
         with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-            for lo in range(0, n, BLOCK_STARS):
-                sl = slice(lo, min(n, lo + BLOCK_STARS))
+            for lo in range(0, n, bs):
+                sl = slice(lo, min(n, lo + bs))
                 nb = sl.stop - sl.start
-                # y_j + sum_k X_jk w_k for j = (dx, dy, caa, cad, cdd): X built once per block.
-                base = np.stack([self.x0[0, sl], self.x0[1, sl], self.ainv[0, sl], self.ainv[1, sl],
-                                 self.ainv[2, sl]])
-                X = np.empty((3, 5, nb))
+                # y_j + sum_k X_jk w_k for j = (dx, dy, caa, cad, cdd), all priors of the
+                # block at once: arrays (5, m, nb), X built once per block.
+                Xb, bb = X[..., :nb], base[..., :nb]
+                for j, src in enumerate((self.x0[0], self.x0[1], self.ainv[0], self.ainv[1], self.ainv[2])):
+                    bb[j, 0] = src[sl]
                 for k in range(3):
                     g0, g1 = g[0, k, sl], g[1, k, sl]
-                    np.multiply(g0, c[k, sl], out=X[k, 0])
-                    np.negative(X[k, 0], out=X[k, 0])
-                    np.multiply(g1, c[k, sl], out=X[k, 1])
-                    np.negative(X[k, 1], out=X[k, 1])
-                    np.multiply(g0, g0, out=X[k, 2])
-                    np.multiply(g0, g1, out=X[k, 3])
-                    np.multiply(g1, g1, out=X[k, 4])
-                lam = np.ascontiguousarray(self.lam[:, sl])
+                    np.multiply(g0, c[k, sl], out=Xb[k, 0])
+                    np.negative(Xb[k, 0], out=Xb[k, 0])
+                    np.multiply(g1, c[k, sl], out=Xb[k, 1])
+                    np.negative(Xb[k, 1], out=Xb[k, 1])
+                    np.multiply(g0, g0, out=Xb[k, 2])
+                    np.multiply(g0, g1, out=Xb[k, 3])
+                    np.multiply(g1, g1, out=Xb[k, 4])
+                w, y, tmp = w_all[..., :nb], y_all[..., :nb], tmp_all[..., :nb]
+                np.add(self.lam[:, None, sl], ts[None, :, None], out=w)
+                np.divide(1.0, w, out=w)
+                np.multiply(Xb[0][:, None, :], w[0][None], out=y)
+                y += bb
+                for k in (1, 2):
+                    np.multiply(Xb[k][:, None, :], w[k][None], out=tmp)
+                    y += tmp
+                ins, val = ins_all[:, :nb], val_all[:, :nb]
+                inside_components(y[0], y[1], y[2], y[3], y[4], P, inside_out=ins, valid_out=val,
+                                  work=tuple(a[:, :nb] for a in work_all))
                 worst_b = worst[sl]
-                worst_min = worst_b.min()
-                w = np.empty((3, nb))
-                y = np.empty((5, nb))
-                tmp = np.empty((5, nb))
-                for i, t in enumerate(ts):
-                    np.add(lam, t, out=w)
-                    np.divide(1.0, w, out=w)
-                    np.multiply(X[0], w[0], out=y)
-                    y += base
-                    np.multiply(X[1], w[1], out=tmp)
-                    y += tmp
-                    np.multiply(X[2], w[2], out=tmp)
-                    y += tmp
-                    ins, val = inside_components(y[0], y[1], y[2], y[3], y[4], P,
-                                                 inside_out=inside[i, sl], valid_out=valid[i, sl])
-                    if not worst_min + t > 0.0:  # some star of the block has no solution (_bad)
-                        bad = ~(worst_b + t > 0.0)
-                        val[bad] = False
-                        ins[bad] = False
+                if not worst_b.min() + ts.min() > 0.0:  # some star has no solution (_bad)
+                    bad = ~(worst_b[None, :] + ts[:, None] > 0.0)
+                    val[bad] = False
+                    ins[bad] = False
+                inside[:, sl] = ins
+                valid[:, sl] = val
         return inside, valid
 
 
@@ -255,8 +266,22 @@ def prior_scan(N0, b0, ratio_R: float = DEFAULT_RATIO_R) -> PriorScan:
     N0, b0 = _check_normal(N0, b0)
     prior_diagonal(1.0, ratio_R)  # validates ratio_R
     r_ = float(ratio_R)
+    n = N0.shape[0]
     N = np.moveaxis(N0, 0, -1)  # (5, 5, n) views
     b = b0.T
+    out = dict(x0=np.empty((2, n)), ainv=np.empty((3, n)), g=np.empty((2, 3, n)), c=np.empty((3, n)),
+               lam=np.empty((3, n)), ok=np.empty(n, dtype=bool))
+    # Blocks of stars: every temporary stays small (cache-resident, no mmap per array);
+    # each star's arithmetic is the same in any block (bit-identical results).
+    for lo in range(0, n, REDUCE_BLOCK):
+        sl = slice(lo, min(n, lo + REDUCE_BLOCK))
+        for key, value in _reduce(N[:, :, sl], b[:, sl], r_).items():
+            out[key][..., sl] = value
+    return PriorScan(ratio_R=r_, **out)
+
+
+def _reduce(N, b, r_: float) -> dict:
+    """The reduction of :func:`prior_scan` for star-last ``N (5, 5, n)``, ``b (5, n)``."""
     a11, a12, a22 = N[0, 0], 0.5 * (N[0, 1] + N[1, 0]), N[1, 1]
     det = a11 * a22 - a12 * a12
     # Same singularity test as the Cholesky solver: the second pivot det / a11 relative
@@ -290,4 +315,4 @@ def prior_scan(N0, b0, ratio_R: float = DEFAULT_RATIO_R) -> PriorScan:
         for k in range(3):
             g[i, k] = aib[i][0] * U[0, k] + aib[i][1] * U[1, k] + aib[i][2] * U[2, k]
     c = np.stack([U[0, k] * r[0] + U[1, k] * r[1] + U[2, k] * r[2] for k in range(3)])
-    return PriorScan(x0=x0, ainv=ainv, g=g, c=c, lam=lam, ok=ok, ratio_R=r_)
+    return dict(x0=x0, ainv=ainv, g=g, c=c, lam=lam, ok=ok)

@@ -199,26 +199,22 @@ def _normal_equations(geom: CaseGeometry, ra_deg, dec_deg, stars: pd.DataFrame,
     if use_ac:
         blocks.append((a1[k:], 1.0 / s.noise.sigma_ac_mas(g)))
     e = rng.standard_normal((len(a1), n))
-    N0 = np.zeros((5, 5, n))
+    xt = np.stack([stars[c].to_numpy(float) for c in ("parallax", "pmra", "pmdec")])  # x_true[2:], Sect. 3.2
+    # N0 (25, n) = sum over blocks of vec(A_blk' A_blk) w_blk^2: one BLAS product.
+    w2 = np.stack([w * w for _, w in blocks])
+    N0 = np.stack([(a_blk.T @ a_blk).ravel() for a_blk, _ in blocks], axis=1) @ w2
     b0 = np.zeros((5, n))
-    x = [None, None] + [stars[c].to_numpy(float) for c in ("parallax", "pmra", "pmdec")]
     row = 0
-    for a_blk, w in blocks:
-        w2 = w * w
+    for (a_blk, w), w2_blk in zip(blocks, w2):
         n_blk = a_blk.T @ a_blk
-        for i in range(5):
-            for j in range(i + 1):
-                N0[i, j] += n_blk[i, j] * w2
-        noise = a_blk.T @ e[row:row + len(a_blk)]  # (5, n): BLAS
+        signal = n_blk[:, 2:] @ xt  # N_blk x_true (x_true[:2] = 0)
+        signal *= w2_blk
+        b0 += signal
+        noise = a_blk.T @ e[row:row + len(a_blk)]  # (5, n)
         noise *= w
         b0 += noise
         row += len(a_blk)
-    for i in range(5):
-        for j in range(i):
-            N0[j, i] = N0[i, j]
-    for i in range(5):
-        for j in (2, 3, 4):  # x_true = (0, 0, parallax, pmra, pmdec), Sect. 3.2
-            b0[i] += N0[i, j] * x[j]
+    N0 = N0.reshape(5, 5, n)
     return np.moveaxis(N0, -1, 0), b0.T
 
 

@@ -40,6 +40,7 @@ __all__ = [
     "prior_curve",
     "sigma_f90_from_curve",
     "sigma_f90_interval",
+    "bootstrap_fractions",
     "scan_curve",
     "ill_determined",
     "run_cell",
@@ -369,27 +370,18 @@ def sigma_f90_from_curve(priors_mas, fraction, p: float, interpolation: str = "l
     return float(values[0]), "below_grid" if first[0] == 0 else "ok"
 
 
-def sigma_f90_interval(priors_mas, inside_flags, valid_flags, p: float, interpolation: str,
-                       n_resamples: int, rng: np.random.Generator) -> tuple[float, float]:
-    """Bootstrap interval (INTERVAL_QUANTILES) of sigma_F90 over the cell's stars.
+def bootstrap_fractions(inside_flags, valid_flags, n_resamples: int, rng: np.random.Generator) -> np.ndarray:
+    """Fractions inside of ``n_resamples`` bootstrap resamples of the stars, (n_resamples, n_priors).
 
-    Each resample draws the stars with replacement (one draw serves all priors, so the
-    curve keeps its correlation between priors) and finds its crossing with the rule
-    of :func:`sigma_f90_from_curve`; a resample whose fraction never reaches ``p``
-    counts as +inf, one below the grid as the grid's lower end. ``inside_flags`` and
-    ``valid_flags`` are (n_priors, n_stars) (NaN rule of ``inside_counts``).
-
-    Method: a resample's curve depends only on how many times it draws each distinct
-    pattern of (inside, valid) flags over the grid. With ``n_u`` of the ``n`` stars in
-    pattern ``u`` those counts are multinomial(n, n_u / n) -- exactly the distribution
-    of resampling the stars one by one -- so each resample costs one multinomial draw
-    over the few hundred distinct patterns, and all curves one matrix product.
+    A resample's curve depends only on how many times it draws each distinct pattern of
+    (inside, valid) flags over the grid. With ``n_u`` of the ``n`` stars in pattern
+    ``u`` those counts are multinomial(n, n_u / n) -- exactly the distribution of
+    resampling the stars one by one -- so each resample costs one multinomial draw over
+    the distinct patterns (a few hundred), and all curves one matrix product.
     """
     inside_flags = np.asarray(inside_flags, bool)
     valid_flags = np.asarray(valid_flags, bool)
-    m, n = inside_flags.shape
-    if n_resamples <= 0 or n == 0:
-        return float("nan"), float("nan")
+    n = inside_flags.shape[1]
     packed = np.packbits(np.concatenate([inside_flags, valid_flags]), axis=0)  # (bytes, n)
     keys = np.ascontiguousarray(packed.T).view(np.dtype((np.void, packed.shape[0]))).ravel()
     # Sorted by the pattern's bytes: independent of the order of the stars.
@@ -399,7 +391,24 @@ def sigma_f90_interval(priors_mas, inside_flags, valid_flags, p: float, interpol
     n_in = weights @ inside_flags[:, first].T.astype(float)
     n_val = weights @ valid_flags[:, first].T.astype(float)
     with np.errstate(invalid="ignore", divide="ignore"):
-        frac = np.where(n_val > 0, n_in / n_val, np.nan)
+        return np.where(n_val > 0, n_in / n_val, np.nan)
+
+
+def sigma_f90_interval(priors_mas, inside_flags, valid_flags, p: float, interpolation: str,
+                       n_resamples: int, rng: np.random.Generator) -> tuple[float, float]:
+    """Bootstrap interval (INTERVAL_QUANTILES) of sigma_F90 over the cell's stars.
+
+    Each resample draws the stars with replacement (one draw serves all priors, so the
+    curve keeps its correlation between priors) and finds its crossing with the rule
+    of :func:`sigma_f90_from_curve`; a resample whose fraction never reaches ``p``
+    counts as +inf, one below the grid as the grid's lower end. ``inside_flags`` and
+    ``valid_flags`` are (n_priors, n_stars) (NaN rule of ``inside_counts``); the
+    resamples come from :func:`bootstrap_fractions`.
+    """
+    inside_flags = np.asarray(inside_flags, bool)
+    if n_resamples <= 0 or inside_flags.shape[1] == 0:
+        return float("nan"), float("nan")
+    frac = bootstrap_fractions(inside_flags, valid_flags, n_resamples, rng)
     values = _crossings(np.asarray(priors_mas, float), frac, p, interpolation)[0]
     values[np.isnan(values)] = np.inf
     lo, hi = np.quantile(values, INTERVAL_QUANTILES, method="inverted_cdf")

@@ -195,6 +195,7 @@ def _normal_equations(geom: CaseGeometry, ra_deg, dec_deg, stars: pd.DataFrame,
     use_ac = s.noise.use_ac
     a1 = design_matrix(np.array([ra_deg], float), np.array([dec_deg], float), t_yr, geom.psi_deg[None, :],
                        geom.obs_au[None, :, :], sigma_al_mas=1.0, sigma_ac_mas=1.0 if use_ac else None)[0]
+    a1 = np.ascontiguousarray(a1)  # (m, 5); contiguous, so the products below go to BLAS
     g = stars["phot_g_mean_mag"].to_numpy(float)
     blocks = [(a1[:k], 1.0 / s.noise.sigma_al_mas(g))]
     if use_ac:
@@ -203,15 +204,15 @@ def _normal_equations(geom: CaseGeometry, ra_deg, dec_deg, stars: pd.DataFrame,
     xt = np.stack([stars[c].to_numpy(float) for c in ("parallax", "pmra", "pmdec")])  # x_true[2:], Sect. 3.2
     # N0 (25, n) = sum over blocks of vec(A_blk' A_blk) w_blk^2: one BLAS product.
     w2 = np.stack([w * w for _, w in blocks])
-    N0 = np.stack([(a_blk.T @ a_blk).ravel() for a_blk, _ in blocks], axis=1) @ w2
+    N0 = np.ascontiguousarray(np.stack([(a_blk.T @ a_blk).ravel() for a_blk, _ in blocks], axis=1)) @ w2
     b0 = np.zeros((5, n))
     row = 0
     for (a_blk, w), w2_blk in zip(blocks, w2):
         n_blk = a_blk.T @ a_blk
-        signal = n_blk[:, 2:] @ xt  # N_blk x_true (x_true[:2] = 0)
+        signal = np.ascontiguousarray(n_blk[:, 2:]) @ xt  # N_blk x_true (x_true[:2] = 0)
         signal *= w2_blk
         b0 += signal
-        noise = a_blk.T @ e[row:row + len(a_blk)]  # (5, n)
+        noise = np.ascontiguousarray(a_blk.T) @ e[row:row + len(a_blk)]  # (5, n)
         noise *= w
         b0 += noise
         row += len(a_blk)

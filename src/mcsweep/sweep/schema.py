@@ -244,10 +244,10 @@ class CellConf:
     #: Radius of the pencil beam (Table 1: 1 deg).
     beam_radius_deg: float = 1.0
     #: Cap on the stars drawn per cell (an unbiased subsample of the cone).
-    max_stars: int = 10000
+    max_stars: int = 20000
     #: Bright cells hold few stars: widen the beam around the same centre until this
     #: many stars are expected (all observed with the centre's transits).
-    min_stars: int = 5000
+    min_stars: int = 20000
     #: Largest radius the widening may reach.
     max_radius_deg: float = 20.0
     #: Interpolation of sigma_F90 between grid points: 'log' (in log sigma) or 'none'.

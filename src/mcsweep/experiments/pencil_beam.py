@@ -147,12 +147,22 @@ def cell_radius(source, cell, s: CellSettings) -> tuple[float, float]:
                        min_stars=s.min_stars, max_radius_deg=s.max_radius_deg)
 
 
-def case_geometry(transits: pd.DataFrame, groups: tuple[int, ...]) -> CaseGeometry | None:
+def _transit_columns(transits: pd.DataFrame) -> dict:
+    """The columns the cases need, as numpy arrays (extracted once per cell)."""
+    return {"group": transits["group"].to_numpy(), "tcb_jd": transits["tcb_jd"].to_numpy(float),
+            "scan_angle_deg": transits["scan_angle_deg"].to_numpy(float),
+            "obs_au": observer_position_au(transits)}
+
+
+def case_geometry(transits: pd.DataFrame | dict, groups: tuple[int, ...]) -> CaseGeometry | None:
     """Transits of the requested distinct-transit groups (negative = from the last).
 
-    Returns None when the direction has fewer groups than the case asks for.
+    ``transits``: the FoV transits of a direction, or the arrays of
+    :func:`_transit_columns` made from them. Returns None when the direction has fewer
+    groups than the case asks for.
     """
-    group = transits["group"].to_numpy()
+    cols = transits if isinstance(transits, dict) else _transit_columns(transits)
+    group = cols["group"]
     available = np.unique(group)
     try:
         chosen = available[list(groups)]
@@ -161,14 +171,10 @@ def case_geometry(transits: pd.DataFrame, groups: tuple[int, ...]) -> CaseGeomet
     if len(np.unique(chosen)) < len(groups):
         return None  # e.g. "first and last" with a single group
     idx = np.flatnonzero(np.isin(group, chosen))
-    tcb = transits["tcb_jd"].to_numpy(float)[idx]
+    tcb = cols["tcb_jd"][idx]
     order = np.argsort(tcb, kind="stable")
     idx = idx[order]
-    return CaseGeometry(
-        tcb_jd=tcb[order],
-        psi_deg=transits["scan_angle_deg"].to_numpy(float)[idx],
-        obs_au=observer_position_au(transits)[idx],
-    )
+    return CaseGeometry(tcb_jd=tcb[order], psi_deg=cols["scan_angle_deg"][idx], obs_au=cols["obs_au"][idx])
 
 
 def _normal_equations(geom: CaseGeometry, ra_deg, dec_deg, stars: pd.DataFrame,
@@ -473,8 +479,9 @@ def run_cell(cell, transits: pd.DataFrame, source, s: CellSettings,
                 dec_deg=d.dec_deg, g_min=cell.g_min, g_max=cell.g_max, n_stars=len(stars),
                 n_in_cone=n_in_cone, radius_deg=radius, n_groups=n_groups)
     normals, scans = {}, {}
+    columns = _transit_columns(transits)
     for case, groups in s.cases.items():
-        geom = case_geometry(transits, tuple(groups))
+        geom = case_geometry(columns, tuple(groups))
         if geom is not None and len(stars) > 0:
             case_ss = np.random.SeedSequence(s.seed, spawn_key=(*cell.key, _NOISE_STREAM,
                                                                 zlib.crc32(case.encode())))

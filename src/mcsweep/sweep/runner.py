@@ -208,7 +208,8 @@ def run_sweep(config: Config, raw_cfg: dict, run_dir: Path, *, prov: Provenance 
         out = run_dir / "cells.parquet"
         atomic_write_bytes(out, allcells.to_parquet(index=False))
         prov.seeds["cells"] = ("stars: SeedSequence(seed, spawn_key=(*key, 0)); noise of a case: "
-                               "SeedSequence(seed, spawn_key=(*key, 1, crc32(case name))); "
+                               "SeedSequence(seed, spawn_key=(*key, 1, crc32(case name))); bootstrap of "
+                               "sigma_F90: SeedSequence(seed, spawn_key=(*key, 2)); "
                                "key = (l*1e4, (b+90)*1e4, 100*g_min, 100*g_max)")
     return out
 

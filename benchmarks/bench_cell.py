@@ -6,12 +6,17 @@ direction, G = 14.5-15.5, all observation cases, the default 41-prior grid):
 * ``old``: every star and prior solved as a 5 x 5 system in one batch
   (``solve_with_prior`` on the normal equations tiled once per prior), followed by the
   cell statistics -- the evaluation of ``prior_curve`` before the prior scan;
-* ``new``: ``prior_curve`` (``mcsweep.astrometry.prior_scan``: one reduction per star,
-  O(15) operations per further prior).
+* ``new``: what a sweep cell evaluates now (``mcsweep.astrometry.prior_scan``: one
+  reduction per star, the fused inside test at every prior of the grid, the
+  percentile and semi-major statistics at one prior, sigma_F90; ``cell.grid_statistics=false``);
+* ``new+stats``: the same with the statistics at every prior of the grid (the showcase
+  cell of Figs. 1 and 3, or ``cell.grid_statistics=true``).
 
-Prints seconds per star (best of ``--repeat``, CPU time), their ratio, and the peak
-memory of each evaluation (``tracemalloc``, numpy buffers included). The machine may be
-shared with other jobs: compare the ratio, not the absolute times.
+Checks that ``new`` gives the same inside and valid counts as ``old`` at every prior
+and prints the number of differing counts (0 expected). Prints seconds per star (best
+of ``--repeat``, CPU time), the ratios old/new, and the peak memory of each evaluation
+(``tracemalloc``, numpy buffers included). The machine may be shared with other jobs:
+compare the ratios, not the absolute times.
 
 Run: ``python benchmarks/bench_cell.py [--stars 2000 20000] [--repeat 3]``.
 """
@@ -53,7 +58,16 @@ def old_curve(n0, b0, priors, s):
 
 
 def new_curve(n0, b0, priors, s):
-    return pb.prior_curve(n0, b0, priors, s)
+    # Grid fractions without statistics, then the statistics at the crossing (as run_cell).
+    scan = pb.prior_scan(n0, b0, s.ratio_R)
+    table = pb._scan_arrays(scan, priors, s, statistics=False)[0]
+    f90 = pb.sigma_f90_from_curve(priors, table["fraction_inside"], s.confidence)[0]
+    pb._scan_arrays(scan, [f90 if np.isfinite(f90) else priors[-1]], s, statistics=True)
+    return table
+
+
+def new_curve_stats(n0, b0, priors, s):
+    return pb.prior_curve(n0, b0, priors, s, statistics=True)
 
 
 def _measure(fn, normals, priors, s, repeat):
@@ -82,19 +96,27 @@ def main(argv=None):
     d = sky_directions(SkyConf(name="t1", kind="list", frame="icrs", directions=[[157.5, 0.0]]))[0]
     transits = direction_transits(config, [d])[d.index]
     print("Shared machine: absolute times are noisy; the ratio is measured in one run.")
-    print(f"{'stars':>7} {'old us/star':>12} {'new us/star':>12} {'ratio':>7} {'old peak MB':>12} {'new peak MB':>12}")
+    print(f"{'stars':>7} {'old us/star':>12} {'new us/star':>12} {'ratio':>6} {'new+stats':>10} {'ratio':>6} "
+          f"{'old MB':>7} {'new MB':>7} {'+stats MB':>9} {'count diffs':>11}")
     for n in args.stars:
-        stars = GalaxyModel().sample_cone(d.l_deg, d.b_deg, 10.0, 14.5, 15.5, np.random.default_rng(1),
-                                          max_stars=n)
+        stars = GalaxyModel().sample_cone(d.l_deg, d.b_deg, 1.0, 14.5, 15.5, np.random.default_rng(1),
+                                          max_stars=n, min_draw=n)
         normals = []
         for groups in s.cases.values():
             geom = pb.case_geometry(transits, tuple(groups))
             normals.append(pb._normal_equations(geom, d.ra_deg, d.dec_deg, stars, s, np.random.default_rng(2)))
         t_old, m_old = _measure(old_curve, normals, priors, s, args.repeat)
         t_new, m_new = _measure(new_curve, normals, priors, s, args.repeat)
+        t_all, m_all = _measure(new_curve_stats, normals, priors, s, args.repeat)
+        diffs = 0
+        for n0, b0 in normals:
+            ref = pb.prior_curve(n0, b0, priors, s, method="direct")
+            new = new_curve(n0, b0, priors, s)
+            diffs += int(np.sum(ref["n_inside"] != new["n_inside"]) + np.sum(ref["n_valid"] != new["n_valid"]))
         k = len(stars)
-        print(f"{k:7d} {1e6 * t_old / k:12.2f} {1e6 * t_new / k:12.2f} {t_old / t_new:7.1f} "
-              f"{m_old / 1e6:12.1f} {m_new / 1e6:12.1f}")
+        print(f"{k:7d} {1e6 * t_old / k:12.2f} {1e6 * t_new / k:12.2f} {t_old / t_new:6.1f} "
+              f"{1e6 * t_all / k:10.2f} {t_old / t_all:6.1f} "
+              f"{m_old / 1e6:7.1f} {m_new / 1e6:7.1f} {m_all / 1e6:9.1f} {diffs:11d}")
 
 
 if __name__ == "__main__":

@@ -22,16 +22,14 @@ sweep's file conventions.
 from __future__ import annotations
 
 import argparse
-import os
 import sys
-import tempfile
 import time
 from pathlib import Path
 
 from .errors import UserInputError, report_user_error
 from .prior import Prior
 from .prior.annotate import detect_format
-from .sweep.store import current_umask
+from .sweep.store import atomic_write_via
 
 __all__ = ["main"]
 
@@ -44,21 +42,13 @@ def _prior(args) -> Prior:
 
 
 def _publish(out: Path, write) -> None:
-    """Call ``write(tmp_path)`` then move the temporary file to ``out``; no file is left on error."""
+    """Call ``write(tmp_path)`` and move the finished file to ``out``; no file is left on error."""
     out = Path(out)
     if not out.parent.is_dir():
         raise UserInputError(f"--out {out}: directory {out.parent} does not exist; expected an existing directory")
     if out.is_dir():
         raise UserInputError(f"--out {out} is a directory; expected a file name")
-    fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent)
-    os.close(fd)
-    try:
-        write(Path(tmp))
-        os.chmod(tmp, 0o666 & ~current_umask())
-        os.replace(tmp, out)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    atomic_write_via(out, write)
 
 
 def _annotate(args) -> str:

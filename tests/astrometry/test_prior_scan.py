@@ -108,3 +108,30 @@ def test_batching_does_not_change_results():
     parts = [prior_scan(n0[sl], b0[sl]).position(3.0) for sl in (slice(0, 117), slice(117, 300))]
     np.testing.assert_array_equal(whole[0], np.concatenate([p[0] for p in parts]))
     np.testing.assert_array_equal(whole[1], np.concatenate([p[1] for p in parts]))
+
+
+@pytest.mark.parametrize("rows", [2, 3, 12])
+def test_inside_flags_equal_the_confidence_rule_on_the_direct_solution(rows):
+    # The fused test of every prior against confidence.inside / mahalanobis_sq applied to
+    # the 5 x 5 solver's solution; singular stars and the NaN rule included.
+    from mcsweep.astrometry import prior_scan as ps
+    from mcsweep.astrometry.confidence import inside, mahalanobis_sq
+
+    rng = np.random.default_rng(40 + rows)
+    n0, b0 = _normals(rng, 700, rows)
+    n0[:5] = 0.0  # no position: no confidence region at any prior
+    b0[:5] = 0.0
+    priors = np.geomspace(0.01, 1000.0, 17)
+    for block in (ps.BLOCK_STARS, 97):  # a block size that does not divide n
+        old = ps.BLOCK_STARS
+        ps.BLOCK_STARS = block
+        try:
+            ins, val = prior_scan(n0, b0, 10.0).inside_flags(priors, 0.9)
+        finally:
+            ps.BLOCK_STARS = old
+        for i, sigma in enumerate(priors):
+            sol = solve_with_prior(n0, b0, sigma, 10.0)
+            dpos, cov = np.ascontiguousarray(sol.x[:, :2]), np.ascontiguousarray(sol.cov[:, :2, :2])
+            np.testing.assert_array_equal(val[i], np.isfinite(mahalanobis_sq(dpos, cov)))
+            np.testing.assert_array_equal(ins[i], inside(dpos, cov, 0.9))
+        assert not val[:, :5].any()

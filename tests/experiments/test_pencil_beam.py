@@ -75,7 +75,8 @@ def test_zero_parallax_stars_are_never_under_covered(table1):
 
 def test_table1_beam_behaves_as_the_paper_describes(table1):
     config, cell, transits = table1
-    curves, _ = run_cell(cell, transits, GalaxyModel(), build_settings(config))
+    # Grid statistics as in the showcase cell (the sweep's cells have them at F90 only).
+    curves, _ = run_cell(cell, transits, GalaxyModel(), build_settings(config), grid_statistics=True)
     two = curves[(curves["case"] == "two") & ~curves["at_f90"]].set_index("sigma_prior_mas")
     # Fig. 2 A: a 0.01 mas prior is a two-parameter solution whose ellipse misses most errors.
     assert two["fraction_inside"].iloc[0] < 0.2
@@ -193,3 +194,42 @@ def test_bootstrap_interval_covers_the_truth_at_its_nominal_rate(table1):
         assert lo <= curves["sigma_f90_mas"].iloc[0] <= hi
         hits += lo <= 1.0 <= hi
     assert abs(hits / N_COVERAGE_CELLS - 0.68) <= COVERAGE_TOL, hits
+
+
+#: The cell's normal equations from the shared beam geometry against the general path
+#: (design_matrix + simulate + normal_equations, star by star): same random draws,
+#: different summation order only.
+RTOL_NORMALS = 1e-12
+
+
+@pytest.mark.parametrize("use_ac", [True, False])
+def test_shared_geometry_normals_equal_the_general_path(table1, use_ac):
+    import dataclasses
+
+    from mcsweep.astrometry.design import JULIAN_YEAR_DAYS, design_matrix, reference_epoch
+    from mcsweep.astrometry.measurements import simulate
+    from mcsweep.astrometry.noise import NoiseModel
+    from mcsweep.astrometry.solve import normal_equations
+    from mcsweep.experiments import pencil_beam as pb
+
+    config, cell, transits = table1
+    s = dataclasses.replace(build_settings(config), noise=NoiseModel(use_ac=use_ac))
+    d = cell.direction
+    stars = GaussianAstrometrySource(2.0).sample_cone(d.l_deg, d.b_deg, 1.0, 14.5, 15.5, np.random.default_rng(4))
+    stars = stars.iloc[:300]
+    for groups in s.cases.values():
+        geom = pb.case_geometry(transits, tuple(groups))
+        n0, b0 = pb._normal_equations(geom, d.ra_deg, d.dec_deg, stars, s, np.random.default_rng(9))
+        n, k = len(stars), len(geom.tcb_jd)
+        tcb = np.broadcast_to(geom.tcb_jd, (n, k))
+        t_yr = (tcb - reference_epoch(tcb, np.ones((n, k), bool))[:, None]) / JULIAN_YEAR_DAYS
+        g = stars["phot_g_mean_mag"].to_numpy()
+        a = design_matrix(np.full(n, d.ra_deg), np.full(n, d.dec_deg), t_yr, np.broadcast_to(geom.psi_deg, (n, k)),
+                          np.broadcast_to(geom.obs_au, (n, k, 3)),
+                          sigma_al_mas=s.noise.sigma_al_mas(g)[:, None],
+                          sigma_ac_mas=s.noise.sigma_ac_mas(g)[:, None] if use_ac else None)
+        x = np.column_stack([np.zeros(n), np.zeros(n), stars["parallax"], stars["pmra"], stars["pmdec"]])
+        ref_n0, ref_b0 = normal_equations(a, simulate(a, x, np.random.default_rng(9)))
+        scale_n = np.abs(ref_n0).max(axis=(1, 2))
+        assert (np.abs(n0 - ref_n0).max(axis=(1, 2)) <= RTOL_NORMALS * scale_n).all()
+        assert (np.abs(b0 - ref_b0).max(axis=1) <= RTOL_NORMALS * np.abs(ref_b0).max(axis=1)).all()

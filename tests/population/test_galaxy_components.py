@@ -9,8 +9,8 @@ from mcsweep.population.galaxy import parameters as P
 from mcsweep.population.galaxy.density import component_shape, heliocentric_to_galactocentric
 from mcsweep.population.galaxy.extinction import DustModel
 from mcsweep.population.galaxy.kinematics import AstrometryTransform, draw_velocities, mean_lag_kms
-from mcsweep.population.galaxy.luminosity import (build_luminosity_table, imf, load_local_lf,
-                                                  turnoff_mass)
+from mcsweep.population.galaxy.luminosity import (build_luminosity_table, imf, load_dwarf_sequence,
+                                                  load_local_lf, turnoff_mass)
 
 REL_TOL_LOCAL_LF = 1e-9      # relative: components must add up to the local LF exactly
 EXTINCTION_REL_TOL = 0.01     # relative: trapezoid on the 0.05-mag distance grid
@@ -24,7 +24,11 @@ def test_shapes_are_one_at_the_sun_and_fall_off_vertically(comp):
     assert component_shape(comp, -P.R0_KPC, 0.0, z_sun) == pytest.approx(1.0, rel=1e-12)
     z = np.array([0.0, 0.2, 0.5, 1.0, 3.0])
     s = component_shape(comp, np.full(5, -P.R0_KPC), np.zeros(5), z)
-    assert np.all(np.diff(s) < 0)
+    # strictly decreasing until the density underflows to 0 (the youngest giants' disc
+    # is ~60 pc thick: exp(-(z/eps)^2) is below 1e-300 at 1 kpc)
+    positive = s > 0
+    assert positive[:3].all()
+    assert np.all(np.diff(s[positive]) < 0) and np.all(s[~positive] == 0)
 
 
 def test_bulge_peaks_at_centre_and_thick_disc_is_smooth_at_xl():
@@ -61,13 +65,23 @@ def test_local_components_add_up_to_the_local_luminosity_function():
     local = [c for c in P.COMPONENTS if c.law != "bulge"]
     table = build_luminosity_table(local)
     mv, phi = load_local_lf()
+    seq_mv, _, seq_m = load_dwarf_sequence()
     summed = table.cdf.sum(axis=0)
-    # dwarfs: Wielen/Allen; giants: the local giant density of Bovy (2017), 3.9e-4 pc^-3
-    dwarfs = phi[mv > P.GIANT_MV_MAX].sum()
-    assert summed[-1] == pytest.approx(dwarfs + 3.9e-4, rel=REL_TOL_LOCAL_LF)
+    # dwarfs M_V >= 4.5: Wielen/Allen (faint_scale = 1); M_V < 4.5: Bovy (2017)
+    # dn/dM = 0.016 M^-4.7 pc^-3 Msun^-1 integrated in closed form over each bin's
+    # masses (Mamajek sequence); giants: Bovy's 3.9e-4 pc^-3
+    faint = phi[mv > 4.4].sum()
+    bright_mv = mv[(mv > P.GIANT_MV_MAX) & (mv < 4.4)]
+    m_of = lambda x: 10 ** np.interp(x, seq_mv, np.log10(seq_m))  # noqa: E731
+    bright = (0.016 / 3.7 * (m_of(bright_mv + 0.5) ** -3.7 - m_of(bright_mv - 0.5) ** -3.7)).sum()
+    assert summed[-1] == pytest.approx(faint + bright + 3.9e-4, rel=REL_TOL_LOCAL_LF)
     # giants (M_V <= 1, M_G = M_V - 0.31) are not shifted: exact up to M_G = 1.2
     i = np.searchsorted(table.mg, P.GIANT_MV_MAX + 0.5 + P.GIANT_G_MINUS_V + 1e-9)
     assert summed[i] == pytest.approx(3.9e-4, rel=REL_TOL_LOCAL_LF)
+    # each age bin's giants sit in its giant-only companion, none in the dwarf component
+    k = table.names.index("thin_disc_3")
+    assert table.cdf[k, i] == 0.0
+    assert table.cdf[table.names.index("thin_disc_3_giants"), -1] > 0
 
 
 def test_old_populations_have_no_bright_dwarfs():
@@ -135,3 +149,17 @@ def test_rotation_direction_and_lags():
     lags = [mean_lag_kms(c) for c in P.THIN_DISC]
     assert all(0 < x < 15 for x in lags)   # Jeans drift of the thin disc: a few km/s
     assert lags[-1] > lags[1]               # hotter populations lag more
+
+
+def test_giant_kinematics_follow_their_thinner_discs():
+    # isothermal disc (Spitzer 1942): thickness ~ sigma_W^2 at a given surface density, so
+    # a disc GIANT_THICKNESS_FACTOR as thick has sigma_W^2 smaller by the same factor
+    # (closed form); the ellipsoid keeps each age bin's shape (R03 Table 2)
+    for dwarf, giant in zip(P.THIN_DISC, P.THIN_DISC_GIANTS):
+        assert giant.eps / dwarf.eps == pytest.approx(P.GIANT_THICKNESS_FACTOR, rel=1e-12)
+        assert (giant.sigma_uvw[2] / dwarf.sigma_uvw[2]) ** 2 == pytest.approx(
+            giant.eps / dwarf.eps, rel=1e-12)
+        assert np.divide(giant.sigma_uvw, giant.sigma_uvw[2]) == pytest.approx(
+            np.divide(dwarf.sigma_uvw, dwarf.sigma_uvw[2]), rel=1e-12)
+        # colder populations lag less (Jeans asymmetric drift)
+        assert 0 < mean_lag_kms(giant) < mean_lag_kms(dwarf)

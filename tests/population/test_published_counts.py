@@ -16,11 +16,9 @@ COUNT_TOL = 0.10        # all-sky counts per G magnitude
 LOCAL_TOL = 0.20        # local (GCNS) density
 BEAM_TOL = 0.10         # paper Table 1 beam vs 458 GUMS stars
 GUMS_BEAM_COUNT = 458
-#: G bins met (Tycho-2 / UCAC4 range where the magnitudes are V-like and complete).
-MET_BINS = list(range(6, 14))
-#: Bright bins that are not met: the model has 22 % / 13 % too few sources at G = 4-6
-#: after the GCNS normalisation (two facts in conflict, docs/galaxy_model.md).
-UNMET_BINS = [4, 5]
+LF_TOL = 0.20           # local luminosity function per 1-mag bin
+#: G bins compared (Tycho-2 / UCAC4 range where the magnitudes are V-like and complete).
+MET_BINS = list(range(4, 14))
 
 
 @pytest.fixture(scope="module")
@@ -33,13 +31,6 @@ def test_all_sky_counts_per_magnitude_match_tycho2_ucac4(model, g):
     row = pc.count_comparison(model, [g]).iloc[0]
     print(f"G {g}-{g + 1}: model {row.model:.4g}, published {row.published:.4g} "
           f"+- {100 * row.rel_uncertainty:.0f} %")
-    assert abs(row.ratio - 1.0) <= COUNT_TOL
-
-
-@pytest.mark.xfail(strict=True, reason="G = 4-6 counts 13-22 % low after the GCNS scaling (issue #14)")
-@pytest.mark.parametrize("g", UNMET_BINS)
-def test_brightest_counts_known_shortfall(model, g):
-    row = pc.count_comparison(model, [g]).iloc[0]
     assert abs(row.ratio - 1.0) <= COUNT_TOL
 
 
@@ -56,16 +47,53 @@ def test_local_density_matches_gcns(model):
     assert n == pytest.approx(pc.GCNS_WITHIN_100PC, rel=LOCAL_TOL)
 
 
-def test_faint_totals_against_gums_and_gaia_dr3(model):
-    n20 = model.expected_count(0, 90, 180, -5, 20)
-    n21 = model.expected_count(0, 90, 180, -5, 21)
+def test_faint_total_at_least_gaia_dr3(model):
     # Gaia DR3 is incomplete at G = 20-21: a model must hold at least as many sources
-    assert n21 >= pc.DR3_TOTAL
-    # GUMS-10 is a model itself; the issue's 10 % target is not claimed here (1.14x)
-    assert n20 == pytest.approx(pc.GUMS_G20, rel=0.20)
+    assert model.expected_count(0, 90, 180, -5, 21) >= pc.DR3_TOTAL
+
+
+@pytest.mark.xfail(strict=True, reason="N(G < 20) is 1.23 x GUMS-10 once the bright end follows "
+                   "Bovy (2017) and Tycho-2 (issue #14, docs/galaxy_model.md)")
+def test_faint_total_against_gums(model):
+    # GUMS-10 is a model itself; the issue's 10 % target is not claimed here
+    assert model.expected_count(0, 90, 180, -5, 20) == pytest.approx(pc.GUMS_G20, rel=0.20)
+
+
+def test_bright_main_sequence_lf_matches_bovy_per_bin(model):
+    comp = pc.local_lf_comparison(model).dropna(subset=["bovy_ms"])
+    assert len(comp) >= 2
+    for row in comp.itertuples():
+        print(f"M_G {row.M_G_lo}-{row.M_G_lo + 1}: model {row.model_dwarfs:.3g}, "
+              f"Bovy 2017 {row.bovy_ms:.3g} pc^-3")
+        assert row.ratio_to_bovy == pytest.approx(1.0, abs=LF_TOL)
+
+
+def test_local_content_against_independent_censuses(model):
+    census = pc.local_census_comparison(model).set_index("quantity")
+    for name, row in census.iterrows():
+        print(f"{name}: model {row.model:.4g}, published {row.published:.4g} +- {row.uncertainty:.2g}")
+    # GCNS within 60 pc (either reading of the poster's M_G cut) and CNS5 within 25 pc
+    for name in ("GCNS 60 pc, sources M_G < 15", "GCNS 60 pc, all sources (other reading)",
+                 "CNS5 25 pc, stars (model sources)"):
+        assert census.loc[name, "ratio"] == pytest.approx(1.0, abs=LOCAL_TOL)
+    # 20 CNS5 giants: Poisson +-4.5; the model (Bovy's density) within 2 sigma
+    g = census.loc["CNS5 25 pc, giants (model M_G < 1.2)"]
+    assert abs(g.model - g.published) <= 2 * g.uncertainty
 
 
 def test_table1_beam_within_target(model):
     n = model.expected_count(245.7, 46.5, 1.0, 14.5, 15.5)
     print(f"Table 1 beam: {n:.0f} (GUMS {GUMS_BEAM_COUNT} +- {np.sqrt(GUMS_BEAM_COUNT):.0f})")
     assert n == pytest.approx(GUMS_BEAM_COUNT, rel=BEAM_TOL)
+
+
+@pytest.mark.parametrize("cls", [
+    pytest.param("A", marks=pytest.mark.xfail(
+        strict=True, reason="A stars: model 3.5e-4 sources pc^-3 (Bovy 2017 PDMF) = 0.72 x "
+        "Mamajek's 4.9e-4 +- 0.66e-4 (Hipparcos-2, 30 pc), 2.1 sigma low (issue #14)")),
+    "F", "G", "K", "M", "M + white dwarfs"])
+def test_local_density_per_spectral_class(model, cls):
+    row = pc.local_density_by_class(model).set_index("cls").loc[cls]
+    print(f"{cls} (M_G {row.M_G_lo:.2f}-{row.M_G_hi:.2f}, {row.counts}): model {row.model:.3g}, "
+          f"published {row.published:.3g} +- {row.uncertainty:.2g} pc^-3 ({row.sample})")
+    assert row.ratio == pytest.approx(1.0, abs=LF_TOL)

@@ -1,5 +1,6 @@
 """mcsweep-prior annotate: every format, units kept, streaming, bad input (exit 2, nothing written)."""
 
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -36,9 +37,9 @@ def _expected(t):
     return Prior.paper().sigma_parallax(c, G=np.asarray(t["phot_g_mean_mag"], float)).value
 
 
-def run(*args):
+def run(*args, umask=None):
     return subprocess.run([str(BIN / "mcsweep-prior"), *map(str, args)], capture_output=True, text=True,
-                          timeout=300)
+                          timeout=300, preexec_fn=None if umask is None else (lambda: os.umask(umask)))
 
 
 @pytest.mark.parametrize("suffix", [".fits", ".vot", ".ecsv", ".csv", ".parquet"])
@@ -145,8 +146,10 @@ def test_command_writes_every_output_format(tmp_path, suffix):
     t = _stars()
     src, out = tmp_path / "in.csv", tmp_path / f"out{suffix}"
     t.to_pandas().to_csv(src, index=False)
-    r = run("annotate", src, "--out", out, "--paper")
+    r = run("annotate", src, "--out", out, "--paper", umask=0o027)
     assert r.returncode == 0, r.stderr[-2000:]
+    # Readable by the user's group, as a file the user created normally (not the temporary's 0600).
+    assert out.stat().st_mode & 0o777 == 0o640
     got = Table.read(out) if suffix != ".csv" else Table.from_pandas(pd.read_csv(out))
     np.testing.assert_allclose(np.asarray(got["sigma_f90_parallax"], float), _expected(t), rtol=FRAME_RTOL, atol=0)
     if suffix in (".fits", ".vot", ".ecsv", ".parquet"):

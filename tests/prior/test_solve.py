@@ -8,9 +8,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from mcsweep.astrometry.confidence import ellipse_position_angle_deg
 from mcsweep.astrometry.design import design_matrix, reference_epoch, years_since
 from mcsweep.astrometry.solve import normal_equations, solve_no_prior, solve_position_only, solve_with_prior
-from mcsweep.prior.observations import ellipse_position_angle_deg
 
 BIN = Path(sys.executable).parent
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "prior_solve"

@@ -20,3 +20,16 @@ def test_footnote_ratio_at_g15():
     assert len(cells) == 48 and (cells.n_drawn > 100).all()
     inside = cells.ratio.between(0.4, 1.0).mean()
     assert inside >= MIN_FRACTION_IN_RANGE, cells.sort_values("ratio")
+
+
+def test_issue14_section_writes_its_tables_and_figures(tmp_path):
+    from mcsweep.report.population_validation import _published_section
+
+    lines = _published_section(tmp_path, GalaxyModel(), np.random.default_rng(14))
+    for name in ("published_counts.csv", "published_counts.png", "local_lf.csv", "local_lf.png",
+                 "local_census.csv", "bright_parallax.csv", "local_density_by_class.csv",
+                 "local_density_by_class.png"):
+        assert (tmp_path / name).stat().st_size > 0, name
+    text = "\n".join(lines)
+    assert "Bovy 2017 MS" in text and "GCNS 60 pc" in text and "CNS5 25 pc" in text
+    assert "Local density per spectral class" in text

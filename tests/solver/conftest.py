@@ -13,12 +13,17 @@ from mcsweep.solver import AttitudeSpline, build_observations
 START_JD = 2456863.9375  # 2014-07-25 10:30 TCB, start of routine operations (Prusti et al. 2016)
 
 
-def make_problem(n_stars=20000, days=10.0, knot_days=0.5, seed=5, min_transits=4, use_ac=True):
-    """Random stars over the sky, their FoV transits, and the partials; truth drawn separately."""
+def make_problem(n_stars=20000, days=10.0, knot_days=0.5, seed=5, min_transits=4, use_ac=True, keep_fraction=1.0):
+    """Random stars over the sky, their FoV transits, and the partials; truth drawn separately.
+
+    ``keep_fraction < 1`` keeps that random fraction of the transits (dilution).
+    """
     rng = np.random.default_rng(seed)
     ra = rng.uniform(0.0, 360.0, n_stars)
     dec = np.degrees(np.arcsin(rng.uniform(-1.0, 1.0, n_stars)))
     tr = find_transits(ra, dec, START_JD, START_JD + days)
+    if keep_fraction < 1.0:
+        tr = tr[rng.uniform(size=len(tr)) < keep_fraction].reset_index(drop=True)
     src = tr["source_index"].to_numpy()
     count = np.bincount(src, minlength=n_stars)
     keep_star = count >= min_transits
@@ -44,3 +49,10 @@ def make_problem(n_stars=20000, days=10.0, knot_days=0.5, seed=5, min_transits=4
 @pytest.fixture(scope="session")
 def small_problem():
     return make_problem()
+
+
+@pytest.fixture(scope="session")
+def weak_problem():
+    """One year, a quarter of the transits kept: many stars with 1-4 transits, as Table 3's
+    first subset, next to well-observed ones."""
+    return make_problem(n_stars=2000, days=365.0, knot_days=4.0, seed=8, min_transits=1, keep_fraction=0.25)

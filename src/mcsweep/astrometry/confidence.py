@@ -28,7 +28,9 @@ __all__ = [
     "inside",
     "fraction_inside",
     "inside_counts",
+    "inside_components",
     "ellipse_semi_axes",
+    "ellipse_position_angle_deg",
     "error_percentile",
     "binomial_interval",
     "percentile_interval",
@@ -120,6 +122,53 @@ def inside_counts(dpos, cov2, P) -> tuple[int, int]:
     return int(np.count_nonzero(q[valid] < k)), int(np.count_nonzero(valid))
 
 
+def inside_components(dx, dy, caa, cad, cdd, P, *, inside_out=None, valid_out=None, work=None):
+    """Per-star ``inside`` and ``valid`` flags from star-last components (hot loops).
+
+    The rule of :func:`mahalanobis_sq`, :func:`inside` and :func:`inside_counts` for
+    a position error ``(dx, dy)`` and covariance ``[[caa, cad], [cad, cdd]]`` given as
+    separate arrays of one shape: ``valid`` where the covariance is positive definite
+    and ``Q`` is finite, ``inside`` where valid and ``Q < k(P)``. The sums
+    ``inside.sum(), valid.sum()`` are ``inside_counts`` of the same stars. Written for
+    the prior scan's inner loop (:mod:`mcsweep.astrometry.prior_scan`): the optional
+    boolean outputs and ``work`` (three float arrays and one bool array of the inputs'
+    shape, overwritten) avoid every allocation.
+
+    Returns
+    -------
+    inside, valid : ndarray of bool
+    """
+    k = chi2_threshold(P, 2)
+    shape = np.shape(dx)
+    if work is None:
+        work = (np.empty(shape), np.empty(shape), np.empty(shape), np.empty(shape, dtype=bool))
+    t1, t2, t3, flag = work
+    valid = np.empty(shape, dtype=bool) if valid_out is None else valid_out
+    ins = np.empty(shape, dtype=bool) if inside_out is None else inside_out
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        # Q det = dx (cdd dx - 2 cad dy) + caa dy^2, det = caa cdd - cad^2.
+        np.multiply(cdd, dx, out=t1)
+        np.multiply(cad, dy, out=t2)
+        t2 *= 2.0
+        t1 -= t2
+        t1 *= dx
+        np.multiply(caa, dy, out=t2)
+        t2 *= dy
+        t1 += t2
+        np.multiply(caa, cdd, out=t2)
+        np.multiply(cad, cad, out=t3)
+        t2 -= t3
+        np.divide(t1, t2, out=t1)
+        np.greater(t2, 0.0, out=valid)
+        np.greater(caa, 0.0, out=flag)
+        valid &= flag
+        np.isfinite(t1, out=flag)
+        valid &= flag
+        np.less(t1, k, out=ins)
+    ins &= valid
+    return ins, valid
+
+
 def fraction_inside(dpos, cov2, P) -> float:
     """Fraction of stars inside their P confidence ellipse (NaN rule of :func:`inside_counts`).
 
@@ -148,6 +197,17 @@ def ellipse_semi_axes(cov2, P) -> tuple[np.ndarray, np.ndarray]:
     with np.errstate(invalid="ignore", divide="ignore"):
         lam_min = np.minimum((a * e - b * b) / lam_max, lam_max)
     return np.sqrt(k * lam_max), np.sqrt(k * np.clip(lam_min, 0.0, None))
+
+
+def ellipse_position_angle_deg(cov2) -> np.ndarray:
+    """Position angle of the ellipse's major axis, degrees from north through east, in [0, 180).
+
+    For the covariance of (dalpha*, ddelta) = (east, north) components,
+    ``PA = 0.5 atan2(2 C_ad, C_dd - C_aa)``.
+    """
+    c = np.asarray(cov2, dtype=float)
+    pa = 0.5 * np.degrees(np.arctan2(2.0 * c[:, 0, 1], c[:, 1, 1] - c[:, 0, 0]))
+    return np.mod(pa, 180.0)
 
 
 def error_percentile(dpos, q) -> float:

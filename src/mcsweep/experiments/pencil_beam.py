@@ -26,10 +26,9 @@ import pandas as pd
 
 from ..astrometry.confidence import ellipse_semi_axes, inside, inside_counts, mahalanobis_sq
 from ..astrometry.design import JULIAN_YEAR_DAYS, design_matrix, reference_epoch
-from ..astrometry.measurements import simulate
 from ..astrometry.noise import NoiseModel
-from ..astrometry.prior_scan import prior_scan
-from ..astrometry.solve import normal_equations, solve_with_prior
+from ..astrometry.prior_scan import PriorScan, prior_scan
+from ..astrometry.solve import solve_with_prior
 from ..scanning import observer_position_au
 
 __all__ = [
@@ -41,6 +40,8 @@ __all__ = [
     "prior_curve",
     "sigma_f90_from_curve",
     "sigma_f90_interval",
+    "bootstrap_fractions",
+    "scan_curve",
     "ill_determined",
     "run_cell",
     "CURVE_COLUMNS",
@@ -88,6 +89,10 @@ class CellSettings:
     n_bootstrap: int = 0
     #: Priors at which to keep every star's error and covariance (Fig. 2); F90 is added.
     scatter_priors_mas: tuple[float, ...] = field(default=())
+    #: p_error_mas and median_semi_major_mas at every prior of the grid (True), or only
+    #: at sigma_F90 (False): on the grid only the showcase's figures use them, and they
+    #: cost more than the fraction inside (two partial sorts per prior).
+    grid_statistics: bool = True
 
 
 @dataclass(frozen=True)
@@ -142,47 +147,83 @@ def cell_radius(source, cell, s: CellSettings) -> tuple[float, float]:
                        min_stars=s.min_stars, max_radius_deg=s.max_radius_deg)
 
 
-def case_geometry(transits: pd.DataFrame, groups: tuple[int, ...]) -> CaseGeometry | None:
+def _transit_columns(transits: pd.DataFrame) -> dict:
+    """The columns the cases need, as numpy arrays (extracted once per cell)."""
+    return {"group": transits["group"].to_numpy(), "tcb_jd": transits["tcb_jd"].to_numpy(float),
+            "scan_angle_deg": transits["scan_angle_deg"].to_numpy(float),
+            "obs_au": observer_position_au(transits)}
+
+
+def case_geometry(transits: pd.DataFrame | dict, groups: tuple[int, ...]) -> CaseGeometry | None:
     """Transits of the requested distinct-transit groups (negative = from the last).
 
-    Returns None when the direction has fewer groups than the case asks for.
+    ``transits``: the FoV transits of a direction, or the arrays of
+    :func:`_transit_columns` made from them. Returns None when the direction has fewer
+    groups than the case asks for.
     """
-    available = np.unique(transits["group"].to_numpy())
+    cols = transits if isinstance(transits, dict) else _transit_columns(transits)
+    group = cols["group"]
+    available = np.unique(group)
     try:
         chosen = available[list(groups)]
     except IndexError:
         return None
     if len(np.unique(chosen)) < len(groups):
         return None  # e.g. "first and last" with a single group
-    sel = transits[transits["group"].isin(chosen)].sort_values("tcb_jd")
-    return CaseGeometry(
-        tcb_jd=sel["tcb_jd"].to_numpy(float),
-        psi_deg=sel["scan_angle_deg"].to_numpy(float),
-        obs_au=observer_position_au(sel),
-    )
+    idx = np.flatnonzero(np.isin(group, chosen))
+    tcb = cols["tcb_jd"][idx]
+    order = np.argsort(tcb, kind="stable")
+    idx = idx[order]
+    return CaseGeometry(tcb_jd=tcb[order], psi_deg=cols["scan_angle_deg"][idx], obs_au=cols["obs_au"][idx])
 
 
 def _normal_equations(geom: CaseGeometry, ra_deg, dec_deg, stars: pd.DataFrame,
                       s: CellSettings, rng: np.random.Generator):
+    """Normal equations (Eqs. 2-3) of every star of the cell, star-last (n, 5, 5), (n, 5).
+
+    All stars of a cell are observed with the transits of the beam centre, so their
+    design matrices differ only by the per-star uncertainties: ``A_i = diag(1/sigma_i) A_1``
+    with ``A_1`` the design of unit uncertainties (AL rows, then AC rows). Hence
+    ``N0_i = N_AL / sigma_AL,i^2 + N_AC / sigma_AC,i^2`` and
+    ``b0_i = N0_i x_i + A_1' diag(1/sigma_i) e_i``, with the measurement noise ``e``
+    drawn exactly as :func:`mcsweep.astrometry.measurements.simulate` draws it (one
+    ``(m, n)`` array of standard normals): the result equals ``design_matrix`` +
+    ``simulate`` + ``normal_equations`` to rounding, in O(n) instead of O(n m) work
+    per matrix element.
+    """
     n, k = len(stars), len(geom.tcb_jd)
-    tcb = np.broadcast_to(geom.tcb_jd, (n, k))
-    mask = np.ones((n, k), dtype=bool)
+    tcb = geom.tcb_jd[None, :]
     if s.reference_epoch == "mean":
-        t_ep = reference_epoch(tcb, mask)  # Sect. 2.1: mean epoch of observation
+        t_ep = reference_epoch(tcb, np.ones((1, k), dtype=bool))  # Sect. 2.1: mean epoch of observation
     else:
-        t_ep = np.full(n, s.fixed_epoch_tcb_jd)
+        t_ep = np.full(1, s.fixed_epoch_tcb_jd)
     t_yr = (tcb - t_ep[:, None]) / JULIAN_YEAR_DAYS
+    use_ac = s.noise.use_ac
+    a1 = design_matrix(np.array([ra_deg], float), np.array([dec_deg], float), t_yr, geom.psi_deg[None, :],
+                       geom.obs_au[None, :, :], sigma_al_mas=1.0, sigma_ac_mas=1.0 if use_ac else None)[0]
+    a1 = np.ascontiguousarray(a1)  # (m, 5); contiguous, so the products below go to BLAS
     g = stars["phot_g_mean_mag"].to_numpy(float)
-    sig_al = np.broadcast_to(s.noise.sigma_al_mas(g)[:, None], (n, k))
-    sig_ac = np.broadcast_to(s.noise.sigma_ac_mas(g)[:, None], (n, k)) if s.noise.use_ac else None
-    a = design_matrix(
-        np.full(n, ra_deg), np.full(n, dec_deg), t_yr, np.broadcast_to(geom.psi_deg, (n, k)),
-        np.broadcast_to(geom.obs_au, (n, k, 3)), sigma_al_mas=sig_al, sigma_ac_mas=sig_ac, mask=mask,
-    )
-    x_true = np.column_stack([np.zeros(n), np.zeros(n), stars["parallax"].to_numpy(float),
-                              stars["pmra"].to_numpy(float), stars["pmdec"].to_numpy(float)])
-    h = simulate(a, x_true, rng)
-    return normal_equations(a, h)
+    blocks = [(a1[:k], 1.0 / s.noise.sigma_al_mas(g))]
+    if use_ac:
+        blocks.append((a1[k:], 1.0 / s.noise.sigma_ac_mas(g)))
+    e = rng.standard_normal((len(a1), n))
+    xt = np.stack([stars[c].to_numpy(float) for c in ("parallax", "pmra", "pmdec")])  # x_true[2:], Sect. 3.2
+    # N0 (25, n) = sum over blocks of vec(A_blk' A_blk) w_blk^2: one BLAS product.
+    w2 = np.stack([w * w for _, w in blocks])
+    N0 = np.ascontiguousarray(np.stack([(a_blk.T @ a_blk).ravel() for a_blk, _ in blocks], axis=1)) @ w2
+    b0 = np.zeros((5, n))
+    row = 0
+    for (a_blk, w), w2_blk in zip(blocks, w2):
+        n_blk = a_blk.T @ a_blk
+        signal = np.ascontiguousarray(n_blk[:, 2:]) @ xt  # N_blk x_true (x_true[:2] = 0)
+        signal *= w2_blk
+        b0 += signal
+        noise = np.ascontiguousarray(a_blk.T) @ e[row:row + len(a_blk)]  # (5, n)
+        noise *= w
+        b0 += noise
+        row += len(a_blk)
+    N0 = N0.reshape(5, 5, n)
+    return np.moveaxis(N0, -1, 0), b0.T
 
 
 def _evaluate(n0, b0, sigma_mas: float, s: CellSettings):
@@ -194,59 +235,133 @@ def _evaluate(n0, b0, sigma_mas: float, s: CellSettings):
     return dpos, cov2
 
 
-def prior_curve(n0, b0, priors_mas, s: CellSettings, *, method: str = "scan", return_inside: bool = False):
+def scan_curve(scan: PriorScan, priors_mas, s: CellSettings, *, statistics: bool = True):
+    """The table of :func:`prior_curve` from a prior scan, and the per-star flags.
+
+    The fraction inside comes from :meth:`PriorScan.inside_flags` (no solution is
+    formed); with ``statistics`` the P-th percentile of the actual errors and the
+    median semi-major axis are computed from :meth:`PriorScan.position` at every prior
+    (NaN otherwise: the sweep writes them only where a figure uses them).
+
+    Returns
+    -------
+    table : pandas.DataFrame
+    inside, valid : ndarray of bool, shape (n_priors, n_stars)
+    """
+    arrays, inside_flags, valid_flags = _scan_arrays(scan, priors_mas, s, statistics=statistics)
+    return pd.DataFrame(arrays), inside_flags, valid_flags
+
+
+def _scan_arrays(scan: PriorScan, priors_mas, s: CellSettings, *, statistics: bool):
+    priors = np.atleast_1d(np.asarray(priors_mas, float))
+    inside_flags, valid_flags = scan.inside_flags(priors, s.confidence)
+    err = semi = None
+    if statistics:
+        err = np.empty((len(priors), scan.n))
+        semi = np.empty((len(priors), scan.n))
+        for i, p in enumerate(priors):
+            dpos, cov2 = scan.position(p)
+            # True position offsets are zero at the reference epoch, so the solved
+            # position is the actual error (Sect. 3.2).
+            err[i] = np.hypot(dpos[:, 0], dpos[:, 1])
+            semi[i] = ellipse_semi_axes(cov2, s.confidence)[0]
+    return _curve_arrays(priors, inside_flags.sum(axis=1), valid_flags.sum(axis=1), err, semi, s), \
+        inside_flags, valid_flags
+
+
+def _curve_arrays(priors, n_in, n_valid, err, semi_major, s: CellSettings) -> dict:
+    n_in = np.asarray(n_in, dtype=np.int64)
+    n_valid = np.asarray(n_valid, dtype=np.int64)
+    if err is None or err.shape[1] == 0:
+        p_err = med = np.full(len(priors), np.nan)
+    else:
+        valid = np.isfinite(err) & np.isfinite(semi_major)
+        # A prior always gives a solution; the NaN-aware reductions (10x slower) only if not.
+        pct, median = (np.percentile, np.median) if valid.all() else (np.nanpercentile, np.nanmedian)
+        p_err = pct(err, 100.0 * s.confidence, axis=1)
+        med = median(semi_major, axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        frac = np.where(n_valid > 0, n_in / np.maximum(n_valid, 1), np.nan)
+    return {
+        "sigma_prior_mas": np.asarray(priors, float),
+        "fraction_inside": frac,
+        "p_error_mas": p_err,
+        "median_semi_major_mas": med,
+        "n_inside": n_in,
+        "n_valid": n_valid,
+    }
+
+
+def _curve_table(priors, n_in, n_valid, err, semi_major, s: CellSettings) -> pd.DataFrame:
+    return pd.DataFrame(_curve_arrays(priors, n_in, n_valid, err, semi_major, s))
+
+
+def prior_curve(n0, b0, priors_mas, s: CellSettings, *, method: str = "scan", return_inside: bool = False,
+                statistics: bool = True):
     """Fraction inside, P-th percentile error and median semi-major axis per prior.
 
     ``method="scan"`` (default) reduces each star's normal equations once and evaluates
-    every prior in O(15) operations per star (:mod:`mcsweep.astrometry.prior_scan`);
-    ``"direct"`` solves the 5 x 5 system of every star and prior (the reference, kept
-    for tests and ``benchmarks/bench_cell.py``). The fraction inside follows the NaN
-    rule of :func:`mcsweep.astrometry.confidence.inside_counts`. With ``return_inside``
-    also returns the per-star ``inside`` and ``valid`` flags, both (n_priors, n_stars)
-    (for the bootstrap of :func:`sigma_f90_interval`).
+    every prior in a few dozen operations per star (:mod:`mcsweep.astrometry.prior_scan`,
+    :func:`scan_curve`); ``"direct"`` solves the 5 x 5 system of every star and prior
+    (the reference, kept for tests and ``benchmarks/bench_cell.py``). The fraction
+    inside follows the NaN rule of :func:`mcsweep.astrometry.confidence.inside_counts`.
+    ``statistics=False`` leaves the percentile and semi-major columns NaN (scan only).
+    With ``return_inside`` also returns the per-star ``inside`` and ``valid`` flags,
+    both (n_priors, n_stars) (for the bootstrap of :func:`sigma_f90_interval`).
     """
     priors = np.asarray(priors_mas, float)
-    m, n = len(priors), n0.shape[0]
     if method == "scan":
-        scan = prior_scan(n0, b0, s.ratio_R)
-        solutions = (scan.position(p) for p in priors)
-    elif method == "direct":
-        def solutions():
-            for p in priors:
-                sol = solve_with_prior(n0, b0, p, ratio_R=s.ratio_R)
-                yield np.ascontiguousarray(sol.x[:, :2]), np.ascontiguousarray(sol.cov[:, :2, :2])
-        solutions = solutions()
-    else:
+        table, inside_flags, valid_flags = scan_curve(prior_scan(n0, b0, s.ratio_R), priors, s,
+                                                      statistics=statistics)
+        return (table, inside_flags, valid_flags) if return_inside else table
+    if method != "direct":
         raise ValueError(f"method={method!r}; expected 'scan' or 'direct'")
+    m, n = len(priors), n0.shape[0]
     counts = np.zeros((m, 2), dtype=np.int64)
     err = np.empty((m, n))
     semi_major = np.empty((m, n))
-    inside_flags = np.zeros((m, n), dtype=bool) if return_inside else None
-    valid_flags = np.zeros((m, n), dtype=bool) if return_inside else None
-    # True position offsets are zero at the reference epoch, so the solved position is
-    # the actual error (Sect. 3.2).
-    for i, (dpos, cov2) in enumerate(solutions):
+    inside_flags = np.zeros((m, n), dtype=bool)
+    valid_flags = np.zeros((m, n), dtype=bool)
+    for i, p in enumerate(priors):
+        sol = solve_with_prior(n0, b0, p, ratio_R=s.ratio_R)
+        dpos, cov2 = np.ascontiguousarray(sol.x[:, :2]), np.ascontiguousarray(sol.cov[:, :2, :2])
         counts[i] = inside_counts(dpos, cov2, s.confidence)
         err[i] = np.hypot(dpos[:, 0], dpos[:, 1])
         semi_major[i] = ellipse_semi_axes(cov2, s.confidence)[0]
-        if return_inside:
-            valid_flags[i] = np.isfinite(mahalanobis_sq(dpos, cov2))
-            inside_flags[i] = inside(dpos, cov2, s.confidence) & valid_flags[i]
-    n_in, n_valid = counts[:, 0], counts[:, 1]
-    valid = np.isfinite(err) & np.isfinite(semi_major)
-    # A prior always gives a solution; the NaN-aware reductions (10x slower) only if not.
-    pct, med = (np.percentile, np.median) if valid.all() else (np.nanpercentile, np.nanmedian)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        frac = np.where(n_valid > 0, n_in / np.maximum(n_valid, 1), np.nan)
-    table = pd.DataFrame({
-        "sigma_prior_mas": priors,
-        "fraction_inside": frac,
-        "p_error_mas": pct(err, 100.0 * s.confidence, axis=1),
-        "median_semi_major_mas": med(semi_major, axis=1),
-        "n_inside": n_in,
-        "n_valid": n_valid,
-    })
+        valid_flags[i] = np.isfinite(mahalanobis_sq(dpos, cov2))
+        inside_flags[i] = inside(dpos, cov2, s.confidence) & valid_flags[i]
+    table = _curve_table(priors, counts[:, 0], counts[:, 1], err, semi_major, s)
     return (table, inside_flags, valid_flags) if return_inside else table
+
+
+def _crossings(priors, fraction, p: float, interpolation: str) -> tuple[np.ndarray, np.ndarray]:
+    """Rule of :func:`sigma_f90_from_curve` for many curves at once, ``fraction (r, m)``.
+
+    Returns the values (r,) and the index of the first grid point that reaches ``p``
+    (-1 where none does: value NaN).
+    """
+    frac = np.asarray(fraction, float)
+    with np.errstate(invalid="ignore"):
+        hits = frac >= p
+    first = np.argmax(hits, axis=1)
+    none = ~hits[np.arange(len(frac)), first]
+    first[none] = -1
+    values = np.full(len(frac), np.nan)
+    at0 = first == 0
+    values[at0] = priors[0]
+    inner = np.flatnonzero(first > 0)
+    if inner.size:
+        i = first[inner]
+        if interpolation == "none":
+            values[inner] = priors[i]
+        else:
+            # Linear in log(sigma) between the grid points that bracket the crossing.
+            f0, f1 = frac[inner, i - 1], frac[inner, i]
+            with np.errstate(invalid="ignore", divide="ignore"):
+                w = np.where(f1 > f0, (p - f0) / (f1 - f0), 1.0)
+            log_p = np.log(priors)
+            values[inner] = np.exp((1 - w) * log_p[i - 1] + w * log_p[i])
+    return values, first
 
 
 def sigma_f90_from_curve(priors_mas, fraction, p: float, interpolation: str = "log") -> tuple[float, str]:
@@ -256,20 +371,34 @@ def sigma_f90_from_curve(priors_mas, fraction, p: float, interpolation: str = "l
     grid's lower end, an upper limit); 'never_reached' (NaN).
     """
     priors = np.asarray(priors_mas, float)
-    frac = np.asarray(fraction, float)
-    hits = np.flatnonzero(frac >= p)
-    if hits.size == 0:
+    values, first = _crossings(priors, np.asarray(fraction, float)[None, :], p, interpolation)
+    if first[0] < 0:
         return float("nan"), "never_reached"
-    i = int(hits[0])
-    if i == 0:
-        return float(priors[0]), "below_grid"
-    if interpolation == "none":
-        return float(priors[i]), "ok"
-    # Linear in log(sigma) between the grid points that bracket the crossing.
-    f0, f1 = frac[i - 1], frac[i]
-    w = (p - f0) / (f1 - f0) if f1 > f0 else 1.0
-    log_s = (1 - w) * math.log(priors[i - 1]) + w * math.log(priors[i])
-    return float(math.exp(log_s)), "ok"
+    return float(values[0]), "below_grid" if first[0] == 0 else "ok"
+
+
+def bootstrap_fractions(inside_flags, valid_flags, n_resamples: int, rng: np.random.Generator) -> np.ndarray:
+    """Fractions inside of ``n_resamples`` bootstrap resamples of the stars, (n_resamples, n_priors).
+
+    A resample's curve depends only on how many times it draws each distinct pattern of
+    (inside, valid) flags over the grid. With ``n_u`` of the ``n`` stars in pattern
+    ``u`` those counts are multinomial(n, n_u / n) -- exactly the distribution of
+    resampling the stars one by one -- so each resample costs one multinomial draw over
+    the distinct patterns (a few hundred), and all curves one matrix product.
+    """
+    inside_flags = np.asarray(inside_flags, bool)
+    valid_flags = np.asarray(valid_flags, bool)
+    n = inside_flags.shape[1]
+    packed = np.packbits(np.concatenate([inside_flags, valid_flags]), axis=0)  # (bytes, n)
+    keys = np.ascontiguousarray(packed.T).view(np.dtype((np.void, packed.shape[0]))).ravel()
+    # Sorted by the pattern's bytes: independent of the order of the stars.
+    _, first, counts = np.unique(keys, return_index=True, return_counts=True)
+    weights = rng.multinomial(n, counts / n, size=n_resamples).astype(float)
+    # Integer-valued sums below 2^53: exact whatever the summation order (bit-identical).
+    n_in = weights @ inside_flags[:, first].T.astype(float)
+    n_val = weights @ valid_flags[:, first].T.astype(float)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(n_val > 0, n_in / n_val, np.nan)
 
 
 def sigma_f90_interval(priors_mas, inside_flags, valid_flags, p: float, interpolation: str,
@@ -277,22 +406,17 @@ def sigma_f90_interval(priors_mas, inside_flags, valid_flags, p: float, interpol
     """Bootstrap interval (INTERVAL_QUANTILES) of sigma_F90 over the cell's stars.
 
     Each resample draws the stars with replacement (one draw serves all priors, so the
-    curve keeps its correlation between priors) and finds its crossing with
-    :func:`sigma_f90_from_curve`; a resample whose fraction never reaches ``p`` counts
-    as +inf, one below the grid as the grid's lower end. ``inside_flags`` and
-    ``valid_flags`` are (n_priors, n_stars) (NaN rule of ``inside_counts``).
+    curve keeps its correlation between priors) and finds its crossing with the rule
+    of :func:`sigma_f90_from_curve`; a resample whose fraction never reaches ``p``
+    counts as +inf, one below the grid as the grid's lower end. ``inside_flags`` and
+    ``valid_flags`` are (n_priors, n_stars) (NaN rule of ``inside_counts``); the
+    resamples come from :func:`bootstrap_fractions`.
     """
-    m, n = inside_flags.shape
-    if n_resamples <= 0 or n == 0:
+    inside_flags = np.asarray(inside_flags, bool)
+    if n_resamples <= 0 or inside_flags.shape[1] == 0:
         return float("nan"), float("nan")
-    idx = rng.integers(0, n, size=(n_resamples, n))
-    weights = np.stack([np.bincount(row, minlength=n) for row in idx]).astype(float)
-    # Integer-valued sums below 2^53: exact whatever the summation order (bit-identical).
-    n_in = weights @ inside_flags.T.astype(float)
-    n_val = weights @ valid_flags.T.astype(float)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        frac = np.where(n_val > 0, n_in / n_val, np.nan)
-    values = np.array([sigma_f90_from_curve(priors_mas, f, p, interpolation)[0] for f in frac])
+    frac = bootstrap_fractions(inside_flags, valid_flags, n_resamples, rng)
+    values = _crossings(np.asarray(priors_mas, float), frac, p, interpolation)[0]
     values[np.isnan(values)] = np.inf
     lo, hi = np.quantile(values, INTERVAL_QUANTILES, method="inverted_cdf")
     return float(lo), float(hi)
@@ -327,13 +451,16 @@ def ill_determined(priors_mas, fraction, n_valid, p: float) -> bool:
 
 
 def run_cell(cell, transits: pd.DataFrame, source, s: CellSettings,
-             *, keep_scatter: bool = False,
-             radius_deg: float | None = None) -> tuple[pd.DataFrame, pd.DataFrame | None]:
+             *, keep_scatter: bool = False, radius_deg: float | None = None,
+             grid_statistics: bool | None = None) -> tuple[pd.DataFrame, pd.DataFrame | None]:
     """Run one cell; returns its curve table and (optionally) per-star errors (Fig. 2).
 
     ``cell`` is a :class:`mcsweep.sweep.cells.Cell`; ``transits`` the FoV transits of
     its direction (columns of :func:`mcsweep.scanning.find_transits`). ``radius_deg``
     skips the beam widening when the caller has already computed it (:func:`cell_radius`).
+    ``grid_statistics``: compute ``p_error_mas`` and ``median_semi_major_mas`` at every
+    prior of the grid (True) or only at sigma_F90 (False; NaN on the grid rows); None
+    follows ``s.grid_statistics``. The fraction inside is always on the whole grid.
     """
     d = cell.direction
     # Streams keyed by content (cell, and case *name* for the noise), never by position in
@@ -346,25 +473,27 @@ def run_cell(cell, transits: pd.DataFrame, source, s: CellSettings,
     n_in_cone = int(stars.attrs.get("n_in_cone", len(stars)))
     n_groups = int(transits["group"].nunique()) if len(transits) else 0
     grid = np.asarray(s.prior_grid_mas, float)
+    stats_on_grid = s.grid_statistics if grid_statistics is None else bool(grid_statistics)
 
     base = dict(cell_id=cell.cell_id, l_deg=d.l_deg, b_deg=d.b_deg, ra_deg=d.ra_deg,
                 dec_deg=d.dec_deg, g_min=cell.g_min, g_max=cell.g_max, n_stars=len(stars),
                 n_in_cone=n_in_cone, radius_deg=radius, n_groups=n_groups)
-    normals = {}
+    normals, scans = {}, {}
+    columns = _transit_columns(transits)
     for case, groups in s.cases.items():
-        geom = case_geometry(transits, tuple(groups))
+        geom = case_geometry(columns, tuple(groups))
         if geom is not None and len(stars) > 0:
             case_ss = np.random.SeedSequence(s.seed, spawn_key=(*cell.key, _NOISE_STREAM,
                                                                 zlib.crc32(case.encode())))
             normals[case] = _normal_equations(geom, d.ra_deg, d.dec_deg, stars, s,
                                               np.random.default_rng(case_ss))
+            scans[case] = prior_scan(*normals[case], s.ratio_R)
 
     curves, f90_flags = {}, None
-    for case in normals:
+    for case, scan in scans.items():
+        curves[case], *flags = _scan_arrays(scan, grid, s, statistics=stats_on_grid)
         if case == s.f90_case:
-            curves[case], *f90_flags = prior_curve(*normals[case], grid, s, return_inside=True)
-        else:
-            curves[case] = prior_curve(*normals[case], grid, s)
+            f90_flags = flags
     f90_lo = f90_hi = float("nan")
     ill = False
     if s.f90_case in curves:
@@ -377,22 +506,33 @@ def run_cell(cell, transits: pd.DataFrame, source, s: CellSettings,
     else:
         f90, flag = float("nan"), "no_transits" if len(stars) else "no_stars"
 
-    frames = []
+    # One DataFrame for the whole cell, built from numpy columns (pandas per case costs
+    # more than a cell's arithmetic).
+    empty = _curve_arrays(grid, np.zeros(len(grid)), np.zeros(len(grid)), None, None, s)
+    empty["fraction_inside"] = np.full(len(grid), np.nan)
+    parts, at_f90, case_col = [], [], []
+
+    def add(part, case, at):
+        parts.append(part)
+        at_f90.append(np.full(len(part["sigma_prior_mas"]), at))
+        case_col.extend([case] * len(part["sigma_prior_mas"]))
+
     for case in s.cases:
         if case in curves:
-            c = curves[case].assign(at_f90=False)
+            add(curves[case], case, False)
             if math.isfinite(f90):
-                c = pd.concat([c, prior_curve(*normals[case], [f90], s).assign(at_f90=True)],
-                              ignore_index=True)
+                add(_scan_arrays(scans[case], [f90], s, statistics=True)[0], case, True)
         else:
-            c = pd.DataFrame({"sigma_prior_mas": grid, "fraction_inside": np.nan, "n_inside": 0, "n_valid": 0,
-                              "p_error_mas": np.nan,
-                              "median_semi_major_mas": np.nan, "at_f90": False})
-        frames.append(c.assign(case=case))
-    table = pd.concat(frames, ignore_index=True).assign(**base, sigma_f90_mas=f90, f90_flag=flag,
-                                                          sigma_f90_lo_mas=f90_lo, sigma_f90_hi_mas=f90_hi,
-                                                          ill_determined=ill)
-    table = table[CURVE_COLUMNS]
+            add(empty, case, False)
+    cols = {k: np.concatenate([p[k] for p in parts]) for k in empty}
+    n_rows = len(cols["sigma_prior_mas"])
+    cols["at_f90"] = np.concatenate(at_f90)
+    cols["case"] = np.array(case_col, dtype=object)
+    scalars = dict(base, sigma_f90_mas=f90, f90_flag=flag, sigma_f90_lo_mas=f90_lo, sigma_f90_hi_mas=f90_hi,
+                   ill_determined=ill)
+    for k, v in scalars.items():
+        cols[k] = np.full(n_rows, v, dtype=object if isinstance(v, str) else None)
+    table = pd.DataFrame({k: cols[k] for k in CURVE_COLUMNS})
 
     scatter = None
     if keep_scatter and s.f90_case in normals:

@@ -286,14 +286,16 @@ def prepare(settings: PrimarySettings, stars: pd.DataFrame, transits: dict, *,
                         true_attitude=true_att, t_ref_jd=t_ref, dead_days=dead.total_days)
 
 
-def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=None):
+def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=None, *, run=None,
+                chunk_stars=None):
     """One global solution for the prior ``label``: (per-star results, history, attitude errors).
 
     Per-star results (all stars of ``data.stars``): ``inside`` (1/0, -1 not solved),
     ``err_mas`` (position error after the frame correction), ``err_parallax_mas``
     (estimated - true parallax), ``sigma_prior_mas``. ``extra``: iterations, convergence,
     attitude error RMS per axis [uas], fitted frame rotation and spin; the last element is
-    (measurement epochs, attitude error (m, 3) [mas]).
+    (measurement epochs, attitude error (m, 3) [mas]). ``run``, ``chunk_stars``: the executor
+    and chunk size for the solver's per-chunk work (:func:`mcsweep.solver.solve_global`).
     """
     st = data.stars
     s = data.solved
@@ -306,9 +308,13 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
     ra, dec = st["ra"].to_numpy()[s], st["dec"].to_numpy()[s]
     problem = GlobalProblem(data.obs, prior, ra, dec)
     sol = solve_global(problem, data.h, rtol=settings.rtol, update_tol_uas=settings.update_tol_uas,
-                       max_iter=settings.max_iter, log=log)
+                       max_iter=settings.max_iter, log=log, run=run, chunk_stars=chunk_stars)
     dx = sol.x - data.x_true
-    eps, omega = fit_frame(dx, ra, dec)  # the frame rotator (Lindegren et al. 2012, Sect. 6.1)
+    # The frame rotator (Lindegren et al. 2012, Sect. 6.1), weighted by the formal
+    # precisions: unweighted, the arcsec errors of 1-2-transit stars under 1000 mas set it.
+    cv = sol.cov
+    weights = np.column_stack([2.0 / (cv[:, 0, 0] + cv[:, 1, 1]), 2.0 / (cv[:, 3, 3] + cv[:, 4, 4])])
+    eps, omega = fit_frame(dx, ra, dec, weights=weights)
     dx = dx - frame_offsets(ra, dec, eps, omega)
     # The project's one inside rule; -1 marks a star without a confidence region.
     good = np.isfinite(mahalanobis_sq(dx[:, :2], sol.cov[:, :2, :2]))

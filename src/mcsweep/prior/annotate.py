@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserInputError
-from .columns import finite_column
+from .columns import finite_column, unit_scale
 from .frames import galactic_from_icrs
 from .model import Prior
 
@@ -77,19 +77,7 @@ def _columns(names, source: str) -> tuple[str, tuple[str, str], str]:
 
 def _values(col, name: str, source: str, unit, angle: bool) -> np.ndarray:
     """Float values of a column in degrees (angle) or magnitudes, checked finite."""
-    from astropy import units as u
-
-    factor = 1.0
-    if unit is not None and str(unit) not in ("", "None"):
-        try:
-            unit = u.Unit(unit)
-            if angle:
-                factor = unit.to(u.deg)
-            elif unit not in (u.mag, u.dimensionless_unscaled):
-                raise u.UnitConversionError(str(unit))
-        except (u.UnitConversionError, ValueError, TypeError):
-            raise UserInputError(f"{source}: column {name} in {unit} is not accepted; expected "
-                                 f"{'an angle (deg)' if angle else 'magnitudes (mag)'}") from None
+    factor = unit_scale(unit, "angle" if angle else "mag", f"{source}: column {name}")
     v = finite_column(col, name, source, where=" of its batch")
     return v * factor if factor != 1.0 else v
 

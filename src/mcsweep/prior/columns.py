@@ -1,12 +1,15 @@
-"""Checks of the numeric columns of users' tables (catalogues to annotate, observations to solve)."""
+"""Checks of users' numbers: numeric columns of their tables, units of their angles and magnitudes."""
 
 from __future__ import annotations
 
 import numpy as np
+from astropy import units as u
 
 from ..errors import UserInputError
 
-__all__ = ["finite_column"]
+__all__ = ["finite_column", "unit_scale"]
+
+_EXPECTED = {"angle": "an angle (deg)", "mag": "magnitudes (mag or plain numbers)"}
 
 
 def finite_column(values, name: str, source: str, where: str = "") -> np.ndarray:
@@ -24,3 +27,23 @@ def finite_column(values, name: str, source: str, where: str = "") -> np.ndarray
         raise UserInputError(f"{source}: column {name} has {int(bad.sum())} NaN or infinite value(s) "
                              f"(first at row {int(np.argmax(bad))}{where}); expected finite values in every row")
     return v
+
+
+def unit_scale(unit, kind: str, what: str) -> float:
+    """Factor converting values in ``unit`` to degrees (``kind='angle'``) or magnitudes (``'mag'``).
+
+    ``unit`` is an astropy unit or its string (a file's column metadata); ``None`` or an
+    empty string means plain numbers (factor 1). Anything else, including an unparsable
+    string, is a one-line :class:`UserInputError` naming ``what`` and the unit.
+    """
+    if unit is None or str(unit) in ("", "None"):
+        return 1.0
+    try:
+        unit = u.Unit(unit)
+        if kind == "angle":
+            return float(unit.to(u.deg))
+        if unit in (u.mag, u.dimensionless_unscaled):
+            return 1.0
+    except (u.UnitConversionError, ValueError, TypeError):
+        pass
+    raise UserInputError(f"{what} in {unit} is not accepted; expected {_EXPECTED[kind]}")

@@ -28,6 +28,7 @@ from astropy import units as u
 from astropy.coordinates import Galactic, SkyCoord
 
 from ..errors import UserInputError
+from .columns import unit_scale
 from .formula import (
     G_FIT_MAX,
     G_FIT_MIN,
@@ -249,17 +250,13 @@ class Prior:
         else:
             l_deg, b_deg = (_angle_deg(v, name) for v, name in zip(where, ("l", "b")))
         if isinstance(G, u.Quantity):
-            if G.unit not in (u.mag, u.dimensionless_unscaled):
-                raise UserInputError(f"G in {G.unit} is not accepted; expected magnitudes (u.mag or plain numbers)")
-            G = G.value
+            G = G.value * unit_scale(G.unit, "mag", "G")
         return l_deg, b_deg, np.asarray(G, dtype=float)
 
 
 def _angle_deg(value, name: str) -> np.ndarray:
     if isinstance(value, u.Quantity):
-        if value.unit.physical_type != "angle":
-            raise UserInputError(f"{name} in {value.unit} is not accepted; expected an angle (degrees)")
-        return value.to_value(u.deg)
+        return value.value * unit_scale(value.unit, "angle", name)
     if isinstance(value, SkyCoord):  # pragma: no cover - caught by _parse
         raise TypeError(f"{name} must be a number, not a SkyCoord")
     return np.asarray(value, dtype=float)

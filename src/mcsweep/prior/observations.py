@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..astrometry.confidence import check_probability, ellipse_semi_axes
+from ..astrometry.confidence import check_probability, ellipse_position_angle_deg, ellipse_semi_axes
 from ..astrometry.design import PARAMETER_NAMES, design_matrix, reference_epoch, years_since
 from ..astrometry.solve import normal_equations, solve_no_prior, solve_position_only, solve_with_prior
 from ..errors import UserInputError
@@ -48,7 +48,7 @@ from .model import Prior
 
 __all__ = ["OBSERVATION_COLUMNS", "OPTIONAL_AC", "OBSERVER_COLUMNS", "SOURCE_COLUMNS", "read_table",
            "read_observations", "Observations", "pad_observations", "solve_observations", "write_solutions",
-           "ellipse_position_angle_deg", "detect_format"]
+           "detect_format"]
 
 OBSERVATION_COLUMNS = ("source_id", "tcb_jd", "scan_angle_deg", "al_residual_mas", "al_sigma_mas")
 OPTIONAL_AC = ("ac_residual_mas", "ac_sigma_mas")
@@ -175,17 +175,6 @@ def pad_observations(obs: Observations) -> dict[str, np.ndarray]:
         out["ac_res"] = pad(obs["ac_residual_mas"], 0.0)
         out["ac_sig"] = pad(obs["ac_sigma_mas"], 1.0)
     return out
-
-
-def ellipse_position_angle_deg(cov2) -> np.ndarray:
-    """Position angle of the ellipse's major axis, degrees from north through east, in [0, 180).
-
-    For the covariance of (dalpha*, ddelta) = (east, north) components,
-    ``PA = 0.5 atan2(2 C_ad, C_dd - C_aa)``.
-    """
-    c = np.asarray(cov2, dtype=float)
-    pa = 0.5 * np.degrees(np.arctan2(2.0 * c[:, 0, 1], c[:, 1, 1] - c[:, 0, 0]))
-    return np.mod(pa, 180.0)
 
 
 def _epochs(setting: str, padded) -> np.ndarray:

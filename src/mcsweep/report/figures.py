@@ -57,30 +57,55 @@ def plot_fig4_latitude(fit: FitResult, path: Path) -> Path:
         y = np.log10(grp["sigma_f90_mas"]) - t["s2"] * x[:, 2]
         color = cmap(i / max(len(bins) - 1, 1))
         pos = np.cos(np.radians(grp["l_deg"])) > 0
+        if {"sigma_f90_lo_mas", "sigma_f90_hi_mas"} <= set(grp.columns):
+            # Each cell's 16-84 % bootstrap interval of sigma_F90, in the same dex.
+            with np.errstate(divide="ignore", invalid="ignore"):
+                lo = np.log10(grp["sigma_f90_mas"]) - np.log10(grp["sigma_f90_lo_mas"])
+                hi = np.log10(grp["sigma_f90_hi_mas"]) - np.log10(grp["sigma_f90_mas"])
+            yerr = np.vstack([np.nan_to_num(np.clip(lo, 0, None), posinf=0.0),
+                              np.nan_to_num(np.clip(hi, 0, None), posinf=0.0)])
+            ax.errorbar(x[:, 1], y, yerr=yerr, fmt="none", ecolor=color, elinewidth=0.6, alpha=0.6)
         ax.scatter(x[pos, 1], y[pos], s=14, facecolors="none", edgecolors=[color])
         ax.scatter(x[~pos, 1], y[~pos], s=18, marker="+", color=color)
         xs = np.linspace(0, 1, 2)
         ax.plot(xs, t["s0"] + t["s1"] * xs, color=color, lw=1, label=f"G={g0:g}-{g1:g}")
+        gm = 0.5 * (g0 + g1)
+        pv = np.polynomial.polynomial.polyval
+        ax.plot(xs, pv(gm, PAPER_COEFFICIENTS["s0"]) + pv(gm, PAPER_COEFFICIENTS["s1"]) * xs, ":",
+                color=color, lw=1)
     ax.set_xlabel("|sin b|")
     ax.set_ylabel(r"log$_{10}$ $\sigma_{\varpi,F90}$ [mas] $-$ $s_2\cos b\cos l$")
-    ax.set_title("Eq. 14 per G bin (o: cos l > 0, +: cos l < 0)")
+    ax.set_title("Eq. 14 per G bin (o: cos l > 0, +: cos l < 0; bars: bootstrap 16-84 %;\n"
+                 "solid: our fit, dotted: the paper's)", fontsize=9)
     ax.legend(fontsize=6, ncol=2)
     return _save(fig, path)
 
 
 def plot_fig4_coefficients(fit: FitResult, path: Path) -> Path:
-    """Fig. 4 middle: s0, s1, s2 against G with our polynomial fits and the paper's."""
-    fig, ax = plt.subplots(figsize=(6.5, 5))
+    """Fig. 4 middle: s0, s1, s2 against G with our polynomial fits and the paper's.
+
+    Each G bin's term carries its 16-84 % bootstrap interval over the cells (columns
+    ``s0_lo`` ... of ``fit.terms``) as an error bar, next to the paper's Eqs. 15-17.
+    """
+    fig, ax = plt.subplots(figsize=(6.5, 6.5))
     g = np.linspace(6, 20, 200)
     pv = np.polynomial.polynomial.polyval
+    t = fit.terms
     for name, color in (("s0", "C0"), ("s1", "C1"), ("s2", "C2")):
-        ax.plot(fit.terms["g"], fit.terms[name], "o", color=color, label=f"{name} (per G bin)")
+        y = t[name].to_numpy(float)
+        if {f"{name}_lo", f"{name}_hi"} <= set(t.columns):
+            lo, hi = t[f"{name}_lo"].to_numpy(float), t[f"{name}_hi"].to_numpy(float)
+            yerr = np.vstack([np.clip(y - lo, 0, None), np.clip(hi - y, 0, None)])
+            ax.errorbar(t["g"], y, yerr=yerr, fmt="o", ms=4, capsize=2, color=color,
+                        label=f"{name} per G bin (16-84 % bootstrap)")
+        else:
+            ax.plot(t["g"], y, "o", color=color, label=f"{name} (per G bin)")
         ax.plot(g, pv(g, fit.fitted[name]), "-", color=color, label=f"{name} fit (Eqs. 15-17 form)")
         ax.plot(g, pv(g, PAPER_COEFFICIENTS[name]), "--", color=color, label=f"{name} paper")
     ax.set_xlabel("G [mag]")
     ax.set_ylabel("coefficient [dex]")
     ax.set_title("Coefficients of Eq. 14 against G")
-    ax.legend(fontsize=7, ncol=3, loc="lower left")
+    ax.legend(fontsize=7, ncol=2, loc="upper center", bbox_to_anchor=(0.5, -0.12))
     return _save(fig, path)
 
 

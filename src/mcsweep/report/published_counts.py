@@ -21,7 +21,34 @@ compilation of the cited catalogue; [M] standard value, not re-checked here.
 * Local density: the Gaia Catalogue of Nearby Stars (Gaia Collaboration, Smart et al.
   2021, A&A 649, A6) [V abstract] holds 331 312 objects, about 9 % of them beyond
   100 pc, at least 92 % complete down to M9 (M_G ~ 15.5 at 100 pc): 301 500 +- 27 000
-  sources within 100 pc (the 9 % contamination taken as the systematic).
+  sources within 100 pc (the 9 % contamination taken as the systematic). This number
+  calibrates the model (population/galaxy/parameters.py), so it is not an independent
+  check; the following are:
+* GCNS within 60 pc, where it is complete to M_G ~ 15: 63 759 stars, 4199 of them white
+  dwarfs (Golovin et al., EAS 2022 poster "60pc sample", comparing GCNS with the
+  Just-Jahreiss model) [S]. The poster does not say whether its M_G < 15 cut precedes
+  the count; both readings are compared.
+* The Fifth Catalogue of Nearby Stars (CNS5; Golovin et al. 2023, A&A 670, A19),
+  within 25 pc: 5230 stars, of which 4946 main-sequence stars, 20 red giants and 264
+  white dwarfs, plus 701 brown dwarfs (ARI Heidelberg news on the CNS5 [S]).
+* Local giants: 3.9e-4 +- 0.1e-4 pc^-3 and main-sequence stars above 1 Msun
+  dn/dM = 0.016 (M/Msun)^-4.7 pc^-3 Msun^-1 (Bovy 2017, MNRAS 470, 1360, abstract [V];
+  Gaia DR1 TGAS): also used by the model, shown per 1-mag bin.
+* Local densities per spectral class (the nearest substitute found for a per-bin
+  GCNS luminosity function): E. Mamajek, "Star densities in the solar neighbourhood"
+  (www.pas.rochester.edu/~emamajek/memo_star_dens.html, table "Star Type / Density")
+  [S]: A stars 4.9e-4 +- 0.66e-4 pc^-3 (Hipparcos-2, M_V < 4, d < 30 pc, N = 55),
+  F dwarfs 2.4e-3 +- 0.3e-3, G dwarfs 3.3e-3 +- 0.4e-3 (Mamajek et al. 2008, 16 pc,
+  N = 57), K dwarfs 1.05e-2 +- 0.16e-2 (RECONS 10 pc, N = 44), M dwarfs 6.76e-2 +-
+  0.40e-2 (RECONS 10 pc, N = 283, 2018.3); red giants (K/M III and later) 2.7e-4 (the
+  author's figshare note 3206527, no uncertainty quoted). The G/K/M samples are
+  "likely complete even accounting for multiplicity" (component stars); the A/F
+  samples are not corrected for unresolved multiplicity (sources). White dwarfs:
+  5.0e-3 +- 0.7e-3 pc^-3 (Holberg, Oswalt & Sion 2002, ApJ 571, 512, abstract in the
+  CDS ReadMe J/ApJ/571/512 [V]); the model has no white-dwarf population.
+* Not found in the sources searched for issue #14: the GCNS luminosity function per
+  1-mag M_G bin (the paper's figure values or a CDS table), and published all-sky
+  counts per G magnitude at G = 15-19 or per Galactic-latitude band.
 * Paper Table 1 beam: 458 GUMS stars (Michalik et al. 2015); Poisson +-21.
 """
 
@@ -29,6 +56,9 @@ from __future__ import annotations
 
 import numpy as np
 import pandas as pd
+
+from ..population.galaxy import parameters as P
+from ..population.galaxy.luminosity import load_dwarf_sequence, load_local_lf
 
 __all__ = [
     "TYCHO_UCAC4_CUMULATIVE",
@@ -42,6 +72,19 @@ __all__ = [
     "published_counts_per_g",
     "count_comparison",
     "local_sources_within",
+    "GCNS60_STARS",
+    "GCNS60_WHITE_DWARFS",
+    "GCNS60_MG_LIMIT",
+    "CNS5_25PC",
+    "BOVY_GIANTS_PC3",
+    "BOVY_GIANTS_ERR_PC3",
+    "bovy_bright_dwarfs_per_mv_bin",
+    "local_lf_comparison",
+    "local_census_comparison",
+    "DENSITY_BY_CLASS",
+    "HOLBERG_WD_PC3",
+    "MAMAJEK_GIANTS_PC3",
+    "local_density_by_class",
 ]
 
 #: (V-like magnitude m, N(< m) over the whole sky): Tycho-2 + UCAC4 [S].
@@ -52,11 +95,18 @@ TYCHO_UCAC4_CUMULATIVE = (
 )
 #: Mean G - V of bright stars and its uncertainty, mag (Riello et al. 2021) [M].
 G_MINUS_V, G_MINUS_V_SYST = -0.25, 0.10
-#: GCNS sources within 100 pc and systematic (see module notes).
-GCNS_WITHIN_100PC = 331_312 * (1 - 0.09)
+#: GCNS sources within 100 pc and systematic (see module notes; the model's calibration).
+GCNS_WITHIN_100PC = P.GCNS_SOURCES_WITHIN_100PC
 GCNS_SYST = 0.09 * 331_312
 #: Absolute magnitude to which GCNS is complete at 100 pc (M9 dwarfs, G ~ 20.5) [M].
-GCNS_MG_LIMIT = 15.5
+GCNS_MG_LIMIT = P.GCNS_MG_LIMIT
+#: GCNS stars within 60 pc (complete to M_G ~ 15 there) and its white dwarfs [S].
+GCNS60_STARS, GCNS60_WHITE_DWARFS, GCNS60_MG_LIMIT = 63_759, 4199, 15.0
+#: CNS5 census within 25 pc [S]: stars by class (brown dwarfs not modelled).
+CNS5_25PC = {"main_sequence": 4946, "giants": 20, "white_dwarfs": 264, "stars": 5230,
+             "brown_dwarfs": 701}
+#: Local giant density, pc^-3, and its uncertainty (Bovy 2017) [V].
+BOVY_GIANTS_PC3, BOVY_GIANTS_ERR_PC3 = 3.9e-4, 0.1e-4
 GUMS_G20 = 1.1e9
 DR3_TOTAL = 1_811_709_771
 
@@ -115,3 +165,159 @@ def local_sources_within(model, radius_pc=100.0, mg_max=GCNS_MG_LIMIT):
     keep = [i for i, n in enumerate(model.lf.names) if n != "bulge"]
     dens = float(np.interp(mg_max, model.lf.mg, model.lf.cdf[keep].sum(axis=0)))
     return dens * 4.0 / 3.0 * np.pi * radius_pc ** 3
+
+
+def _sphere(radius_pc):
+    return 4.0 / 3.0 * np.pi * radius_pc ** 3
+
+
+def bovy_bright_dwarfs_per_mv_bin():
+    """Bovy's (2017) main-sequence mass function integrated over 1-mag M_V bins.
+
+    Only bins whose masses lie above 1 Msun, where the power law was fitted. Masses of
+    the bin edges from the Mamajek dwarf sequence (log-linear interpolation).
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns ``M_V`` (bin centre), ``M_G_lo``, ``M_G_hi`` (the bin in M_G, through the
+        sequence's G - V), ``published`` (sources pc^-3).
+    """
+    seq_mv, seq_gv, seq_m = load_dwarf_sequence()
+    mv, _ = load_local_lf()
+    mv = mv[(mv > P.GIANT_MV_MAX) & (mv < P.BOVY_PDMF_MV_MAX)]
+
+    def mass(x):
+        return 10.0 ** np.interp(x, seq_mv, np.log10(seq_m))
+
+    # Bovy (2017): dn/dM = 0.016 M^-4.7 pc^-3 Msun^-1; its integral in closed form
+    n = 0.016 / 3.7 * (mass(mv + 0.5) ** -3.7 - mass(mv - 0.5) ** -3.7)
+    lo = mv - 0.5 + np.interp(mv - 0.5, seq_mv, seq_gv)
+    hi = mv + 0.5 + np.interp(mv + 0.5, seq_mv, seq_gv)
+    return pd.DataFrame(dict(M_V=mv, M_G_lo=lo, M_G_hi=hi, published=n))
+
+
+def _lf_at_sun(model):
+    lf = model.lf
+    keep = [i for i, n in enumerate(lf.names) if n != "bulge"]
+    giants = [i for i, n in enumerate(lf.names) if n.endswith("_giants")]
+    return lf.mg, lf.cdf[keep].sum(axis=0), lf.cdf[giants].sum(axis=0)
+
+
+def local_lf_comparison(model, mg_bins=range(-3, 17)):
+    """The model's local luminosity function per 1-mag M_G bin (sources pc^-3).
+
+    Columns ``M_G_lo``, ``model`` (all components at the Sun), ``model_thin_giants``
+    (the thin-disc giant components), ``bovy_ms`` (Bovy's bright main sequence over the
+    same M_G interval where it covers the whole bin, else NaN) and their ratio.
+    """
+    mg, cdf, giants = _lf_at_sun(model)
+    bovy = bovy_bright_dwarfs_per_mv_bin()
+    # Bovy's M_V bins in M_G, as a cumulative function for any M_G interval
+    edges = np.concatenate([[bovy.M_G_lo.iloc[0]], bovy.M_G_hi.to_numpy()])
+    bcum = np.concatenate([[0.0], np.cumsum(bovy.published.to_numpy())])
+    rows = []
+    for a in mg_bins:
+        tot = np.interp(a + 1, mg, cdf) - np.interp(a, mg, cdf)
+        g = np.interp(a + 1, mg, giants) - np.interp(a, mg, giants)
+        ref = np.nan
+        if edges[0] <= a and a + 1 <= edges[-1]:
+            ref = np.interp(a + 1, edges, bcum) - np.interp(a, edges, bcum)
+        rows.append(dict(M_G_lo=a, model=tot, model_thin_giants=g, model_dwarfs=tot - g,
+                         bovy_ms=ref, ratio_to_bovy=(tot - g) / ref))
+    return pd.DataFrame(rows)
+
+
+def local_census_comparison(model):
+    """The model's local content next to independent censuses (DataFrame).
+
+    Rows: GCNS within 60 pc (both readings of the M_G cut), CNS5 giants and all stars
+    within 25 pc (model sources and model component stars), Bovy's giants (the
+    calibration). Columns ``quantity``, ``published``, ``uncertainty`` (Poisson),
+    ``model``, ``ratio``.
+    """
+    mg, cdf, _ = _lf_at_sun(model)
+    f = float(model.params["multiplicity_frequency"])
+    v60, v25 = _sphere(60.0), _sphere(25.0)
+    giants_at_sun = float(np.interp(P.GIANT_MV_MAX + 0.5 + P.GIANT_G_MINUS_V, mg, cdf))
+    rows = [
+        ("GCNS 60 pc, sources M_G < 15", GCNS60_STARS, float(np.interp(GCNS60_MG_LIMIT, mg, cdf)) * v60),
+        ("GCNS 60 pc, all sources (other reading)", GCNS60_STARS, float(cdf[-1]) * v60),
+        ("CNS5 25 pc, giants (model M_G < 1.2)", CNS5_25PC["giants"], giants_at_sun * v25),
+        ("CNS5 25 pc, stars (model sources)", CNS5_25PC["stars"], float(cdf[-1]) * v25),
+        ("CNS5 25 pc, stars (model component stars)", CNS5_25PC["stars"], float(cdf[-1]) * (1 + f) * v25),
+        ("Bovy 2017 giants pc^-3 x 1e4 (calibration)", BOVY_GIANTS_PC3 * 1e4, giants_at_sun * 1e4),
+    ]
+    out = pd.DataFrame(rows, columns=["quantity", "published", "model"])
+    out["uncertainty"] = np.sqrt(out["published"])
+    out.loc[out.quantity.str.startswith("Bovy"), "uncertainty"] = BOVY_GIANTS_ERR_PC3 * 1e4
+    out["ratio"] = out["model"] / out["published"]
+    return out
+
+
+#: Local densities per spectral class [S] (module notes): (class, M_V range of the class
+#: on the Mamajek dwarf sequence (edges half-way between the last and first tabulated
+#: subtypes: B9V/A0V, A7V/F0V, F8V/G0V, G8V/K0V, K7V/M0V, M9.5V + 0.25), density and
+#: uncertainty [pc^-3], what the sample counts ("sources" or component "stars"),
+#: sample).
+DENSITY_BY_CLASS = (
+    ("A", 0.745, 2.40, 4.9e-4, 0.66e-4, "sources", "Hipparcos-2, d < 30 pc, N = 55"),
+    ("F", 2.40, 4.265, 2.4e-3, 0.3e-3, "sources", "F dwarfs, Hipparcos 30 pc"),
+    ("G", 4.265, 5.54, 3.3e-3, 0.4e-3, "stars", "Mamajek et al. 2008, 16 pc, N = 57"),
+    ("K", 5.54, 8.50, 1.05e-2, 0.16e-2, "stars", "RECONS 10 pc, N = 44"),
+    ("M", 8.50, 20.0, 6.76e-2, 0.40e-2, "stars", "RECONS 10 pc, N = 283"),
+)
+#: Local white-dwarf density and uncertainty, pc^-3 (Holberg et al. 2002) [V].
+HOLBERG_WD_PC3, HOLBERG_WD_ERR_PC3 = 5.0e-3, 0.7e-3
+#: Local density of red giants (K/M III and later), pc^-3 (Mamajek) [S].
+MAMAJEK_GIANTS_PC3 = 2.7e-4
+
+
+def local_density_by_class(model):
+    """The model's local density per spectral class next to the published ones.
+
+    The model's dwarfs (all components at the Sun except the thin-disc giant
+    components and the bulge) are integrated over each class's M_G range (its M_V range
+    through the dwarf sequence's G - V). Samples that count component stars are
+    compared with the model's sources times (1 + multiplicity frequency), as the model
+    turns stars into sources (population/galaxy/parameters.py).
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns ``cls``, ``M_G_lo``, ``M_G_hi``, ``published``, ``uncertainty``
+        [pc^-3], ``counts``, ``model`` (sources or stars, as the sample counts),
+        ``ratio``, ``ratio_sigma`` (the published uncertainty relative), ``sample``.
+        Extra rows: "M + white dwarfs" (the Wielen/Allen bins the faint dwarfs come
+        from hold the white dwarfs among their stars), white dwarfs (no model value)
+        and red giants (the model's giants, all classes).
+    """
+    lf = model.lf
+    keep = [i for i, n in enumerate(lf.names) if n != "bulge" and not n.endswith("_giants")]
+    giants = [i for i, n in enumerate(lf.names) if n.endswith("_giants")]
+    cdf = lf.cdf[keep].sum(axis=0)
+    seq_mv, seq_gv, _ = load_dwarf_sequence()
+    stars_per_source = 1.0 + float(model.params["multiplicity_frequency"])
+    rows = []
+    for cls, v_lo, v_hi, dens, err, counts, sample in DENSITY_BY_CLASS:
+        g_lo = v_lo + float(np.interp(v_lo, seq_mv, seq_gv))
+        g_hi = v_hi + float(np.interp(v_hi, seq_mv, seq_gv))
+        n = float(np.interp(g_hi, lf.mg, cdf) - np.interp(g_lo, lf.mg, cdf))
+        n *= stars_per_source if counts == "stars" else 1.0
+        rows.append(dict(cls=cls, M_G_lo=g_lo, M_G_hi=g_hi, published=dens, uncertainty=err,
+                         counts=counts, model=n, sample=sample))
+    m = rows[-1]
+    rows.append(dict(cls="M + white dwarfs", M_G_lo=m["M_G_lo"], M_G_hi=m["M_G_hi"],
+                     published=m["published"] + HOLBERG_WD_PC3,
+                     uncertainty=float(np.hypot(m["uncertainty"], HOLBERG_WD_ERR_PC3)),
+                     counts="stars", model=m["model"], sample=m["sample"] + " + Holberg et al. 2002"))
+    rows.append(dict(cls="white dwarfs", M_G_lo=np.nan, M_G_hi=np.nan, published=HOLBERG_WD_PC3,
+                     uncertainty=HOLBERG_WD_ERR_PC3, counts="stars", model=np.nan,
+                     sample="Holberg et al. 2002, 13-20 pc (no white-dwarf population in the model)"))
+    rows.append(dict(cls="red giants", M_G_lo=np.nan, M_G_hi=np.nan, published=MAMAJEK_GIANTS_PC3,
+                     uncertainty=np.nan, counts="sources", model=float(lf.cdf[giants, -1].sum()),
+                     sample="K/M III and later (Mamajek); model: all thin-disc giants (Bovy 2017)"))
+    out = pd.DataFrame(rows)
+    out["ratio"] = out["model"] / out["published"]
+    out["ratio_sigma"] = out["uncertainty"] / out["published"]
+    return out

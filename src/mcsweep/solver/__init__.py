@@ -4,8 +4,8 @@ Paper Sect. 4.2 (Table 3): one year of observations, the attitude determined fro
 same observations as the stars. The solver follows AGIS (Lindegren et al. 2012, A&A
 538, A78) as Bombrun et al. (2012, A&A 538, A77) read it: the normal equations of all
 unknowns are solved by conjugate gradients, preconditioned with the block updates of
-AGIS (the per-star 5 x 5 source blocks with the Eq. 18 prior, and the banded attitude
-block).
+AGIS in symmetric Gauss-Seidel order (the per-star 5 x 5 source blocks with the Eq. 18
+prior, and the banded attitude block with each star's local absorption removed).
 
 Modules
 -------
@@ -19,8 +19,12 @@ attitude_update
     Banded attitude normal matrix in LAPACK storage and its solution (the AGIS A block).
 frame
     Orientation and spin (6 dof): the frame constraint and the frame-rotator fit.
+blocks
+    Fixed blocks of stars in compact storage and the per-block (chunk task) work.
+reduction
+    Sums over blocks in a fixed pairwise tree: bit-identical for any chunking.
 cg
-    The normal-equations operator and the preconditioned conjugate-gradient iteration.
+    The normal equations in blocks and the preconditioned conjugate-gradient iteration.
 
 Only :mod:`mcsweep.astrometry` (and :mod:`mcsweep.scanning` through it) is imported.
 """

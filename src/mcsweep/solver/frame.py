@@ -6,13 +6,15 @@ all proper motions with the attitude rotated by ``omega (t - t_ref)`` (the commo
 reference epoch ``t_ref``). The data therefore leave 6 degrees of freedom undetermined
 (the prior on the proper motions, Eq. 18, fixes the spin only weakly).
 
-* Constraint used in the solution: zero mean rotation of the position corrections and
-  of the proper-motion corrections over all sources, ``sum_i K_i' dpos_i = 0`` and
-  ``sum_i K_i' dmu_i = 0``, added to the normal equations as a penalty (exact for the
-  orientation, whose direction the data do not see at all).
+* Constraint used in the solution: zero weighted mean rotation of the position
+  corrections and of the proper-motion corrections over all sources,
+  ``sum_i g_i K_i' dpos_i = 0`` and ``sum_i g'_i K_i' dmu_i = 0`` with ``g_i`` (``g'_i``)
+  the star's formal position (proper-motion) precision normalised to mean 1
+  (:class:`mcsweep.solver.cg.GlobalProblem`), added to the normal equations as a
+  penalty (exact for the orientation, whose direction the data do not see at all).
 * Evaluation: as the frame rotator does after AGIS, the rotation and spin fitted by
-  least squares to (estimated - true) over all sources are removed before errors are
-  computed (:func:`fit_frame`, :func:`frame_offsets`).
+  (weighted) least squares to (estimated - true) over all sources are removed before
+  errors are computed (:func:`fit_frame`, :func:`frame_offsets`).
 
 ``K_i`` (2 x 3) maps ``eps`` to ``(dalpha*, ddelta) = (eps . q_i, -eps . p_i)`` with
 ``p, q`` local east and north (``eps x r`` projected on the tangent plane).
@@ -42,7 +44,7 @@ def frame_offsets(ra_deg, dec_deg, eps_mas, omega_mas_yr) -> np.ndarray:
     return out
 
 
-def fit_frame(dx, ra_deg, dec_deg, select=None) -> tuple[np.ndarray, np.ndarray]:
+def fit_frame(dx, ra_deg, dec_deg, select=None, weights=None) -> tuple[np.ndarray, np.ndarray]:
     """Least-squares rotation ``eps`` [mas] and spin ``omega`` [mas/yr] of parameter differences.
 
     Parameters
@@ -52,15 +54,24 @@ def fit_frame(dx, ra_deg, dec_deg, select=None) -> tuple[np.ndarray, np.ndarray]
     ra_deg, dec_deg : array_like (n,)
     select : array_like of bool (n,), optional
         Sources used in the fit (default all with finite ``dx``).
+    weights : array_like (n, 2), optional
+        Weights of each source's position and proper-motion offsets, e.g. their formal
+        precisions ``2 / (C_aa + C_dd)`` (the frame rotator's weighted fit, Lindegren et
+        al. 2012, Sect. 6.1). Default equal weights. With loose priors the equal-weight
+        fit is dominated by the stars whose positions and proper motions the data leave
+        free (errors of arcsec under a 1000 mas prior) and removes a spurious rotation
+        and spin from every star.
     """
     dx = np.asarray(dx, dtype=float)
     K = rotation_matrices(ra_deg, dec_deg)
     sel = np.all(np.isfinite(dx), axis=1) if select is None else np.asarray(select, dtype=bool)
-    Ks = K[sel]
-    M = np.einsum("nij,nik->jk", Ks, Ks)
-    eps = np.linalg.solve(M, np.einsum("nij,ni->j", Ks, dx[sel, 0:2]))
-    omega = np.linalg.solve(M, np.einsum("nij,ni->j", Ks, dx[sel, 3:5]))
-    return eps, omega
+    w = np.ones((dx.shape[0], 2)) if weights is None else np.asarray(weights, dtype=float)
+    Ks, ws = K[sel], w[sel]
+    out = []
+    for col, wk in ((0, ws[:, 0]), (3, ws[:, 1])):
+        M = np.einsum("n,nij,nik->jk", wk, Ks, Ks)
+        out.append(np.linalg.solve(M, np.einsum("n,nij,ni->j", wk, Ks, dx[sel, col:col + 2])))
+    return out[0], out[1]
 
 
 def frame_attitude(eps_mas, omega_mas_yr, tcb_jd, t_ref_jd: float) -> np.ndarray:

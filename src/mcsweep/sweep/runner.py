@@ -59,6 +59,7 @@ def build_settings(config: Config) -> CellSettings:
         max_radius_deg=cell.max_radius_deg,
         interpolation=cell.interpolation,
         n_bootstrap=cell.n_bootstrap,
+        grid_statistics=cell.grid_statistics,
         reference_epoch=obs.reference_epoch,
         fixed_epoch_tcb_jd=tcb_jd(obs.fixed_epoch, "observations.fixed_epoch"),
         noise=NoiseModel.from_config(config.noise),
@@ -121,7 +122,9 @@ def _cell_task(job):
     # The store travels with the job so a worker stamps the parent's code version.
     cell, transits, pop_frozen, settings, store, keep_scatter, radius = job
     source = _source(pop_frozen)
-    table, scatter = run_cell(cell, transits, source, settings, keep_scatter=keep_scatter, radius_deg=radius)
+    # The showcase cell (keep_scatter) feeds Figs. 1 and 3: statistics on its whole grid.
+    table, scatter = run_cell(cell, transits, source, settings, keep_scatter=keep_scatter, radius_deg=radius,
+                              grid_statistics=True if keep_scatter else None)
     if scatter is not None:
         store.write(cell.cell_id + "_scatter", scatter)
     store.write(cell.cell_id, table)
@@ -205,7 +208,8 @@ def run_sweep(config: Config, raw_cfg: dict, run_dir: Path, *, prov: Provenance 
         out = run_dir / "cells.parquet"
         atomic_write_bytes(out, allcells.to_parquet(index=False))
         prov.seeds["cells"] = ("stars: SeedSequence(seed, spawn_key=(*key, 0)); noise of a case: "
-                               "SeedSequence(seed, spawn_key=(*key, 1, crc32(case name))); "
+                               "SeedSequence(seed, spawn_key=(*key, 1, crc32(case name))); bootstrap of "
+                               "sigma_F90: SeedSequence(seed, spawn_key=(*key, 2)); "
                                "key = (l*1e4, (b+90)*1e4, 100*g_min, 100*g_max)")
     return out
 

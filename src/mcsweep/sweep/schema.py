@@ -244,16 +244,19 @@ class CellConf:
     #: Radius of the pencil beam (Table 1: 1 deg).
     beam_radius_deg: float = 1.0
     #: Cap on the stars drawn per cell (an unbiased subsample of the cone).
-    max_stars: int = 10000
+    max_stars: int = 20000
     #: Bright cells hold few stars: widen the beam around the same centre until this
     #: many stars are expected (all observed with the centre's transits).
-    min_stars: int = 5000
+    min_stars: int = 20000
     #: Largest radius the widening may reach.
     max_radius_deg: float = 20.0
     #: Interpolation of sigma_F90 between grid points: 'log' (in log sigma) or 'none'.
     interpolation: str = "log"
     #: Bootstrap resamples of the cell's stars for the sigma_F90 interval (0 = none).
     n_bootstrap: int = 200
+    #: p_error_mas and median_semi_major_mas on every grid row of every cell (true), or
+    #: only at sigma_F90 and in the showcase cell (false: NaN on the other grid rows).
+    grid_statistics: bool = False
 
     def __post_init__(self):
         _require(self.n_bootstrap >= 0, "cell.n_bootstrap", self.n_bootstrap,

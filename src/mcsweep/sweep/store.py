@@ -31,7 +31,7 @@ import pyarrow.parquet as pq
 from ..errors import UserInputError
 from .version import code_version
 
-__all__ = ["CellStore", "atomic_write_bytes", "current_umask", "table_checksum"]
+__all__ = ["CellStore", "atomic_write_bytes", "atomic_write_via", "current_umask", "table_checksum"]
 
 _META_KEY = b"mcsweep"
 
@@ -59,26 +59,37 @@ def current_umask() -> int:
     return mask
 
 
-def atomic_write_bytes(path: Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` so readers see either the old file or the whole new one.
+def atomic_write_via(path: Path, write) -> None:
+    """Call ``write(tmp_path)`` and move the finished file to ``path`` in one step.
 
-    The file gets the mode of a file created normally (``0o666 & ~umask``: 0644 under
-    the usual 022), not the 0600 of its private temporary name, so colleagues sharing
-    the run directory on a cluster file system can read it.
+    Readers see either the old file or the whole new one, and an error (in ``write``
+    or after it) leaves no file behind. The file gets the mode of a file created
+    normally (``0o666 & ~umask``: 0644 under the usual 022), not the 0600 of its
+    private temporary name, so colleagues sharing the run directory on a cluster file
+    system can read it; it is flushed to disk before it replaces ``path``.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
         os.fchmod(fd, 0o666 & ~current_umask())
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
+        os.close(fd)
+        write(Path(tmp))
+        # A writer may have replaced the file (then it has the normal mode already).
+        fd = os.open(tmp, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def atomic_write_bytes(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` atomically (:func:`atomic_write_via`)."""
+    atomic_write_via(path, lambda tmp: tmp.write_bytes(data))
 
 
 class CellStore:

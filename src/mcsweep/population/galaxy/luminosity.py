@@ -2,12 +2,18 @@
 
 Method (a justified simplification of the Besancon population synthesis):
 
-1. The local luminosity function phi(M_V) of all stars near the Sun (Wielen 1974 as
-   tabulated in Allen's Astrophysical Quantities; ``data/lf_wielen_allen.ecsv``) fixes
-   the number of stars per magnitude at the Sun. Bins with M_V <= 1 are giants, the
-   fainter ones main-sequence dwarfs (see :data:`.parameters.GIANT_MV_MAX`); the giant
-   bins are scaled to the local giant density of Bovy (2017),
-   :data:`.parameters.LOCAL_GIANT_DENSITY_PC3` (issue #14).
+1. The local luminosity function at the Sun, in three parts (issue #14):
+
+   * giants: the Wielen (1974) bins with M_V <= 1 (as tabulated in Allen's Astrophysical
+     Quantities; ``data/lf_wielen_allen.ecsv``; :data:`.parameters.GIANT_MV_MAX`) scaled
+     to the local giant density of Bovy (2017), :data:`.parameters.LOCAL_GIANT_DENSITY_PC3`;
+   * bright dwarfs, M_V < 4.5 (above ~1 Msun): Bovy's (2017) present-day mass function
+     dn/dM = 0.016 M^-4.7 pc^-3 Msun^-1 integrated over each bin's mass range
+     (:data:`.parameters.BOVY_PDMF_NORM`);
+   * fainter dwarfs: the Wielen/Allen bins times ``faint_scale``, which the model sets
+     from the Gaia Catalogue of Nearby Stars (:mod:`.model`).
+
+   Bovy's numbers and the GCNS count sources (unresolved systems count once).
 2. The local stars of each magnitude bin are shared among the components present at
    the Sun in proportion to the weight
 
@@ -47,6 +53,7 @@ __all__ = [
     "load_dwarf_sequence",
     "imf",
     "turnoff_mass",
+    "local_dwarf_lf",
     "build_luminosity_table",
 ]
 
@@ -187,7 +194,34 @@ class LuminosityTable:
         return np.diff(self.cdf, axis=1) / MG_STEP
 
 
-def build_luminosity_table(components, *, local=None):
+def local_dwarf_lf(faint_scale=1.0):
+    """Local main-sequence luminosity function per 1-mag M_V bin (see module notes).
+
+    Parameters
+    ----------
+    faint_scale : float
+        Factor on the Wielen/Allen bins fainter than :data:`.parameters.BOVY_PDMF_MV_MAX`.
+
+    Returns
+    -------
+    mv : ndarray
+        Bin centres, mag (M_V > :data:`.parameters.GIANT_MV_MAX`).
+    phi : ndarray
+        Sources per pc^3 in each bin.
+    bright : ndarray of bool
+        Bins taken from Bovy's (2017) mass function.
+    """
+    mv, phi = load_local_lf()
+    dwarf = mv > P.GIANT_MV_MAX
+    mv, phi = mv[dwarf], phi[dwarf]
+    bright = mv < P.BOVY_PDMF_MV_MAX
+    m_hi, m_lo = _mass_of_mv(mv - 0.5), _mass_of_mv(mv + 0.5)
+    a = P.BOVY_PDMF_SLOPE - 1.0
+    pdmf = P.BOVY_PDMF_NORM / a * (m_lo ** -a - m_hi ** -a)
+    return mv, np.where(bright, pdmf, phi * faint_scale), bright
+
+
+def build_luminosity_table(components, *, local=None, faint_scale=1.0):
     """Luminosity functions in M_G of ``components`` (see module notes).
 
     Parameters
@@ -196,21 +230,24 @@ def build_luminosity_table(components, *, local=None):
         Components to tabulate.
     local : sequence of parameters.Component, optional
         Components present at the Sun that share the local luminosity function; by
-        default all components except the bulge. Passing the full model's list keeps a
+        default all components except the bulge and the giant-only companions (which
+        share the giants of their age bin). Passing the full model's list keeps a
         component's LF independent of which components are switched off.
+    faint_scale : float
+        Factor on the dwarfs fainter than :data:`.parameters.BOVY_PDMF_MV_MAX`.
 
     Returns
     -------
     LuminosityTable
     """
     if local is None:
-        local = [c for c in components if c.law != "bulge"]
+        local = [c for c in components if c.law != "bulge" and c.lf_part != "giants"]
+    local = [c for c in local if c.lf_part != "giants"]
     mv, phi = load_local_lf()
-    dwarf = mv > P.GIANT_MV_MAX
-    dwarf_mv, dwarf_phi = mv[dwarf], phi[dwarf]
-    giant_mv, giant_phi = mv[~dwarf], phi[~dwarf]
+    giant_mv, giant_phi = mv[mv <= P.GIANT_MV_MAX], phi[mv <= P.GIANT_MV_MAX]
     # 1-mag bins: the sum of phi is the giants' density; scaled to Bovy (2017)
     giant_phi = giant_phi * (P.LOCAL_GIANT_DENSITY_PC3 / giant_phi.sum())
+    dwarf_mv, dwarf_phi, _ = local_dwarf_lf(faint_scale)
 
     w_local_d = np.zeros(dwarf_mv.size)
     w_local_g = 0.0
@@ -232,6 +269,9 @@ def build_luminosity_table(components, *, local=None):
         n_dwarf = dwarf_phi * np.divide(wd, w_local_d, out=np.zeros_like(wd),
                                         where=w_local_d > 0)
         n_giant = giant_phi * (wg / w_local_g)
+        # an age bin's giants live in its giant-only companion (parameters.py)
+        n_dwarf = n_dwarf * (c.lf_part != "giants")
+        n_giant = n_giant * (c.lf_part != "dwarfs")
         shift = 0.0
         if c.metal_poor:
             shift = float(_mv_of_mass(turnoff_mass(c.age_gyr[1]))) - P.OLD_METAL_POOR_TURNOFF_MV

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 from collections import OrderedDict
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 import pandas as pd
@@ -37,7 +38,7 @@ from .extinction import AG_OVER_AV, AV_PER_KPC, DUST_SCALE_HEIGHT_PC, DUST_SCALE
 from .kinematics import AstrometryTransform, draw_velocities, mean_lag_kms
 from .luminosity import build_luminosity_table
 
-__all__ = ["GalaxyModel", "DEFAULT_PARAMS", "BLOCK_STARS"]
+__all__ = ["GalaxyModel", "DEFAULT_PARAMS", "BLOCK_STARS", "gcns_faint_scale", "local_sources_per_pc3"]
 
 #: Stars per independently seeded block.
 BLOCK_STARS = 65536
@@ -98,6 +99,28 @@ def _check_params(p):
                              "expected 'poisson' or 'expected'")
 
 
+def local_sources_per_pc3(lf, mg_max=P.GCNS_MG_LIMIT):
+    """Sources per pc^3 with M_G < ``mg_max`` at the Sun, summed over the components of
+    a :class:`.luminosity.LuminosityTable` (the bulge excluded)."""
+    keep = [i for i, n in enumerate(lf.names) if n != "bulge"]
+    return float(np.interp(mg_max, lf.mg, lf.cdf[keep].sum(axis=0)))
+
+
+@lru_cache(maxsize=1)
+def gcns_faint_scale():
+    """Factor on the faint (Wielen/Allen) dwarfs that makes the model's sources with
+    M_G < 15.5 within 100 pc equal the GCNS's (:data:`.parameters.GCNS_SOURCES_WITHIN_100PC`).
+
+    The local luminosity function is linear in the factor, so two tabulations give it.
+    The vertical fall-off of the discs within 100 pc (a few per cent) is neglected, as
+    the GCNS count is compared with the density at the Sun.
+    """
+    comps = [c for c in P.COMPONENTS if c.law != "bulge"]
+    d0, d1 = (local_sources_per_pc3(build_luminosity_table(comps, faint_scale=f)) for f in (0.0, 1.0))
+    target = P.GCNS_SOURCES_WITHIN_100PC / (4.0 / 3.0 * np.pi * 100.0 ** 3)
+    return (target - d0) / (d1 - d0)
+
+
 @dataclass(frozen=True)
 class _LineOfSight:
     grid: sky.CellGrid
@@ -129,11 +152,12 @@ class GalaxyModel:
     Every number comes from a published source named in :mod:`.parameters`,
     :mod:`.luminosity`, :mod:`.extinction` and :mod:`.kinematics`.
 
-    The model counts *sources*: the local luminosity function (component stars) is
-    divided by 1 + ``multiplicity_frequency`` so that an unresolved multiple system counts
-    once, as in Gaia and GUMS. The correction is uniform in magnitude, a simplification:
-    companions are mostly faint M dwarfs, so it removes slightly too many bright sources
-    and too few faint ones. Set ``multiplicity_frequency=0`` to count stars.
+    The model counts *sources* (an unresolved multiple system counts once, as in Gaia
+    and GUMS): its local luminosity function is calibrated to source counts (Bovy 2017
+    for giants and main-sequence stars above 1 Msun, the GCNS for the fainter dwarfs;
+    issue #14). ``multiplicity_frequency`` other than its default (0.27) rescales every
+    magnitude by 1.27 / (1 + f), uniformly: ``multiplicity_frequency=0`` counts
+    component stars (a simplification: companions are mostly faint M dwarfs).
     """
 
     def __init__(self, params=None, **kwargs):
@@ -147,11 +171,11 @@ class GalaxyModel:
         self.chunk_stars = 4 * BLOCK_STARS
         keep = set(p["components"])
         self.components = tuple(c for c in P.COMPONENTS if c.label in keep)
-        local = [c for c in P.COMPONENTS if c.law != "bulge"]
-        lf = build_luminosity_table(self.components, local=local)
-        # sources (single stars and unresolved systems) per component star, normalised
-        # to the local density of the Gaia Catalogue of Nearby Stars (parameters.py)
-        scale = P.LOCAL_DENSITY_SCALE / (1.0 + float(p["multiplicity_frequency"]))
+        local = [c for c in P.COMPONENTS if c.law != "bulge" and c.lf_part != "giants"]
+        lf = build_luminosity_table(self.components, local=local, faint_scale=gcns_faint_scale())
+        # The calibrations (Bovy 2017, GCNS) count sources; counting component stars
+        # instead (multiplicity_frequency=0) scales every magnitude alike.
+        scale = (1.0 + P.MULTIPLICITY_FREQUENCY) / (1.0 + float(p["multiplicity_frequency"]))
         self.lf = type(lf)(lf.names, lf.mg, lf.cdf * scale)
         self.dust = DustModel(
             av_per_kpc=p["dust_av_per_kpc"] if p["extinction"] else 0.0,

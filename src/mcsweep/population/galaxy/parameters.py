@@ -12,12 +12,13 @@ Only numbers live here; the laws that use them are in :mod:`.density`, :mod:`.lu
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 __all__ = [
     "Component",
     "COMPONENTS",
     "THIN_DISC",
+    "THIN_DISC_GIANTS",
     "POPULATION_LABELS",
     "R0_KPC",
     "Z_SUN_PC",
@@ -35,7 +36,13 @@ __all__ = [
     "MASS_MIN_MSUN",
     "MULTIPLICITY_FREQUENCY",
     "LOCAL_GIANT_DENSITY_PC3",
-    "LOCAL_DENSITY_SCALE",
+    "BOVY_PDMF_NORM",
+    "BOVY_PDMF_SLOPE",
+    "BOVY_PDMF_MV_MAX",
+    "GCNS_SOURCES_WITHIN_100PC",
+    "GCNS_MG_LIMIT",
+    "GIANT_THICKNESS_FACTOR",
+    "GIANT_VELOCITY_FACTOR",
     "THIN_DISC_THICKNESS_FACTOR",
     "MODEL_VERSION",
 ]
@@ -45,8 +52,12 @@ __all__ = [
 #: :data:`.model.DEFAULT_PARAMS` changes. History (docs/galaxy_model.md):
 #: ``besancon-r03-1`` issue #4 model; ``besancon-r03-2`` issue #14 calibration (local
 #: giant density of Bovy 2017; local density scaled to the GCNS; thin-disc thickness
-#: x 1.15 to keep the Table 1 beam).
-MODEL_VERSION = "besancon-r03-2"
+#: x 1.15 to keep the Table 1 beam); ``besancon-r03-3`` issue #14 bright end: giants
+#: and main-sequence stars above 1 Msun at the local densities of Bovy (2017) as sources,
+#: only the fainter dwarfs scaled to the GCNS, giants in a thinner disc
+#: (:data:`GIANT_THICKNESS_FACTOR`); ``besancon-r03-4`` issue #14: the giants' velocity
+#: ellipsoids scaled to their thinner discs (:data:`GIANT_VELOCITY_FACTOR`).
+MODEL_VERSION = "besancon-r03-4"
 
 # --- Sun and rotation ------------------------------------------------------------------
 #: Galactocentric distance of the Sun, kpc (R03 Sect. 2: 8.5 kpc) [C].
@@ -80,24 +91,69 @@ OLD_METAL_POOR_TURNOFF_MV = 4.0
 #: 4.3e-4 stars/pc^3, close to the local giant density 3.9e-4 pc^-3 of Bovy (2017,
 #: MNRAS 470, 1360) [V abstract].
 GIANT_MV_MAX = 1.0
-#: Local number density of giants, stars/pc^3: Bovy (2017, MNRAS 470, 1360) [V abstract],
-#: from Gaia DR1 TGAS. The Wielen/Allen bins with M_V <= GIANT_MV_MAX hold 4.3e-4; they
-#: are scaled to this value (issue #14: the model's bright all-sky counts were 1.25-1.46
-#: times the real ones; giants dominate G < 10).
+#: Local number density of giants, sources/pc^3: "Giants contribute 0.00039+/-0.00001
+#: stars/pc^3" (Bovy 2017, MNRAS 470, 1360, abstract [V]), from Gaia DR1 TGAS, whose
+#: sources are unresolved systems like Gaia's and GUMS's: used as it stands, neither
+#: scaled to the GCNS nor divided by the multiplicity (r03-2 did both and kept only
+#: 2.3e-4). Independent check: the Fifth Catalogue of Nearby Stars holds 20 red giants
+#: within 25 pc (Golovin et al. 2023, A&A 670, A19, as summarised by ARI Heidelberg [S]),
+#: 3.1e-4 +- 0.7e-4 pc^-3. The Wielen/Allen bins with M_V <= GIANT_MV_MAX (4.3e-4) give
+#: the shape in M_V.
 LOCAL_GIANT_DENSITY_PC3 = 3.9e-4
-#: Scale applied to every component's luminosity function (sources per pc^3), set from
-#: the Gaia Catalogue of Nearby Stars (Gaia Collaboration, Smart et al. 2021, A&A 649,
-#: A6) [V abstract]: 331 312 objects, of which about 9 % lie beyond 100 pc, complete to
-#: >= 92 % down to M9 (M_G ~ 15.5 at 100 pc, G ~ 20.5): about 301 500 sources within
-#: 100 pc. Unscaled, the model holds 401 400 sources with M_G < 15.5 in that sphere; the
-#: ratio is 0.751. The same factor brings the all-sky counts at G = 6-10 within 10 % of
-#: Hipparcos/Tycho-2 (docs/galaxy_model.md), which were 1.27-1.46 times too high.
-LOCAL_DENSITY_SCALE = 0.75
+#: Present-day mass function of main-sequence stars above 1 Msun at the Sun:
+#: dn/dM = 0.016 (M/Msun)^-4.7 stars pc^-3 Msun^-1 (Bovy 2017, abstract [V]; TGAS
+#: sources). It replaces the Wielen/Allen dwarf bins whose centre is brighter than
+#: BOVY_PDMF_MV_MAX (M_V < 4.5, i.e. above 1.03 Msun on the Mamajek sequence), each bin
+#: holding the integral of dn/dM over its mass range. At M_V = 4 it gives 19e-4 pc^-3
+#: mag^-1, Wielen's unscaled value (19e-4): the bright dwarfs did not need r03-2's
+#: GCNS scaling (x 0.75 / 1.27), which came from the M dwarfs.
+BOVY_PDMF_NORM = 0.016
+BOVY_PDMF_SLOPE = 4.7
+BOVY_PDMF_MV_MAX = 4.5
+#: Sources within 100 pc with M_G < GCNS_MG_LIMIT: the Gaia Catalogue of Nearby Stars
+#: (Gaia Collaboration, Smart et al. 2021, A&A 649, A6) [V abstract] holds 331 312
+#: objects, about 9 % of them beyond 100 pc, at least 92 % complete down to M9
+#: (M_G ~ 15.5 at 100 pc, G ~ 20.5): 301 500 +- 30 000 sources. The dwarfs fainter than
+#: BOVY_PDMF_MV_MAX (the Wielen/Allen bins) are scaled so that the model's sources with
+#: M_G < 15.5 within 100 pc equal this number (:mod:`.model`; the scale comes out at
+#: 0.59, i.e. 0.75 after the multiplicity correction, as in r03-2).
+GCNS_SOURCES_WITHIN_100PC = 331_312 * (1 - 0.09)
+GCNS_MG_LIMIT = 15.5
+#: Thickness of the giants' discs relative to the dwarfs' of the same age (multiplies
+#: the Einasto axis ratios of the giant-only thin-disc components, :data:`THIN_DISC_GIANTS`).
+#: Calibrated (issue #14): with giants at Bovy's local density, the all-sky counts of
+#: Tycho-2 at G = 4-10 (report/published_counts.py) are met only if the giants' density
+#: falls off faster with height than R03's age laws give (x 1.0: G = 4-10 counts 1.25-1.6
+#: times Tycho-2; x 0.45: within 8 %). The giants' density then halves at |z| = 126 pc
+#: (x 1.0: 284 pc). Bovy (2017, abstract [V]) finds sech^2 profiles with scale heights
+#: ~150 pc for giants: 126 pc is what sech^2(z / h) with h = 150 pc gives (half density
+#: at 0.88 h = 132 pc); with the convention sech^2(z / 2h) it would be 264 pc. The
+#: abstract does not say which; the counts decide (docs/galaxy_model.md).
+GIANT_THICKNESS_FACTOR = 0.45
+#: Factor on the velocity dispersions (U, V and W) of the giant-only thin-disc components,
+#: so that their kinematics match their thinner discs (issue #14). The thickness of an
+#: isothermal disc scales with sigma_W^2 at a given surface density: the self-gravitating
+#: isothermal sheet rho = rho0 sech^2(z / z0) has z0 = sigma_W^2 / (pi G Sigma) (Spitzer
+#: 1942, ApJ 95, 329; Binney & Tremaine 2008, Sect. 4.10 problems) [M], and a tracer far
+#: from the mid-plane of such a sheet falls off as exp(-2 |z| / z0 * sigma_sheet^2 /
+#: sigma_W^2), again with scale height ~ sigma_W^2 (near the mid-plane, where the potential
+#: is harmonic, a tracer's thickness goes as sigma_W instead: x 0.45, the colder bound).
+#: A disc x GIANT_THICKNESS_FACTOR as thick therefore has sigma_W x
+#: sqrt(GIANT_THICKNESS_FACTOR) = 0.67. sigma_U and sigma_V are
+#: scaled alike, keeping each age bin's ellipsoid shape of R03 Table 2 (sigma_U/sigma_W
+#: 2.5-2.8; scaling sigma_W alone would make it 3.7-4.2, unlike any measured disc
+#: population, e.g. 2.2 for the thin disc in Bensby et al. 2003 Table 1 [V]).
+#: R03's own age bins give eps ~ sigma_W^1.37 (a least-squares fit to the six older bins of
+#: the table below), which would mean x 0.56; the sigma^2 rule is the milder of the two.
+#: Effect (docs/galaxy_model.md): median total proper motion of G = 6-7 stars per |b| band
+#: 0-10/10-30/30-60/60-90 deg 17.8/26.1/40.1/51.8 -> 14.1/20.5/31.9/42.1 mas/yr; parallaxes,
+#: counts and the Table 1 beam unchanged.
+GIANT_VELOCITY_FACTOR = GIANT_THICKNESS_FACTOR ** 0.5
 #: Default thickness factor of the thin disc (multiplies the seven Einasto axis ratios of
 #: R03). Chosen (issue #14) so the paper's Table 1 beam keeps its 458 GUMS stars after the
-#: GCNS scaling above (451 expected; 1.0 gives 369): the R03 old-disc Einasto laws have an
-#: exponential-equivalent scale height of about 250 pc, Juric et al. (2008, ApJ 673, 864)
-#: find 300 pc [V]; x 1.15 stays between the two.
+#: GCNS scaling (r03-3: 470 expected; 1.0 gives 379): the R03 old-disc Einasto
+#: laws have an exponential-equivalent scale height of about 250 pc, Juric et al. (2008,
+#: ApJ 673, 864) find 300 pc [V]; x 1.15 stays between the two.
 THIN_DISC_THICKNESS_FACTOR = 1.15
 #: G - V of giants: the dwarf-sequence G - V at BP - RP = 1.19 (K3V row of Mamajek's
 #: table [V]); red-clump and red-giant-branch stars have BP - RP ~ 1.1-1.3 [M].
@@ -148,6 +204,10 @@ class Component:
         from the Jeans equation (thin disc).
     rotates : bool
         False for components without net rotation (lag = circular velocity).
+    lf_part : str
+        Which part of the local luminosity function the component holds: ``"all"``,
+        ``"dwarfs"`` (the thin-disc age bins) or ``"giants"`` (their giant-only
+        companions, :data:`THIN_DISC_GIANTS`).
     """
 
     name: str
@@ -161,6 +221,7 @@ class Component:
     metal_poor: bool = False
     lag_kms: float | None = None
     rotates: bool = True
+    lf_part: str = "all"
 
 
 # IMFs of R03 Table 1 [C: public GUMS/Besancon model files agree]:
@@ -187,9 +248,17 @@ THIN_DISC = tuple(
     Component(
         name=f"thin_disc_{i + 1}", label="thin_disc",
         law="einasto_young" if i == 0 else "einasto",
-        rho_ref=rho, age_gyr=age, imf=_IMF_THIN, sigma_uvw=sig, eps=eps,
+        rho_ref=rho, age_gyr=age, imf=_IMF_THIN, sigma_uvw=sig, eps=eps, lf_part="dwarfs",
     )
     for i, (age, rho, eps, sig) in enumerate(_THIN)
+)
+#: The giants of each thin-disc age bin, a component of their own: same age, mass
+#: density (which sets their share of the local giants) and IMF, but axis ratio
+#: x GIANT_THICKNESS_FACTOR and velocity dispersions x GIANT_VELOCITY_FACTOR (issue #14).
+THIN_DISC_GIANTS = tuple(
+    replace(c, name=f"{c.name}_giants", eps=c.eps * GIANT_THICKNESS_FACTOR, lf_part="giants",
+            sigma_uvw=tuple(s * GIANT_VELOCITY_FACTOR for s in c.sigma_uvw))
+    for c in THIN_DISC
 )
 
 #: Thick disc (R03 Tables 2-4) [C]: 1.34e-3 Msun/pc^3, 11 Gyr, sigma (67, 51, 42) km/s.
@@ -241,4 +310,4 @@ BULGE = Component(
 EINASTO_YOUNG_H_KPC = (5.0, 3.0)
 EINASTO_OLD_H_KPC = (2.53, 1.32)
 
-COMPONENTS = THIN_DISC + (THICK_DISC, HALO, BULGE)
+COMPONENTS = THIN_DISC + THIN_DISC_GIANTS + (THICK_DISC, HALO, BULGE)

@@ -9,8 +9,8 @@ The attitude is now *not* known: stars and attitude are solved together
    those: the paper's global solution holds these 1.5e6 stars (Sect. 4: 5e5 per class)
    and determines the attitude from them, all with the prior. ``primary_sources`` (default
    0) adds that many extra stars (the brightest fainter than ``primary_g_min``) to the
-   solution, an option *not* in the paper: well-observed extra stars anchor the attitude
-   and hide the effect Sect. 4.2 reports (docs/table3.md). The default is reduced
+   solution, an option *not* in the paper: well-observed extra stars add attitude
+   information the paper's solution did not have (docs/table3.md). The default is reduced
    (``class_size`` in conf/experiment/primary.yaml) so a run takes minutes on 2 cores.
 2. *Observations.* FoV transits of the configured scanning law (default the flown NSL)
    over ``mission_years`` (1) from ``mission_start`` (start of routine operations,
@@ -49,9 +49,9 @@ The attitude is now *not* known: stars and attitude are solved together
 
 Knot interval: AGIS uses intervals of tens of seconds for ~1e8 primaries (Lindegren et
 al. 2012, Sect. 3.3), i.e. of order 1e3 observations per knot and axis; the paper does not
-give AGISLab's. Our reduced default (3 x 10000 stars, ~14 transits each per year, AL + AC)
-gives ~50 FoV transits per hour, so 3 h keeps ~140 transits per knot; at full scale
-(1.5e6 stars) 0.06 h gives the same. The attitude's noise scales as 1/sqrt(stars x knot
+give AGISLab's. Our reduced default (3 x 30000 stars, ~14 transits each per year, AL + AC)
+gives ~140 FoV transits per hour, so 3 h keeps ~420 transits per knot; at full scale
+(1.5e6 stars) 0.18 h gives the same. The attitude's noise scales as 1/sqrt(stars x knot
 interval), the attitude error the prior's bias causes does not (docs/table3.md).
 
 Reproducibility: SeedSequence(seed, spawn_key=(42, stream, ...)): population of a class

@@ -327,7 +327,7 @@ class PrimaryConf:
     """One-year global solution with the attitude of Sect. 4.2 (Table 3); documented in
     conf/experiment/primary.yaml and :mod:`mcsweep.experiments.primary`."""
 
-    class_size: int = 10000
+    class_size: int = 30000
     g_classes: List[float] = field(default_factory=lambda: [11.0, 15.0, 19.0])
     primary_sources: int = 0
     primary_g_min: float = 13.0

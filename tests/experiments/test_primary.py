@@ -112,6 +112,7 @@ def test_bad_prior_through_cli_exits_2_in_one_line_and_leaves_no_output(tmp_path
     ("experiment.primary.primary_sources=-1", "primary_sources"),
     ("experiment.primary.factor_grid=[1,0]", "factor_grid"),
     ("experiment.primary.factor_grid=[2,2]", "factor_grid"),
+    ("experiment.primary.frame_fit=median", "frame_fit"),
 ])
 def test_bad_settings_are_user_errors(override, key):
     with pytest.raises(UserInputError, match=key):

@@ -152,6 +152,7 @@ class PrimarySettings:
     max_iter: int
     f90_coefficients: tuple | None = None
     reference_epoch: str = "dataset_mean"
+    frame_fit: str = "precision"
 
     @property
     def t_ref_jd(self) -> float:
@@ -196,7 +197,7 @@ def build_settings(config) -> PrimarySettings:
         rtol=float(pri.solver_rtol), update_tol_uas=float(pri.solver_update_tol_uas),
         max_iter=int(pri.solver_max_iter),
         f90_coefficients=load_f90_coefficients(pri.f90_formula) if pri.f90_formula != "paper" else None,
-        reference_epoch=str(pri.reference_epoch))
+        reference_epoch=str(pri.reference_epoch), frame_fit=str(pri.frame_fit))
 
 
 def prior_sigma_mas(settings: PrimarySettings, label: str, sigma_f90_mas: np.ndarray) -> np.ndarray:
@@ -314,7 +315,10 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
     # precisions: unweighted, the arcsec errors of 1-2-transit stars under 1000 mas set it.
     cv = sol.cov
     weights = np.column_stack([2.0 / (cv[:, 0, 0] + cv[:, 1, 1]), 2.0 / (cv[:, 3, 3] + cv[:, 4, 4])])
-    eps, omega = fit_frame(dx, ra, dec, weights=weights)
+    # frame_fit='equal' weights every star alike: then the faint stars' prior-biased
+    # astrometry sets the removed rotation (docs/table3.md, the candidate for the paper's
+    # collapse); not the default.
+    eps, omega = fit_frame(dx, ra, dec, weights=weights if settings.frame_fit == "precision" else None)
     dx = dx - frame_offsets(ra, dec, eps, omega)
     # The project's one inside rule; -1 marks a star without a confidence region.
     good = np.isfinite(mahalanobis_sq(dx[:, :2], sol.cov[:, :2, :2]))

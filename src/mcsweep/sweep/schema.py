@@ -346,6 +346,7 @@ class PrimaryConf:
     solver_max_iter: int = 2000
     factor_grid: List[float] = field(default_factory=list)
     factor_resamples: int = 200
+    frame_fit: str = "precision"
 
     def __post_init__(self):
         _check_reference_epoch("experiment.primary.reference_epoch", self.reference_epoch)
@@ -353,6 +354,8 @@ class PrimaryConf:
                  and len(set(self.factor_grid)) == len(self.factor_grid),
                  "experiment.primary.factor_grid", list(self.factor_grid),
                  "distinct positive factors k of sigma_F90 (empty: no factor search)")
+        _require(self.frame_fit in ("precision", "equal"), "experiment.primary.frame_fit", self.frame_fit,
+                 "'precision' (the frame rotator weighted by formal precision) or 'equal'")
         _require(self.factor_resamples >= 0, "experiment.primary.factor_resamples", self.factor_resamples,
                  "a number of bootstrap resamples >= 0")
         for key in ("class_size", "solver_max_iter"):

@@ -36,8 +36,8 @@ def primary_section(doc: Document, run_dir: Path, prov: dict) -> None:
         f"{'and one AC measurement' if cfg.get('noise', {}).get('use_ac', True) else 'measurement (AL only)'} "
         f"per FoV transit; attitude solved as cubic splines with a {pri.get('knot_interval_hours')} h knot "
         f"interval; true attitude = law + {pri.get('attitude_amplitude_mas')} mas random rotation on a "
-        f"{pri.get('attitude_timescale_hours')} h time scale. Errors after removing the fitted frame rotation "
-        f"and spin; formal covariances from each star's own block with the attitude taken as known. Fractions "
+        f"{pri.get('attitude_timescale_hours')} h time scale. Errors after removing the frame rotation "
+        f"and spin fitted with {'equal weights' if pri.get('frame_fit') == 'equal' else 'formal-precision weights'}; formal covariances from each star's own block with the attitude taken as known. Fractions "
         f"inside the P = {p:g} ellipse (Clopper-Pearson 68 % interval); errors = {100 * p:g}th percentile [mas] "
         "(order-statistic 68 % interval). Each cell: ours [interval] (paper).")
     epoch = prov.get("derived", {}).get("primary", {}).get("reference_epoch", {})

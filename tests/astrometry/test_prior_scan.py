@@ -115,7 +115,12 @@ def test_inside_flags_equal_the_confidence_rule_on_the_direct_solution(rows):
     # The fused test of every prior against confidence.inside / mahalanobis_sq applied to
     # the 5 x 5 solver's solution; singular stars and the NaN rule included.
     from mcsweep.astrometry import prior_scan as ps
-    from mcsweep.astrometry.confidence import inside, mahalanobis_sq
+    from mcsweep.astrometry.confidence import chi2_threshold, inside, mahalanobis_sq
+
+    # Two float paths to the Mahalanobis distance: a star within this relative distance of
+    # the threshold may fall on either side of it; every other flag must agree exactly.
+    rtol_threshold = 1e-8
+    k = chi2_threshold(0.9, 2)
 
     rng = np.random.default_rng(40 + rows)
     n0, b0 = _normals(rng, 700, rows)
@@ -132,6 +137,9 @@ def test_inside_flags_equal_the_confidence_rule_on_the_direct_solution(rows):
         for i, sigma in enumerate(priors):
             sol = solve_with_prior(n0, b0, sigma, 10.0)
             dpos, cov = np.ascontiguousarray(sol.x[:, :2]), np.ascontiguousarray(sol.cov[:, :2, :2])
-            np.testing.assert_array_equal(val[i], np.isfinite(mahalanobis_sq(dpos, cov)))
-            np.testing.assert_array_equal(ins[i], inside(dpos, cov, 0.9))
+            q = mahalanobis_sq(dpos, cov)
+            np.testing.assert_array_equal(val[i], np.isfinite(q))
+            clear = ~np.isfinite(q) | (np.abs(q - k) > rtol_threshold * k)
+            assert clear.mean() > 0.99
+            np.testing.assert_array_equal(ins[i][clear], inside(dpos, cov, 0.9)[clear])
         assert not val[:, :5].any()

@@ -31,3 +31,18 @@ def test_seed_spread_recovers_the_noise_of_one_run():
     assert abs(t.loc["all", "median_half_width_dex"] - NOISE_DEX) < 1e-12
     assert abs(t.loc["all", "fraction_b_inside_a"] - EXPECTED_INSIDE) < 4 * math.sqrt(0.25 / N_CELLS)
     assert math.isclose(EXPECTED_INSIDE, math.erf(0.5), abs_tol=1e-4)
+
+
+def test_missing_run_is_one_line_and_exit_2(tmp_path, capsys):
+    from mcsweep.report.seed_spread import main
+
+    good = tmp_path / "a"
+    good.mkdir()
+    _run(np.random.default_rng(1), np.zeros(N_CELLS)).to_csv(good / "f90_cells.csv", index=False)
+    bad = tmp_path / "b"
+    bad.mkdir()
+    pd.DataFrame({"cell_id": [1]}).to_csv(bad / "f90_cells.csv", index=False)
+    for other, needle in ((tmp_path / "missing", "missing"), (bad, "sigma_f90_mas")):
+        assert main([str(good), str(other)]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and needle in err[0], err

@@ -13,6 +13,7 @@ from pathlib import Path
 import pandas as pd
 
 from ..experiments.primary_table import table3_layout
+from ..experiments.secondary_table import FRACTION_INTERVAL
 from .document import Document
 
 __all__ = ["primary_section"]
@@ -38,8 +39,9 @@ def primary_section(doc: Document, run_dir: Path, prov: dict) -> None:
         f"interval; true attitude = law + {pri.get('attitude_amplitude_mas')} mas random rotation on a "
         f"{pri.get('attitude_timescale_hours')} h time scale. Errors after removing the frame rotation "
         f"and spin fitted with {'equal weights' if pri.get('frame_fit') == 'equal' else 'formal-precision weights'}; formal covariances from each star's own block with the attitude taken as known. Fractions "
-        f"inside the P = {p:g} ellipse (Clopper-Pearson 68 % interval); errors = {100 * p:g}th percentile [mas] "
-        "(order-statistic 68 % interval). Each cell: ours [interval] (paper).")
+        f"inside the P = {p:g} ellipse (Clopper-Pearson {100 * FRACTION_INTERVAL:g} % interval); errors = "
+        f"{100 * p:g}th percentile [mas] (order-statistic {100 * FRACTION_INTERVAL:g} % interval). Each cell: "
+        "ours [interval] (paper).")
     epoch = prov.get("derived", {}).get("primary", {}).get("reference_epoch", {})
     doc.para(f"Reference epoch: {epoch.get('text') or pri.get('reference_epoch')}.")
     for subset, df in table3_layout(table, p).items():

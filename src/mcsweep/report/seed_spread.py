@@ -15,15 +15,19 @@ with ``f90_cells.csv``); prints the table and writes nothing.
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from ..errors import UserInputError, report_user_error
+
 __all__ = ["seed_spread", "EXPECTED_INSIDE"]
 
-#: P(|x2 - x1| < sigma) for independent x1, x2 ~ N(mu, sigma^2): erf(1 / 2) = 0.5205.
-EXPECTED_INSIDE = 0.5205
+#: P(|x2 - x1| < sigma) for independent x1, x2 ~ N(mu, sigma^2): x2 - x1 has width
+#: sqrt(2) sigma, so the probability is erf(1 / 2) = 0.5205.
+EXPECTED_INSIDE = math.erf(0.5)
 
 
 def seed_spread(f90_a: pd.DataFrame, f90_b: pd.DataFrame) -> pd.DataFrame:
@@ -52,12 +56,32 @@ def seed_spread(f90_a: pd.DataFrame, f90_b: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+_COLUMNS = ("cell_id", "g_min", "g_max", "f90_flag", "sigma_f90_mas", "sigma_f90_lo_mas", "sigma_f90_hi_mas")
+
+
+def _f90_cells(run: Path) -> pd.DataFrame:
+    path = run / "f90_cells.csv"
+    try:
+        table = pd.read_csv(path)
+    except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
+        raise UserInputError(f"{path}: cannot be read ({type(exc).__name__}); expected the directory of a "
+                             "finished mcsweep sweep") from None
+    missing = [c for c in _COLUMNS if c not in table.columns]
+    if missing:
+        raise UserInputError(f"{path} lacks the columns {missing}; expected f90_cells.csv of an mcsweep sweep "
+                             "with sigma_F90 intervals")
+    return table
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("run_a", type=Path)
     ap.add_argument("run_b", type=Path)
     args = ap.parse_args(argv)
-    table = seed_spread(pd.read_csv(args.run_a / "f90_cells.csv"), pd.read_csv(args.run_b / "f90_cells.csv"))
+    try:
+        table = seed_spread(*(_f90_cells(run) for run in (args.run_a, args.run_b)))
+    except UserInputError as exc:
+        return report_user_error(exc, prog="mcsweep.report.seed_spread")
     print(table.to_string(index=False, float_format=lambda v: f"{v:.4f}"))
     print(f"(expected fraction_b_inside_a for intervals that match the noise: {EXPECTED_INSIDE:.2f})")
     return 0

@@ -9,6 +9,7 @@ the end.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import logging
@@ -76,31 +77,34 @@ def run_primary(config, raw_cfg: dict, run_dir, *, prov=None) -> Path:
     results, histories, extras = {}, [], {}
     # The factor search (experiment.primary.factor_grid) shares solutions with Table 3's priors.
     factors = {float(k): factor_label(k) for k in pri.factor_grid}
-    for label in dict.fromkeys([*settings.priors, *factors.values()]):
-        cid = _prior_id(label)
-        with prov.stage(f"solve {label}"):
-            res = store.read(cid)
-            extra_file = run_dir / CHUNKS_DIR / f"{cid}.json"
-            if res is None or not extra_file.exists():
-                # The solver's chunk work goes to the executor only on a Dask cluster: local
-                # joblib processes re-receive every chunk's measurements per call, which
-                # costs more than the work (measured 6.6x slower setup pass, 32000 stars; see
-                # mcsweep.solver.cg.solve_global).
-                if config.execution.backend == "dask":
-                    with executor(config.execution) as run:
+    # The solver's chunk work goes to the executor only on a Dask cluster (one client for
+    # every solution, opened when the first one is needed): local joblib processes
+    # re-receive every chunk's measurements per call, which costs more than the work
+    # (measured 6.6x slower setup pass, 32000 stars; see mcsweep.solver.cg.solve_global).
+    run = None
+    with contextlib.ExitStack() as cluster:
+        for label in dict.fromkeys([*settings.priors, *factors.values()]):
+            cid = _prior_id(label)
+            with prov.stage(f"solve {label}"):
+                res = store.read(cid)
+                extra_file = run_dir / CHUNKS_DIR / f"{cid}.json"
+                if res is None or not extra_file.exists():
+                    if config.execution.backend == "dask":
+                        if run is None:
+                            run = cluster.enter_context(executor(config.execution))
                         res, hist, extra, _ = solve_prior(settings, data, label, run=run,
                                                           chunk_stars=int(config.execution.chunk_stars))
-                else:
-                    res, hist, extra, _ = solve_prior(settings, data, label)
-                atomic_write_bytes(run_dir / CHUNKS_DIR / f"{cid}_history.csv", hist.to_csv(index=False).encode())
-                atomic_write_bytes(extra_file, json.dumps(extra).encode())
-                store.write(cid, res)
-                print(f"mcsweep: primary: prior {label}: {extra['iterations']} PCG iterations, converged "
-                      f"{extra['converged']}, attitude error RMS {np.round(extra['attitude_rms_uas'], 2)} uas",
-                      flush=True)
-            results[label] = res
-            histories.append(pd.read_csv(run_dir / CHUNKS_DIR / f"{cid}_history.csv"))
-            extras[label] = json.loads(extra_file.read_text())
+                    else:
+                        res, hist, extra, _ = solve_prior(settings, data, label)
+                    atomic_write_bytes(run_dir / CHUNKS_DIR / f"{cid}_history.csv", hist.to_csv(index=False).encode())
+                    atomic_write_bytes(extra_file, json.dumps(extra).encode())
+                    store.write(cid, res)
+                    print(f"mcsweep: primary: prior {label}: {extra['iterations']} PCG iterations, converged "
+                          f"{extra['converged']}, attitude error RMS {np.round(extra['attitude_rms_uas'], 2)} uas",
+                          flush=True)
+                results[label] = res
+                histories.append(pd.read_csv(run_dir / CHUNKS_DIR / f"{cid}_history.csv"))
+                extras[label] = json.loads(extra_file.read_text())
     with prov.stage("aggregate"):
         prov.cell_versions = dict(store.versions_read)
         table = table3_rows({k: results[k] for k in settings.priors}, pri.g_classes, settings.confidence)

@@ -164,7 +164,7 @@ def local_sources_within(model, radius_pc=100.0, mg_max=GCNS_MG_LIMIT):
     """
     keep = [i for i, n in enumerate(model.lf.names) if n != "bulge"]
     dens = float(np.interp(mg_max, model.lf.mg, model.lf.cdf[keep].sum(axis=0)))
-    return dens * 4.0 / 3.0 * np.pi * radius_pc ** 3
+    return dens * _sphere(radius_pc)
 
 
 def _sphere(radius_pc):
@@ -191,7 +191,8 @@ def bovy_bright_dwarfs_per_mv_bin():
         return 10.0 ** np.interp(x, seq_mv, np.log10(seq_m))
 
     # Bovy (2017): dn/dM = 0.016 M^-4.7 pc^-3 Msun^-1; its integral in closed form
-    n = 0.016 / 3.7 * (mass(mv + 0.5) ** -3.7 - mass(mv - 0.5) ** -3.7)
+    a = P.BOVY_PDMF_SLOPE - 1.0
+    n = P.BOVY_PDMF_NORM / a * (mass(mv + 0.5) ** -a - mass(mv - 0.5) ** -a)
     lo = mv - 0.5 + np.interp(mv - 0.5, seq_mv, seq_gv)
     hi = mv + 0.5 + np.interp(mv + 0.5, seq_mv, seq_gv)
     return pd.DataFrame(dict(M_V=mv, M_G_lo=lo, M_G_hi=hi, published=n))

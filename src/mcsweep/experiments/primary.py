@@ -81,8 +81,7 @@ from ..scanning.ephemeris import TABLE_END_JD_TCB, TABLE_START_JD_TCB, gaia_posi
 from ..scanning.timeline import draw_dead_time
 from ..scanning.timescale import tcb_jd
 from ..solver import (AttitudeSpline, GlobalProblem, build_observations, fit_frame, frame_attitude,
-                      frame_offsets, solve_global)
-from ..solver.source_update import solve_sources, source_normals
+                      frame_offsets, precision_weights, solve_global)
 from .epoch import resolve_reference_epoch
 from .secondary import load_f90_coefficients
 
@@ -228,6 +227,18 @@ class PreparedData:
     true_attitude: np.ndarray  # (m, 3) true rotation at each measurement [mas]
     t_ref_jd: float
     dead_days: float
+    _problem: GlobalProblem | None = dataclasses.field(default=None, repr=False)
+
+    def problem(self, prior_diagonal) -> GlobalProblem:
+        """The global problem under ``prior_diagonal``: built once (partials, blocks), then
+        only the per-star inverses and frame weights change from prior to prior
+        (:meth:`GlobalProblem.with_prior`, bit-identical to a new problem)."""
+        if self._problem is None:
+            st = self.stars
+            self._problem = GlobalProblem(self.obs, prior_diagonal, st["ra"].to_numpy()[self.solved],
+                                          st["dec"].to_numpy()[self.solved])
+            return self._problem
+        return self._problem.with_prior(prior_diagonal)
 
 
 def _true_attitude(settings: PrimarySettings, t_jd: np.ndarray) -> np.ndarray:
@@ -303,18 +314,16 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
     sig = prior_sigma_mas(settings, label, settings.sigma_f90_mas(
         st["l"].to_numpy()[s], st["b"].to_numpy()[s], st["phot_g_mean_mag"].to_numpy()[s]))
     prior = prior_diagonal(sig, settings.ratio_R)
-    ok = solve_sources(source_normals(data.obs), np.zeros((s.size, 5)), prior)[2]
-    if not ok.all():  # pragma: no cover - every solved star has >= 1 AL+AC or 2 AL measurements
-        raise RuntimeError(f"{int((~ok).sum())} stars have singular source blocks under prior {label}")
+    # Raises if a star's block is singular: every solved star has >= 1 AL+AC or 2 AL
+    # measurements, so it cannot be under a positive prior.
+    problem = data.problem(prior)
     ra, dec = st["ra"].to_numpy()[s], st["dec"].to_numpy()[s]
-    problem = GlobalProblem(data.obs, prior, ra, dec)
     sol = solve_global(problem, data.h, rtol=settings.rtol, update_tol_uas=settings.update_tol_uas,
                        max_iter=settings.max_iter, log=log, run=run, chunk_stars=chunk_stars)
     dx = sol.x - data.x_true
     # The frame rotator (Lindegren et al. 2012, Sect. 6.1), weighted by the formal
     # precisions: unweighted, the arcsec errors of 1-2-transit stars under 1000 mas set it.
-    cv = sol.cov
-    weights = np.column_stack([2.0 / (cv[:, 0, 0] + cv[:, 1, 1]), 2.0 / (cv[:, 3, 3] + cv[:, 4, 4])])
+    weights = precision_weights(sol.cov)
     # frame_fit='equal' weights every star alike: then the faint stars' prior-biased
     # astrometry sets the removed rotation (docs/table3.md, the candidate for the paper's
     # collapse); not the default.

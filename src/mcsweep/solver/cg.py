@@ -73,7 +73,7 @@ import numpy as np
 from scipy.linalg import LinAlgError, cho_solve_banded, cholesky_banded
 
 from . import blocks as B
-from .frame import rotation_matrices
+from .frame import precision_weights, rotation_matrices
 from .observations import Observations
 from .reduction import chunk_ranges, pairwise_sum
 from .source_update import solve_sources, source_normals
@@ -188,10 +188,8 @@ class GlobalProblem:
             raise ValueError(f"{int((~ok).sum())} stars have singular source blocks; remove them first")
         # Frame constraint weights (module notes, "Frame"): each star's formal precision of
         # position and proper motion (attitude as known), normalised to mean 1.
-        c = self.src_inv
-        g_pos = 2.0 / (c[:, 0, 0] + c[:, 1, 1])
-        g_pm = 2.0 / (c[:, 3, 3] + c[:, 4, 4])
-        self.frame_weights = np.column_stack([g_pos / g_pos.mean(), g_pm / g_pm.mean()])
+        g = precision_weights(self.src_inv)
+        self.frame_weights = np.column_stack([g[:, 0] / g[:, 0].mean(), g[:, 1] / g[:, 1].mean()])
         # Frame penalty weights: one typical star's position (proper-motion) weight per
         # unit of mean rotation, so the constrained directions are as well conditioned
         # as a star (any positive weight gives the same stars for the orientation).

@@ -26,7 +26,7 @@ import numpy as np
 
 from ..astrometry.design import tangent_triad
 
-__all__ = ["rotation_matrices", "frame_offsets", "fit_frame", "frame_attitude"]
+__all__ = ["rotation_matrices", "frame_offsets", "fit_frame", "frame_attitude", "precision_weights"]
 
 
 def rotation_matrices(ra_deg, dec_deg) -> np.ndarray:
@@ -42,6 +42,18 @@ def frame_offsets(ra_deg, dec_deg, eps_mas, omega_mas_yr) -> np.ndarray:
     out[:, 0:2] = K @ np.asarray(eps_mas, dtype=float)
     out[:, 3:5] = K @ np.asarray(omega_mas_yr, dtype=float)
     return out
+
+
+def precision_weights(cov) -> np.ndarray:
+    """Each source's formal precision of position and of proper motion, (n, 2).
+
+    ``2 / (C_aa + C_dd)`` and ``2 / (C_mu_a* mu_a* + C_mu_d mu_d)`` from the 5 x 5
+    covariances ``cov`` (n, 5, 5): the weights of the frame constraint and of the frame
+    rotator's fit (Lindegren et al. 2012, Sect. 6.1), so that sources without
+    proper-motion information do not set the spin.
+    """
+    c = np.asarray(cov, dtype=float)
+    return np.column_stack([2.0 / (c[:, 0, 0] + c[:, 1, 1]), 2.0 / (c[:, 3, 3] + c[:, 4, 4])])
 
 
 def fit_frame(dx, ra_deg, dec_deg, select=None, weights=None) -> tuple[np.ndarray, np.ndarray]:

@@ -9,7 +9,7 @@ only 1-4 transits), AL + AC, noisy measurements, the prior of Eq. 18 (R = 10 /yr
    with the banded Schur attitude block, precision-weighted frame constraint) and for the
    baseline it replaced, block-Jacobi PCG (``diag(B, N_aa)``, AGIS's S and A blocks side by
    side, Bombrun et al. 2012) on the same normal equations;
-2. the direct solution of the same normal equations (scipy.sparse ``splu`` of the
+2. the direct solution of the same normal equations (:func:`mcsweep.solver.direct.solve_direct`: ``splu`` of the
    equilibrated bordered system plus two refinement steps): CPU ratio and agreement;
 3. ``scipy.sparse.linalg.lsqr`` on the same weighted design plus prior rows: CPU ratio;
 4. executor overhead: the same solve in-process and with the one-off passes through joblib
@@ -37,7 +37,7 @@ import tracemalloc  # noqa: E402
 
 import numpy as np  # noqa: E402
 import scipy.sparse as sp  # noqa: E402
-from scipy.sparse.linalg import lsqr, splu  # noqa: E402
+from scipy.sparse.linalg import lsqr  # noqa: E402
 
 from mcsweep.astrometry.noise import NoiseModel  # noqa: E402
 from mcsweep.astrometry.solve import prior_diagonal  # noqa: E402
@@ -45,7 +45,7 @@ from mcsweep.scanning import find_transits  # noqa: E402
 from mcsweep.scanning.ephemeris import gaia_position_au  # noqa: E402
 from mcsweep.solver import AttitudeSpline, GlobalProblem, build_observations, solve_global  # noqa: E402
 from mcsweep.solver.attitude_update import BandedAttitudeSolver, attitude_band  # noqa: E402
-from mcsweep.solver.frame import rotation_matrices  # noqa: E402
+from mcsweep.solver.direct import solve_direct  # noqa: E402
 
 START_JD = 2456863.9375  # 2014-07-25 10:30 TCB, start of routine operations (Prusti et al. 2016)
 PRIORS_MAS = {"0.01 mas": 0.01, "F90 (1 mas)": 1.0, "10 F90 (10 mas)": 10.0, "1000 mas": 1000.0}
@@ -119,41 +119,6 @@ def block_jacobi(problem, h, rtol=1e-8, update_tol_uas=1e-2, max_iter=5000):
     return x, max_iter
 
 
-def sparse_design(problem):
-    star, src, att, j0, bval = problem.design()
-    n, m = problem.obs.n_stars, problem.obs.size
-    rows = np.concatenate([np.repeat(np.arange(m), 5), np.repeat(np.arange(m), 12)])
-    cols = np.concatenate([(5 * star[:, None] + np.arange(5)).ravel(),
-                           (5 * n + 3 * (j0[:, None, None] + np.arange(4)[None, :, None])
-                            + np.arange(3)[None, None, :]).ravel()])
-    vals = np.concatenate([src.ravel(), (bval[:, :, None] * att[:, None, :]).ravel()])
-    A = sp.csr_matrix((vals, (rows, cols)), shape=(m, 5 * n + 3 * problem.obs.n_coef))
-    free = np.concatenate([np.ones(5 * n, bool), problem.free.ravel()])
-    return A[:, free], free
-
-
-def direct(problem, h, ra, dec):
-    A, free = sparse_design(problem)
-    n = problem.obs.n_stars
-    nf = int(free.sum())
-    N = (A.T @ A).tocsc() + sp.diags(np.concatenate([problem.prior.ravel(), np.zeros(nf - 5 * n)]))
-    K = rotation_matrices(ra, dec)
-    g = problem.frame_weights
-    C = np.zeros((6, nf))
-    for c in range(3):  # the six constraint rows (a loop over 3 axes only)
-        C[c, 0:5 * n:5], C[c, 1:5 * n:5] = g[:, 0] * K[:, 0, c], g[:, 0] * K[:, 1, c]
-        C[3 + c, 3:5 * n:5], C[3 + c, 4:5 * n:5] = g[:, 1] * K[:, 0, c], g[:, 1] * K[:, 1, c]
-    W = sp.diags(np.r_[np.full(3, 1 / problem.w_pos), np.full(3, 1 / problem.w_pm)])
-    kkt = sp.bmat([[N, sp.csr_matrix(C).T], [sp.csr_matrix(C), -W]]).tocsc()
-    rhs = np.concatenate([A.T @ h, np.zeros(6)])
-    d = 1.0 / np.sqrt(np.abs(kkt.diagonal()))
-    lu = splu((sp.diags(d) @ kkt @ sp.diags(d)).tocsc())
-    y = d * lu.solve(d * rhs)
-    for _ in range(2):
-        y = y + d * lu.solve(d * (rhs - kkt @ y))
-    return y[:nf], free, A
-
-
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--stars", type=int, default=2000)
@@ -180,7 +145,7 @@ def main():
         x_bj, it_bj = block_jacobi(problem, h, **kw)
         t_bj = time.process_time() - c0
         c0 = time.process_time()
-        x_dir, free, A = direct(problem, h, ra, dec)
+        x_dir, free, A = solve_direct(problem, h)
         t_dir = time.process_time() - c0
         x_it = problem.join(sol.x, sol.attitude)[free]
         rel = np.linalg.norm(x_it - x_dir) / np.linalg.norm(x_dir)

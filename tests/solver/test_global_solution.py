@@ -4,15 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import scipy.sparse as sp
 from scipy.interpolate import BSpline
-from scipy.sparse.linalg import splu
 
 from mcsweep.astrometry.design import design_matrix
 from mcsweep.astrometry.solve import normal_equations, prior_diagonal, solve_with_prior
 from mcsweep.solver import (GlobalProblem, attitude_band, band_to_dense, fit_frame, frame_attitude,
                             frame_offsets, solve_global)
-from mcsweep.solver.frame import rotation_matrices
+from mcsweep.solver.direct import solve_direct, sparse_design
 from mcsweep.solver.source_update import solve_sources, source_normals, source_rhs
 from mcsweep.solver.attitude_update import attitude_rhs
 from mcsweep.scanning.ephemeris import gaia_position_au
@@ -34,17 +32,8 @@ def _sparse_design(P, problem=None):
     """The full design matrix built element by element from the partials (independent of cg.py):
     those of the observations, or the ones a problem stores (float32 when compact)."""
     obs = P["obs"]
-    n, m = obs.n_stars, obs.size
-    star, src, att, j0, bval = ((obs.star, obs.src, obs.att, obs.j0, obs.bval) if problem is None
-                                else problem.design())
-    rows = np.repeat(np.arange(m), 5)
-    cols = (5 * star[:, None] + np.arange(5)).ravel()
-    vals = src.ravel()
-    ra = np.repeat(np.arange(m), 12)
-    ca = (5 * n + 3 * (j0[:, None, None] + np.arange(4)[None, :, None]) + np.arange(3)[None, None, :]).ravel()
-    va = (bval[:, :, None] * att[:, None, :]).ravel()
-    return sp.csr_matrix((np.concatenate([vals, va]), (np.concatenate([rows, ra]), np.concatenate([cols, ca]))),
-                         shape=(m, 5 * n + 3 * obs.n_coef))
+    parts = (obs.star, obs.src, obs.att, obs.j0, obs.bval) if problem is None else problem.design()
+    return sparse_design(*parts, obs.n_stars, obs.n_coef)
 
 
 def _truth(P, rng, zero_motion=True):
@@ -96,33 +85,6 @@ def test_noiseless_recovery_of_attitude_in_spline_space(small_problem):
     assert 1e3 * np.abs(dx).max() < 10 * RECOVERY_UAS
 
 
-def _direct_solution(P, problem, h, prior):
-    """The same normal equations solved directly: sparse design, prior, frame constraint as a
-    bordered (KKT) system (the rank-6 dense penalty never formed), LU of the equilibrated
-    matrix (scipy.sparse.linalg.splu) and two steps of iterative refinement."""
-    obs, n = P["obs"], P["obs"].n_stars
-    A = _sparse_design(P, problem)
-    free = np.concatenate([np.ones(5 * n, bool), problem.free.ravel()])
-    A = A[:, free]
-    nf = int(free.sum())
-    N = (A.T @ A).tocsc() + sp.diags(np.concatenate([np.broadcast_to(prior, (n, 5)).ravel(), np.zeros(nf - 5 * n)]))
-    K = rotation_matrices(P["ra"], P["dec"])  # (n, 2, 3)
-    g = problem.frame_weights
-    C = np.zeros((6, nf))
-    for c in range(3):  # the six constraint rows (a loop over the 3 axes only)
-        C[c, 0:5 * n:5], C[c, 1:5 * n:5] = g[:, 0] * K[:, 0, c], g[:, 0] * K[:, 1, c]
-        C[3 + c, 3:5 * n:5], C[3 + c, 4:5 * n:5] = g[:, 1] * K[:, 0, c], g[:, 1] * K[:, 1, c]
-    W = sp.diags(np.r_[np.full(3, 1 / problem.w_pos), np.full(3, 1 / problem.w_pm)])
-    kkt = sp.bmat([[N, sp.csr_matrix(C).T], [sp.csr_matrix(C), -W]]).tocsc()
-    rhs = np.concatenate([A.T @ h, np.zeros(6)])
-    d = 1.0 / np.sqrt(np.abs(kkt.diagonal()))
-    lu = splu((sp.diags(d) @ kkt @ sp.diags(d)).tocsc())
-    y = d * lu.solve(d * rhs)
-    for _ in range(2):
-        y = y + d * lu.solve(d * (rhs - kkt @ y))
-    return y[:nf], free
-
-
 def _agreement(P, prior, seed, max_iter=2000, compact=False):
     obs, rng = P["obs"], np.random.default_rng(seed)
     x_true, a_true = _truth(P, rng, zero_motion=False)
@@ -130,7 +92,8 @@ def _agreement(P, prior, seed, max_iter=2000, compact=False):
     a_true[~problem.free] = 0.0
     h = problem.forward(problem.join(x_true, a_true)) + rng.normal(size=obs.size)
     sol = solve_global(problem, h, rtol=1e-10, update_tol_uas=1e-3, max_iter=max_iter)
-    direct, free = _direct_solution(P, problem, h, prior)
+    # The same normal equations solved directly (sparse LU of the bordered system).
+    direct, free, _ = solve_direct(problem, h)
     iterative = problem.join(sol.x, sol.attitude)[free]
     return sol, np.linalg.norm(iterative - direct) / np.linalg.norm(direct)
 

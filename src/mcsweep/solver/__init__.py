@@ -25,6 +25,8 @@ reduction
     Sums over blocks in a fixed pairwise tree: bit-identical for any chunking.
 cg
     The normal equations in blocks and the preconditioned conjugate-gradient iteration.
+direct
+    The same normal equations by sparse LU (tests' and benchmarks' reference).
 
 Only :mod:`mcsweep.astrometry` (and :mod:`mcsweep.scanning` through it) is imported.
 """

@@ -79,12 +79,12 @@ def make_obs(n_stars: int, days: float, knot_days: float, keep: float, seed: int
 
 def data_for(problem, x, a, rng):
     a = np.where(problem.free, a, 0.0)
-    return problem.forward(problem.join(x, a)) + rng.standard_normal(problem.obs.size)
+    return problem.forward(problem.join(x, a)) + rng.standard_normal(problem.n_measurements)
 
 
-def block_jacobi(problem, h, rtol=1e-8, update_tol_uas=1e-2, max_iter=5000):
+def block_jacobi(problem, obs, h, rtol=1e-8, update_tol_uas=1e-2, max_iter=5000):
     """The baseline: PCG with diag(B, N_aa) (the solver before this version), same stopping rule."""
-    att = BandedAttitudeSolver(attitude_band(problem.obs))
+    att = BandedAttitudeSolver(attitude_band(obs))
     pb, free = problem, problem.free
 
     def prec(r):
@@ -93,11 +93,11 @@ def block_jacobi(problem, h, rtol=1e-8, update_tol_uas=1e-2, max_iter=5000):
 
     b_s, b_a = problem.split(problem.apply(np.zeros(problem.size)))  # zeros: just shapes
     star, src, att_p, j0, bval = problem.design()
-    b_s = np.stack([np.bincount(star, src[:, i] * h, minlength=pb.obs.n_stars) for i in range(5)], axis=1)
-    b_a = np.zeros((pb.obs.n_coef, 3))
+    b_s = np.stack([np.bincount(star, src[:, i] * h, minlength=pb.n_stars) for i in range(5)], axis=1)
+    b_a = np.zeros((pb.n_coef, 3))
     for k in range(4):
         for c in range(3):
-            b_a[:, c] += np.bincount(j0 + k, bval[:, k] * att_p[:, c] * h, minlength=pb.obs.n_coef)
+            b_a[:, c] += np.bincount(j0 + k, bval[:, k] * att_p[:, c] * h, minlength=pb.n_coef)
     b_a[~free] = 0.0
     b = pb.join(b_s, b_a)
     x = np.zeros_like(b)
@@ -142,7 +142,7 @@ def main():
         sol = solve_global(problem, h, **kw)
         t_pcg = time.process_time() - c0
         c0 = time.process_time()
-        x_bj, it_bj = block_jacobi(problem, h, **kw)
+        x_bj, it_bj = block_jacobi(problem, obs, h, **kw)
         t_bj = time.process_time() - c0
         c0 = time.process_time()
         x_dir, free, A = solve_direct(problem, h)
@@ -172,7 +172,7 @@ def main():
     w0 = time.perf_counter()
     s_seq = solve_global(problem, h, **kw)
     w_seq = time.perf_counter() - w0
-    chunk = max(1, problem.obs.n_stars // 2)
+    chunk = max(1, problem.n_stars // 2)
     with executor(ExecutionConf(backend="loky", n_jobs=2)) as run:
         w0 = time.perf_counter()
         s_par = solve_global(problem, h, run=run, chunk_stars=chunk, **kw)

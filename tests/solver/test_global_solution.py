@@ -249,12 +249,13 @@ def test_banded_schur_preconditioner_equals_its_dense_definition(weak_problem):
     # with dense matrices (independent of blocks.py's cluster sums), and it is positive
     # semi-definite. A 1 mas prior: under 1000 mas the 5 x 5 blocks have condition ~1e10
     # and the two subtractions agree only to ~1e-8.
-    from mcsweep.solver.blocks import _schur_band
+    from mcsweep.solver.blocks import _schur_absorption
 
     P = weak_problem
     obs = P["obs"]
     problem = GlobalProblem(obs, prior_diagonal(1.0, 10.0), P["ra"], P["dec"])
-    band = sum(_schur_band(b) for b in problem.blocks)
+    band = -sum(_schur_absorption(b) for b in problem.blocks)
+    band[-problem.naa_band.shape[0]:] += problem.naa_band  # N_aa: once per problem
     A = _sparse_design(P).toarray()
     As, G = A[:, :5 * obs.n_stars], A[:, 5 * obs.n_stars:]
     dense = G.T @ G

@@ -78,10 +78,10 @@ from ..errors import UserInputError
 from ..prior import G_FIT_MAX, sigma_f90, sigma_from_coefficients
 from ..scanning import ScanningLaw, find_transits
 from ..scanning.ephemeris import TABLE_END_JD_TCB, TABLE_START_JD_TCB, gaia_position_au
-from ..scanning.timeline import draw_dead_time
+from ..scanning.timeline import DeadTime, draw_dead_time
 from ..scanning.timescale import tcb_jd
-from ..solver import (AttitudeSpline, GlobalProblem, build_observations, fit_frame, frame_attitude,
-                      frame_offsets, precision_weights, solve_global)
+from ..solver import (BLOCK_STARS, AttitudeSpline, GlobalProblem, build_observations, fit_frame, frame_attitude,
+                      frame_offsets, make_blocks, precision_weights, solve_global, source_normals)
 from .epoch import resolve_reference_epoch
 from .secondary import load_f90_coefficients
 
@@ -98,11 +98,14 @@ __all__ = [
     "transits_of",
     "prepare",
     "solve_prior",
+    "attitude_error",
+    "attitude_error_series",
 ]
 
 #: Sub-directory of the run directory holding one result file per prior.
 CHUNKS_DIR = "primary_chunks"
 OUTPUTS = (CHUNKS_DIR, "table3.csv", "table3.md", "primary_convergence.csv", "primary_summary.csv",
+           "primary_attitude_error.csv", "figures",
            "primary_factor.csv", "primary_factor_curves.csv", "report.md", "report.html", "provenance.json")
 #: Class key of the primary sources in the seeds and the results.
 PRIMARY_KEY = 0
@@ -216,49 +219,76 @@ def transits_of(job) -> tuple[int, dict]:
 
 @dataclasses.dataclass
 class PreparedData:
-    """Stars, observations and noisy measurements shared by every prior's solution."""
+    """Stars, observations and noisy measurements shared by every prior's solution.
+
+    The measurements' partials live only in the solver's blocks (built block by block
+    of stars, :func:`prepare`), not in a full :class:`~mcsweep.solver.Observations`:
+    at the paper's 1.5e6 stars that would double the largest arrays of the run.
+    """
 
     stars: pd.DataFrame      # STAR_COLUMNS + 'class_key' (round(100 G0), 0 = primary) + 'n_fov'
     solved: np.ndarray       # indices into ``stars`` of the stars in the solution (>= 1 transit)
-    obs: object              # solver.Observations of the solved stars
-    h: np.ndarray            # normalised measurements (observed minus computed from the law)
+    blocks: list             # solver StarBlocks of the solved stars (mcsweep.solver.make_blocks)
+    normals: np.ndarray      # (n_solved, 5, 5) data normal matrices of the solved stars
+    h: np.ndarray            # normalised measurements (observed minus computed from the law), problem order
+    tcb_jd: np.ndarray       # epoch of each measurement (same order)
     x_true: np.ndarray       # (n_solved, 5)
     spline: AttitudeSpline
-    true_attitude: np.ndarray  # (m, 3) true rotation at each measurement [mas]
+    true_attitude: tuple     # (AttitudeSpline, coefficients (n, 3) [mas]): the true rotation
     t_ref_jd: float
-    dead_days: float
+    dead: DeadTime
     _problem: GlobalProblem | None = dataclasses.field(default=None, repr=False)
 
+    @property
+    def dead_days(self) -> float:
+        return self.dead.total_days
+
+    @property
+    def n_measurements(self) -> int:
+        return int(self.h.size)
+
+    def true_attitude_at(self, tcb_jd) -> np.ndarray:
+        """The true rotation (module notes, step 3) at ``tcb_jd`` [mas], (m, 3)."""
+        spline, coef = self.true_attitude
+        return spline.evaluate(coef, tcb_jd)
+
     def problem(self, prior_diagonal) -> GlobalProblem:
-        """The global problem under ``prior_diagonal``: built once (partials, blocks), then
+        """The global problem under ``prior_diagonal``: assembled once from the blocks, then
         only the per-star inverses and frame weights change from prior to prior
         (:meth:`GlobalProblem.with_prior`, bit-identical to a new problem)."""
         if self._problem is None:
             st = self.stars
-            self._problem = GlobalProblem(self.obs, prior_diagonal, st["ra"].to_numpy()[self.solved],
-                                          st["dec"].to_numpy()[self.solved])
+            self._problem = GlobalProblem.from_blocks(
+                self.blocks, self.normals, prior_diagonal, st["ra"].to_numpy()[self.solved],
+                st["dec"].to_numpy()[self.solved], n_coef=self.spline.n_coef, n_measurements=self.n_measurements)
             return self._problem
         return self._problem.with_prior(prior_diagonal)
 
 
-def _true_attitude(settings: PrimarySettings, t_jd: np.ndarray) -> np.ndarray:
-    """The smooth random rotation (module notes, step 3) at ``t_jd`` [mas], (m, 3)."""
+def _true_attitude(settings: PrimarySettings) -> tuple[AttitudeSpline, np.ndarray]:
+    """The smooth random rotation (module notes, step 3): its spline and coefficients [mas]."""
     rng = np.random.default_rng(stream_seed(settings.seed, ATTITUDE_STREAM))
     tau = settings.attitude_timescale_days
     shift = rng.uniform(0.0, tau)  # knots off the solver's grid
     spline = AttitudeSpline(settings.start_jd - shift, settings.end_jd + tau, tau)
-    coef = rng.normal(0.0, settings.attitude_amplitude_mas, (spline.n_coef, 3))
-    return spline.evaluate(coef, t_jd)
+    return spline, rng.normal(0.0, settings.attitude_amplitude_mas, (spline.n_coef, 3))
 
 
 def prepare(settings: PrimarySettings, stars: pd.DataFrame, transits: dict, *,
-            with_noise: bool = True) -> PreparedData:
+            with_noise: bool = True, block_stars: int = BLOCK_STARS) -> PreparedData:
     """Dead time, observations of the stars with >= 1 transit, truth and noisy measurements.
 
+    ``transits`` sorted by star (as :func:`transits_of` gives them). The solver's blocks
+    are built block by block of ``block_stars`` stars (a property of the problem, as in
+    :class:`~mcsweep.solver.GlobalProblem`): each block's partials exist twice only while
+    it is built. Observation order: block by block, within a block the AL measurements
+    in transit order, then the AC ones; the noise is drawn in that order.
     ``with_noise=False`` leaves the measurement noise out (tests).
     """
     n = len(stars)
     star, t, psi = transits["star"], transits["t"], transits["psi"]
+    if star.size and np.any(np.diff(star) < 0):
+        raise ValueError("transits must be sorted by star")
     dead = draw_dead_time(settings.start_jd, settings.end_jd, settings.dead_time_fraction,
                           block_days=settings.dead_time_block_days,
                           rng=np.random.default_rng(stream_seed(settings.seed, DEAD_STREAM)))
@@ -276,26 +306,66 @@ def prepare(settings: PrimarySettings, stars: pd.DataFrame, transits: dict, *,
     sel = new[star] >= 0
     star, t, psi = new[star[sel]], t[sel], psi[sel]
     gs = g[solved]
-    s_al = settings.noise.sigma_al_mas(gs)[star]
-    s_ac = settings.noise.sigma_ac_mas(gs)[star] if settings.noise.use_ac else None
+    s_al_star = settings.noise.sigma_al_mas(gs)
+    s_ac_star = settings.noise.sigma_ac_mas(gs) if settings.noise.use_ac else None
     spline = AttitudeSpline(settings.start_jd, settings.end_jd, settings.knot_interval_days)
     t_ref = settings.t_ref_jd
     ra, dec = stars["ra"].to_numpy()[solved], stars["dec"].to_numpy()[solved]
-    obs = build_observations(ra, dec, star, t, psi, gaia_position_au(t), t_ref_jd=t_ref, sigma_al_mas=s_al,
-                             sigma_ac_mas=s_ac, spline=spline, n_stars=solved.size)
     # Truth: position zero at the reference epoch (the offsets are what is solved for),
     # the population's parallax and proper motion.
     x_true = np.column_stack([np.zeros(solved.size), np.zeros(solved.size),
                               stars["parallax"].to_numpy()[solved], stars["pmra"].to_numpy()[solved],
                               stars["pmdec"].to_numpy()[solved]])
-    true_att = _true_attitude(settings, obs.tcb_jd)
-    noise = np.random.default_rng(stream_seed(settings.seed, NOISE_STREAM)).standard_normal(obs.size)
-    if not with_noise:
-        noise[:] = 0.0
-    # Normalised measurements: rows of the partials are already divided by sigma.
-    h = np.einsum("mi,mi->m", obs.src, x_true[obs.star]) + np.einsum("mi,mi->m", obs.att, true_att) + noise
-    return PreparedData(stars=stars, solved=solved, obs=obs, h=h, x_true=x_true, spline=spline,
-                        true_attitude=true_att, t_ref_jd=t_ref, dead_days=dead.total_days)
+    true_att = _true_attitude(settings)
+    noise_rng = np.random.default_rng(stream_seed(settings.seed, NOISE_STREAM))
+    blocks, normals, hs, ts = [], [], [], []
+    row = 0
+    bounds = np.searchsorted(star, np.arange(0, solved.size + block_stars, block_stars))
+    for first, lo, hi in zip(range(0, solved.size, block_stars), bounds[:-1], bounds[1:]):
+        last = min(first + block_stars, solved.size)
+        st, tt = star[lo:hi] - first, t[lo:hi]
+        obs = build_observations(ra[first:last], dec[first:last], st, tt, psi[lo:hi], gaia_position_au(tt),
+                                 t_ref_jd=t_ref, sigma_al_mas=s_al_star[first:last][st],
+                                 sigma_ac_mas=None if s_ac_star is None else s_ac_star[first:last][st],
+                                 spline=spline)
+        # Normalised measurements: rows of the partials are already divided by sigma.
+        h = (np.einsum("mi,mi->m", obs.src, x_true[first:last][obs.star])
+             + np.einsum("mi,mi->m", obs.att, true_att[0].evaluate(true_att[1], obs.tcb_jd)))
+        if with_noise:
+            h += noise_rng.standard_normal(obs.size)
+        blocks += make_blocks(obs, block_stars=block_stars, first_star=first, first_row=row)
+        normals.append(source_normals(obs))
+        hs.append(h)
+        ts.append(obs.tcb_jd)
+        row += obs.size
+        del obs
+    cat = (lambda parts, shape: np.concatenate(parts) if parts else np.zeros(shape))
+    return PreparedData(stars=stars, solved=solved, blocks=blocks, normals=cat(normals, (0, 5, 5)), h=cat(hs, 0),
+                        tcb_jd=cat(ts, 0), x_true=x_true, spline=spline, true_attitude=true_att, t_ref_jd=t_ref,
+                        dead=dead)
+
+
+#: Measurements per chunk of the attitude-error evaluation (bounds its temporaries).
+_EVAL_CHUNK = 1 << 21
+
+
+def attitude_error(data: PreparedData, coef, eps, omega, tcb_jd) -> np.ndarray:
+    """Estimated minus true attitude after the frame correction at ``tcb_jd`` [mas], (m, 3)."""
+    return (data.spline.evaluate(coef, tcb_jd) - data.true_attitude_at(tcb_jd)
+            - frame_attitude(eps, omega, tcb_jd, data.t_ref_jd))
+
+
+def attitude_error_series(data: PreparedData, coef, eps, omega, *, per_knot: int = 1) -> pd.DataFrame:
+    """The attitude error on a regular grid (``per_knot`` points per knot interval, at
+    interval centres), live time only (dead intervals hold no data, their coefficients
+    are held at zero): columns ``tcb_jd``, ``x_uas``, ``y_uas``, ``z_uas``."""
+    step = data.spline.knot_interval_days / per_knot
+    t = data.spline.start_jd + step * (0.5 + np.arange(int(round((data.spline.end_jd - data.spline.start_jd)
+                                                                   / step))))
+    t = t[~data.dead.is_dead(t)]
+    err = 1e3 * attitude_error(data, coef, eps, omega, t)
+    return pd.DataFrame({"tcb_jd": t, "x_uas": err[:, 0].astype(np.float32), "y_uas": err[:, 1].astype(np.float32),
+                         "z_uas": err[:, 2].astype(np.float32)})
 
 
 def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=None, *, run=None,
@@ -305,9 +375,10 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
     Per-star results (all stars of ``data.stars``): ``inside`` (1/0, -1 not solved),
     ``err_mas`` (position error after the frame correction), ``err_parallax_mas``
     (estimated - true parallax), ``sigma_prior_mas``. ``extra``: iterations, convergence,
-    attitude error RMS per axis [uas], fitted frame rotation and spin; the last element is
-    (measurement epochs, attitude error (m, 3) [mas]). ``run``, ``chunk_stars``: the executor
-    and chunk size for the solver's per-chunk work (:func:`mcsweep.solver.solve_global`).
+    attitude error RMS per axis [uas] over the measurement epochs, fitted frame rotation and
+    spin; the last element is the attitude error on a grid (:func:`attitude_error_series`).
+    ``run``, ``chunk_stars``: the executor and chunk size for the solver's per-chunk work
+    (:func:`mcsweep.solver.solve_global`).
     """
     st = data.stars
     s = data.solved
@@ -344,14 +415,15 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
                         "n_fov": st["n_fov"].to_numpy().astype(np.int16), "inside": inside,
                         "err_mas": err.astype(np.float32),
                         "err_parallax_mas": err_plx.astype(np.float32), "sigma_prior_mas": sigma_prior.astype(np.float32)})
-    t = data.obs.tcb_jd
-    att_err = (data.spline.evaluate(sol.attitude, t) - data.true_attitude
-               - frame_attitude(eps, omega, t, data.t_ref_jd))
+    t = data.tcb_jd
+    sq = np.zeros(3)
+    for lo in range(0, t.size, _EVAL_CHUNK):  # bounded temporaries at any number of measurements
+        sq += np.sum(attitude_error(data, sol.attitude, eps, omega, t[lo:lo + _EVAL_CHUNK]) ** 2, axis=0)
     hist = pd.DataFrame([dataclasses.asdict(r) for r in sol.history])
     hist.insert(0, "prior", label)
     extra = {"converged": bool(sol.converged), "iterations": len(sol.history),
-             "attitude_rms_uas": (1e3 * np.sqrt(np.mean(att_err ** 2, axis=0))).tolist() if t.size else [],
+             "attitude_rms_uas": (1e3 * np.sqrt(sq / t.size)).tolist() if t.size else [],
              "frame_rotation_mas": eps.tolist(), "frame_spin_mas_yr": omega.tolist(),
              "residual_rms": float(np.sqrt(np.mean(sol.residuals ** 2))) if sol.residuals.size else float("nan"),
              "seconds": float(sol.history[-1].seconds) if sol.history else 0.0}
-    return res, hist, extra, (t, att_err)
+    return res, hist, extra, attitude_error_series(data, sol.attitude, eps, omega)

@@ -22,7 +22,7 @@ from ..prior import Prior
 from ..prior.maps import DEFAULT_NSIDE, MAPS_FILE, prior_maps_bytes
 from ..sweep.store import atomic_write_bytes
 from . import figures
-from .document import Document
+from .document import FIG_DIR, Document
 from .fit import fit_all
 from .primary_section import primary_section
 from .secondary_section import secondary_section
@@ -30,7 +30,6 @@ from .secondary_section import secondary_section
 __all__ = ["build_report", "SECTION_BUILDERS", "REQUIRED_RESULTS", "sweep_section", "provenance_section",
            "write_prior_maps"]
 
-FIG_DIR = "figures"
 _MAP_CELL_COLUMNS = ("cell_id", "l_deg", "b_deg", "g_min", "g_max", "g", "n_stars", "radius_deg", "f90_flag",
                      "sigma_f90_mas", "fitted_sigma_f90_mas", "paper_sigma_f90_mas")
 #: Michalik et al. (2015), Table 1: the star (alpha, delta) = (157.5, 0) deg and the UTC

@@ -13,7 +13,10 @@ from pathlib import Path
 
 import pandas as pd
 
-__all__ = ["Document"]
+__all__ = ["Document", "FIG_DIR"]
+
+#: Sub-directory of a run directory holding the report's figures (paths in the document are relative).
+FIG_DIR = "figures"
 
 
 def _fmt(v) -> str:

@@ -1,4 +1,5 @@
-"""Figures of the sweep report (PNG): analogues of the paper's Figs. 1-4 and a sky map."""
+"""Figures of the reports (PNG): analogues of the paper's Figs. 1-4, a sky map, and the primary
+solution's attitude error and convergence."""
 
 from __future__ import annotations
 
@@ -24,6 +25,8 @@ __all__ = [
     "plot_showcase_curves",
     "plot_showcase_scatter",
     "plot_showcase_cases",
+    "plot_primary_attitude_error",
+    "plot_primary_convergence",
 ]
 
 _CASE_LABELS = {"one": "1 transit", "two": "2 transits", "two_diluted": "2 transits (diluted)",
@@ -295,3 +298,41 @@ def _save_no_tight(fig, path: Path) -> Path:
     plt.close(fig)
     atomic_write_bytes(path, buf.getvalue())
     return path
+
+
+def plot_primary_attitude_error(series: pd.DataFrame, path: Path) -> Path:
+    """Attitude error (estimated - true, after the frame correction) against time, one panel per
+    axis, one line per prior (column ``prior``), with each prior's RMS over the plotted epochs."""
+    fig, axes = plt.subplots(3, 1, figsize=(8.0, 6.5), sharex=True)
+    t0 = float(series["tcb_jd"].min())
+    for ax, col, name in zip(axes, ("x_uas", "y_uas", "z_uas"), "xyz"):
+        for prior, df in series.groupby("prior", sort=False):
+            # dead intervals hold no data: break the line there instead of joining across
+            t = df["tcb_jd"].to_numpy() - t0
+            y = df[col].to_numpy(dtype=float)
+            gap = np.r_[False, np.diff(t) > 1.5 * np.median(np.diff(t))] if t.size > 1 else np.zeros(t.size, bool)
+            t_plot = np.insert(t, np.flatnonzero(gap), np.nan)
+            y_plot = np.insert(y, np.flatnonzero(gap), np.nan)
+            rms = float(np.sqrt(np.mean(y ** 2))) if y.size else float("nan")
+            ax.plot(t_plot, y_plot, lw=0.4, alpha=0.8, label=f"{prior}: RMS {rms:.1f} uas")
+        ax.axhline(0.0, color="k", lw=0.5)
+        ax.set_ylabel(f"{name} axis [uas]")
+        ax.legend(fontsize=7, loc="upper right")
+    axes[-1].set_xlabel(f"days since TCB JD {t0:.2f}")
+    axes[0].set_title("Attitude error after the frame correction (live time)")
+    return _save(fig, path)
+
+
+def plot_primary_convergence(history: pd.DataFrame, path: Path) -> Path:
+    """PCG convergence per prior: relative residual of the normal equations and the largest
+    update [uas] against the iteration (logarithmic)."""
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(9.0, 3.6))
+    for prior, df in history.groupby("prior", sort=False):
+        a1.semilogy(df["iteration"], df["relative_residual"], label=str(prior))
+        a2.semilogy(df["iteration"], df["update_max_uas"], label=str(prior))
+    a1.set_xlabel("iteration")
+    a1.set_ylabel("|b - N x| / |b|")
+    a2.set_xlabel("iteration")
+    a2.set_ylabel("largest update [uas]")
+    a1.legend(fontsize=7)
+    return _save(fig, path)

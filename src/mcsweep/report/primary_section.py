@@ -1,9 +1,11 @@
 """Report section of the one-year global (primary) experiment (paper Sect. 4.2, Table 3).
 
-Reads ``table3.csv``, ``primary_summary.csv`` and ``primary_convergence.csv`` of a run
-directory (written by :func:`mcsweep.sweep.primary_runner.run_primary`): our Table 3 next
-to the paper's (fractions and percentiles with their 68 % intervals, as Table 2), the attitude error RMS, the
-PCG iterations and the knot interval.
+Reads ``table3.csv``, ``primary_summary.csv``, ``primary_convergence.csv`` and
+``primary_attitude_error.csv`` of a run directory (written by
+:func:`mcsweep.sweep.primary_runner.run_primary`): our Table 3 next to the paper's
+(fractions and percentiles with their 68 % intervals, as Table 2), the attitude error RMS
+and its figure against time, the PCG iterations and their convergence figure, and the
+knot interval.
 """
 
 from __future__ import annotations
@@ -14,7 +16,8 @@ import pandas as pd
 
 from ..experiments.primary_table import table3_layout
 from ..experiments.secondary_table import FRACTION_INTERVAL
-from .document import Document
+from .document import FIG_DIR, Document
+from .figures import plot_primary_attitude_error, plot_primary_convergence
 
 __all__ = ["primary_section"]
 
@@ -55,6 +58,20 @@ def primary_section(doc: Document, run_dir: Path, prov: dict) -> None:
     doc.table(summary[cols], "Global solutions: PCG iterations, attitude error RMS per axis (x, y, z) [uas] "
               "after the frame correction, RMS of the normalised residuals",
               {"residual_rms": ".4f", "seconds": ".1f", "dead_fraction": ".3f"})
+    figdir = run_dir / FIG_DIR
+    figdir.mkdir(exist_ok=True)
+    plot_primary_convergence(pd.read_csv(run_dir / "primary_convergence.csv"), figdir / "primary_convergence.png")
+    doc.figure(f"{FIG_DIR}/primary_convergence.png", "PCG convergence of each global solution: relative residual "
+               "of the normal equations and the largest update of any unknown per iteration (stopping rule: "
+               f"both below solver_rtol = {pri.get('solver_rtol')} and solver_update_tol_uas = "
+               f"{pri.get('solver_update_tol_uas')})")
+    att_file = run_dir / "primary_attitude_error.csv"
+    if att_file.exists():
+        plot_primary_attitude_error(pd.read_csv(att_file), figdir / "primary_attitude_error.png")
+        doc.figure(f"{FIG_DIR}/primary_attitude_error.png", "Attitude error (estimated minus true, after removing "
+                   "the fitted frame rotation and spin) per axis over the mission, at the centre of every knot "
+                   "interval outside dead time; RMS over these epochs in the legend (the table's RMS is over the "
+                   "measurement epochs)")
     factor_file = run_dir / "primary_factor.csv"
     if factor_file.exists():
         fac = pd.read_csv(factor_file)

@@ -19,7 +19,7 @@ from scipy.linalg import cho_solve_banded, cholesky_banded
 
 from .observations import Observations
 
-__all__ = ["BANDWIDTH", "attitude_band", "attitude_rhs", "band_to_dense", "free_coefficients",
+__all__ = ["BANDWIDTH", "band_of_rows", "attitude_band", "attitude_rhs", "band_to_dense", "free_coefficients",
            "BandedAttitudeSolver"]
 
 _AX = 3
@@ -28,17 +28,26 @@ _NB = 4  # basis functions per epoch (cubic)
 BANDWIDTH = _AX * _NB - 1
 
 
-def attitude_band(obs: Observations) -> np.ndarray:
-    """Upper band storage ``(BANDWIDTH + 1, 3 n_coef)`` of ``sum A_a' A_a``."""
-    n = _AX * obs.n_coef
-    g = obs.attitude_rows().reshape(obs.size, _AX * _NB)  # unknowns 3 j0 .. 3 j0 + 11
-    base = _AX * obs.j0
+def band_of_rows(j0, rows, n_coef: int) -> np.ndarray:
+    """Upper band storage ``(BANDWIDTH + 1, 3 n_coef)`` of ``sum g' g`` over attitude rows.
+
+    ``rows`` (m, 12): each measurement's partials w.r.t. unknowns ``3 j0 .. 3 j0 + 11``
+    (B-spline value times axis partial). One :func:`numpy.bincount` per band element over
+    all rows at once: pass many rows per call (each call zero-fills the band's length).
+    """
+    n = _AX * int(n_coef)
+    g = np.asarray(rows, dtype=float)
+    base = _AX * np.asarray(j0, dtype=np.int64)
     ab = np.zeros((BANDWIDTH + 1, n))
     for r in range(_AX * _NB):
         for s in range(r, _AX * _NB):
-            col = base + s
-            ab[BANDWIDTH + r - s] += np.bincount(col, g[:, r] * g[:, s], minlength=n)
+            ab[BANDWIDTH + r - s] += np.bincount(base + s, g[:, r] * g[:, s], minlength=n)[:n]
     return ab
+
+
+def attitude_band(obs: Observations) -> np.ndarray:
+    """Upper band storage ``(BANDWIDTH + 1, 3 n_coef)`` of ``sum A_a' A_a``."""
+    return band_of_rows(obs.j0, obs.attitude_rows().reshape(obs.size, _AX * _NB), obs.n_coef)
 
 
 def attitude_rhs(obs: Observations, r) -> np.ndarray:

@@ -22,8 +22,9 @@ import dataclasses
 
 import numpy as np
 
+from .attitude_update import band_of_rows
 
-__all__ = ["StarBlock", "att_forward", "att_adjoint", "att_diagonal", "src_forward", "src_adjoint",
+__all__ = ["StarBlock", "att_forward", "att_adjoint", "att_band", "src_forward", "src_adjoint",
            "block_setup", "block_precondition_forward", "block_precondition_back", "block_residuals",
            "block_normal_apply"]
 
@@ -116,14 +117,10 @@ def att_adjoint(blk: StarBlock, v) -> np.ndarray:
     return out
 
 
-def att_diagonal(blk: StarBlock) -> np.ndarray:
-    """Diagonal of the block's ``N_aa`` (n_coef, 3)."""
-    out = np.zeros((blk.n_coef, _AX))
-    for c in range(_AX):
-        for k in range(_NB):
-            out[k:, c] += np.bincount(blk.j0, (blk.bval[k].astype(float) * blk.att[c]) ** 2,
-                                      minlength=blk.n_coef)[:blk.n_coef - k]
-    return out
+def att_band(blk: StarBlock) -> np.ndarray:
+    """The block's ``N_aa`` in upper band storage (:func:`~mcsweep.solver.attitude_update.band_of_rows`)."""
+    G = (blk.bval[:, None, :].astype(float) * blk.att[None, :, :]).reshape(_AX * _NB, -1).T
+    return band_of_rows(blk.j0, G, blk.n_coef)
 
 
 def src_forward(blk: StarBlock, x) -> np.ndarray:
@@ -145,18 +142,8 @@ def _binv(blk: StarBlock, x) -> np.ndarray:
 
 
 # ------------------------------------------------------------------ setup
-def _band_add(ab, base, G, sign=1.0, weights=None):
-    """Add ``sign * sum G_r G_s`` (or ``weights[:, r, s]``) of rows at unknowns ``base + r`` to ``ab``."""
-    n, u = ab.shape[1], ab.shape[0] - 1
-    width = G.shape[1] if weights is None else weights.shape[1]
-    for r in range(width):
-        for s in range(r, width):
-            w = G[:, r] * G[:, s] if weights is None else weights[:, r, s]
-            ab[u + r - s] += sign * np.bincount(base + s, w, minlength=n)[:n]  # zero beyond the end
-
-
 #: Consecutive first coefficients ``j0`` whose measurements of one star form one cluster
-#: of :func:`_schur_band` (its band then has ``3 (SCHUR_WINDOW + 3) - 1`` super-diagonals).
+#: of :func:`_schur_absorption` (its band then has ``3 (SCHUR_WINDOW + 3) - 1`` super-diagonals).
 #: Wider windows keep more of each star's absorption but barely pay: measured (4000 stars,
 #: one year, 1-day knots, priors 1 / 10 / 1000 mas) 36 / 43 / 51 iterations with 1, 36 / 39 /
 #: 46 with 2, 33 / 36 / 45 with 4, at a costlier setup.
@@ -164,12 +151,13 @@ SCHUR_WINDOW = 1
 
 
 def schur_bandwidth(window: int = SCHUR_WINDOW) -> int:
-    """Super-diagonals of :func:`_schur_band` for clusters of ``window`` first coefficients."""
+    """Super-diagonals of :func:`_schur_absorption` for clusters of ``window`` first coefficients."""
     return _AX * (window + _NB - 1) - 1
 
 
-def _schur_band(blk: StarBlock, batch_stars: int = 512, window: int = SCHUR_WINDOW) -> np.ndarray:
-    """``N_aa`` minus the in-band part of ``N_as B^-1 N_sa``, upper band storage.
+def _schur_absorption(blk: StarBlock, batch_stars: int = 4096, window: int = SCHUR_WINDOW) -> np.ndarray:
+    """The in-band part of ``N_as B^-1 N_sa`` (upper band storage, ``L = schur_bandwidth + 1``
+    rows): the banded Schur block is ``N_aa`` (:func:`att_band`, prior-independent) minus this.
 
     Exact form: ``S_B = sum_i G_i' (I - P_i) G_i`` with ``P_i = A_i B_i^-1 A_i'`` per star
     (``G_i`` its attitude rows). Group each star's measurements into clusters whose first
@@ -190,33 +178,46 @@ def _schur_band(blk: StarBlock, batch_stars: int = 512, window: int = SCHUR_WIND
         hi = min(lo + batch_stars, blk.n)
         sel = order[np.searchsorted(star_sorted, lo):np.searchsorted(star_sorted, hi)]
         star, j0 = blk.star[sel].astype(np.int64), blk.j0[sel].astype(np.int64)
-        G = (blk.bval[:, None, sel].astype(float) * blk.att[None, :, sel]).reshape(_AX * _NB, -1).T
-        _band_add(ab, _AX * j0, G)
+        G = (blk.bval[:, None, sel].astype(float) * blk.att[None, :, sel]).reshape(_AX * _NB, -1)  # (12, m)
         jb = (j0 // window) * window
-        uniq, cl = np.unique(star * blk.n_coef + jb, return_inverse=True)
-        off = _AX * (j0 - jb)
-        a = blk.src[:, sel].T.astype(float)
-        H = np.zeros((uniq.size, _NP, L))
+        key = star * blk.n_coef + jb  # non-decreasing: sel is in star order, each star's rows in time order
+        starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+        uniq, nc = key[starts], starts.size
+        cl = np.cumsum(np.r_[False, key[1:] != key[:-1]])  # cluster of each row, non-decreasing
+        # H[i, c, k] = sum of a_i G_r over cluster k's rows, c = 3 (j0 - jb) + r; structure
+        # of arrays (one contiguous vector over clusters per element), as in
+        # mcsweep.astrometry.linalg, so every step below is a vector operation.
+        H = np.zeros((_NP, L, nc))
+        for o in range(window):  # rows by offset of their j0 within the window
+            rows = slice(None) if window == 1 else np.flatnonzero(j0 - jb == o)
+            for i in range(_NP):
+                a = blk.src[i, sel][rows]
+                for r in range(_AX * _NB):
+                    H[i, _AX * o + r] += np.bincount(cl[rows], a * G[r][rows], minlength=nc)
+        Bc = np.ascontiguousarray(blk.binv[uniq // blk.n_coef].transpose(1, 2, 0))  # (5, 5, clusters)
+        BH = np.empty_like(H)  # B^-1 H
         for i in range(_NP):
-            for r in range(_AX * _NB):
-                H[:, i, :] += np.bincount(cl * L + off + r, a[:, i] * G[:, r], minlength=uniq.size * L
-                                          ).reshape(uniq.size, L)
-        BH = _rowdot(blk.binv[uniq // blk.n_coef][:, :, None, :], np.swapaxes(H, 1, 2)[:, None, :, :])
-        T = H[:, 0, :, None] * BH[:, 0, None, :]  # H' B^-1 H, (clusters, L, L)
-        for i in range(1, _NP):
-            T += H[:, i, :, None] * BH[:, i, None, :]
-        _band_add(ab, _AX * (uniq % blk.n_coef), None, sign=-1.0, weights=T)
+            BH[i] = Bc[i, 0] * H[0]
+            for k in range(1, _NP):
+                BH[i] += Bc[i, k] * H[k]
+        base = _AX * (uniq % blk.n_coef)
+        for r in range(L):  # H' B^-1 H, upper band only, straight into the band storage
+            for c in range(r, L):
+                w = H[0, r] * BH[0, c]
+                for i in range(1, _NP):
+                    w += H[i, r] * BH[i, c]
+                ab[L - 1 + r - c] += np.bincount(base + c, w, minlength=n_att)[:n_att]  # zero beyond the end
     return ab
 
 
 def block_setup(blk: StarBlock, h) -> dict:
-    """Everything the solver needs once from a block, for the measurements ``h (m,)``.
+    """Everything the solver needs once per prior from a block, for the measurements ``h (m,)``.
 
-    Returns a dict of global contributions, ``band`` (:func:`_schur_band`), ``naa_diag``
-    (diagonal of ``N_aa``), ``b_a = A_a' h``, ``hh = h' h``, and per star ``b_s = A_s' h`` (n, 5).
+    Returns a dict of global contributions, ``absorption`` (:func:`_schur_absorption`),
+    ``b_a = A_a' h``, ``hh = h' h``, and per star ``b_s = A_s' h`` (n, 5).
     """
-    return {"band": _schur_band(blk), "naa_diag": att_diagonal(blk), "b_a": att_adjoint(blk, h),
-            "hh": float(h @ h), "b_s": src_adjoint(blk, h)}
+    return {"absorption": _schur_absorption(blk), "b_a": att_adjoint(blk, h), "hh": float(h @ h),
+            "b_s": src_adjoint(blk, h)}
 
 
 # ------------------------------------------------------------------ iteration

@@ -11,8 +11,9 @@ is never formed.
 Method: PCG on the full system (Bombrun et al. 2012, A&A 538, A77) with a symmetric
 block Gauss-Seidel preconditioner, the block LDL' factorisation of ``N`` with the
 attitude Schur complement ``S = N_aa - N_as B^-1 N_sa`` (``B = N_ss + N_p``, per star)
-replaced by its banded part :func:`~mcsweep.solver.blocks._schur_band` (``N_aa`` minus
-each star's absorption within one spline window), factorised once with
+replaced by its banded part, ``N_aa`` (:func:`~mcsweep.solver.blocks.att_band`, once per
+problem) minus each star's absorption within one spline window
+(:func:`~mcsweep.solver.blocks._schur_absorption`, once per prior), factorised once with
 :func:`scipy.linalg.cholesky_banded`:
 
     z_a = S_band^-1 (r_a - N_as B^-1 r_s),   z_s = B^-1 (r_s - N_sa z_a).
@@ -73,12 +74,13 @@ import numpy as np
 from scipy.linalg import LinAlgError, cho_solve_banded, cholesky_banded
 
 from . import blocks as B
+from .attitude_update import free_coefficients
 from .frame import precision_weights, rotation_matrices
 from .observations import Observations
 from .reduction import chunk_ranges, pairwise_sum
 from .source_update import solve_sources, source_normals
 
-__all__ = ["GlobalProblem", "ConvergenceRecord", "GlobalSolution", "solve_global", "UAS_PER_MAS",
+__all__ = ["GlobalProblem", "ConvergenceRecord", "GlobalSolution", "solve_global", "make_blocks", "UAS_PER_MAS",
            "BLOCK_STARS", "sequential_run"]
 
 UAS_PER_MAS = 1000.0
@@ -118,7 +120,18 @@ class GlobalSolution:
     converged: bool
 
 
-def _make_blocks(obs: Observations, binv, block_stars: int, compact: bool) -> list:
+def make_blocks(obs: Observations, *, block_stars: int = BLOCK_STARS, compact: bool = False,
+                first_star: int = 0, first_row: int = 0) -> list:
+    """The :class:`~mcsweep.solver.blocks.StarBlock` s of ``obs`` (without per-star inverses).
+
+    ``obs`` may hold a part of the problem: its stars are ``first_star + obs.star``
+    (``first_star`` a multiple of ``block_stars``) and its measurements are rows
+    ``first_row ..`` of the problem's observation order. A problem built part by part
+    (:meth:`GlobalProblem.from_blocks`) never holds all measurements' partials twice:
+    each part's :class:`Observations` can be dropped once its blocks are made.
+    """
+    if first_star % block_stars:
+        raise ValueError(f"first_star={first_star} is not a multiple of block_stars={block_stars}")
     order = np.argsort(obs.star, kind="stable")
     star_sorted = obs.star[order]
     real = np.float32 if compact else np.float64
@@ -131,12 +144,13 @@ def _make_blocks(obs: Observations, binv, block_stars: int, compact: bool) -> li
         rows = rows[np.argsort(obs.j0[rows], kind="stable")]  # time order within the block (StarBlock)
         j0 = obs.j0[rows]
         seg = np.flatnonzero(np.r_[True, j0[1:] != j0[:-1]]) if j0.size else np.zeros(0, np.int64)
-        out.append(B.StarBlock(first=first, n=last - first, rows=rows.astype(np.int32 if obs.size < 2**31 else np.int64),
+        row_int = np.int32 if first_row + obs.size < 2**31 else np.int64
+        out.append(B.StarBlock(first=first_star + first, n=last - first, rows=(first_row + rows).astype(row_int),
                                star=(obs.star[rows] - first).astype(star_int),
                                src=np.ascontiguousarray(obs.src[rows].T, dtype=np.float64),
                                att=np.ascontiguousarray(obs.att[rows].T, dtype=real),
-                               j0=obs.j0[rows].astype(np.int32), bval=np.ascontiguousarray(obs.bval[rows].T, dtype=real),
-                               binv=binv[first:last], n_coef=obs.n_coef, seg=seg, seg_j0=j0[seg].astype(np.int64)))
+                               j0=j0.astype(np.int32), bval=np.ascontiguousarray(obs.bval[rows].T, dtype=real),
+                               binv=None, n_coef=obs.n_coef, seg=seg, seg_j0=j0[seg].astype(np.int64)))
     return out
 
 
@@ -147,7 +161,10 @@ class GlobalProblem:
     ----------
     obs : Observations
         Every star must be determinable on its own with the prior (check with
-        :func:`~mcsweep.solver.source_update.solve_sources` first).
+        :func:`~mcsweep.solver.source_update.solve_sources` first). The problem keeps
+        the partials in its blocks, not ``obs``; its observation order is ``obs``'s.
+        For problems too large to hold all partials twice build it part by part with
+        :func:`make_blocks` and :meth:`from_blocks`.
     prior_diagonal : array_like (5,) or (n, 5)
         Diagonal of ``N_p`` (Eq. 18).
     ra_deg, dec_deg : array_like (n,)
@@ -167,25 +184,54 @@ class GlobalProblem:
 
     def __init__(self, obs: Observations, prior_diagonal, ra_deg, dec_deg, *, block_stars: int = BLOCK_STARS,
                  compact: bool = False):
-        self.obs = obs
-        n = obs.n_stars
-        self.N_src = source_normals(obs)
+        self._assemble(make_blocks(obs, block_stars=int(block_stars), compact=bool(compact)),
+                       source_normals(obs), prior_diagonal, ra_deg, dec_deg, n_coef=obs.n_coef,
+                       n_measurements=obs.size)
+
+    @classmethod
+    def from_blocks(cls, blocks, normals, prior_diagonal, ra_deg, dec_deg, *, n_coef: int,
+                    n_measurements: int) -> "GlobalProblem":
+        """The problem from blocks made part by part (:func:`make_blocks`).
+
+        ``blocks`` cover stars ``0 .. n - 1`` in order with one block size, their rows
+        ``0 .. n_measurements - 1`` (the observation order); ``normals`` (n, 5, 5) the
+        stars' data normal matrices (:func:`~mcsweep.solver.source_update.source_normals`
+        of the parts, concatenated).
+        """
+        blocks = list(blocks)
+        firsts = [b.first for b in blocks]
+        sizes = {b.n for b in blocks[:-1]}
+        if firsts != [i * blocks[0].n for i in range(len(blocks))] or len(sizes) > 1 or \
+                sum(b.n for b in blocks) != len(normals):
+            raise ValueError("blocks must cover the stars in order with one block size")
+        self = cls.__new__(cls)
+        self._assemble(blocks, np.asarray(normals, dtype=float), prior_diagonal, ra_deg, dec_deg,
+                       n_coef=int(n_coef), n_measurements=int(n_measurements))
+        return self
+
+    def _assemble(self, blocks, normals, prior_diagonal, ra_deg, dec_deg, *, n_coef, n_measurements):
+        self.n_stars = n = len(normals)
+        self.n_coef = n_coef
+        self.n_measurements = n_measurements
+        self.N_src = normals
         self.K = rotation_matrices(ra_deg, dec_deg)
+        self.blocks = blocks
         self._set_prior(prior_diagonal)
-        self.blocks = _make_blocks(obs, self.src_inv, int(block_stars), bool(compact))
         self.n_src = 5 * n
-        self.n_att = 3 * obs.n_coef
+        self.n_att = 3 * n_coef
         self.size = self.n_src + self.n_att
         # Coefficients whose support holds no measurement (inside dead time) are held at
         # zero (identity rows), as AGIS breaks the attitude into segments at data gaps.
-        self.free = pairwise_sum(B.att_diagonal(b) for b in self.blocks) > 0
+        self.naa_band = pairwise_sum(B.att_band(b) for b in self.blocks)
+        self.free = free_coefficients(self.naa_band)
 
     def _set_prior(self, prior_diagonal):
-        n, N_src = self.obs.n_stars, self.N_src
+        n, N_src = self.n_stars, self.N_src
         self.prior = np.broadcast_to(np.asarray(prior_diagonal, dtype=float), (n, 5))
         _, self.src_inv, ok = solve_sources(N_src, np.zeros((n, 5)), self.prior)
         if not ok.all():
             raise ValueError(f"{int((~ok).sum())} stars have singular source blocks; remove them first")
+        self.blocks = [dataclasses.replace(b, binv=self.src_inv[b.first:b.first + b.n]) for b in self.blocks]
         # Frame constraint weights (module notes, "Frame"): each star's formal precision of
         # position and proper motion (attitude as known), normalised to mean 1.
         g = precision_weights(self.src_inv)
@@ -199,10 +245,9 @@ class GlobalProblem:
     def with_prior(self, prior_diagonal) -> "GlobalProblem":
         """The same measurements under another prior, sharing the stored partials (the
         per-star inverses and frame weights are new): one problem serves every prior of
-        Table 3, and the caller may drop its Observations' partials after building it."""
+        Table 3."""
         new = copy.copy(self)
         new._set_prior(prior_diagonal)
-        new.blocks = [dataclasses.replace(b, binv=new.src_inv[b.first:b.first + b.n]) for b in self.blocks]
         return new
 
     # ------------------------------------------------------------ layout
@@ -217,7 +262,7 @@ class GlobalProblem:
     def forward(self, v) -> np.ndarray:
         """``A v`` (m,) in observation order: normalised measurement change for unknowns ``v``."""
         xs, xa = self.split(v)
-        out = np.empty(self.obs.size)
+        out = np.empty(self.n_measurements)
         for b in self.blocks:
             out[b.rows] = B.src_forward(b, xs[b.first:b.first + b.n]) + B.att_forward(b, xa)
         return out
@@ -247,7 +292,7 @@ class GlobalProblem:
     def design(self):
         """The stored partials in observation order as float64: (star (m,), src (m, 5), att (m, 3),
         j0 (m,), bval (m, 4)) (tests and direct solutions)."""
-        m = self.obs.size
+        m = self.n_measurements
         star, j0 = np.empty(m, np.int64), np.empty(m, np.int64)
         src, att, bval = np.empty((m, 5)), np.empty((m, 3)), np.empty((m, 4))
         for b in self.blocks:
@@ -258,7 +303,7 @@ class GlobalProblem:
     @property
     def nbytes_per_measurement(self) -> float:
         """Bytes held per measurement by the blocks (partials, indices, per-star inverses)."""
-        return sum(b.nbytes for b in self.blocks) / max(self.obs.size, 1)
+        return sum(b.nbytes for b in self.blocks) / max(self.n_measurements, 1)
 
     def chunks(self, chunk_stars: int | None) -> list[tuple[int, int]]:
         """Block ranges of the execution chunks (a power of two of blocks, at most ``chunk_stars``)."""
@@ -372,14 +417,15 @@ def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_u
     b_s = np.concatenate([r[1] for r in res])
     b_a = np.where(free, glob["b_a"], 0.0)
     b_norm = float(np.sqrt(_dot(b_s, b_s) + _dot(b_a, b_a))) or 1.0
-    band = glob["band"]
+    band = -glob["absorption"]
+    band[-pb.naa_band.shape[0]:] += pb.naa_band
     fixed = ~free.ravel()
     band[:, fixed] = 0.0
     band[-1, fixed] = 1.0
     try:
         chol = cholesky_banded(band, lower=False)
     except LinAlgError:  # rounding in an attitude window no well-observed star constrains: a tiny ridge
-        band[-1] += 1e-12 * np.maximum(glob["naa_diag"].ravel(), 1.0)
+        band[-1] += 1e-12 * np.maximum(pb.naa_band[-1], 1.0)
         chol = cholesky_banded(band, lower=False)
 
     def extra_s(v_s):  # the non-data part of the source rows: prior and frame penalty

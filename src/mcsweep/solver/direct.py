@@ -52,7 +52,7 @@ def solve_direct(problem, h) -> tuple[np.ndarray, np.ndarray, sp.csr_matrix]:
     A : scipy.sparse.csr_matrix
         The design matrix restricted to ``free`` (for other reference solvers, e.g. lsqr).
     """
-    n, n_coef = problem.obs.n_stars, problem.obs.n_coef
+    n, n_coef = problem.n_stars, problem.n_coef
     free = np.concatenate([np.ones(5 * n, bool), problem.free.ravel()])
     A = sparse_design(*problem.design(), n, n_coef)[:, free]
     nf = int(free.sum())

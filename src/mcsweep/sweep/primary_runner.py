@@ -74,7 +74,7 @@ def run_primary(config, raw_cfg: dict, run_dir, *, prov=None) -> Path:
     with prov.stage("observations"):
         data = prepare(settings, stars, transits)
         del transits
-    results, histories, extras = {}, [], {}
+    results, histories, extras, attitude_series = {}, [], {}, []
     # The factor search (experiment.primary.factor_grid) shares solutions with Table 3's priors.
     factors = {float(k): factor_label(k) for k in pri.factor_grid}
     # The solver's chunk work goes to the executor only on a Dask cluster (one client for
@@ -92,11 +92,13 @@ def run_primary(config, raw_cfg: dict, run_dir, *, prov=None) -> Path:
                     if config.execution.backend == "dask":
                         if run is None:
                             run = cluster.enter_context(executor(config.execution))
-                        res, hist, extra, _ = solve_prior(settings, data, label, run=run,
-                                                          chunk_stars=int(config.execution.chunk_stars))
+                        res, hist, extra, series = solve_prior(settings, data, label, run=run,
+                                                               chunk_stars=int(config.execution.chunk_stars))
                     else:
-                        res, hist, extra, _ = solve_prior(settings, data, label)
+                        res, hist, extra, series = solve_prior(settings, data, label)
                     atomic_write_bytes(run_dir / CHUNKS_DIR / f"{cid}_history.csv", hist.to_csv(index=False).encode())
+                    atomic_write_bytes(run_dir / CHUNKS_DIR / f"{cid}_attitude.csv",
+                                       series.to_csv(index=False, float_format="%.6g").encode())
                     atomic_write_bytes(extra_file, json.dumps(extra).encode())
                     store.write(cid, res)
                     print(f"mcsweep: primary: prior {label}: {extra['iterations']} PCG iterations, converged "
@@ -104,6 +106,9 @@ def run_primary(config, raw_cfg: dict, run_dir, *, prov=None) -> Path:
                           flush=True)
                 results[label] = res
                 histories.append(pd.read_csv(run_dir / CHUNKS_DIR / f"{cid}_history.csv"))
+                att_file = run_dir / CHUNKS_DIR / f"{cid}_attitude.csv"
+                if att_file.exists():  # absent only in a resumed run of an older version
+                    attitude_series.append(pd.read_csv(att_file).assign(prior=label))
                 extras[label] = json.loads(extra_file.read_text())
     with prov.stage("aggregate"):
         prov.cell_versions = dict(store.versions_read)
@@ -118,12 +123,12 @@ def run_primary(config, raw_cfg: dict, run_dir, *, prov=None) -> Path:
             atomic_write_bytes(run_dir / "primary_factor.csv", fac.to_csv(index=False).encode())
             atomic_write_bytes(run_dir / "primary_factor_curves.csv",
                                factor_curves(by_k, pri.g_classes).to_csv(index=False).encode())
-        n_obs = data.obs.size
+        n_obs = data.n_measurements
         summary = pd.DataFrame([{"prior": k, **{kk: (json.dumps(v) if isinstance(v, list) else v)
                                                 for kk, v in e.items()}} for k, e in extras.items()])
         summary["n_stars_solved"] = data.solved.size
         summary["n_measurements"] = n_obs
-        summary["n_attitude_coefficients"] = 3 * data.obs.n_coef
+        summary["n_attitude_coefficients"] = 3 * data.spline.n_coef
         summary["knot_interval_hours"] = pri.knot_interval_hours
         summary["dead_fraction"] = data.dead_days / (settings.end_jd - settings.start_jd)
         counts = stars.groupby("class_key").size().to_dict()
@@ -134,7 +139,7 @@ def run_primary(config, raw_cfg: dict, run_dir, *, prov=None) -> Path:
                  f"Stars: {pri.class_size} per class (paper 5e5), {counts.get(PRIMARY_KEY, 0)} primary sources "
                  f"(G >= {pri.primary_g_min:g}); {data.solved.size} with >= 1 transit, {n_obs} measurements; "
                  f"attitude: cubic spline, knot interval {pri.knot_interval_hours:g} h "
-                 f"({3 * data.obs.n_coef} coefficients); true attitude = law + {pri.attitude_amplitude_mas:g} mas "
+                 f"({3 * data.spline.n_coef} coefficients); true attitude = law + {pri.attitude_amplitude_mas:g} mas "
                  f"random spline rotation on a {pri.attitude_timescale_hours:g} h time scale.",
                  "PCG iterations / attitude error RMS (x, y, z) [uas] after the frame correction: "
                  + "; ".join(f"{k}: {e['iterations']} ({'converged' if e['converged'] else 'NOT converged'}), "
@@ -144,6 +149,9 @@ def run_primary(config, raw_cfg: dict, run_dir, *, prov=None) -> Path:
                                                                                        notes),
                    "primary_convergence.csv": pd.concat(histories, ignore_index=True).to_csv(index=False),
                    "primary_summary.csv": summary.to_csv(index=False)}
+        if attitude_series:
+            outputs["primary_attitude_error.csv"] = pd.concat(attitude_series, ignore_index=True).to_csv(
+                index=False, float_format="%.6g")
         for name, text in outputs.items():
             atomic_write_bytes(run_dir / name, text.encode())
     prov.seeds["primary"] = {

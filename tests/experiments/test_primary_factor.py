@@ -7,9 +7,12 @@ import pytest
 from mcsweep.astrometry.confidence import chi2_threshold
 from mcsweep.experiments.primary_factor import factor_curves, factor_label, factor_rows, overall_factor
 from mcsweep.experiments.primary import parse_prior
+from mcsweep.experiments.primary_table import table3_rows
 
 #: Log-linear interpolation between grid points 1.25 apart, on a smooth curve [relative].
 RTOL_GRID = 0.02
+#: Two implementations of the same exact interval (beta quantiles vs. scipy's binomtest).
+RTOL_INTERVAL = 1e-9
 
 
 def _results(ks, true_k, n=20000, seed=3):
@@ -68,3 +71,37 @@ def test_factor_beyond_the_grid_is_flagged():
 def test_factor_label_is_a_prior_of_the_experiment():
     for k in (1, 2.5, 10, 31.6):
         assert parse_prior(factor_label(k)) == ("F90", float(k))
+
+
+def test_factor_curves_and_table3_count_the_same_cells():
+    # Hand-built per-star results of two solutions (k = 2 given before k = 1): classes
+    # G ~ 11 and 15, extra primary sources (class key 0: in no cell), stars with no FoV
+    # transit (in no subset) and stars without a confidence region (-1: out of n_valid).
+    # The reference counts come from a plain loop over the stars, not from the code.
+    from scipy import stats
+    rng = np.random.default_rng(17)
+    n = 3000
+    frame = pd.DataFrame({"class_key": rng.choice([0, 1100, 1500], n), "n_fov": rng.integers(0, 12, n),
+                          "err_mas": rng.rayleigh(size=n)})
+    results = {k: frame.assign(inside=rng.choice([-1, 0, 1], n, p=[0.05, 0.35, 0.6]).astype(np.int8))
+               for k in (2.0, 1.0)}
+    curves = factor_curves(results, [11.0, 15.0])
+    table = table3_rows({"F90": results[1.0]}, [11.0, 15.0], 0.9)
+    for subset in ("<=4", ">4"):
+        for g in (11, 15):
+            for k, res in results.items():
+                n_in = n_valid = 0
+                for key, nf, flag in zip(res["class_key"], res["n_fov"], res["inside"]):
+                    if key == 100 * g and nf >= 1 and (nf <= 4) == (subset == "<=4"):
+                        n_valid += flag >= 0
+                        n_in += flag == 1
+                c = curves[(curves["subset"] == subset) & (curves["g_class"] == g) & (curves["k"] == k)]
+                assert len(c) == 1 and (c["n_valid"].iloc[0], c["n_inside"].iloc[0]) == (n_valid, n_in)
+                assert c["fraction_inside"].iloc[0] == n_in / n_valid  # exact: the same two integers divided
+                ci = stats.binomtest(n_in, n_valid).proportion_ci(0.68, method="exact")
+                np.testing.assert_allclose(c[["fraction_lo", "fraction_hi"]].to_numpy()[0], [ci.low, ci.high],
+                                           rtol=RTOL_INTERVAL)
+                if k == 1.0:  # Table 3's row of the same solution: the same cell statistics
+                    t = table[(table["subset"] == subset) & (table["g_class"] == g)]
+                    cols = ["n_valid", "n_inside", "fraction_inside", "fraction_lo", "fraction_hi"]
+                    assert t[cols].to_numpy().tolist() == c[cols].to_numpy().tolist()

@@ -23,9 +23,9 @@ from typing import Mapping, Sequence
 import numpy as np
 import pandas as pd
 
-from ..astrometry.confidence import binomial_interval
 from .pencil_beam import sigma_f90_from_curve, sigma_f90_interval
-from .secondary_table import FRACTION_INTERVAL, SUBSETS, g_label, subset_masks
+from .primary_table import cell_mask
+from .secondary_table import SUBSETS, fraction_statistics, g_label
 
 __all__ = ["FACTOR_COLUMNS", "CURVE_COLUMNS", "factor_label", "factor_curves", "factor_rows", "overall_factor"]
 
@@ -38,27 +38,24 @@ def factor_label(k: float) -> str:
     return "F90" if float(k) == 1.0 else f"{float(k):g}F90"
 
 
-def _flags(results: Mapping[float, pd.DataFrame], subset: str, g: float) -> tuple[np.ndarray, np.ndarray]:
-    """(inside, valid) flags (n_k, n_stars) of one cell; the stars are the same in every solution."""
+def _cell_flags(results: Mapping[float, pd.DataFrame], g_classes: Sequence[float]):
+    """Per cell (subset, class): ``(subset, g, flags)``, flags (n_k, n_stars) with k ascending.
+
+    Flags: 1 inside, 0 outside, -1 no confidence region; the stars are the same in every solution.
+    """
     first = next(iter(results.values()))
-    sel = subset_masks(first["n_fov"].to_numpy())[subset] & (first["class_key"].to_numpy() == int(round(100 * g)))
-    inside = np.stack([res["inside"].to_numpy()[sel] for res in results.values()])
-    return (inside == 1), (inside >= 0)
+    for subset in SUBSETS:
+        for g in g_classes:
+            sel = cell_mask(first, subset, g)
+            yield subset, g, np.stack([results[k]["inside"].to_numpy()[sel] for k in sorted(results)])
 
 
 def factor_curves(results: Mapping[float, pd.DataFrame], g_classes: Sequence[float]) -> pd.DataFrame:
-    """Fraction inside per cell and factor, with its Clopper-Pearson interval (as Table 2)."""
+    """Fraction inside per cell and factor, with its Clopper-Pearson interval (Table 2's
+    :func:`~mcsweep.experiments.secondary_table.fraction_statistics`)."""
     ks = sorted(results)
-    res = {k: results[k] for k in ks}
-    rows = []
-    for subset in SUBSETS:
-        for g in g_classes:
-            inside, valid = _flags(res, subset, g)
-            for i, k in enumerate(ks):
-                n_in, n_val = int(inside[i].sum()), int(valid[i].sum())
-                lo, hi = binomial_interval(n_in, n_val, FRACTION_INTERVAL)
-                rows.append((subset, g_label(g), k, n_val, n_in, n_in / n_val if n_val else float("nan"),
-                             float(lo), float(hi)))
+    rows = [(subset, g_label(g), k, *fraction_statistics(f))
+            for subset, g, flags in _cell_flags(results, g_classes) for k, f in zip(ks, flags)]
     return pd.DataFrame(rows, columns=list(CURVE_COLUMNS))
 
 
@@ -76,20 +73,17 @@ def factor_rows(results: Mapping[float, pd.DataFrame], g_classes: Sequence[float
     rng : generator of the bootstrap.
     """
     ks = np.array(sorted(results), dtype=float)
-    res = {k: results[k] for k in ks}
     rows = []
-    for subset in SUBSETS:
-        for g in g_classes:
-            inside, valid = _flags(res, subset, g)
-            n_val = valid.sum(axis=1)
-            with np.errstate(invalid="ignore", divide="ignore"):
-                frac = np.where(n_val > 0, inside.sum(axis=1) / n_val, np.nan)
-            if not n_val.any():
-                rows.append((subset, g_label(g), 0, float("nan"), "no_stars", float("nan"), float("nan")))
-                continue
-            k_min, flag = sigma_f90_from_curve(ks, frac, confidence)
-            lo, hi = sigma_f90_interval(ks, inside, valid, confidence, "log", n_resamples, rng)
-            rows.append((subset, g_label(g), int(n_val.max()), k_min, flag, lo, hi))
+    for subset, g, flags in _cell_flags(results, g_classes):
+        # Columns n_valid, n_inside, fraction, fraction_lo, fraction_hi (rows: k ascending).
+        curve = np.array([fraction_statistics(f) for f in flags])
+        n_val, frac = curve[:, 0], curve[:, 2]
+        if not n_val.any():
+            rows.append((subset, g_label(g), 0, float("nan"), "no_stars", float("nan"), float("nan")))
+            continue
+        k_min, flag = sigma_f90_from_curve(ks, frac, confidence)
+        lo, hi = sigma_f90_interval(ks, flags == 1, flags >= 0, confidence, "log", n_resamples, rng)
+        rows.append((subset, g_label(g), int(n_val.max()), k_min, flag, lo, hi))
     return pd.DataFrame(rows, columns=list(FACTOR_COLUMNS))
 
 

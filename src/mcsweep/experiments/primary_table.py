@@ -26,12 +26,12 @@ from typing import Mapping, Sequence
 import numpy as np
 import pandas as pd
 
-from ..astrometry.confidence import binomial_interval, percentile_interval
+from ..astrometry.confidence import percentile_interval
 from .secondary_table import (FRACTION_INTERVAL, PAPER_CONFIDENCE, PAPER_G_CLASSES, SUBSETS, error_percentile,
-                              g_label, subset_masks, table_cell)
+                              fraction_statistics, g_label, subset_masks, table_cell)
 
-__all__ = ["PAPER_TABLE3", "PAPER_G_CLASSES", "TABLE3_COLUMNS", "paper_value3", "cell_statistics",
-           "table3_rows", "table3_layout", "table3_markdown", "prior_label"]
+__all__ = ["PAPER_TABLE3", "PAPER_G_CLASSES", "TABLE3_COLUMNS", "paper_value3", "cell_mask",
+           "cell_statistics", "table3_rows", "table3_layout", "table3_markdown", "prior_label"]
 
 #: Table 3 transcribed from the LaTeX source: (subset, prior) -> (fractions in per cent
 #: for G ~ 11, 15, 19; 90th percentiles of the position errors in mas).
@@ -69,24 +69,33 @@ def paper_value3(subset: str, prior: str, g_class: float, confidence: float) -> 
     return frac[i] / 100.0, p90[i]
 
 
+def cell_mask(results: pd.DataFrame, subset: str, g_class: float) -> np.ndarray:
+    """The stars of one cell (subset x magnitude class) in a solution's per-star results.
+
+    ``results`` has the columns ``n_fov`` and ``class_key`` (round(100 G0), 0 for extra
+    primary sources; :func:`mcsweep.experiments.primary.solve_prior`); the stars are the
+    same in every solution of a run, so one mask serves them all.
+    """
+    in_subset = subset_masks(results["n_fov"].to_numpy())[subset]
+    return in_subset & (results["class_key"].to_numpy() == int(round(100 * g_class)))
+
+
 def cell_statistics(inside: np.ndarray, err_mas: np.ndarray, confidence: float) -> tuple:
     """(n_valid, n_inside, fraction, fraction_lo, fraction_hi, percentile, percentile_lo, percentile_hi).
 
     ``inside``: per-star flags (1 inside, 0 outside, -1 no confidence region: left out,
     the NaN rule of :func:`~mcsweep.astrometry.confidence.inside_counts`); ``err_mas``: the
-    position errors. Fraction with its Clopper-Pearson interval, the 100 P-th percentile
-    of the errors with its rank interval, both of probability ``FRACTION_INTERVAL`` as
-    Table 2.
+    position errors. Fraction with its Clopper-Pearson interval
+    (:func:`~mcsweep.experiments.secondary_table.fraction_statistics`, Table 2's), the
+    100 P-th percentile of the errors with its rank interval, both of probability
+    ``FRACTION_INTERVAL``.
     """
-    ok = np.asarray(inside) >= 0
-    n_valid, n_in = int(ok.sum()), int((np.asarray(inside) == 1).sum())
-    frac = n_in / n_valid if n_valid else float("nan")
-    lo, hi = binomial_interval(n_in, n_valid, FRACTION_INTERVAL)
+    n_valid, n_in, frac, lo, hi = fraction_statistics(inside)
     q = error_percentile(confidence)
-    err = np.asarray(err_mas, dtype=float)[ok]
+    err = np.asarray(err_mas, dtype=float)[np.asarray(inside) >= 0]
     p = float(np.percentile(err, q)) if n_valid else float("nan")
     plo, phi = percentile_interval(err, q, FRACTION_INTERVAL)
-    return n_valid, n_in, frac, float(lo), float(hi), p, plo, phi
+    return n_valid, n_in, frac, lo, hi, p, plo, phi
 
 
 def table3_rows(results: Mapping[str, pd.DataFrame], g_classes: Sequence[float], confidence: float) -> pd.DataFrame:
@@ -99,9 +108,8 @@ def table3_rows(results: Mapping[str, pd.DataFrame], g_classes: Sequence[float],
     rows = []
     for subset in SUBSETS:
         for prior, res in results.items():
-            masks = subset_masks(res["n_fov"].to_numpy())
             for g in g_classes:
-                sel = masks[subset] & (res["class_key"].to_numpy() == int(round(100 * g)))
+                sel = cell_mask(res, subset, g)
                 stats = cell_statistics(res["inside"].to_numpy()[sel], res["err_mas"].to_numpy()[sel], confidence)
                 pf, pp = paper_value3(subset, prior, g, confidence)
                 rows.append((subset, prior, g_label(g), int(sel.sum()), *stats, pf, pp, q))

@@ -45,6 +45,7 @@ __all__ = [
     "table2_markdown",
     "error_percentile",
     "FRACTION_INTERVAL",
+    "fraction_statistics",
     "table_cell",
 ]
 
@@ -127,17 +128,30 @@ def error_percentile(confidence: float) -> float:
     return 100.0 * float(confidence)
 
 
-def _stats(stars: pd.DataFrame, sel: np.ndarray, col: str, percentile: float) -> tuple[int, float, float]:
-    """(stars without solution, fraction inside, ``percentile``-th percentile of errors) of a selection."""
-    # The flags were set per star by astrometry.confidence.inside (secondary.py); -1 (no
-    # confidence region) is left out of the denominator, the NaN rule of inside_counts.
+def fraction_statistics(inside) -> tuple[int, int, float, float, float]:
+    """``(n_valid, n_inside, fraction, fraction_lo, fraction_hi)`` of one cell's per-star flags.
+
+    ``inside``: 1 inside the P ellipse, 0 outside, -1 no confidence region (left out of
+    the denominator, the NaN rule of :func:`~mcsweep.astrometry.confidence.inside_counts`;
+    the flags were set per star by :func:`~mcsweep.astrometry.confidence.inside`). The
+    fraction ``n_inside / n_valid`` (NaN without a valid star) with its Clopper-Pearson
+    interval of probability :data:`FRACTION_INTERVAL`, computed from the integer counts.
+    The cell statistics of Tables 2 and 3 and of the primary factor curves.
+    """
+    inside = np.asarray(inside)
+    n_valid, n_in = int(np.count_nonzero(inside >= 0)), int(np.count_nonzero(inside == 1))
+    frac = n_in / n_valid if n_valid else float("nan")
+    lo, hi = binomial_interval(n_in, n_valid, FRACTION_INTERVAL)
+    return n_valid, n_in, frac, float(lo), float(hi)
+
+
+def _stats(stars: pd.DataFrame, sel: np.ndarray, col: str, percentile: float) -> tuple:
+    """``fraction_statistics`` of a selection and the ``percentile``-th percentile of its valid errors."""
     inside = stars[f"inside_{col}"].to_numpy()[sel]
     err = stars[f"err_{col}_mas"].to_numpy()[sel].astype(np.float64)
-    ok = inside >= 0
-    n_in, n_valid = int(np.count_nonzero(inside == 1)), int(np.count_nonzero(ok))
-    frac = n_in / n_valid if n_valid else float("nan")
-    p90 = float(np.percentile(err[ok], percentile)) if ok.any() else float("nan")
-    return int((~ok).sum()), frac, p90
+    stats = fraction_statistics(inside)
+    p90 = float(np.percentile(err[inside >= 0], percentile)) if stats[0] else float("nan")
+    return (*stats, p90)
 
 
 def table2_rows(per_class: Sequence[tuple[float, pd.DataFrame]], confidence: float) -> pd.DataFrame:
@@ -156,12 +170,9 @@ def table2_rows(per_class: Sequence[tuple[float, pd.DataFrame]], confidence: flo
     for subset in SUBSETS:
         for prior in PRIORS:
             for g, stars, m in masks:
-                n_bad, frac, p90 = _stats(stars, m[subset], SOLUTION_COLUMNS[prior], q)
+                _, _, frac, lo, hi, p90 = _stats(stars, m[subset], SOLUTION_COLUMNS[prior], q)
                 pf, pp = paper_value(subset, prior, g, confidence)
-                n_valid = int(m[subset].sum()) - n_bad
-                lo, hi = binomial_interval(round(frac * n_valid) if n_valid else 0, n_valid, FRACTION_INTERVAL)
-                rows.append((subset, prior, g_label(g), int(m[subset].sum()), frac, p90, pf, pp, q,
-                             float(lo), float(hi)))
+                rows.append((subset, prior, g_label(g), int(m[subset].sum()), frac, p90, pf, pp, q, lo, hi))
     return pd.DataFrame(rows, columns=list(TABLE2_COLUMNS))
 
 
@@ -175,8 +186,9 @@ def no_prior_rows(per_class: Sequence[tuple[float, pd.DataFrame]], confidence: f
     for subset in SUBSETS:
         for g, stars in per_class:
             sel = subset_masks(stars["n_fov"].to_numpy())[subset]
-            n_bad, frac, p90 = _stats(stars, sel, SOLUTION_COLUMNS["5p"], q)
+            n_valid, _, frac, _, _, p90 = _stats(stars, sel, SOLUTION_COLUMNS["5p"], q)
             n = int(sel.sum())
+            n_bad = n - n_valid
             rows.append((subset, g_label(g), n, n_bad, n_bad / n if n else float("nan"), frac, p90, q))
     return pd.DataFrame(rows, columns=list(NO_PRIOR_COLUMNS))
 

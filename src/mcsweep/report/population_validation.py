@@ -210,13 +210,17 @@ def _class_figure(path, by_class):
     import matplotlib.pyplot as plt
 
     ok = by_class.dropna(subset=["ratio", "ratio_sigma"])
-    fig, ax = plt.subplots(figsize=(6, 4.5))
+    fig, ax = plt.subplots(figsize=(7.5, 5))
     x = np.arange(len(ok))
     ax.errorbar(x, np.ones(len(ok)), yerr=ok["ratio_sigma"], fmt="none", color="0.6",
                 label="published +- 1 sigma")
     ax.plot(x, ok["ratio"], "ko", label=f"model {MODEL_VERSION}")
+    stars = ok["counts"] == "stars"
+    ax.plot(x[stars.to_numpy()], ok["ratio_sources"][stars], "o", mfc="none", color="tab:blue",
+            label="same, one star per model source")
     ax.axhspan(0.8, 1.2, color="tab:green", alpha=0.15, label="+-20 % target")
-    ax.set_xticks(x, [f"{c}\n({n})" for c, n in zip(ok["cls"], ok["counts"])], fontsize=7)
+    ax.set_xticks(x, [f"{c} ({n})" for c, n in zip(ok["cls"], ok["counts"])], fontsize=7,
+                  rotation=30, ha="right")
     ax.set_ylabel("model / published local density")
     ax.legend(fontsize=7)
     fig.tight_layout()
@@ -282,8 +286,9 @@ def _published_section(out, model, rng):
         "the calibration, not a check)",
         "", "![published counts](published_counts.png)", "",
         "### Local luminosity function per 1-mag M_G bin (sources pc^-3 at the Sun)", "",
-        "The GCNS luminosity function per bin was not found in the sources searched; Bovy "
-        "(2017) covers the main sequence above 1 Msun (M_G ~ 1.5-4.3).", "",
+        "The GCNS and CNS5 luminosity functions per bin were not found in the sources "
+        "searched (docs/galaxy_model.md); Bovy (2017) covers the main sequence above 1 Msun "
+        "(M_G ~ 1.5-4.3).", "",
         "| M_G bin | model, all | model, thin-disc giants | model, the rest | Bovy 2017 MS | rest / Bovy |",
         "|---|---|---|---|---|---|",
         *[f"| {r.M_G_lo}-{r.M_G_lo + 1} | {r.model:.3g} | {r.model_thin_giants:.3g} | {r.model_dwarfs:.3g} | "

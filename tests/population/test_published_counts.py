@@ -17,6 +17,8 @@ LOCAL_TOL = 0.20        # local (GCNS) density
 BEAM_TOL = 0.10         # paper Table 1 beam vs 458 GUMS stars
 GUMS_BEAM_COUNT = 458
 LF_TOL = 0.20           # local luminosity function per 1-mag bin
+#: Relative rounding of a density published with 3 significant digits (CNS5: 7.99e-2, 4.03e-3).
+CNS5_ROUNDING = 0.005 / 4.03
 #: G bins compared (Tycho-2 / UCAC4 range where the magnitudes are V-like and complete).
 MET_BINS = list(range(4, 14))
 
@@ -32,6 +34,14 @@ def test_all_sky_counts_per_magnitude_match_tycho2_ucac4(model, g):
     print(f"G {g}-{g + 1}: model {row.model:.4g}, published {row.published:.4g} "
           f"+- {100 * row.rel_uncertainty:.0f} %")
     assert abs(row.ratio - 1.0) <= COUNT_TOL
+
+
+def test_cns5_published_densities_match_its_counts():
+    # the CNS5 abstract's densities are its 25 pc counts over the sphere (two published
+    # forms of one fact); the densities are rounded to 3 digits
+    v25 = 4.0 / 3.0 * np.pi * 25.0 ** 3
+    assert pc.CNS5_25PC["stars"] / v25 == pytest.approx(pc.CNS5_STARS_PC3, rel=CNS5_ROUNDING)
+    assert pc.CNS5_25PC["white_dwarfs"] / v25 == pytest.approx(pc.CNS5_WD_PC3, rel=CNS5_ROUNDING)
 
 
 def test_published_bright_counts_agree_with_hipparcos():
@@ -94,7 +104,12 @@ def test_table1_beam_within_target(model):
     pytest.param("A", marks=pytest.mark.xfail(
         strict=True, reason="A stars: model 3.5e-4 sources pc^-3 (Bovy 2017 PDMF) = 0.72 x "
         "Mamajek's 4.9e-4 +- 0.66e-4 (Hipparcos-2, 30 pc), 2.1 sigma low (issue #14)")),
-    "F", "G", "K", "M", "M + white dwarfs"])
+    "F", "G", "K", "M", "M + white dwarfs",
+    pytest.param("M + white dwarfs (CNS5)", marks=pytest.mark.xfail(
+        strict=True, reason="model 7.98e-2 stars pc^-3 in the M range (sources x 1.27) = 1.30 x "
+        "CNS5's M dwarfs + white dwarfs, 6.16e-2 +- 0.09e-2 (Golovin et al. 2023: about 72 % of "
+        "7.99e-2, + 4.03e-3); 1.02 x with one star per source; RECONS + Holberg: 1.10 x "
+        "(issue #14)"))])
 def test_local_density_per_spectral_class(model, cls):
     row = pc.local_density_by_class(model).set_index("cls").loc[cls]
     print(f"{cls} (M_G {row.M_G_lo:.2f}-{row.M_G_hi:.2f}, {row.counts}): model {row.model:.3g}, "

@@ -32,4 +32,4 @@ def test_issue14_section_writes_its_tables_and_figures(tmp_path):
         assert (tmp_path / name).stat().st_size > 0, name
     text = "\n".join(lines)
     assert "Bovy 2017 MS" in text and "GCNS 60 pc" in text and "CNS5 25 pc" in text
-    assert "Local density per spectral class" in text
+    assert "Local density per spectral class" in text and "M + white dwarfs (CNS5)" in text

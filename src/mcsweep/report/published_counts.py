@@ -31,6 +31,13 @@ compilation of the cited catalogue; [M] standard value, not re-checked here.
 * The Fifth Catalogue of Nearby Stars (CNS5; Golovin et al. 2023, A&A 670, A19),
   within 25 pc: 5230 stars, of which 4946 main-sequence stars, 20 red giants and 264
   white dwarfs, plus 701 brown dwarfs (ARI Heidelberg news on the CNS5 [S]).
+* CNS5 densities (abstract in the CDS ReadMe J/A+A/670/A19 [V]): (7.99 +- 0.11)e-2 stars
+  pc^-3 within 25 pc (= the 5230 stars above), "about 72 %" of them M dwarfs, white dwarfs
+  (4.03 +- 0.25)e-3 pc^-3; statistically complete to M_G = 19.7. The sample counts
+  component stars. M dwarfs: 0.72 x 7.99e-2 = 5.75e-2 pc^-3; its uncertainty takes the
+  density's and the rounding of "72 %" (+-0.5 points) and is a lower bound ("about").
+  The M-dwarf density of the RECONS 10 pc sample below is 6.76e-2 (1.18 x CNS5's): the
+  two published facts disagree; both are compared.
 * Local giants: 3.9e-4 +- 0.1e-4 pc^-3 and main-sequence stars above 1 Msun
   dn/dM = 0.016 (M/Msun)^-4.7 pc^-3 Msun^-1 (Bovy 2017, MNRAS 470, 1360, abstract [V];
   Gaia DR1 TGAS): also used by the model, shown per 1-mag bin.
@@ -46,9 +53,10 @@ compilation of the cited catalogue; [M] standard value, not re-checked here.
   samples are not corrected for unresolved multiplicity (sources). White dwarfs:
   5.0e-3 +- 0.7e-3 pc^-3 (Holberg, Oswalt & Sion 2002, ApJ 571, 512, abstract in the
   CDS ReadMe J/ApJ/571/512 [V]); the model has no white-dwarf population.
-* Not found in the sources searched for issue #14: the GCNS luminosity function per
-  1-mag M_G bin (the paper's figure values or a CDS table), and published all-sky
-  counts per G magnitude at G = 15-19 or per Galactic-latitude band.
+* Not found in the sources searched for issue #14 (list in docs/galaxy_model.md): the
+  GCNS or CNS5 luminosity function per 1-mag M_G bin (both papers show it as a figure;
+  no table, CDS file or repository holds the values), and published all-sky counts per
+  G (or V) magnitude at G = 15-19 or per Galactic-latitude band.
 * Paper Table 1 beam: 458 GUMS stars (Michalik et al. 2015); Poisson +-21.
 """
 
@@ -84,6 +92,13 @@ __all__ = [
     "DENSITY_BY_CLASS",
     "HOLBERG_WD_PC3",
     "MAMAJEK_GIANTS_PC3",
+    "CNS5_STARS_PC3",
+    "CNS5_STARS_ERR_PC3",
+    "CNS5_M_FRACTION",
+    "CNS5_M_FRACTION_ROUNDING",
+    "CNS5_WD_PC3",
+    "CNS5_WD_ERR_PC3",
+    "CNS5_MG_COMPLETE",
     "local_density_by_class",
 ]
 
@@ -272,6 +287,14 @@ DENSITY_BY_CLASS = (
 HOLBERG_WD_PC3, HOLBERG_WD_ERR_PC3 = 5.0e-3, 0.7e-3
 #: Local density of red giants (K/M III and later), pc^-3 (Mamajek) [S].
 MAMAJEK_GIANTS_PC3 = 2.7e-4
+#: CNS5 within 25 pc (Golovin et al. 2023, abstract in the CDS ReadMe J/A+A/670/A19) [V]:
+#: star density and uncertainty [pc^-3], the fraction of M dwarfs among the stars ("about
+#: 72 %", read as 0.72 +- 0.005), white-dwarf density and uncertainty [pc^-3], and the
+#: absolute magnitude to which the catalogue is statistically complete.
+CNS5_STARS_PC3, CNS5_STARS_ERR_PC3 = 7.99e-2, 0.11e-2
+CNS5_M_FRACTION, CNS5_M_FRACTION_ROUNDING = 0.72, 0.005
+CNS5_WD_PC3, CNS5_WD_ERR_PC3 = 4.03e-3, 0.25e-3
+CNS5_MG_COMPLETE = 19.7
 
 
 def local_density_by_class(model):
@@ -288,10 +311,12 @@ def local_density_by_class(model):
     pandas.DataFrame
         Columns ``cls``, ``M_G_lo``, ``M_G_hi``, ``published``, ``uncertainty``
         [pc^-3], ``counts``, ``model`` (sources or stars, as the sample counts),
-        ``ratio``, ``ratio_sigma`` (the published uncertainty relative), ``sample``.
-        Extra rows: "M + white dwarfs" (the Wielen/Allen bins the faint dwarfs come
-        from hold the white dwarfs among their stars), white dwarfs (no model value)
-        and red giants (the model's giants, all classes).
+        ``ratio``, ``ratio_sigma`` (the published uncertainty relative), ``sample``,
+        ``ratio_sources`` (the model's sources over the published density, i.e. the
+        other reading for samples of component stars). Extra rows: "M + white dwarfs"
+        (the Wielen/Allen bins the faint dwarfs come from hold the white dwarfs among
+        their stars), white dwarfs (no model value), the same three from the CNS5
+        (25 pc) and red giants (the model's giants, all classes).
     """
     lf = model.lf
     keep = [i for i, n in enumerate(lf.names) if n != "bulge" and not n.endswith("_giants")]
@@ -315,10 +340,27 @@ def local_density_by_class(model):
     rows.append(dict(cls="white dwarfs", M_G_lo=np.nan, M_G_hi=np.nan, published=HOLBERG_WD_PC3,
                      uncertainty=HOLBERG_WD_ERR_PC3, counts="stars", model=np.nan,
                      sample="Holberg et al. 2002, 13-20 pc (no white-dwarf population in the model)"))
+    # CNS5: M dwarfs from the published fraction of the published star density
+    m_cns5 = CNS5_M_FRACTION * CNS5_STARS_PC3
+    m_cns5_err = float(np.hypot(CNS5_M_FRACTION * CNS5_STARS_ERR_PC3,
+                                CNS5_M_FRACTION_ROUNDING * CNS5_STARS_PC3))
+    cns5 = "CNS5 25 pc (Golovin et al. 2023): about 72 % of 7.99e-2 stars pc^-3"
+    rows.append(dict(cls="M (CNS5)", M_G_lo=m["M_G_lo"], M_G_hi=m["M_G_hi"], published=m_cns5,
+                     uncertainty=m_cns5_err, counts="stars", model=m["model"], sample=cns5))
+    rows.append(dict(cls="M + white dwarfs (CNS5)", M_G_lo=m["M_G_lo"], M_G_hi=m["M_G_hi"],
+                     published=m_cns5 + CNS5_WD_PC3,
+                     uncertainty=float(np.hypot(m_cns5_err, CNS5_WD_ERR_PC3)), counts="stars",
+                     model=m["model"], sample=cns5 + " + its 4.03e-3 white dwarfs"))
+    rows.append(dict(cls="white dwarfs (CNS5)", M_G_lo=np.nan, M_G_hi=np.nan, published=CNS5_WD_PC3,
+                     uncertainty=CNS5_WD_ERR_PC3, counts="stars", model=np.nan,
+                     sample="CNS5 25 pc (no white-dwarf population in the model)"))
     rows.append(dict(cls="red giants", M_G_lo=np.nan, M_G_hi=np.nan, published=MAMAJEK_GIANTS_PC3,
                      uncertainty=np.nan, counts="sources", model=float(lf.cdf[giants, -1].sum()),
                      sample="K/M III and later (Mamajek); model: all thin-disc giants (Bovy 2017)"))
     out = pd.DataFrame(rows)
     out["ratio"] = out["model"] / out["published"]
     out["ratio_sigma"] = out["uncertainty"] / out["published"]
+    # the other reading for samples of component stars: one star per model source
+    per_source = np.where(out["counts"] == "stars", stars_per_source, 1.0)
+    out["ratio_sources"] = out["ratio"] / per_source
     return out

@@ -98,7 +98,7 @@ def run_primary(config, raw_cfg: dict, run_dir, *, prov=None) -> Path:
                         res, hist, extra, series = solve_prior(settings, data, label)
                     atomic_write_bytes(run_dir / CHUNKS_DIR / f"{cid}_history.csv", hist.to_csv(index=False).encode())
                     atomic_write_bytes(run_dir / CHUNKS_DIR / f"{cid}_attitude.csv",
-                                       series.to_csv(index=False, float_format="%.6g").encode())
+                                       series.to_csv(index=False).encode())
                     atomic_write_bytes(extra_file, json.dumps(extra).encode())
                     store.write(cid, res)
                     print(f"mcsweep: primary: prior {label}: {extra['iterations']} PCG iterations, converged "
@@ -151,7 +151,7 @@ def run_primary(config, raw_cfg: dict, run_dir, *, prov=None) -> Path:
                    "primary_summary.csv": summary.to_csv(index=False)}
         if attitude_series:
             outputs["primary_attitude_error.csv"] = pd.concat(attitude_series, ignore_index=True).to_csv(
-                index=False, float_format="%.6g")
+                index=False)
         for name, text in outputs.items():
             atomic_write_bytes(run_dir / name, text.encode())
     prov.seeds["primary"] = {

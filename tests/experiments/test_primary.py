@@ -222,3 +222,59 @@ def test_noiseless_data_recover_the_truth_and_the_attitude():
     assert 1e3 * np.nanmax(res["err_mas"].to_numpy()[solved]) < RECOVERY_UAS
     assert 1e3 * np.nanmax(np.abs(res["err_parallax_mas"].to_numpy()[solved])) < RECOVERY_UAS
     assert max(extra["attitude_rms_uas"]) < RECOVERY_UAS
+
+
+#: Measurements of the same problem summed in other blocks (rounding only), relative to the largest.
+RTOL_BLOCKS = 1e-12
+#: Two PCG solutions of one problem, each stopped at a relative residual of 1e-11: |dx| / |x|
+#: (as the iterative-versus-direct tolerance of tests/solver; measured 1e-8).
+RTOL_TWO_SOLUTIONS = 1e-6
+
+
+def test_block_by_block_build_is_the_one_observations_problem():
+    # prepare() builds the solver's blocks 256 stars at a time (never one Observations
+    # of all measurements). Independent reference: build_observations over ALL of the
+    # stars' transits at once (the solver's own single-Observations constructor), same
+    # noiseless measurements: the design matrices hold the same rows and the solutions
+    # agree to summation rounding.
+    from mcsweep.astrometry.solve import prior_diagonal
+    from mcsweep.scanning.ephemeris import gaia_position_au
+    from mcsweep.solver import GlobalProblem, build_observations, solve_global
+
+    config, _ = _config([])
+    settings = P.build_settings(config)
+    stars = _synthetic_stars(2000, 3)
+    _, tr = P.transits_of((0, 0, stars["ra"].to_numpy(), stars["dec"].to_numpy(), settings.start_jd,
+                           settings.end_jd, settings.law))
+    data = P.prepare(settings, stars, tr, with_noise=False, block_stars=256)
+    assert len(data.blocks) == -(-data.solved.size // 256) > 4
+    prior = prior_diagonal(5.0, 10.0)
+    part = data.problem(prior)
+    # the same transits, dead time removed, as one Observations
+    keep = ~data.dead.is_dead(tr["t"])
+    new = np.full(len(stars), -1)
+    new[data.solved] = np.arange(data.solved.size)
+    sel = keep & (new[tr["star"]] >= 0)
+    star, t, psi = new[tr["star"][sel]], tr["t"][sel], tr["psi"][sel]
+    g = stars["phot_g_mean_mag"].to_numpy()[data.solved]
+    obs = build_observations(stars["ra"].to_numpy()[data.solved], stars["dec"].to_numpy()[data.solved], star, t,
+                             psi, gaia_position_au(t), t_ref_jd=data.t_ref_jd,
+                             sigma_al_mas=settings.noise.sigma_al_mas(g)[star],
+                             sigma_ac_mas=settings.noise.sigma_ac_mas(g)[star], spline=data.spline)
+    whole = GlobalProblem(obs, prior, stars["ra"].to_numpy()[data.solved], stars["dec"].to_numpy()[data.solved])
+    assert part.n_measurements == whole.n_measurements == data.h.size
+
+    # the same rows in both, matched by (star, first spline coefficient, first partial)
+    a, b = part.design(), whole.design()
+    key_a = np.lexsort((a[1][:, 0], a[3], a[0]))
+    key_b = np.lexsort((b[1][:, 0], b[3], b[0]))
+    for x, y in zip(a, b):
+        np.testing.assert_array_equal(x[key_a], y[key_b])
+    h_whole = (whole.forward(whole.join(data.x_true, np.zeros((whole.n_coef, 3))))
+               + np.einsum("mi,mi->m", obs.att, data.true_attitude_at(obs.tcb_jd)))
+    np.testing.assert_allclose(data.h[key_a], h_whole[key_b], rtol=0, atol=RTOL_BLOCKS * np.abs(h_whole).max())
+    s_part = solve_global(part, data.h, rtol=1e-11, update_tol_uas=1e-4)
+    s_whole = solve_global(whole, h_whole, rtol=1e-11, update_tol_uas=1e-4)
+    x_p, x_w = part.join(s_part.x, s_part.attitude), whole.join(s_whole.x, s_whole.attitude)
+    assert s_part.converged and s_whole.converged
+    assert np.linalg.norm(x_p - x_w) < RTOL_TWO_SOLUTIONS * np.linalg.norm(x_w)

@@ -81,7 +81,8 @@ from ..scanning.ephemeris import TABLE_END_JD_TCB, TABLE_START_JD_TCB, gaia_posi
 from ..scanning.timeline import DeadTime, draw_dead_time
 from ..scanning.timescale import tcb_jd
 from ..solver import (BLOCK_STARS, AttitudeSpline, GlobalProblem, build_observations, fit_frame, frame_attitude,
-                      frame_offsets, make_blocks, precision_weights, solve_global, source_normals)
+                      frame_offsets, in_block_order, make_blocks, precision_weights, solve_global,
+                      source_normals)
 from .epoch import resolve_reference_epoch
 from .secondary import load_f90_coefficients
 
@@ -281,8 +282,8 @@ def prepare(settings: PrimarySettings, stars: pd.DataFrame, transits: dict, *,
     ``transits`` sorted by star (as :func:`transits_of` gives them). The solver's blocks
     are built block by block of ``block_stars`` stars (a property of the problem, as in
     :class:`~mcsweep.solver.GlobalProblem`): each block's partials exist twice only while
-    it is built. Observation order: block by block, within a block the AL measurements
-    in transit order, then the AC ones; the noise is drawn in that order.
+    it is built. The noise is drawn block by block in the order the measurements are
+    built (AL in transit order, then AC); the stored order is the blocks' own (by time).
     ``with_noise=False`` leaves the measurement noise out (tests).
     """
     n = len(stars)
@@ -333,10 +334,14 @@ def prepare(settings: PrimarySettings, stars: pd.DataFrame, transits: dict, *,
              + np.einsum("mi,mi->m", obs.att, true_att[0].evaluate(true_att[1], obs.tcb_jd)))
         if with_noise:
             h += noise_rng.standard_normal(obs.size)
-        blocks += make_blocks(obs, block_stars=block_stars, first_star=first, first_row=row)
+        # Observation order = block order: each block's measurements are then a contiguous
+        # slice of h, read as a view by the solver (no index array, no per-solution copy).
+        new_blocks, perm = in_block_order(make_blocks(obs, block_stars=block_stars, first_star=first,
+                                                      first_row=row), row)
+        blocks += new_blocks
         normals.append(source_normals(obs))
-        hs.append(h)
-        ts.append(obs.tcb_jd)
+        hs.append(h[perm])
+        ts.append(obs.tcb_jd[perm])
         row += obs.size
         del obs
     cat = (lambda parts, shape: np.concatenate(parts) if parts else np.zeros(shape))
@@ -390,7 +395,7 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
     problem = data.problem(prior)
     ra, dec = st["ra"].to_numpy()[s], st["dec"].to_numpy()[s]
     sol = solve_global(problem, data.h, rtol=settings.rtol, update_tol_uas=settings.update_tol_uas,
-                       max_iter=settings.max_iter, log=log, run=run, chunk_stars=chunk_stars)
+                       max_iter=settings.max_iter, log=log, run=run, chunk_stars=chunk_stars, residuals=False)
     dx = sol.x - data.x_true
     # The frame rotator (Lindegren et al. 2012, Sect. 6.1), weighted by the formal
     # precisions: unweighted, the arcsec errors of 1-2-transit stars under 1000 mas set it.
@@ -424,6 +429,6 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
     extra = {"converged": bool(sol.converged), "iterations": len(sol.history),
              "attitude_rms_uas": (1e3 * np.sqrt(sq / t.size)).tolist() if t.size else [],
              "frame_rotation_mas": eps.tolist(), "frame_spin_mas_yr": omega.tolist(),
-             "residual_rms": float(np.sqrt(np.mean(sol.residuals ** 2))) if sol.residuals.size else float("nan"),
+             "residual_rms": sol.residual_rms,
              "seconds": float(sol.history[-1].seconds) if sol.history else 0.0}
     return res, hist, extra, attitude_error_series(data, sol.attitude, eps, omega)

@@ -39,8 +39,9 @@ class StarBlock:
     ----------
     first, n : int
         First star (index into the solution's stars) and number of stars.
-    rows : ndarray (m,) int64
-        Index of each measurement in the :class:`~mcsweep.solver.observations.Observations` order.
+    rows : ndarray (m,) int or slice
+        Index of each measurement in the problem's observation order (a slice when the
+        block's measurements are contiguous in it, :func:`~mcsweep.solver.cg.in_block_order`).
     star : ndarray (m,) int32
         Star of each measurement within the block (0 .. n - 1).
     src : ndarray (5, m)

@@ -80,7 +80,8 @@ from .observations import Observations
 from .reduction import chunk_ranges, pairwise_sum
 from .source_update import solve_sources, source_normals
 
-__all__ = ["GlobalProblem", "ConvergenceRecord", "GlobalSolution", "solve_global", "make_blocks", "UAS_PER_MAS",
+__all__ = ["GlobalProblem", "ConvergenceRecord", "GlobalSolution", "solve_global", "make_blocks", "in_block_order",
+           "UAS_PER_MAS",
            "BLOCK_STARS", "sequential_run"]
 
 UAS_PER_MAS = 1000.0
@@ -114,8 +115,9 @@ class GlobalSolution:
 
     x: np.ndarray            # (n, 5) stars
     attitude: np.ndarray     # (n_coef, 3) spline coefficients [mas]
-    cov: np.ndarray          # (n, 5, 5) per-star covariance, attitude as known
-    residuals: np.ndarray    # (m,) normalised measurement residuals h - A x
+    cov: np.ndarray          # (n, 5, 5) per-star covariance, attitude as known (the problem's; read only)
+    residuals: np.ndarray | None  # (m,) normalised measurement residuals h - A x (None unless asked)
+    residual_rms: float      # RMS of the normalised residuals (from the explicit final pass)
     history: list
     converged: bool
 
@@ -152,6 +154,25 @@ def make_blocks(obs: Observations, *, block_stars: int = BLOCK_STARS, compact: b
                                j0=j0.astype(np.int32), bval=np.ascontiguousarray(obs.bval[rows].T, dtype=real),
                                binv=None, n_coef=obs.n_coef, seg=seg, seg_j0=j0[seg].astype(np.int64)))
     return out
+
+
+def in_block_order(blocks: list, first_row: int) -> tuple[list, np.ndarray]:
+    """The same blocks with their measurements renumbered in block order.
+
+    ``blocks`` (from one :func:`make_blocks` call with ``first_row``) index their
+    measurements through ``rows``; renumbered, block ``k`` holds the contiguous rows
+    ``slice(start_k, start_k + m_k)``: no index array is stored, and the solver reads each
+    block's measurements as a view instead of a copy. Returns the new blocks and the
+    permutation ``perm`` (new row ``first_row + i`` is old row ``first_row + perm[i]``):
+    the caller reorders its per-measurement arrays with it.
+    """
+    perm = np.concatenate([np.asarray(b.rows) - first_row for b in blocks]) if blocks else np.zeros(0, np.int64)
+    out, start = [], first_row
+    for b in blocks:
+        m = int(np.size(b.rows))
+        out.append(dataclasses.replace(b, rows=slice(start, start + m)))
+        start += m
+    return out, perm
 
 
 class GlobalProblem:
@@ -338,8 +359,9 @@ def _back_task(item):
 
 
 def _residual_task(item):
-    ci, blocks, hs, x_s, x_a = item
-    return ci, [B.block_residuals(b, h, x_s[b.first - blocks[0].first:][:b.n], x_a) for b, h in zip(blocks, hs)]
+    ci, blocks, hs, x_s, x_a, keep = item
+    res = [B.block_residuals(b, h, x_s[b.first - blocks[0].first:][:b.n], x_a) for b, h in zip(blocks, hs)]
+    return ci, (res if keep else None), pairwise_sum(_dot(r, r) for r in res)
 
 
 def _dot(a, b) -> float:
@@ -370,7 +392,8 @@ def _ordered(run, fn, items) -> list:
 # ---------------------------------------------------------------------- solver
 def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_uas: float = 1e-3,
                  max_iter: int = 500, min_iter: int = 2, log=None, run: Callable | None = None,
-                 chunk_stars: int | None = None, run_iterations: Callable | None = None) -> GlobalSolution:
+                 chunk_stars: int | None = None, run_iterations: Callable | None = None,
+                 residuals: bool = True) -> GlobalSolution:
     """Solve ``N x = A' h`` by PCG from ``x = 0`` (module notes).
 
     Parameters
@@ -400,6 +423,9 @@ def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_u
     chunk_stars : int, optional, keyword-only
         Stars per chunk task (rounded down to a power of two of blocks); default one
         block per task. Results do not depend on it.
+    residuals : bool, keyword-only
+        Return the residual of every measurement (``GlobalSolution.residuals``, 8 bytes
+        per measurement); ``False`` keeps only their RMS.
     """
     run = run or sequential_run
     run_it = run_iterations or sequential_run
@@ -484,10 +510,14 @@ def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_u
         p_s, p_a = z_s + beta * p_s, z_a + beta * p_a
         q_s, q_a = nz_s + beta * q_s, nz_a + beta * q_a   # N p without another pass
         rz = rz_new
-    out = _ordered(run, _residual_task, [(i, bl, hh_, x_s[sl], x_a)
+    out = _ordered(run, _residual_task, [(i, bl, hh_, x_s[sl], x_a, residuals)
                                           for i, (bl, hh_, sl) in enumerate(zip(chunks, hs, stars))])
-    residuals = np.empty(h.size)
-    for b, rb in zip(pb.blocks, [r for o in out for r in o[0]]):
-        residuals[b.rows] = rb
-    return GlobalSolution(x=x_s, attitude=x_a, cov=pb.src_inv.copy(), residuals=residuals,
+    res_all = None
+    if residuals:
+        res_all = np.empty(h.size)
+        for b, rb in zip(pb.blocks, [r for o in out for r in o[0]]):
+            res_all[b.rows] = rb
+    ss = pairwise_sum(o[1] for o in out)
+    return GlobalSolution(x=x_s, attitude=x_a, cov=pb.src_inv, residuals=res_all,
+                          residual_rms=float(np.sqrt(ss / h.size)) if h.size else float("nan"),
                           history=history, converged=converged)

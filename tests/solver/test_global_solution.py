@@ -203,9 +203,11 @@ def test_solution_is_bit_identical_for_any_chunking_and_workers(weak_problem):
     with executor(ExecutionConf(backend="loky", n_jobs=2)) as run:
         runs.append(solve_global(problem, h, run=run, chunk_stars=256, **kw))
         runs.append(solve_global(problem, h, run=run, run_iterations=run, chunk_stars=512, **kw))
+    runs += [solve_global(problem, h, workers=w, chunk_stars=c, **kw) for w, c in ((2, 128), (3, 256))]  # forked
     for sol in runs:
         assert np.array_equal(sol.x, ref.x) and np.array_equal(sol.attitude, ref.attitude)
         assert np.array_equal(sol.residuals, ref.residuals) and len(sol.history) == len(ref.history)
+        assert sol.residual_rms == ref.residual_rms
 
 
 def test_with_prior_equals_a_problem_built_for_that_prior(weak_problem):

@@ -25,6 +25,8 @@ reduction
     Sums over blocks in a fixed pairwise tree: bit-identical for any chunking.
 cg
     The normal equations in blocks and the preconditioned conjugate-gradient iteration.
+resident
+    Forked chunk workers that keep their blocks (the passes on one machine's cores).
 direct
     The same normal equations by sparse LU (tests' and benchmarks' reference).
 

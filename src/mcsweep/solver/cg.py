@@ -78,6 +78,7 @@ from .attitude_update import free_coefficients
 from .frame import precision_weights, rotation_matrices
 from .observations import Observations
 from .reduction import chunk_ranges, pairwise_sum
+from .resident import forked_chunks
 from .source_update import solve_sources, source_normals
 
 __all__ = ["GlobalProblem", "ConvergenceRecord", "GlobalSolution", "solve_global", "make_blocks", "in_block_order",
@@ -393,7 +394,7 @@ def _ordered(run, fn, items) -> list:
 def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_uas: float = 1e-3,
                  max_iter: int = 500, min_iter: int = 2, log=None, run: Callable | None = None,
                  chunk_stars: int | None = None, run_iterations: Callable | None = None,
-                 residuals: bool = True) -> GlobalSolution:
+                 residuals: bool = True, workers: int = 1) -> GlobalSolution:
     """Solve ``N x = A' h`` by PCG from ``x = 0`` (module notes).
 
     Parameters
@@ -419,20 +420,31 @@ def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_u
         (16000 stars, 1.4e5 measurements, 2 chunks): joblib loky with 2 workers took 5.8x
         the wall time of in-process, threads 1.2x: a map-like executor re-sends every
         chunk's measurements each call, which costs more than the pass itself. Pass
-        ``run`` here only for an executor whose workers keep their data.
+        ``run`` here only for an executor whose workers keep their data (on one machine:
+        ``workers``).
     chunk_stars : int, optional, keyword-only
         Stars per chunk task (rounded down to a power of two of blocks); default one
         block per task. Results do not depend on it.
     residuals : bool, keyword-only
         Return the residual of every measurement (``GlobalSolution.residuals``, 8 bytes
         per measurement); ``False`` keeps only their RMS.
+    workers : int, keyword-only
+        Forked processes that keep their share of the chunks (:mod:`~mcsweep.solver.resident`)
+        for every pass not given to ``run`` / ``run_iterations``; 1 (default) or no ``fork``:
+        in-process. Results do not depend on it.
     """
-    run = run or sequential_run
-    run_it = run_iterations or sequential_run
     h = np.asarray(h, dtype=float)
-    pb = problem
-    ranges = pb.chunks(chunk_stars)
-    chunks = [pb.blocks[lo:hi] for lo, hi in ranges]
+    ranges = problem.chunks(chunk_stars)
+    chunks = [problem.blocks[lo:hi] for lo, hi in ranges]
+    with forked_chunks(chunks, workers if run_iterations is None else 1) as pool:
+        return _pcg(problem, h, chunks, run or pool or sequential_run, run_iterations or pool or sequential_run,
+                    rtol=rtol, update_tol_uas=update_tol_uas, max_iter=max_iter, min_iter=min_iter, log=log,
+                    residuals=residuals)
+
+
+def _pcg(pb: GlobalProblem, h, chunks, run, run_it, *, rtol, update_tol_uas, max_iter, min_iter, log,
+         residuals) -> GlobalSolution:
+    """The PCG iteration of :func:`solve_global` with its executors chosen."""
     stars = [slice(bl[0].first, bl[-1].first + bl[-1].n) for bl in chunks]
     hs = [[h[b.rows] for b in bl] for bl in chunks]
 

@@ -81,7 +81,10 @@ def run_primary(config, raw_cfg: dict, run_dir, *, prov=None) -> Path:
     # every solution, opened when the first one is needed): local joblib processes
     # re-receive every chunk's measurements per call, which costs more than the work
     # (measured 6.6x slower setup pass, 32000 stars; see mcsweep.solver.cg.solve_global).
+    # On this machine the n_jobs workers are forked per solution and keep their share of
+    # the blocks (mcsweep.solver.resident); results are the same bits either way.
     run = None
+    workers = int(config.execution.n_jobs) if config.execution.backend in ("loky", "threading") else 1
     with contextlib.ExitStack() as cluster:
         for label in dict.fromkeys([*settings.priors, *factors.values()]):
             cid = _prior_id(label)
@@ -95,7 +98,7 @@ def run_primary(config, raw_cfg: dict, run_dir, *, prov=None) -> Path:
                         res, hist, extra, series = solve_prior(settings, data, label, run=run,
                                                                chunk_stars=int(config.execution.chunk_stars))
                     else:
-                        res, hist, extra, series = solve_prior(settings, data, label)
+                        res, hist, extra, series = solve_prior(settings, data, label, workers=workers)
                     atomic_write_bytes(run_dir / CHUNKS_DIR / f"{cid}_history.csv", hist.to_csv(index=False).encode())
                     atomic_write_bytes(run_dir / CHUNKS_DIR / f"{cid}_attitude.csv",
                                        series.to_csv(index=False).encode())

@@ -70,7 +70,13 @@ def run_primary(config, raw_cfg: dict, run_dir, *, prov=None) -> Path:
                 for i, lo in enumerate(range(0, len(stars), chunk))]
         found = dict(run(transits_of, jobs))
         transits = {k: np.concatenate([found[i][k] for i in range(len(jobs))]) for k in ("star", "t", "psi")}
+        del found  # 16 bytes per transit, 2.6e7 transits at the paper's scale
         print(f"mcsweep: primary: {len(stars)} stars, {transits['t'].size} FoV transits found", flush=True)
+    if config.execution.backend == "loky":
+        # The transit search's worker processes would idle (holding their memory) through
+        # the solutions, which use forked workers of their own.
+        from joblib.externals.loky import get_reusable_executor
+        get_reusable_executor().shutdown(wait=True)
     with prov.stage("observations"):
         data = prepare(settings, stars, transits)
         del transits

@@ -13,7 +13,8 @@ only 1-4 transits), AL + AC, noisy measurements, the prior of Eq. 18 (R = 10 /yr
    equilibrated bordered system plus two refinement steps): CPU ratio and agreement;
 3. ``scipy.sparse.linalg.lsqr`` on the same weighted design plus prior rows: CPU ratio;
 4. executor overhead: the same solve in-process and with the one-off passes through joblib
-   (loky, 2 workers; the iteration passes stay in-process);
+   (loky, 2 workers; the iteration passes stay in-process), and with every pass in 2 forked
+   workers that keep their blocks (``workers=2``);
 5. scaling with the number of stars (3 sizes): ms per iteration, ns per measurement and
    iteration, bytes per measurement held by the solver, peak traced memory;
 6. an extrapolation to the issue's full scale.
@@ -165,7 +166,7 @@ def main():
                   f"lsqr/PCG = {t_lsqr / t_pcg:.2f}")
             f90 = (problem, h, t_pcg, len(sol.history))
 
-    print("\n4. executor overhead (F90, wall seconds): in-process vs joblib loky 2 workers")
+    print("\n4. executor overhead (F90, wall seconds): in-process vs joblib loky 2 workers vs 2 forked workers")
     from mcsweep.sweep.execution import executor
     from mcsweep.sweep.schema import ExecutionConf
     problem, h, _, _ = f90
@@ -180,6 +181,17 @@ def main():
     same = np.array_equal(s_seq.x, s_par.x) and np.array_equal(s_seq.attitude, s_par.attitude)
     print(f"  in-process {w_seq:.2f} s, loky {w_par:.2f} s ({len(problem.blocks)} block(s) of {problem.blocks[0].n} "
           f"stars), ratio {w_par / w_seq:.2f}; bit-identical: {same}")
+    small = GlobalProblem(obs, prior_diagonal(1.0, 10.0), ra, dec, block_stars=max(1, problem.n_stars // 8))
+    w0 = time.perf_counter()
+    s1 = solve_global(small, h, **kw)
+    w_one = time.perf_counter() - w0
+    w0 = time.perf_counter()
+    s2 = solve_global(small, h, workers=2, **kw)
+    w_two = time.perf_counter() - w0
+    same = np.array_equal(s1.x, s2.x) and np.array_equal(s1.attitude, s2.attitude)
+    print(f"  forked workers that keep their blocks (solver.resident), {len(small.blocks)} blocks: in-process "
+          f"{w_one:.2f} s, 2 workers {w_two:.2f} s, speed-up {w_one / w_two:.2f} (2 cores; needs them idle); "
+          f"bit-identical: {same}")
 
     print("\n5. scaling (F90 prior), sizes x1, x2, x4 stars")
     rows = []
@@ -207,15 +219,13 @@ def main():
     m_full = m_per_star_day * FULL_STARS * FULL_DAYS * FULL_LIVE
     ns = rows[-1][1] / rows[-1][0]
     it_total = sum(iters[k] for k in ("F90 (1 mas)", "10 F90 (10 mas)", "1000 mas"))
-    per_star = 8 * 25 / (m_full / FULL_STARS)  # the per-star inverse blocks, spread over the measurements
-    store = 106 + per_star
+    store = rows[-1][2]  # measured: per-measurement storage plus the per-star blocks at this size
     print(f"  ~{m_full:.2e} measurements ({m_per_star_day:.3f} per star and day), {ns * 1e9:.0f} ns/(measurement "
-          f"iteration) -> {ns * m_full:.0f} s per iteration (iterations run in-process on one core); iterations "
-          f"for the 3 priors here: {it_total} -> {ns * m_full * it_total / 60:.0f} min")
+          f"iteration) -> {ns * m_full:.0f} s per iteration on one core (workers=2 divides the passes' share, "
+          f"section 4); iterations for the 3 priors here: {it_total} -> {ns * m_full * it_total / 60:.0f} min")
     print(f"  memory: solver {store:.0f} B/measurement -> {store * m_full / 2**30:.1f} GB (compact=True: "
-          f"{(store - 28) * m_full / 2**30:.1f} GB), plus the experiment's measurements and epochs (16 B/"
-          f"measurement, {16 * m_full / 2**30:.1f} GB; it builds the blocks block by block, without a whole "
-          "Observations)")
+          f"{(store - 16) * m_full / 2**30:.1f} GB), plus the experiment's measurements (8 B/measurement, "
+          f"{8 * m_full / 2**30:.1f} GB; it builds the blocks block by block, without a whole Observations)")
     print("  (iteration counts may grow with the problem's size and knot density)")
 
 if __name__ == "__main__":

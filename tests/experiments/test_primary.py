@@ -214,7 +214,7 @@ def test_noiseless_data_recover_the_truth_and_the_attitude():
     _, tr = P.transits_of((0, 0, stars["ra"].to_numpy(), stars["dec"].to_numpy(), settings.start_jd,
                            settings.end_jd, settings.law))
     data = P.prepare(settings, stars, tr, with_noise=False)
-    assert 1e3 * np.sqrt(np.mean(data.true_attitude_at(data.tcb_jd) ** 2)) > 1000 * RECOVERY_UAS  # a real one
+    assert 1e3 * np.sqrt(np.mean(data.true_attitude_at(data.epochs()) ** 2)) > 1000 * RECOVERY_UAS  # a real one
     res, _, extra, _ = P.solve_prior(settings, data, "F90")
     assert extra["converged"]
     solved = res["inside"].to_numpy() >= 0
@@ -273,8 +273,8 @@ def test_block_by_block_build_is_the_one_observations_problem():
     h_whole = (whole.forward(whole.join(data.x_true, np.zeros((whole.n_coef, 3))))
                + np.einsum("mi,mi->m", obs.att, data.true_attitude_at(obs.tcb_jd)))
     np.testing.assert_allclose(data.h[key_a], h_whole[key_b], rtol=0, atol=RTOL_BLOCKS * np.abs(h_whole).max())
-    s_part = solve_global(part, data.h, rtol=1e-11, update_tol_uas=1e-4)
-    s_whole = solve_global(whole, h_whole, rtol=1e-11, update_tol_uas=1e-4)
+    s_part = solve_global(part, data.h, rtol=1e-11, update_tol_uas=1e-3, max_iter=2000)
+    s_whole = solve_global(whole, h_whole, rtol=1e-11, update_tol_uas=1e-3, max_iter=2000)
     x_p, x_w = part.join(s_part.x, s_part.attitude), whole.join(s_whole.x, s_whole.attitude)
     assert s_part.converged and s_whole.converged
     assert np.linalg.norm(x_p - x_w) < RTOL_TWO_SOLUTIONS * np.linalg.norm(x_w)

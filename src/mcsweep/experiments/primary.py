@@ -72,6 +72,7 @@ import pandas as pd
 
 from ..astrometry.confidence import inside as inside_ellipse
 from ..astrometry.confidence import mahalanobis_sq
+from ..astrometry.design import JULIAN_YEAR_DAYS
 from ..astrometry.noise import G_MAX, NoiseModel
 from ..astrometry.solve import prior_diagonal
 from ..errors import UserInputError
@@ -80,6 +81,7 @@ from ..scanning import ScanningLaw, find_transits
 from ..scanning.ephemeris import TABLE_END_JD_TCB, TABLE_START_JD_TCB, gaia_position_au
 from ..scanning.timeline import DeadTime, draw_dead_time
 from ..scanning.timescale import tcb_jd
+from ..solver.blocks import att_rows, src_forward
 from ..solver import (BLOCK_STARS, AttitudeSpline, GlobalProblem, build_observations, fit_frame, frame_attitude,
                       frame_offsets, in_block_order, make_blocks, precision_weights, solve_global,
                       source_normals)
@@ -234,7 +236,6 @@ class PreparedData:
     blocks: list             # solver StarBlocks of the solved stars (mcsweep.solver.make_blocks)
     normals: np.ndarray      # (n_solved, 5, 5) data normal matrices of the solved stars
     h: np.ndarray            # normalised measurements (observed minus computed from the law), problem order
-    tcb_jd: np.ndarray       # epoch of each measurement (same order)
     x_true: np.ndarray       # (n_solved, 5)
     spline: AttitudeSpline
     true_attitude: tuple     # (AttitudeSpline, coefficients (n, 3) [mas]): the true rotation
@@ -249,6 +250,14 @@ class PreparedData:
     @property
     def n_measurements(self) -> int:
         return int(self.h.size)
+
+    def block_epochs(self, block) -> np.ndarray:
+        """TCB JD of a block's measurements (from the epochs the blocks store, to ~1e-14 d)."""
+        return self.t_ref_jd + JULIAN_YEAR_DAYS * block.t
+
+    def epochs(self) -> np.ndarray:
+        """TCB JD of every measurement, in the problem's order."""
+        return np.concatenate([self.block_epochs(b) for b in self.blocks]) if self.blocks else np.zeros(0)
 
     def true_attitude_at(self, tcb_jd) -> np.ndarray:
         """The true rotation (module notes, step 3) at ``tcb_jd`` [mas], (m, 3)."""
@@ -285,7 +294,7 @@ def prepare(settings: PrimarySettings, stars: pd.DataFrame, transits: dict, *,
     are built block by block of ``block_stars`` stars (a property of the problem, as in
     :class:`~mcsweep.solver.GlobalProblem`): each block's partials exist twice only while
     it is built. The noise is drawn block by block in the order the measurements are
-    built (AL in transit order, then AC); the stored order is the blocks' own (by time).
+    built, the blocks' own (by time within each block).
     ``with_noise=False`` leaves the measurement noise out (tests).
     """
     n = len(stars)
@@ -319,7 +328,7 @@ def prepare(settings: PrimarySettings, stars: pd.DataFrame, transits: dict, *,
     # One AL measurement per live transit, one AC where its sigma is finite: the sizes are
     # known, so the measurements and epochs are filled in place (no second copy).
     per_star = n_fov[solved] * (1 + (np.isfinite(s_ac_star) if s_ac_star is not None else 0))
-    h_all, t_all = np.empty(int(per_star.sum())), np.empty(int(per_star.sum()))
+    h_all = np.empty(int(per_star.sum()))
     blocks, normals = [], []
     row = 0
     for first in range(0, solved.size, block_stars):
@@ -334,31 +343,29 @@ def prepare(settings: PrimarySettings, stars: pd.DataFrame, transits: dict, *,
                                  t_ref_jd=t_ref, sigma_al_mas=s_al_star[first:last][st],
                                  sigma_ac_mas=None if s_ac_star is None else s_ac_star[first:last][st],
                                  spline=spline)
-        # Normalised measurements: rows of the partials are already divided by sigma.
-        h = (np.einsum("mi,mi->m", obs.src, x_true[first:last][obs.star])
-             + np.einsum("mi,mi->m", obs.att, true_att[0].evaluate(true_att[1], obs.tcb_jd)))
-        if with_noise:
-            h += noise_rng.standard_normal(obs.size)
         # Observation order = block order: each block's measurements are then a contiguous
         # slice of h, read as a view by the solver (no index array, no per-solution copy).
-        new_blocks, perm = in_block_order(make_blocks(obs, block_stars=block_stars, first_star=first,
-                                                      first_row=row), row)
-        blocks += new_blocks
+        (blk,), _ = in_block_order(make_blocks(obs, ra[first:last], dec[first:last], block_stars=block_stars,
+                                               first_star=first, first_row=row), row)
         normals.append(source_normals(obs))
-        h_all[row:row + obs.size] = h[perm]
-        t_all[row:row + obs.size] = obs.tcb_jd[perm]
-        row += obs.size
         del obs
+        # Normalised measurements (the partials are divided by sigma) from the very partials
+        # the solver holds: truth plus the true attitude, plus unit noise in block order.
+        rot = true_att[0].evaluate(true_att[1], t_ref + JULIAN_YEAR_DAYS * blk.t)  # (m, 3) [mas]
+        h = src_forward(blk, x_true[first:last])
+        for c, rows in enumerate(att_rows(blk)):
+            h += rows * rot[:, c]
+        if with_noise:
+            h += noise_rng.standard_normal(h.size)
+        h_all[blk.rows] = h
+        blocks.append(blk)
+        row += h.size
     if row != h_all.size:  # pragma: no cover - the counting above is the definition of the sizes
         raise RuntimeError(f"built {row} measurements, expected {h_all.size}")
     return PreparedData(stars=stars, solved=solved, blocks=blocks,
                         normals=np.concatenate(normals) if normals else np.zeros((0, 5, 5)), h=h_all,
-                        tcb_jd=t_all, x_true=x_true, spline=spline, true_attitude=true_att, t_ref_jd=t_ref,
+                        x_true=x_true, spline=spline, true_attitude=true_att, t_ref_jd=t_ref,
                         dead=dead)
-
-
-#: Measurements per chunk of the attitude-error evaluation (bounds its temporaries).
-_EVAL_CHUNK = 1 << 21
 
 
 def attitude_error(data: PreparedData, coef, eps, omega, tcb_jd) -> np.ndarray:
@@ -429,14 +436,14 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
                         "n_fov": st["n_fov"].to_numpy().astype(np.int16), "inside": inside,
                         "err_mas": err.astype(np.float32),
                         "err_parallax_mas": err_plx.astype(np.float32), "sigma_prior_mas": sigma_prior.astype(np.float32)})
-    t = data.tcb_jd
     sq = np.zeros(3)
-    for lo in range(0, t.size, _EVAL_CHUNK):  # bounded temporaries at any number of measurements
-        sq += np.sum(attitude_error(data, sol.attitude, eps, omega, t[lo:lo + _EVAL_CHUNK]) ** 2, axis=0)
+    for b in data.blocks:  # block by block: bounded temporaries at any number of measurements
+        sq += np.sum(attitude_error(data, sol.attitude, eps, omega, data.block_epochs(b)) ** 2, axis=0)
+    m = data.n_measurements
     hist = pd.DataFrame([dataclasses.asdict(r) for r in sol.history])
     hist.insert(0, "prior", label)
     extra = {"converged": bool(sol.converged), "iterations": len(sol.history),
-             "attitude_rms_uas": (1e3 * np.sqrt(sq / t.size)).tolist() if t.size else [],
+             "attitude_rms_uas": (1e3 * np.sqrt(sq / m)).tolist() if m else [],
              "frame_rotation_mas": eps.tolist(), "frame_spin_mas_yr": omega.tolist(),
              "residual_rms": sol.residual_rms,
              "seconds": float(sol.history[-1].seconds) if sol.history else 0.0}

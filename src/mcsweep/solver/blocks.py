@@ -1,10 +1,18 @@
 """Blocks of stars: their measurements in compact form and the per-block work of the solver.
 
-A :class:`StarBlock` holds the measurements of a fixed range of stars, sorted by star,
-with the partials stored compactly (per measurement: 5 source partials, 3 attitude
-axis partials, 4 B-spline values, the first coefficient index and the star's index in
-the block; no dense 12-column attitude rows), plus each star's inverse source block
-``B_i^-1 = (N_ss,i + N_p,i)^-1``.
+A :class:`StarBlock` holds the measurements of a fixed range of stars in time order,
+with the partials stored compactly, 70 bytes per measurement: the partials w.r.t.
+position and parallax, the epoch (the proper-motion partials are the position partials
+times the epoch, exactly as Eq. 1's design matrix forms them), 4 B-spline values, the
+first coefficient index and the star's index in the block; plus, per star, its tangent
+directions ``p, q`` and its inverse source block ``B_i^-1 = (N_ss,i + N_p,i)^-1``.
+
+The attitude partials are not stored: a measurement along ``a = s_a p + s_d q`` (its
+partials w.r.t. ``alpha*, delta`` are ``s_a, s_d``) changes under a small rotation
+``delta`` of the instrument by ``-(u x a) . delta = (s_d p - s_a q) . delta``
+(:mod:`~mcsweep.solver.observations`), so they follow from the position partials and the
+star's ``p, q`` (they agree with the explicit ones to 2.5e-16 relative; the problem solved
+is the one with these partials, :meth:`~mcsweep.solver.cg.GlobalProblem.design`).
 
 The functions here are the chunk tasks of :mod:`mcsweep.solver.cg`: module-level,
 picklable, pure (arguments in, results out), so any executor (joblib processes, a Dask
@@ -24,8 +32,8 @@ import numpy as np
 
 from .attitude_update import band_of_rows
 
-__all__ = ["StarBlock", "att_forward", "att_adjoint", "att_band", "src_forward", "src_adjoint",
-           "block_setup", "block_precondition_forward", "block_precondition_back", "block_residuals",
+__all__ = ["StarBlock", "att_rows", "src_rows", "att_forward", "att_adjoint", "att_band", "src_forward",
+           "src_adjoint", "block_setup", "block_precondition_forward", "block_precondition_back", "block_residuals",
            "block_normal_apply"]
 
 _AX, _NB, _NP = 3, 4, 5
@@ -42,13 +50,16 @@ class StarBlock:
     rows : ndarray (m,) int or slice
         Index of each measurement in the problem's observation order (a slice when the
         block's measurements are contiguous in it, :func:`~mcsweep.solver.cg.in_block_order`).
-    star : ndarray (m,) int32
+    star : ndarray (m,) int16 or int32
         Star of each measurement within the block (0 .. n - 1).
-    src : ndarray (5, m)
-        Normalised source partials (one contiguous row per parameter: the passes read
-        them column by column).
-    att : ndarray (3, m)
-        Normalised attitude axis partials.
+    src : ndarray (3, m)
+        Normalised partials w.r.t. (dalpha*, ddelta, parallax) (one contiguous row per
+        parameter: the passes read them row by row).
+    t : ndarray (m,)
+        Epoch minus the reference epoch [Julian years]: the proper-motion partials are
+        ``t * src[0]``, ``t * src[1]``.
+    pq : ndarray (6, n)
+        Each star's tangent directions ``p`` (rows 0-2) and ``q`` (rows 3-5), ICRS.
     j0 : ndarray (m,) int32
         First spline coefficient touching the epoch.
     bval : ndarray (4, m)
@@ -69,7 +80,8 @@ class StarBlock:
     rows: np.ndarray
     star: np.ndarray
     src: np.ndarray
-    att: np.ndarray
+    t: np.ndarray
+    pq: np.ndarray
     j0: np.ndarray
     bval: np.ndarray
     binv: np.ndarray
@@ -96,14 +108,33 @@ def _rowdot(a, b) -> np.ndarray:
     return out
 
 
+def att_rows(blk: StarBlock, sel=slice(None)) -> np.ndarray:
+    """Attitude axis partials ``(3, m)`` of the measurements ``sel`` (module notes)."""
+    s_a, s_d, star = blk.src[0, sel], blk.src[1, sel], blk.star[sel]
+    return np.stack([s_d * blk.pq[c][star] - s_a * blk.pq[3 + c][star] for c in range(_AX)])
+
+
+def src_rows(blk: StarBlock, sel=slice(None)) -> np.ndarray:
+    """The five source partials ``(5, m)`` of the measurements ``sel``."""
+    t = blk.t[sel]
+    s_a, s_d = blk.src[0, sel], blk.src[1, sel]
+    return np.stack([s_a, s_d, blk.src[2, sel], t * s_a, t * s_d])
+
+
 def att_forward(blk: StarBlock, p) -> np.ndarray:
     """``A_a p`` (m,) for attitude coefficients ``p (n_coef, 3)``."""
-    out = np.zeros(blk.j0.size)
     pt = np.ascontiguousarray(np.asarray(p, dtype=float).T)
-    for k in range(_NB):
-        j = blk.j0 + k
-        out += blk.bval[k] * (blk.att[0] * pt[0][j] + blk.att[1] * pt[1][j] + blk.att[2] * pt[2][j])
-    return out
+    star = blk.star
+    # the correction's value at each epoch, projected on p and q of the star
+    along_p = np.zeros(blk.j0.size)
+    along_q = np.zeros(blk.j0.size)
+    for c in range(_AX):
+        value = blk.bval[0] * pt[c][blk.j0]
+        for k in range(1, _NB):
+            value += blk.bval[k] * pt[c][blk.j0 + k]
+        along_p += blk.pq[c][star] * value
+        along_q += blk.pq[3 + c][star] * value
+    return blk.src[1] * along_p - blk.src[0] * along_q
 
 
 def att_adjoint(blk: StarBlock, v) -> np.ndarray:
@@ -111,8 +142,10 @@ def att_adjoint(blk: StarBlock, v) -> np.ndarray:
     out = np.zeros((blk.n_coef, _AX))
     if blk.j0.size == 0:
         return out
+    v = np.asarray(v, dtype=float)
+    w_d, w_a = blk.src[1] * v, blk.src[0] * v
     for c in range(_AX):
-        wc = blk.att[c] * np.asarray(v, dtype=float)
+        wc = w_d * blk.pq[c][blk.star] - w_a * blk.pq[3 + c][blk.star]
         for k in range(_NB):
             out[blk.seg_j0 + k, c] += np.add.reduceat(blk.bval[k] * wc, blk.seg)
     return out
@@ -120,22 +153,23 @@ def att_adjoint(blk: StarBlock, v) -> np.ndarray:
 
 def att_band(blk: StarBlock) -> np.ndarray:
     """The block's ``N_aa`` in upper band storage (:func:`~mcsweep.solver.attitude_update.band_of_rows`)."""
-    G = (blk.bval[:, None, :].astype(float) * blk.att[None, :, :]).reshape(_AX * _NB, -1).T
+    G = (blk.bval[:, None, :].astype(float) * att_rows(blk)[None, :, :]).reshape(_AX * _NB, -1).T
     return band_of_rows(blk.j0, G, blk.n_coef)
 
 
 def src_forward(blk: StarBlock, x) -> np.ndarray:
     """``A_s x`` (m,) for per-star parameters ``x (n, 5)``."""
     xt = np.asarray(x, dtype=float).T
-    out = blk.src[0] * xt[0][blk.star]
-    for i in range(1, _NP):
-        out += blk.src[i] * xt[i][blk.star]
-    return out
+    star, t = blk.star, blk.t
+    return (blk.src[0] * (xt[0][star] + t * xt[3][star]) + blk.src[1] * (xt[1][star] + t * xt[4][star])
+            + blk.src[2] * xt[2][star])
 
 
 def src_adjoint(blk: StarBlock, v) -> np.ndarray:
     """``A_s' v`` (n, 5)."""
-    return np.stack([np.bincount(blk.star, blk.src[i] * v, minlength=blk.n) for i in range(_NP)], axis=1)
+    w_a, w_d = blk.src[0] * v, blk.src[1] * v
+    return np.stack([np.bincount(blk.star, w, minlength=blk.n)
+                     for w in (w_a, w_d, blk.src[2] * v, blk.t * w_a, blk.t * w_d)], axis=1)
 
 
 def _binv(blk: StarBlock, x) -> np.ndarray:
@@ -179,7 +213,8 @@ def _schur_absorption(blk: StarBlock, batch_stars: int = 4096, window: int = SCH
         hi = min(lo + batch_stars, blk.n)
         sel = order[np.searchsorted(star_sorted, lo):np.searchsorted(star_sorted, hi)]
         star, j0 = blk.star[sel].astype(np.int64), blk.j0[sel].astype(np.int64)
-        G = (blk.bval[:, None, sel].astype(float) * blk.att[None, :, sel]).reshape(_AX * _NB, -1)  # (12, m)
+        G = (blk.bval[:, None, sel].astype(float) * att_rows(blk, sel)[None, :, :]).reshape(_AX * _NB, -1)  # (12, m)
+        a_all = src_rows(blk, sel)
         jb = (j0 // window) * window
         key = star * blk.n_coef + jb  # non-decreasing: sel is in star order, each star's rows in time order
         starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
@@ -192,7 +227,7 @@ def _schur_absorption(blk: StarBlock, batch_stars: int = 4096, window: int = SCH
         for o in range(window):  # rows by offset of their j0 within the window
             rows = slice(None) if window == 1 else np.flatnonzero(j0 - jb == o)
             for i in range(_NP):
-                a = blk.src[i, sel][rows]
+                a = a_all[i][rows]
                 for r in range(_AX * _NB):
                     H[i, _AX * o + r] += np.bincount(cl[rows], a * G[r][rows], minlength=nc)
         Bc = np.ascontiguousarray(blk.binv[uniq // blk.n_coef].transpose(1, 2, 0))  # (5, 5, clusters)

@@ -73,6 +73,7 @@ from typing import Callable, Iterable, Iterator
 import numpy as np
 from scipy.linalg import LinAlgError, cho_solve_banded, cholesky_banded
 
+from ..astrometry.design import tangent_triad
 from . import blocks as B
 from .attitude_update import free_coefficients
 from .frame import precision_weights, rotation_matrices
@@ -123,13 +124,14 @@ class GlobalSolution:
     converged: bool
 
 
-def make_blocks(obs: Observations, *, block_stars: int = BLOCK_STARS, compact: bool = False,
+def make_blocks(obs: Observations, ra_deg, dec_deg, *, block_stars: int = BLOCK_STARS, compact: bool = False,
                 first_star: int = 0, first_row: int = 0) -> list:
     """The :class:`~mcsweep.solver.blocks.StarBlock` s of ``obs`` (without per-star inverses).
 
-    ``obs`` may hold a part of the problem: its stars are ``first_star + obs.star``
-    (``first_star`` a multiple of ``block_stars``) and its measurements are rows
-    ``first_row ..`` of the problem's observation order. A problem built part by part
+    ``ra_deg, dec_deg`` (``obs.n_stars``,): directions of ``obs``'s stars. ``obs`` may hold
+    a part of the problem: its stars are ``first_star + obs.star`` (``first_star`` a
+    multiple of ``block_stars``) and its measurements are rows ``first_row ..`` of the
+    problem's observation order. A problem built part by part
     (:meth:`GlobalProblem.from_blocks`) never holds all measurements' partials twice:
     each part's :class:`Observations` can be dropped once its blocks are made.
     """
@@ -139,6 +141,8 @@ def make_blocks(obs: Observations, *, block_stars: int = BLOCK_STARS, compact: b
     star_sorted = obs.star[order]
     real = np.float32 if compact else np.float64
     star_int = np.int16 if block_stars <= np.iinfo(np.int16).max + 1 else np.int32
+    p, q, _ = tangent_triad(np.asarray(ra_deg, dtype=float), np.asarray(dec_deg, dtype=float))
+    pq = np.concatenate([p.T, q.T])  # (6, n)
     out = []
     for first in range(0, obs.n_stars, block_stars):
         last = min(first + block_stars, obs.n_stars)
@@ -150,8 +154,8 @@ def make_blocks(obs: Observations, *, block_stars: int = BLOCK_STARS, compact: b
         row_int = np.int32 if first_row + obs.size < 2**31 else np.int64
         out.append(B.StarBlock(first=first_star + first, n=last - first, rows=(first_row + rows).astype(row_int),
                                star=(obs.star[rows] - first).astype(star_int),
-                               src=np.ascontiguousarray(obs.src[rows].T, dtype=np.float64),
-                               att=np.ascontiguousarray(obs.att[rows].T, dtype=real),
+                               src=np.ascontiguousarray(obs.src[rows, :3].T, dtype=np.float64),
+                               t=obs.t_yr[rows], pq=np.ascontiguousarray(pq[:, first:last]),
                                j0=j0.astype(np.int32), bval=np.ascontiguousarray(obs.bval[rows].T, dtype=real),
                                binv=None, n_coef=obs.n_coef, seg=seg, seg_j0=j0[seg].astype(np.int64)))
     return out
@@ -195,18 +199,19 @@ class GlobalProblem:
         Stars per reduction block (:data:`BLOCK_STARS`); part of the problem, not of the
         execution: the rounding of the sums depends on it, not on the chunking.
     compact : bool, keyword-only
-        Store the attitude axis partials and the spline values as float32 (78 instead of
-        106 bytes per measurement; products and sums stay float64). Off by default: on an
-        experiment-like problem (3000 stars, one year, 1000 mas) the rounding moved the
-        solution by 2.5e-6 relative to the float64 problem's direct solution (2.6e-5 of
-        the formal sigma, 8 uas for a star with sigma ~ arcsec), over the 1e-6 asked of
-        the solver; float32 source partials as well: 3.9e-4 (1.4e-3 sigma). The problem
-        solved is the one with the stored partials (:meth:`design` gives them).
+        Store the spline values as float32 (54 instead of 70 bytes per measurement;
+        products and sums stay float64). Off by default: rounded partials define another
+        problem. Measured when the attitude partials were stored too (float32 both, on an
+        experiment-like problem: 3000 stars, one year, 1000 mas): the solution moved by
+        2.5e-6 relative to the float64 problem's direct solution (2.6e-5 of the formal
+        sigma, 8 uas for a star with sigma ~ arcsec), over the 1e-6 asked of the solver;
+        float32 source partials as well: 3.9e-4 (1.4e-3 sigma). The problem solved is the
+        one with the stored partials (:meth:`design` gives them).
     """
 
     def __init__(self, obs: Observations, prior_diagonal, ra_deg, dec_deg, *, block_stars: int = BLOCK_STARS,
                  compact: bool = False):
-        self._assemble(make_blocks(obs, block_stars=int(block_stars), compact=bool(compact)),
+        self._assemble(make_blocks(obs, ra_deg, dec_deg, block_stars=int(block_stars), compact=bool(compact)),
                        source_normals(obs), prior_diagonal, ra_deg, dec_deg, n_coef=obs.n_coef,
                        n_measurements=obs.size)
 
@@ -319,7 +324,7 @@ class GlobalProblem:
         src, att, bval = np.empty((m, 5)), np.empty((m, 3)), np.empty((m, 4))
         for b in self.blocks:
             star[b.rows], j0[b.rows] = b.star + b.first, b.j0
-            src[b.rows], att[b.rows], bval[b.rows] = b.src.T, b.att.T, b.bval.T
+            src[b.rows], att[b.rows], bval[b.rows] = B.src_rows(b).T, B.att_rows(b).T, b.bval.T
         return star, src, att, j0, bval
 
     @property

@@ -46,6 +46,8 @@ class Observations:
         Star of each measurement (index into the solution's stars).
     tcb_jd : ndarray (m,)
         Epoch of the measurement (TCB JD).
+    t_yr : ndarray (m,)
+        Epoch minus the reference epoch [Julian years], as used in ``src``.
     src : ndarray (m, 5)
         d(measurement)/d(dalpha*, ddelta, plx, pmra, pmdec) / sigma.
     att : ndarray (m, 3)
@@ -63,6 +65,7 @@ class Observations:
 
     star: np.ndarray
     tcb_jd: np.ndarray
+    t_yr: np.ndarray
     src: np.ndarray
     att: np.ndarray
     j0: np.ndarray
@@ -149,6 +152,7 @@ def build_observations(ra_deg, dec_deg, star, tcb_jd, psi_deg, obs_au, *, t_ref_
     rows = np.concatenate(rows)
     t_all = t[rows]
     j0, bval = spline.basis(t_all)
-    return Observations(star=star[rows], tcb_jd=t_all, src=np.concatenate(src), att=np.concatenate(att),
+    return Observations(star=star[rows], tcb_jd=t_all, t_yr=t_yr[rows, 0], src=np.concatenate(src),
+                        att=np.concatenate(att),
                         j0=j0, bval=bval, is_ac=np.concatenate(is_ac),
                         n_stars=int(ra.size if n_stars is None else n_stars), n_coef=spline.n_coef)

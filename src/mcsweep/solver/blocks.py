@@ -108,10 +108,16 @@ def _rowdot(a, b) -> np.ndarray:
     return out
 
 
+def _star(blk: StarBlock, sel=slice(None)) -> np.ndarray:
+    """The measurements' star indices as ``intp`` (gathers then skip a conversion each)."""
+    return blk.star[sel].astype(np.intp)
+
+
 def att_rows(blk: StarBlock, sel=slice(None)) -> np.ndarray:
     """Attitude axis partials ``(3, m)`` of the measurements ``sel`` (module notes)."""
-    s_a, s_d, star = blk.src[0, sel], blk.src[1, sel], blk.star[sel]
-    return np.stack([s_d * blk.pq[c][star] - s_a * blk.pq[3 + c][star] for c in range(_AX)])
+    s_a, s_d = blk.src[0, sel], blk.src[1, sel]
+    pq = blk.pq.take(_star(blk, sel), axis=1)
+    return np.stack([s_d * pq[c] - s_a * pq[3 + c] for c in range(_AX)])
 
 
 def src_rows(blk: StarBlock, sel=slice(None)) -> np.ndarray:
@@ -124,16 +130,17 @@ def src_rows(blk: StarBlock, sel=slice(None)) -> np.ndarray:
 def att_forward(blk: StarBlock, p) -> np.ndarray:
     """``A_a p`` (m,) for attitude coefficients ``p (n_coef, 3)``."""
     pt = np.ascontiguousarray(np.asarray(p, dtype=float).T)
-    star = blk.star
+    pq = blk.pq.take(_star(blk), axis=1)
+    j = [blk.j0.astype(np.intp) + k for k in range(_NB)]
     # the correction's value at each epoch, projected on p and q of the star
     along_p = np.zeros(blk.j0.size)
     along_q = np.zeros(blk.j0.size)
     for c in range(_AX):
-        value = blk.bval[0] * pt[c][blk.j0]
+        value = blk.bval[0] * pt[c].take(j[0])
         for k in range(1, _NB):
-            value += blk.bval[k] * pt[c][blk.j0 + k]
-        along_p += blk.pq[c][star] * value
-        along_q += blk.pq[3 + c][star] * value
+            value += blk.bval[k] * pt[c].take(j[k])
+        along_p += pq[c] * value
+        along_q += pq[3 + c] * value
     return blk.src[1] * along_p - blk.src[0] * along_q
 
 
@@ -144,8 +151,9 @@ def att_adjoint(blk: StarBlock, v) -> np.ndarray:
         return out
     v = np.asarray(v, dtype=float)
     w_d, w_a = blk.src[1] * v, blk.src[0] * v
+    pq = blk.pq.take(_star(blk), axis=1)
     for c in range(_AX):
-        wc = w_d * blk.pq[c][blk.star] - w_a * blk.pq[3 + c][blk.star]
+        wc = w_d * pq[c] - w_a * pq[3 + c]
         for k in range(_NB):
             out[blk.seg_j0 + k, c] += np.add.reduceat(blk.bval[k] * wc, blk.seg)
     return out
@@ -159,16 +167,15 @@ def att_band(blk: StarBlock) -> np.ndarray:
 
 def src_forward(blk: StarBlock, x) -> np.ndarray:
     """``A_s x`` (m,) for per-star parameters ``x (n, 5)``."""
-    xt = np.asarray(x, dtype=float).T
-    star, t = blk.star, blk.t
-    return (blk.src[0] * (xt[0][star] + t * xt[3][star]) + blk.src[1] * (xt[1][star] + t * xt[4][star])
-            + blk.src[2] * xt[2][star])
+    xs = np.asarray(x, dtype=float).T.take(_star(blk), axis=1)  # (5, m)
+    return blk.src[0] * (xs[0] + blk.t * xs[3]) + blk.src[1] * (xs[1] + blk.t * xs[4]) + blk.src[2] * xs[2]
 
 
 def src_adjoint(blk: StarBlock, v) -> np.ndarray:
     """``A_s' v`` (n, 5)."""
     w_a, w_d = blk.src[0] * v, blk.src[1] * v
-    return np.stack([np.bincount(blk.star, w, minlength=blk.n)
+    star = _star(blk)
+    return np.stack([np.bincount(star, w, minlength=blk.n)
                      for w in (w_a, w_d, blk.src[2] * v, blk.t * w_a, blk.t * w_d)], axis=1)
 
 

@@ -351,14 +351,15 @@ def _setup_task(item):
     return ci, pairwise_sum(parts, _add_setup), b_s
 
 
+# Every task's item starts (chunk index, blocks, measurements): what a resident worker keeps.
 def _forward_task(item):
-    ci, blocks, r_s = item
+    ci, blocks, _, r_s = item
     return ci, pairwise_sum(B.block_precondition_forward(b, r_s[b.first - blocks[0].first:][:b.n])
                             for b in blocks)
 
 
 def _back_task(item):
-    ci, blocks, r_s, z_a = item
+    ci, blocks, _, r_s, z_a = item
     parts = [B.block_precondition_back(b, r_s[b.first - blocks[0].first:][:b.n], z_a) for b in blocks]
     return (ci, np.concatenate([q[0] for q in parts]), np.concatenate([q[1] for q in parts]),
             pairwise_sum(q[2] for q in parts))
@@ -441,17 +442,17 @@ def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_u
     h = np.asarray(h, dtype=float)
     ranges = problem.chunks(chunk_stars)
     chunks = [problem.blocks[lo:hi] for lo, hi in ranges]
-    with forked_chunks(chunks, workers if run_iterations is None else 1) as pool:
-        return _pcg(problem, h, chunks, run or pool or sequential_run, run_iterations or pool or sequential_run,
+    hs = [[h[b.rows] for b in bl] for bl in chunks]  # views when the rows are slices (in_block_order)
+    with forked_chunks(list(zip(chunks, hs)), workers if run_iterations is None else 1) as pool:
+        return _pcg(problem, h, chunks, hs, run or pool or sequential_run, run_iterations or pool or sequential_run,
                     rtol=rtol, update_tol_uas=update_tol_uas, max_iter=max_iter, min_iter=min_iter, log=log,
                     residuals=residuals)
 
 
-def _pcg(pb: GlobalProblem, h, chunks, run, run_it, *, rtol, update_tol_uas, max_iter, min_iter, log,
+def _pcg(pb: GlobalProblem, h, chunks, hs, run, run_it, *, rtol, update_tol_uas, max_iter, min_iter, log,
          residuals) -> GlobalSolution:
     """The PCG iteration of :func:`solve_global` with its executors chosen."""
     stars = [slice(bl[0].first, bl[-1].first + bl[-1].n) for bl in chunks]
-    hs = [[h[b.rows] for b in bl] for bl in chunks]
 
     # Setup pass: right-hand side and the banded Schur preconditioner of the attitude.
     res = _ordered(run, _setup_task, [(i, bl, hh) for i, (bl, hh) in enumerate(zip(chunks, hs))])
@@ -476,10 +477,12 @@ def _pcg(pb: GlobalProblem, h, chunks, run, run_it, *, rtol, update_tol_uas, max
 
     def precondition(r_s, r_a):
         """``z = M^-1 r`` (symmetric block Gauss-Seidel with the banded Schur block) and ``N z``."""
-        fwd = _ordered(run_it, _forward_task, [(i, bl, r_s[sl]) for i, (bl, sl) in enumerate(zip(chunks, stars))])
+        fwd = _ordered(run_it, _forward_task, [(i, bl, hh, r_s[sl])
+                                               for i, (bl, hh, sl) in enumerate(zip(chunks, hs, stars))])
         w_a = np.where(free, r_a - pairwise_sum(f[0] for f in fwd), 0.0)
         z_a = np.where(free, cho_solve_banded((chol, False), w_a.ravel()).reshape(-1, 3), 0.0)
-        back = _ordered(run_it, _back_task, [(i, bl, r_s[sl], z_a) for i, (bl, sl) in enumerate(zip(chunks, stars))])
+        back = _ordered(run_it, _back_task, [(i, bl, hh, r_s[sl], z_a)
+                                             for i, (bl, hh, sl) in enumerate(zip(chunks, hs, stars))])
         z_s = np.concatenate([o[0] for o in back])
         nz_s = np.concatenate([o[1] for o in back]) + extra_s(z_s)
         nz_a = pairwise_sum(o[2] for o in back)

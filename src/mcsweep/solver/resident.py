@@ -4,10 +4,10 @@ Every PCG iteration makes two passes over all measurements (:mod:`~mcsweep.solve
 A map-like executor (joblib's loky processes) re-sends each chunk's measurements with
 every call, which costs more than the pass itself (measured 5.8x the in-process wall
 time; :func:`~mcsweep.solver.cg.solve_global`). Here the workers are *forked* once per
-solution, after the problem is built: each inherits the blocks copy-on-write (nothing is
-copied or sent; the solver only reads them) and owns a fixed, contiguous share of the
-chunks. A pass then sends each worker only the vectors of its chunks (the stars' 5
-parameters, the attitude) and receives the chunk results.
+solution, after the problem is built: each inherits the blocks and the measurements
+copy-on-write (nothing is copied or sent; the solver only reads them) and owns a fixed,
+contiguous share of the chunks. A pass then sends each worker only the vectors of its
+chunks (the stars' 5 parameters, the attitude) and receives the chunk results.
 
 Results are bit-identical to in-process ones: a child computes on the very arrays (same
 memory addresses, so the same alignment) the parent would, and the solver adds the
@@ -33,14 +33,14 @@ def fork_available() -> bool:
 
 
 def _serve(conn: Connection, chunks: dict) -> None:
-    """Worker loop: run ``fn((ci, chunks[ci], *rest))`` for every task of a message."""
+    """Worker loop: run ``fn((ci, *chunks[ci], *rest))`` for every task of a message."""
     while True:
         msg = conn.recv()
         if msg is None:
             return
         fn, tasks = msg
         try:
-            out = [fn((ci, chunks[ci], *rest)) for ci, rest in tasks]
+            out = [fn((ci, *chunks[ci], *rest)) for ci, rest in tasks]
         except BaseException as exc:  # noqa: BLE001 - handed to the parent, which re-raises
             conn.send(("error", exc))
         else:
@@ -51,6 +51,7 @@ class _Pool:
     def __init__(self, chunks: Sequence, n_workers: int):
         ctx = mp.get_context("fork")
         n = len(chunks)
+        self.width = len(chunks[0])  # objects a task item carries after its index, kept by the worker
         # contiguous, equal shares of the chunks (blocks hold about equal numbers of stars)
         bounds = [round(w * n / n_workers) for w in range(n_workers + 1)]
         self.owner = {}
@@ -67,10 +68,11 @@ class _Pool:
             self.procs.append(p)
 
     def run(self, fn: Callable, items) -> Iterator:
-        """``fn(item)`` for items ``(ci, blocks, *rest)``; ``blocks`` is not sent (the worker has it)."""
+        """``fn(item)`` for items ``(ci, *chunks[ci], *rest)``; only ``ci, rest`` are sent (the
+        worker holds ``chunks[ci]``)."""
         per = [[] for _ in self.conns]
         for item in items:
-            per[self.owner[item[0]]].append((item[0], item[2:]))
+            per[self.owner[item[0]]].append((item[0], item[1 + self.width:]))
         busy = [w for w, tasks in enumerate(per) if tasks]
         for w in busy:  # every worker reads its whole message before it computes: no deadlock
             self.conns[w].send((fn, per[w]))
@@ -93,10 +95,12 @@ class _Pool:
 
 
 @contextlib.contextmanager
-def forked_chunks(chunks: Sequence, n_workers: int):
+def forked_chunks(chunks: Sequence[tuple], n_workers: int):
     """Context of ``n_workers`` forked workers owning ``chunks`` (module notes): yields
     their ``run(fn, items)`` executor, or ``None`` with fewer than 2 workers or chunks, or
-    without ``fork``."""
+    without ``fork``. ``chunks[ci]`` is a tuple of what the worker keeps (the solver's:
+    the chunk's blocks and measurements); an item ``(ci, *chunks[ci], *rest)`` is sent as
+    ``(ci, rest)``."""
     if n_workers < 2 or len(chunks) < 2 or not fork_available():
         yield None
         return

@@ -18,7 +18,7 @@ from joblib import Parallel, delayed, parallel_config
 from ..errors import UserInputError
 from .schema import ExecutionConf
 
-__all__ = ["executor"]
+__all__ = ["executor", "release_free_memory"]
 
 # BLAS threads per worker: the workers already use every core (Hydra/joblib trap:
 # oversubscribing 2 cores with n_jobs x BLAS threads).
@@ -73,3 +73,25 @@ def executor(conf: ExecutionConf) -> Iterator[Callable[[Callable, Iterable], Ite
             yield make_run("dask", -1)
     else:
         yield make_run(conf.backend, conf.n_jobs)
+
+
+def release_free_memory() -> None:
+    """Hand the heap's free pages back to the operating system (glibc ``malloc_trim``).
+
+    Numpy arrays below glibc's mmap threshold (up to 32 MB) live in the heap; a stage that
+    builds many such arrays and keeps some of them (the primary experiment's blocks of
+    stars) leaves free holes between them that the allocator keeps. Measured after the
+    primary experiment's observations stage, 3 x 1e5 stars: resident memory 1.47 -> 1.02 GB.
+    A no-op where glibc is not the C library.
+    """
+    import ctypes
+    import ctypes.util
+
+    name = ctypes.util.find_library("c")
+    try:
+        libc = ctypes.CDLL(name) if name else None
+        trim = getattr(libc, "malloc_trim", None)
+    except OSError:
+        trim = None
+    if trim is not None:
+        trim(0)

@@ -32,7 +32,7 @@ import numpy as np
 
 from .attitude_update import band_of_rows
 
-__all__ = ["StarBlock", "att_rows", "src_rows", "att_forward", "att_adjoint", "att_band", "src_forward",
+__all__ = ["StarBlock", "gather", "att_rows", "src_rows", "att_forward", "att_adjoint", "att_band", "src_forward",
            "src_adjoint", "block_setup", "block_precondition_forward", "block_precondition_back", "block_residuals",
            "block_normal_apply"]
 
@@ -108,15 +108,18 @@ def _rowdot(a, b) -> np.ndarray:
     return out
 
 
-def _star(blk: StarBlock, sel=slice(None)) -> np.ndarray:
-    """The measurements' star indices as ``intp`` (gathers then skip a conversion each)."""
-    return blk.star[sel].astype(np.intp)
+def gather(blk: StarBlock, sel=slice(None)) -> tuple[np.ndarray, np.ndarray]:
+    """Per measurement of ``sel``: its star (``intp``, so gathers skip a conversion) and the
+    star's ``p, q`` (6, m). One task computes it once and passes it to every product
+    (``gathered=``) instead of each product gathering again."""
+    star = blk.star[sel].astype(np.intp)
+    return star, blk.pq.take(star, axis=1)
 
 
-def att_rows(blk: StarBlock, sel=slice(None)) -> np.ndarray:
+def att_rows(blk: StarBlock, sel=slice(None), gathered=None) -> np.ndarray:
     """Attitude axis partials ``(3, m)`` of the measurements ``sel`` (module notes)."""
     s_a, s_d = blk.src[0, sel], blk.src[1, sel]
-    pq = blk.pq.take(_star(blk, sel), axis=1)
+    pq = (gathered or gather(blk, sel))[1]
     return np.stack([s_d * pq[c] - s_a * pq[3 + c] for c in range(_AX)])
 
 
@@ -127,10 +130,10 @@ def src_rows(blk: StarBlock, sel=slice(None)) -> np.ndarray:
     return np.stack([s_a, s_d, blk.src[2, sel], t * s_a, t * s_d])
 
 
-def att_forward(blk: StarBlock, p) -> np.ndarray:
-    """``A_a p`` (m,) for attitude coefficients ``p (n_coef, 3)``."""
+def att_forward(blk: StarBlock, p, gathered=None) -> np.ndarray:
+    """``A_a p`` (m,) for attitude coefficients ``p (n_coef, 3)``; ``gathered`` from :func:`gather`."""
     pt = np.ascontiguousarray(np.asarray(p, dtype=float).T)
-    pq = blk.pq.take(_star(blk), axis=1)
+    pq = (gathered or gather(blk))[1]
     j = [blk.j0.astype(np.intp) + k for k in range(_NB)]
     # the correction's value at each epoch, projected on p and q of the star
     along_p = np.zeros(blk.j0.size)
@@ -144,14 +147,14 @@ def att_forward(blk: StarBlock, p) -> np.ndarray:
     return blk.src[1] * along_p - blk.src[0] * along_q
 
 
-def att_adjoint(blk: StarBlock, v) -> np.ndarray:
+def att_adjoint(blk: StarBlock, v, gathered=None) -> np.ndarray:
     """``A_a' v`` (n_coef, 3) for values ``v (m,)`` of the block's measurements."""
     out = np.zeros((blk.n_coef, _AX))
     if blk.j0.size == 0:
         return out
     v = np.asarray(v, dtype=float)
     w_d, w_a = blk.src[1] * v, blk.src[0] * v
-    pq = blk.pq.take(_star(blk), axis=1)
+    pq = (gathered or gather(blk))[1]
     for c in range(_AX):
         wc = w_d * pq[c] - w_a * pq[3 + c]
         for k in range(_NB):
@@ -165,16 +168,17 @@ def att_band(blk: StarBlock) -> np.ndarray:
     return band_of_rows(blk.j0, G, blk.n_coef)
 
 
-def src_forward(blk: StarBlock, x) -> np.ndarray:
+def src_forward(blk: StarBlock, x, gathered=None) -> np.ndarray:
     """``A_s x`` (m,) for per-star parameters ``x (n, 5)``."""
-    xs = np.asarray(x, dtype=float).T.take(_star(blk), axis=1)  # (5, m)
+    star = gathered[0] if gathered else blk.star.astype(np.intp)
+    xs = np.asarray(x, dtype=float).T.take(star, axis=1)  # (5, m)
     return blk.src[0] * (xs[0] + blk.t * xs[3]) + blk.src[1] * (xs[1] + blk.t * xs[4]) + blk.src[2] * xs[2]
 
 
-def src_adjoint(blk: StarBlock, v) -> np.ndarray:
+def src_adjoint(blk: StarBlock, v, gathered=None) -> np.ndarray:
     """``A_s' v`` (n, 5)."""
     w_a, w_d = blk.src[0] * v, blk.src[1] * v
-    star = _star(blk)
+    star = gathered[0] if gathered else blk.star.astype(np.intp)
     return np.stack([np.bincount(star, w, minlength=blk.n)
                      for w in (w_a, w_d, blk.src[2] * v, blk.t * w_a, blk.t * w_d)], axis=1)
 
@@ -259,14 +263,16 @@ def block_setup(blk: StarBlock, h) -> dict:
     Returns a dict of global contributions, ``absorption`` (:func:`_schur_absorption`),
     ``b_a = A_a' h``, ``hh = h' h``, and per star ``b_s = A_s' h`` (n, 5).
     """
-    return {"absorption": _schur_absorption(blk), "b_a": att_adjoint(blk, h), "hh": float(h @ h),
-            "b_s": src_adjoint(blk, h)}
+    g = gather(blk)
+    return {"absorption": _schur_absorption(blk), "b_a": att_adjoint(blk, h, g), "hh": float(h @ h),
+            "b_s": src_adjoint(blk, h, g)}
 
 
 # ------------------------------------------------------------------ iteration
 def block_precondition_forward(blk: StarBlock, r_s) -> np.ndarray:
     """The block's part of ``N_as B^-1 r_s`` (n_coef, 3): first sweep of the preconditioner."""
-    return att_adjoint(blk, src_forward(blk, _binv(blk, r_s)))
+    g = gather(blk)
+    return att_adjoint(blk, src_forward(blk, _binv(blk, r_s), g), g)
 
 
 def block_precondition_back(blk: StarBlock, r_s, z_a) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -275,18 +281,21 @@ def block_precondition_back(blk: StarBlock, r_s, z_a) -> tuple[np.ndarray, np.nd
     Returns ``z_s = B^-1 (r_s - N_sa z_a)`` (n, 5), and ``A' A z`` as (stars (n, 5),
     attitude (n_coef, 3)).
     """
-    u = att_forward(blk, z_a)
-    z_s = _binv(blk, r_s - src_adjoint(blk, u))
-    f = u + src_forward(blk, z_s)
-    return z_s, src_adjoint(blk, f), att_adjoint(blk, f)
+    g = gather(blk)
+    u = att_forward(blk, z_a, g)
+    z_s = _binv(blk, r_s - src_adjoint(blk, u, g))
+    f = u + src_forward(blk, z_s, g)
+    return z_s, src_adjoint(blk, f, g), att_adjoint(blk, f, g)
 
 
 def block_residuals(blk: StarBlock, h, x_s, x_a) -> np.ndarray:
     """Normalised measurement residuals ``h - A x`` of the block (m,)."""
-    return h - src_forward(blk, x_s) - att_forward(blk, x_a)
+    g = gather(blk)
+    return h - src_forward(blk, x_s, g) - att_forward(blk, x_a, g)
 
 
 def block_normal_apply(blk: StarBlock, v_s, v_a) -> tuple[np.ndarray, np.ndarray]:
     """Data part of the full normal matrix, ``A' A v``: (stars (n, 5), attitude (n_coef, 3))."""
-    f = src_forward(blk, v_s) + att_forward(blk, v_a)
-    return src_adjoint(blk, f), att_adjoint(blk, f)
+    g = gather(blk)
+    f = src_forward(blk, v_s, g) + att_forward(blk, v_a, g)
+    return src_adjoint(blk, f, g), att_adjoint(blk, f, g)

@@ -252,8 +252,8 @@ class PreparedData:
         return int(self.h.size)
 
     def block_epochs(self, block) -> np.ndarray:
-        """TCB JD of a block's measurements (from the epochs the blocks store, to ~1e-14 d)."""
-        return self.t_ref_jd + JULIAN_YEAR_DAYS * block.t
+        """TCB JD of a block's measurements (:func:`_block_epochs`)."""
+        return _block_epochs(self.t_ref_jd, block)
 
     def epochs(self) -> np.ndarray:
         """TCB JD of every measurement, in the problem's order."""
@@ -261,8 +261,7 @@ class PreparedData:
 
     def true_attitude_at(self, tcb_jd) -> np.ndarray:
         """The true rotation (module notes, step 3) at ``tcb_jd`` [mas], (m, 3)."""
-        spline, coef = self.true_attitude
-        return spline.evaluate(coef, tcb_jd)
+        return _rotation(self.true_attitude, tcb_jd)
 
     def problem(self, prior_diagonal) -> GlobalProblem:
         """The global problem under ``prior_diagonal``: assembled once from the blocks, then
@@ -277,6 +276,17 @@ class PreparedData:
         else:
             self._problem = self._problem.with_prior(prior_diagonal)
         return self._problem
+
+
+def _block_epochs(t_ref_jd: float, block) -> np.ndarray:
+    """TCB JD of a block's measurements, from the epochs the block stores (to ~1e-14 d)."""
+    return t_ref_jd + JULIAN_YEAR_DAYS * block.t
+
+
+def _rotation(true_attitude: tuple, tcb_jd) -> np.ndarray:
+    """A (spline, coefficients) rotation at ``tcb_jd`` [mas], (m, 3)."""
+    spline, coef = true_attitude
+    return spline.evaluate(coef, tcb_jd)
 
 
 def _true_attitude(settings: PrimarySettings) -> tuple[AttitudeSpline, np.ndarray]:
@@ -347,13 +357,13 @@ def prepare(settings: PrimarySettings, stars: pd.DataFrame, transits: dict, *,
                                  spline=spline)
         # Observation order = block order: each block's measurements are then a contiguous
         # slice of h, read as a view by the solver (no index array, no per-solution copy).
-        (blk,), _ = in_block_order(make_blocks(obs, ra[first:last], dec[first:last], block_stars=block_stars,
-                                               first_star=first, first_row=row), row)
+        (blk,) = in_block_order(make_blocks(obs, ra[first:last], dec[first:last], block_stars=block_stars,
+                                            first_star=first), row)
         normals.append(source_normals(obs))
         del obs
         # Normalised measurements (the partials are divided by sigma) from the very partials
         # the solver holds: truth plus the true attitude, plus unit noise in block order.
-        rot = true_att[0].evaluate(true_att[1], t_ref + JULIAN_YEAR_DAYS * blk.t)  # (m, 3) [mas]
+        rot = _rotation(true_att, _block_epochs(t_ref, blk))  # (m, 3) [mas]
         h = src_forward(blk, x_true[first:last])
         for c, rows in enumerate(att_rows(blk)):
             h += rows * rot[:, c]

@@ -125,15 +125,15 @@ class GlobalSolution:
 
 
 def make_blocks(obs: Observations, ra_deg, dec_deg, *, block_stars: int = BLOCK_STARS, compact: bool = False,
-                first_star: int = 0, first_row: int = 0) -> list:
+                first_star: int = 0) -> list:
     """The :class:`~mcsweep.solver.blocks.StarBlock` s of ``obs`` (without per-star inverses).
 
-    ``ra_deg, dec_deg`` (``obs.n_stars``,): directions of ``obs``'s stars. ``obs`` may hold
-    a part of the problem: its stars are ``first_star + obs.star`` (``first_star`` a
-    multiple of ``block_stars``) and its measurements are rows ``first_row ..`` of the
-    problem's observation order. A problem built part by part
-    (:meth:`GlobalProblem.from_blocks`) never holds all measurements' partials twice:
-    each part's :class:`Observations` can be dropped once its blocks are made.
+    ``ra_deg, dec_deg`` (``obs.n_stars``,): directions of ``obs``'s stars. ``rows`` index
+    ``obs``'s measurements. ``obs`` may hold a part of the problem: its stars are
+    ``first_star + obs.star`` (``first_star`` a multiple of ``block_stars``); the parts'
+    blocks are then put in one observation order by :func:`in_block_order`. A problem
+    built part by part (:meth:`GlobalProblem.from_blocks`) never holds all measurements'
+    partials twice: each part's :class:`Observations` can be dropped once its blocks are made.
     """
     if first_star % block_stars:
         raise ValueError(f"first_star={first_star} is not a multiple of block_stars={block_stars}")
@@ -151,8 +151,8 @@ def make_blocks(obs: Observations, ra_deg, dec_deg, *, block_stars: int = BLOCK_
         rows = rows[np.argsort(obs.j0[rows], kind="stable")]  # time order within the block (StarBlock)
         j0 = obs.j0[rows]
         seg = np.flatnonzero(np.r_[True, j0[1:] != j0[:-1]]) if j0.size else np.zeros(0, np.int64)
-        row_int = np.int32 if first_row + obs.size < 2**31 else np.int64
-        out.append(B.StarBlock(first=first_star + first, n=last - first, rows=(first_row + rows).astype(row_int),
+        out.append(B.StarBlock(first=first_star + first, n=last - first,
+                               rows=rows.astype(np.int32 if obs.size < 2**31 else np.int64),
                                star=(obs.star[rows] - first).astype(star_int),
                                src=np.ascontiguousarray(obs.src[rows, :3].T, dtype=np.float64),
                                t=obs.t_yr[rows], pq=np.ascontiguousarray(pq[:, first:last]),
@@ -161,23 +161,20 @@ def make_blocks(obs: Observations, ra_deg, dec_deg, *, block_stars: int = BLOCK_
     return out
 
 
-def in_block_order(blocks: list, first_row: int) -> tuple[list, np.ndarray]:
-    """The same blocks with their measurements renumbered in block order.
+def in_block_order(blocks: list, first_row: int) -> list:
+    """The same blocks, their measurements numbered in block order from ``first_row``.
 
-    ``blocks`` (from one :func:`make_blocks` call with ``first_row``) index their
-    measurements through ``rows``; renumbered, block ``k`` holds the contiguous rows
-    ``slice(start_k, start_k + m_k)``: no index array is stored, and the solver reads each
-    block's measurements as a view instead of a copy. Returns the new blocks and the
-    permutation ``perm`` (new row ``first_row + i`` is old row ``first_row + perm[i]``):
-    the caller reorders its per-measurement arrays with it.
+    Block ``k`` then holds the contiguous rows ``slice(start_k, start_k + m_k)``: no index
+    array is stored, and the solver reads each block's measurements as a view instead of
+    a copy. The caller stores its per-measurement arrays (the measurements ``h``) in the
+    blocks' own order.
     """
-    perm = np.concatenate([np.asarray(b.rows) - first_row for b in blocks]) if blocks else np.zeros(0, np.int64)
     out, start = [], first_row
     for b in blocks:
         m = int(np.size(b.rows))
         out.append(dataclasses.replace(b, rows=slice(start, start + m)))
         start += m
-    return out, perm
+    return out
 
 
 class GlobalProblem:

@@ -53,8 +53,13 @@ def _dask_client(conf: ExecutionConf):
 
 
 @contextmanager
-def executor(conf: ExecutionConf) -> Iterator[Callable[[Callable, Iterable], Iterator]]:
-    """Context giving ``run(fn, items)``: an iterator of ``fn(item)`` in completion order."""
+def executor(conf: ExecutionConf, *,
+             release_workers: bool = False) -> Iterator[Callable[[Callable, Iterable], Iterator]]:
+    """Context giving ``run(fn, items)``: an iterator of ``fn(item)`` in completion order.
+
+    ``release_workers``: on leaving, shut the local worker processes down (joblib keeps
+    loky's workers for reuse) so they do not hold their memory through what comes next.
+    """
     for v in _THREAD_VARS:
         os.environ.setdefault(v, "1")
 
@@ -71,8 +76,13 @@ def executor(conf: ExecutionConf) -> Iterator[Callable[[Callable, Iterable], Ite
     if conf.backend == "dask":
         with _dask_client(conf):
             yield make_run("dask", -1)
-    else:
+        return
+    try:
         yield make_run(conf.backend, conf.n_jobs)
+    finally:
+        if release_workers and conf.backend == "loky":
+            from joblib.externals.loky import get_reusable_executor
+            get_reusable_executor().shutdown(wait=True)
 
 
 def release_free_memory() -> None:

@@ -63,7 +63,9 @@ def run_primary(config, raw_cfg: dict, run_dir, *, prov=None) -> Path:
     prov.write(with_manifest=False)
     store = CellStore(run_dir / CHUNKS_DIR, prov.hash, accept_other_versions=config.resume.accept_other_versions)
     store.remove_stale_temporaries()
-    with prov.stage("transits"), executor(config.execution) as run:
+    # release_workers: the transit search's processes would idle, holding their memory,
+    # through the solutions, which fork workers of their own.
+    with prov.stage("transits"), executor(config.execution, release_workers=True) as run:
         chunk = int(config.execution.chunk_stars)
         ra, dec = stars["ra"].to_numpy(), stars["dec"].to_numpy()
         jobs = [(i, lo, ra[lo:lo + chunk], dec[lo:lo + chunk], settings.start_jd, settings.end_jd, settings.law)
@@ -72,11 +74,6 @@ def run_primary(config, raw_cfg: dict, run_dir, *, prov=None) -> Path:
         transits = {k: np.concatenate([found[i][k] for i in range(len(jobs))]) for k in ("star", "t", "psi")}
         del found  # 16 bytes per transit, 2.6e7 transits at the paper's scale
         print(f"mcsweep: primary: {len(stars)} stars, {transits['t'].size} FoV transits found", flush=True)
-    if config.execution.backend == "loky":
-        # The transit search's worker processes would idle (holding their memory) through
-        # the solutions, which use forked workers of their own.
-        from joblib.externals.loky import get_reusable_executor
-        get_reusable_executor().shutdown(wait=True)
     with prov.stage("observations"):
         data = prepare(settings, stars, transits)
         del transits

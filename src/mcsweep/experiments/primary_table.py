@@ -28,7 +28,8 @@ import pandas as pd
 
 from ..astrometry.confidence import percentile_interval
 from .secondary_table import (FRACTION_INTERVAL, PAPER_CONFIDENCE, PAPER_G_CLASSES, SUBSETS, error_percentile,
-                              fraction_statistics, g_label, subset_masks, table_cell)
+                              fraction_statistics, g_label, layout_markdown, paper_layout,
+                              subset_masks)
 
 __all__ = ["PAPER_TABLE3", "PAPER_G_CLASSES", "TABLE3_COLUMNS", "paper_value3", "cell_mask",
            "cell_statistics", "table3_rows", "table3_layout", "table3_markdown", "prior_label"]
@@ -117,40 +118,12 @@ def table3_rows(results: Mapping[str, pd.DataFrame], g_classes: Sequence[float],
 
 
 def table3_layout(table: pd.DataFrame, confidence: float) -> dict[str, pd.DataFrame]:
-    """Per subset: priors x (fraction | percentile) per class, ``ours [lo-hi] (paper)`` as Table 2."""
-    classes = list(dict.fromkeys(table["g_class"]))
-    pct = f"{100 * confidence:g}"
-    out = {}
-    for subset in SUBSETS:
-        part = table[table["subset"] == subset]
-        rows = []
-        for prior in dict.fromkeys(part["prior"]):
-            r = part[part["prior"] == prior].set_index("g_class")
-            row = {"prior sigma_plx,p": prior_label(prior)}
-            for g in classes:
-                row[f"in {pct} % ellipse, G~{g} [%]"] = table_cell(
-                    r.at[g, "fraction_inside"], r.at[g, "paper_fraction_inside"], ".1f", 100.0,
-                    (r.at[g, "fraction_lo"], r.at[g, "fraction_hi"]))
-            for g in classes:
-                row[f"p{pct} error, G~{g} [mas]"] = table_cell(
-                    r.at[g, "p90_error_mas"], r.at[g, "paper_p90_error_mas"], ".3g", 1.0,
-                    (r.at[g, "p90_error_lo_mas"], r.at[g, "p90_error_hi_mas"]))
-            rows.append(row)
-        out[subset] = pd.DataFrame(rows)
-    return out
+    """Per subset: priors x (fraction | percentile) per class, ``ours [lo-hi] (paper)``: Table 2's
+    :func:`~mcsweep.experiments.secondary_table.paper_layout`, the priors in the table's order."""
+    return paper_layout(table, confidence, list(dict.fromkeys(table["prior"])), prior_label)
 
 
 def table3_markdown(table: pd.DataFrame, confidence: float, notes: Sequence[str] = ()) -> str:
     """``table3.md``: our Table 3 next to the paper's (in parentheses)."""
-    lines = ["# Table 3: one-year global solution, attitude from the same data (ours [68 % interval], "
-             "paper in parentheses)", ""]
-    lines += list(notes) + ([""] if notes else [])
-    for subset, df in table3_layout(table, confidence).items():
-        part = table[(table["subset"] == subset)].drop_duplicates("g_class")
-        n = ", ".join(f"G~{g}: {int(v)}" for g, v in zip(part["g_class"], part["n_stars"]))
-        lines += [f"## Subset of stars with {'<= 4' if subset == '<=4' else '> 4'} field-of-view transits "
-                  f"({n} stars)", ""]
-        cols = list(map(str, df.columns))
-        lines += ["| " + " | ".join(cols) + " |", "|" + "|".join("---" for _ in cols) + "|"]
-        lines += ["| " + " | ".join(map(str, row)) + " |" for row in df.itertuples(index=False)] + [""]
-    return "\n".join(lines)
+    return layout_markdown("Table 3: one-year global solution, attitude from the same data (ours [68 % interval], "
+                           "paper in parentheses)", notes, table, table3_layout(table, confidence))

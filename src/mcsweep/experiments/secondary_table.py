@@ -18,7 +18,7 @@ solution) and ``err_<col>_mas`` (|estimated - true position|, NaN without soluti
 from __future__ import annotations
 
 from types import MappingProxyType
-from typing import Mapping, Sequence
+from typing import Callable, Mapping, Sequence
 
 import numpy as np
 import pandas as pd
@@ -43,6 +43,8 @@ __all__ = [
     "g_label",
     "table2_layout",
     "table2_markdown",
+    "paper_layout",
+    "layout_markdown",
     "error_percentile",
     "FRACTION_INTERVAL",
     "fraction_statistics",
@@ -201,11 +203,13 @@ def table_cell(ours: float, paper: float, fmt: str, scale: float = 1.0, interval
     return o if not np.isfinite(paper) else f"{o} ({format(paper * scale, fmt)})"
 
 
-def table2_layout(table: pd.DataFrame, confidence: float) -> dict[str, pd.DataFrame]:
-    """The paper's layout of ``table2.csv``: per subset, priors x (fraction | percentile) per class.
+def paper_layout(table: pd.DataFrame, confidence: float, priors: Sequence[str],
+                 label: Callable[[str], str]) -> dict[str, pd.DataFrame]:
+    """The paper's layout of a Table 2 / Table 3 csv: per subset, ``priors`` x (fraction |
+    percentile) per class, each cell ``ours [lo-hi] (paper)``.
 
-    Every cell reads ``ours (paper)``; fractions in per cent with their Clopper-Pearson
-    interval (FRACTION_INTERVAL) as ``ours [lo-hi] (paper)``, percentiles in mas.
+    Fractions in per cent, percentiles in mas; an interval is shown where the table has
+    its columns (``fraction_lo/hi``, ``p90_error_lo/hi_mas``). ``label`` names a prior's row.
     """
     classes = list(dict.fromkeys(table["g_class"]))
     pct = f"{100 * confidence:g}"
@@ -213,26 +217,45 @@ def table2_layout(table: pd.DataFrame, confidence: float) -> dict[str, pd.DataFr
     for subset in SUBSETS:
         part = table[table["subset"] == subset]
         rows = []
-        for prior in PRIORS:
+        for prior in priors:
             r = part[part["prior"] == prior].set_index("g_class")
-            row = {"prior sigma_plx,p": PRIOR_LABELS[prior]}
+            row = {"prior sigma_plx,p": label(prior)}
             for g in classes:
                 iv = (r.at[g, "fraction_lo"], r.at[g, "fraction_hi"]) if "fraction_lo" in r else None
                 row[f"in {pct} % ellipse, G~{g} [%]"] = table_cell(r.at[g, "fraction_inside"],
-                                                              r.at[g, "paper_fraction_inside"], ".1f", 100.0, iv)
+                                                                   r.at[g, "paper_fraction_inside"], ".1f", 100.0, iv)
             for g in classes:
-                row[f"p{pct} error, G~{g} [mas]"] = table_cell(r.at[g, "p90_error_mas"], r.at[g, "paper_p90_error_mas"],
-                                                       ".3g")
+                iv = (r.at[g, "p90_error_lo_mas"], r.at[g, "p90_error_hi_mas"]) if "p90_error_lo_mas" in r else None
+                row[f"p{pct} error, G~{g} [mas]"] = table_cell(r.at[g, "p90_error_mas"],
+                                                               r.at[g, "paper_p90_error_mas"], ".3g", 1.0, iv)
             rows.append(row)
         out[subset] = pd.DataFrame(rows)
     return out
 
 
-def _markdown_table(df: pd.DataFrame) -> list[str]:
-    cols = list(map(str, df.columns))
-    lines = ["| " + " | ".join(cols) + " |", "|" + "|".join("---" for _ in cols) + "|"]
-    lines += ["| " + " | ".join(map(str, row)) + " |" for row in df.itertuples(index=False)]
-    return lines
+def table2_layout(table: pd.DataFrame, confidence: float) -> dict[str, pd.DataFrame]:
+    """The paper's layout of ``table2.csv`` (:func:`paper_layout`; fractions with their
+    Clopper-Pearson interval, FRACTION_INTERVAL)."""
+    return paper_layout(table, confidence, PRIORS, PRIOR_LABELS.__getitem__)
+
+
+def layout_markdown(title: str, notes: Sequence[str], table: pd.DataFrame,
+                    layout: Mapping[str, pd.DataFrame]) -> str:
+    """A table's Markdown file: ``# title``, the notes, then one table per subset headed by
+    its star counts per class (from ``table``'s ``n_stars``)."""
+    counts = table.drop_duplicates(["subset", "g_class"]).set_index(["subset", "g_class"])["n_stars"]
+    lines = [f"# {title}", ""]
+    lines += [f"{n}" for n in notes]
+    if notes:
+        lines.append("")
+    for subset, df in layout.items():
+        n = ", ".join(f"G~{g}: {int(v)}" for (s, g), v in counts.items() if s == subset)
+        heading = "<= 4" if subset == "<=4" else "> 4"
+        lines += [f"## Subset of stars with {heading} field-of-view transits ({n} stars)", ""]
+        cols = list(map(str, df.columns))
+        lines += ["| " + " | ".join(cols) + " |", "|" + "|".join("---" for _ in cols) + "|"]
+        lines += ["| " + " | ".join(map(str, row)) + " |" for row in df.itertuples(index=False)] + [""]
+    return "\n".join(lines)
 
 
 def table2_markdown(table: pd.DataFrame, confidence: float, notes: Sequence[str] = (),
@@ -241,15 +264,5 @@ def table2_markdown(table: pd.DataFrame, confidence: float, notes: Sequence[str]
 
     ``dilution`` is the run's probability of removing a transit (the paper's 95 %).
     """
-    counts = table.drop_duplicates(["subset", "g_class"]).set_index(["subset", "g_class"])["n_stars"]
-    lines = [f"# Table 2: stars with {100 * dilution:g} % diluted observation histories "
-             "(ours, paper in parentheses)", ""]
-    lines += [f"{n}" for n in notes]
-    if notes:
-        lines.append("")
-    for subset, df in table2_layout(table, confidence).items():
-        n = ", ".join(f"G~{g}: {int(v)}" for (s, g), v in counts.items() if s == subset)
-        title = "<= 4" if subset == "<=4" else "> 4"
-        lines += [f"## Subset of stars with {title} field-of-view transits ({n} stars)", ""]
-        lines += _markdown_table(df) + [""]
-    return "\n".join(lines)
+    return layout_markdown(f"Table 2: stars with {100 * dilution:g} % diluted observation histories "
+                           "(ours, paper in parentheses)", notes, table, table2_layout(table, confidence))

@@ -84,6 +84,13 @@ def data_for(problem, x, a, rng):
     return problem.forward(problem.join(x, a)) + rng.standard_normal(problem.n_measurements)
 
 
+def wall(fn, *args, **kwargs):
+    """``fn(*args, **kwargs)`` and its wall time [s]."""
+    w0 = time.perf_counter()
+    out = fn(*args, **kwargs)
+    return out, time.perf_counter() - w0
+
+
 def block_jacobi(problem, obs, h, rtol=1e-8, update_tol_uas=1e-2, max_iter=5000):
     """The baseline: PCG with diag(B, N_aa) (the solver before this version), same stopping rule."""
     att = BandedAttitudeSolver(attitude_band(obs))
@@ -172,14 +179,10 @@ def main():
     from mcsweep.sweep.execution import executor
     from mcsweep.sweep.schema import ExecutionConf
     problem, h, _, _ = f90
-    w0 = time.perf_counter()
-    s_seq = solve_global(problem, h, **kw)
-    w_seq = time.perf_counter() - w0
+    s_seq, w_seq = wall(solve_global, problem, h, **kw)
     chunk = max(1, problem.n_stars // 2)
     with executor(ExecutionConf(backend="loky", n_jobs=2)) as run:
-        w0 = time.perf_counter()
-        s_par = solve_global(problem, h, run=run, chunk_stars=chunk, **kw)
-        w_par = time.perf_counter() - w0
+        s_par, w_par = wall(solve_global, problem, h, run=run, chunk_stars=chunk, **kw)
     same = np.array_equal(s_seq.x, s_par.x) and np.array_equal(s_seq.attitude, s_par.attitude)
     print(f"  in-process {w_seq:.2f} s, loky {w_par:.2f} s ({len(problem.blocks)} block(s) of {problem.blocks[0].n} "
           f"stars), ratio {w_par / w_seq:.2f}; bit-identical: {same}")
@@ -187,12 +190,8 @@ def main():
     o, r_, d_, xx, aa, rr = make_obs(args.workers_stars, args.days, args.knot_days, 1.0, seed=11)
     big = GlobalProblem(o, prior_diagonal(1.0, 10.0), r_, d_, block_stars=max(1, o.n_stars // 8))
     hb = data_for(big, xx, aa, rr)
-    w0 = time.perf_counter()
-    s1 = solve_global(big, hb, **kw)
-    w_one = time.perf_counter() - w0
-    w0 = time.perf_counter()
-    s2 = solve_global(big, hb, workers=2, **kw)
-    w_two = time.perf_counter() - w0
+    s1, w_one = wall(solve_global, big, hb, **kw)
+    s2, w_two = wall(solve_global, big, hb, workers=2, **kw)
     same = np.array_equal(s1.x, s2.x) and np.array_equal(s1.attitude, s2.attitude)
     print(f"  forked workers that keep their blocks (solver.resident), {o.n_stars} stars, {o.size} measurements, "
           f"{len(big.blocks)} blocks: in-process {w_one:.2f} s, 2 workers {w_two:.2f} s, speed-up "

@@ -81,7 +81,7 @@ from ..scanning import ScanningLaw, find_transits
 from ..scanning.ephemeris import TABLE_END_JD_TCB, TABLE_START_JD_TCB, gaia_position_au
 from ..scanning.timeline import DeadTime, draw_dead_time
 from ..scanning.timescale import tcb_jd
-from ..solver.blocks import att_rows, src_forward
+from ..solver.blocks import att_rows, spline_values, src_forward
 from ..solver import (BLOCK_STARS, AttitudeSpline, GlobalProblem, build_observations, fit_frame, frame_attitude,
                       frame_offsets, in_block_order, make_blocks, precision_weights, solve_global,
                       source_normals)
@@ -380,10 +380,11 @@ def prepare(settings: PrimarySettings, stars: pd.DataFrame, transits: dict, *,
                         dead=dead)
 
 
-def attitude_error(data: PreparedData, coef, eps, omega, tcb_jd) -> np.ndarray:
-    """Estimated minus true attitude after the frame correction at ``tcb_jd`` [mas], (m, 3)."""
-    return (data.spline.evaluate(coef, tcb_jd) - data.true_attitude_at(tcb_jd)
-            - frame_attitude(eps, omega, tcb_jd, data.t_ref_jd))
+def attitude_error(data: PreparedData, coef, eps, omega, tcb_jd, estimated=None) -> np.ndarray:
+    """Estimated minus true attitude after the frame correction at ``tcb_jd`` [mas], (m, 3);
+    ``estimated``: the solution's attitude at ``tcb_jd`` if already known (m, 3)."""
+    est = data.spline.evaluate(coef, tcb_jd) if estimated is None else estimated
+    return est - data.true_attitude_at(tcb_jd) - frame_attitude(eps, omega, tcb_jd, data.t_ref_jd)
 
 
 def attitude_error_series(data: PreparedData, coef, eps, omega, *, per_knot: int = 1) -> pd.DataFrame:
@@ -450,7 +451,8 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
                         "err_parallax_mas": err_plx.astype(np.float32), "sigma_prior_mas": sigma_prior.astype(np.float32)})
     sq = np.zeros(3)
     for b in data.blocks:  # block by block: bounded temporaries at any number of measurements
-        sq += np.sum(attitude_error(data, sol.attitude, eps, omega, data.block_epochs(b)) ** 2, axis=0)
+        est = spline_values(b, sol.attitude).T  # from the block's own spline values
+        sq += np.sum(attitude_error(data, sol.attitude, eps, omega, data.block_epochs(b), est) ** 2, axis=0)
     m = data.n_measurements
     hist = pd.DataFrame([dataclasses.asdict(r) for r in sol.history])
     hist.insert(0, "prior", label)

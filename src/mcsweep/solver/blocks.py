@@ -32,7 +32,7 @@ import numpy as np
 
 from .attitude_update import band_of_rows
 
-__all__ = ["StarBlock", "gather", "att_rows", "src_rows", "att_forward", "att_adjoint", "att_band", "src_forward",
+__all__ = ["StarBlock", "gather", "spline_values", "att_rows", "src_rows", "att_forward", "att_adjoint", "att_band", "src_forward",
            "src_adjoint", "block_setup", "block_precondition_forward", "block_precondition_back", "block_residuals",
            "block_normal_apply"]
 
@@ -130,20 +130,26 @@ def src_rows(blk: StarBlock, sel=slice(None)) -> np.ndarray:
     return np.stack([s_a, s_d, blk.src[2, sel], t * s_a, t * s_d])
 
 
+def spline_values(blk: StarBlock, p) -> np.ndarray:
+    """The attitude correction with coefficients ``p (n_coef, 3)`` at every epoch of the
+    block, ``(3, m)`` [mas], from the block's own spline values (no new basis evaluation)."""
+    pt = np.ascontiguousarray(np.asarray(p, dtype=float).T)
+    j = [blk.j0.astype(np.intp) + k for k in range(_NB)]
+    out = np.empty((_AX, blk.j0.size))
+    for c in range(_AX):
+        out[c] = blk.bval[0] * pt[c].take(j[0])
+        for k in range(1, _NB):
+            out[c] += blk.bval[k] * pt[c].take(j[k])
+    return out
+
+
 def att_forward(blk: StarBlock, p, gathered=None) -> np.ndarray:
     """``A_a p`` (m,) for attitude coefficients ``p (n_coef, 3)``; ``gathered`` from :func:`gather`."""
-    pt = np.ascontiguousarray(np.asarray(p, dtype=float).T)
     pq = (gathered or gather(blk))[1]
-    j = [blk.j0.astype(np.intp) + k for k in range(_NB)]
-    # the correction's value at each epoch, projected on p and q of the star
-    along_p = np.zeros(blk.j0.size)
-    along_q = np.zeros(blk.j0.size)
-    for c in range(_AX):
-        value = blk.bval[0] * pt[c].take(j[0])
-        for k in range(1, _NB):
-            value += blk.bval[k] * pt[c].take(j[k])
-        along_p += pq[c] * value
-        along_q += pq[3 + c] * value
+    value = spline_values(blk, p)
+    # the correction at each epoch projected on p and q of the star
+    along_p = pq[0] * value[0] + pq[1] * value[1] + pq[2] * value[2]
+    along_q = pq[3] * value[0] + pq[4] * value[1] + pq[5] * value[2]
     return blk.src[1] * along_p - blk.src[0] * along_q
 
 

@@ -246,9 +246,10 @@ def test_weighted_frame_fit_ignores_imprecise_stars(small_problem):
     assert np.abs(e0 - eps).max() > 1.0  # unweighted, the imprecise stars set it
 
 
-def test_banded_schur_preconditioner_equals_its_dense_definition(weak_problem):
-    # S_band = sum_i G_i' (I - P_i . [same j0]) G_i, P_i = A_i B_i^-1 A_i', star by star
-    # with dense matrices (independent of blocks.py's cluster sums), and it is positive
+@pytest.mark.parametrize("window", [1, 2])  # 1: the solver's SCHUR_WINDOW; 2: the wider clusters
+def test_banded_schur_preconditioner_equals_its_dense_definition(weak_problem, window):
+    # S_band = sum_i G_i' (I - P_i . [same j0 window]) G_i, P_i = A_i B_i^-1 A_i', star by
+    # star with dense matrices (independent of blocks.py's cluster sums), and it is positive
     # semi-definite. A 1 mas prior: under 1000 mas the 5 x 5 blocks have condition ~1e10
     # and the two subtractions agree only to ~1e-8.
     from mcsweep.solver.blocks import _schur_absorption
@@ -256,7 +257,7 @@ def test_banded_schur_preconditioner_equals_its_dense_definition(weak_problem):
     P = weak_problem
     obs = P["obs"]
     problem = GlobalProblem(obs, prior_diagonal(1.0, 10.0), P["ra"], P["dec"])
-    band = -sum(_schur_absorption(b) for b in problem.blocks)
+    band = -sum(_schur_absorption(b, window=window) for b in problem.blocks)
     band[-problem.naa_band.shape[0]:] += problem.naa_band  # N_aa: once per problem
     A = _sparse_design(P).toarray()
     As, G = A[:, :5 * obs.n_stars], A[:, 5 * obs.n_stars:]
@@ -264,7 +265,8 @@ def test_banded_schur_preconditioner_equals_its_dense_definition(weak_problem):
     for i in range(obs.n_stars):  # a test may loop over stars
         rows = np.flatnonzero(obs.star == i)
         Ai = As[rows, 5 * i:5 * i + 5]
-        Pi = Ai @ problem.src_inv[i] @ Ai.T * (obs.j0[rows, None] == obs.j0[None, rows])
+        jw = obs.j0[rows] // window
+        Pi = Ai @ problem.src_inv[i] @ Ai.T * (jw[:, None] == jw[None, :])
         dense -= G[rows].T @ Pi @ G[rows]
     np.testing.assert_allclose(band_to_dense(band), dense, rtol=0, atol=RTOL_SUMS * np.abs(dense).max())
     assert np.linalg.eigvalsh(dense).min() > -RTOL_SUMS * np.abs(dense).max()

@@ -22,8 +22,8 @@ from ..prior import Prior
 from ..prior.maps import DEFAULT_NSIDE, MAPS_FILE, prior_maps_bytes
 from ..sweep.store import atomic_write_bytes
 from . import figures
-from .document import FIG_DIR, Document
-from .fit import fit_all
+from .document import FIG_DIR, Document, counts_text, plain
+from .fit import PAPER_COEFFICIENTS, evaluate_formula, fit_all
 from .primary_section import primary_section
 from .secondary_section import secondary_section
 
@@ -52,6 +52,8 @@ def _f90_table(cells: pd.DataFrame) -> pd.DataFrame:
 
 
 def sweep_section(doc: Document, run_dir: Path, prov: dict) -> None:
+    """The F90 sweep: the headline (Fig. 4 analogues, key numbers, what differs and why,
+    the sky maps) first, then the long tables, then the Table 1 beam (Figs. 1-3)."""
     cells = pd.read_parquet(run_dir / "cells.parquet")
     f90 = _f90_table(cells)
     fit = fit_all(f90)
@@ -63,28 +65,54 @@ def sweep_section(doc: Document, run_dir: Path, prov: dict) -> None:
     cfg = prov.get("config", {})
     run_prior = write_prior_maps(run_dir, fit, cfg)
     p = float(cfg.get("confidence", 0.9))
+    showcase = _showcase_curves(run_dir)
 
-    n_ok = int((f90["f90_flag"] == "ok").sum())
-    flags = f90["f90_flag"].value_counts().to_dict()
-    doc.heading("Optimum prior sigma_F90 over the sky (paper Sect. 3.4)")
-    doc.para(f"{len(f90)} cells ({f90[['l_deg', 'b_deg']].drop_duplicates().shape[0]} directions x "
-             f"{f90[['g_min', 'g_max']].drop_duplicates().shape[0]} G bins); sigma_F90 found in {n_ok} "
-             f"(flags: {flags}). Confidence level P = {p:g}, R = {cfg.get('ratio_R')} /yr, "
-             f"sigma_F90 fixed from the '{cfg.get('observations', {}).get('f90_case', 'two')}' case.")
-    if {"sigma_f90_lo_mas", "sigma_f90_hi_mas"} <= set(f90.columns):
-        with np.errstate(divide="ignore", invalid="ignore"):
-            half = 0.5 * np.log10(f90["sigma_f90_hi_mas"] / f90["sigma_f90_lo_mas"])
-        half = half[np.isfinite(half)]
+    n_dirs = f90[["l_deg", "b_deg"]].drop_duplicates().shape[0]
+    n_bins = f90[["g_min", "g_max"]].drop_duplicates().shape[0]
+    doc.heading("Optimum prior sigma_F90 over the sky against the paper (Sect. 3.4, Fig. 4)")
+    doc.para(f"{len(f90)} cells ({n_dirs} directions x {n_bins} G bins, G = {f90['g_min'].min():g}-"
+             f"{f90['g_max'].max():g}): {counts_text(f90['f90_flag'].value_counts().to_dict(), 'cells')}. "
+             f"Confidence level P = {p:g}, R = {plain(cfg.get('ratio_R'))} /yr, sigma_F90 fixed from the "
+             f"'{cfg.get('observations', {}).get('f90_case', 'two')}' case; the paper's values are its "
+             "Eqs. 14-17.")
+    if fit.terms["s0"].notna().sum() > 0:
+        row = []
+        for name, fn, cap in (
+            ("fig4_latitude.png", figures.plot_fig4_latitude, "log sigma_F90 against |sin b| per G bin (Fig. 4 left)"),
+            ("fig4_coefficients.png", figures.plot_fig4_coefficients, "s0, s1, s2 against G (Fig. 4 middle)"),
+            ("fig4_magnitude.png", figures.plot_fig4_magnitude, "sigma_F90 against G at b = 0, 30, 90 deg (Fig. 4 right)"),
+        ):
+            fn(fit, figdir / name)
+            row.append((f"{FIG_DIR}/{name}", cap))
+        doc.figure_row(row)
+    noise = _cell_noise_dex(f90)
+    doc.bullets(_key_numbers(fit, f90, noise, showcase, p, list(cfg.get("observations", {}).get("cases", {}))))
+    doc.para(_difference_sentence(fit, noise, cfg, prov))
+    maps = []
+    if run_prior is not None:
+        figures.plot_prior_mollweide(run_dir / MAPS_FILE, Prior.paper(), figdir / "prior_maps.png")
+        maps.append((f"{FIG_DIR}/prior_maps.png", "sigma_F90 over the sky (galactic Mollweide, l = 0 at the "
+                     "centre, increasing to the left) at a few G bin centres: this run's fit (prior_maps.fits) "
+                     "and the paper's Eqs. 14-17"))
+    if fit.terms["s0"].notna().sum() > 0:
+        figures.plot_sky_difference(fit, figdir / "sky_difference.png")
+        maps.append((f"{FIG_DIR}/sky_difference.png", "Sky map of log10(ours / paper) per cell"))
+    if maps:
+        doc.figure_row(maps)
+
+    doc.heading("Coefficients, per-bin numbers and cells", level=3)
+    if len(noise):
         n_ill = int(f90["ill_determined"].sum()) if "ill_determined" in f90 else 0
-        if len(half):
-            doc.para(f"Monte Carlo precision: half-width of the 16-84 % bootstrap interval of sigma_F90 "
-                     f"(stars resampled, `cell.n_bootstrap`) median {np.median(half):.3f} dex, 90th percentile "
-                     f"{np.percentile(half, 90):.3f} dex over {len(half)} cells; {n_ill} cells ill-determined "
-                     "(fraction within 2 binomial sigma of P over >= 1 dex of priors around the crossing).")
-    n_bins = int(fit.terms["s0"].notna().sum())
-    if n_bins < 4:
-        doc.para(f"Only {n_bins} G bins have an Eq. 14 fit: the polynomials of Eqs. 15-17 need at least "
-                 "4 (s1 is cubic), so coefficients that cannot be determined are left empty.")
+        doc.para(f"Monte Carlo precision: half-width of the 16-84 % bootstrap interval of sigma_F90 "
+                 f"(stars resampled, `cell.n_bootstrap`) median {np.median(noise):.3f} dex, 90th percentile "
+                 f"{np.percentile(noise, 90):.3f} dex over {len(noise)} cells; {_n(n_ill, 'cell')} "
+                 "ill-determined (fraction within 2 binomial sigma of P over >= 1 dex of priors around the "
+                 "crossing).")
+    n_fitted = int(fit.terms["s0"].notna().sum())
+    if n_fitted < 4:
+        doc.para(f"Only {_n(n_fitted, 'G bin')} {'has' if n_fitted == 1 else 'have'} an Eq. 14 fit: the "
+                 "polynomials of Eqs. 15-17 need at least 4 (s1 is cubic), so coefficients that cannot be "
+                 "determined are left empty.")
     doc.table(fit.coefficients, "Coefficients of Eqs. 15-17 (increasing powers of G): ours vs the paper's; "
               "fitted_lo/hi: 16-84 % bootstrap interval over the cells (paper_inside: the paper's value "
               "lies in it)",
@@ -97,15 +125,6 @@ def sweep_section(doc: Document, run_dir: Path, prov: dict) -> None:
               "Eq. 14 fitted per G bin, with 16-84 % bootstrap intervals (rms_dex: scatter of the cells "
               "about the fit)",
               {c: ".4f" for c in term_cols if c[:2] in ("s0", "s1", "s2")} | {"rms_dex": ".3f"})
-    if fit.terms["s0"].notna().sum() > 0:
-        for name, fn, cap in (
-            ("fig4_latitude.png", figures.plot_fig4_latitude, "log sigma_F90 against |sin b| per G bin (Fig. 4 left)"),
-            ("fig4_coefficients.png", figures.plot_fig4_coefficients, "s0, s1, s2 against G (Fig. 4 middle)"),
-            ("fig4_magnitude.png", figures.plot_fig4_magnitude, "sigma_F90 against G at b = 0, 30, 90 deg (Fig. 4 right)"),
-            ("sky_difference.png", figures.plot_sky_difference, "Sky map of log10(ours / paper)"),
-        ):
-            fn(fit, figdir / name)
-            doc.figure(f"{FIG_DIR}/{name}", cap)
     worst = fit.compared[fit.compared["f90_flag"] == "ok"].reindex(
         fit.compared["diff_dex"].abs().sort_values(ascending=False).index).dropna(subset=["diff_dex"]).head(10)
     doc.table(worst[["l_deg", "b_deg", "g_min", "g_max", "n_stars", "radius_deg", "sigma_f90_mas"]
@@ -120,14 +139,153 @@ def sweep_section(doc: Document, run_dir: Path, prov: dict) -> None:
         summary = f90[frac_cols].describe(percentiles=[0.1, 0.5, 0.9]).T[["count", "mean", "10%", "50%", "90%"]]
         summary.insert(0, "case", [c.removeprefix("fraction_at_f90_") for c in summary.index])
         doc.table(summary.reset_index(drop=True), "Fraction inside the P ellipse at each cell's sigma_F90, per case",
-                  {"mean": ".3f", "10%": ".3f", "50%": ".3f", "90%": ".3f"})
-    if run_prior is not None:
-        name = "prior_maps.png"
-        figures.plot_prior_mollweide(run_dir / MAPS_FILE, Prior.paper(), figdir / name)
-        doc.figure(f"{FIG_DIR}/{name}", "sigma_F90 over the sky (galactic Mollweide, l = 0 at the centre, "
-                   "increasing to the left) at a few G bin centres: this run's fit (prior_maps.fits) and "
-                   "the paper's Eqs. 14-17")
+                  {"count": ".0f", "mean": ".3f", "10%": ".3f", "50%": ".3f", "90%": ".3f"})
     _showcase_section(doc, run_dir, figdir, p, cfg)
+
+
+def _n(count: int, noun: str) -> str:
+    return f"{count} {noun}" + ("" if count == 1 else "s")
+
+
+def _with_interval(value: float, lo: float, hi: float) -> str:
+    """"1.98 [1.86, 2.10]": all three to the decimals that give the interval's half-width two
+    significant digits, so the value is quoted no more precisely than it is known."""
+    half = 0.5 * abs(hi - lo)
+    decimals = max(0, 1 - int(np.floor(np.log10(half)))) if half > 0 else 4
+    def f(x: float) -> str:
+        text = f"{x:.{decimals}f}"
+        return text[1:] if text.startswith("-") and float(text) == 0 else text
+
+    return f"{f(value)} [{f(lo)}, {f(hi)}]"
+
+
+def _cell_noise_dex(f90: pd.DataFrame) -> np.ndarray:
+    """Per cell, the half-width [dex] of the 16-84 % bootstrap interval of sigma_F90 (empty
+    when the run has no intervals)."""
+    if not {"sigma_f90_lo_mas", "sigma_f90_hi_mas"} <= set(f90.columns):
+        return np.array([])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        half = 0.5 * np.log10(f90["sigma_f90_hi_mas"].to_numpy(float) / f90["sigma_f90_lo_mas"].to_numpy(float))
+    return half[np.isfinite(half)]
+
+
+def _showcase_curves(run_dir: Path) -> pd.DataFrame | None:
+    show = sorted((run_dir / "showcase").glob("cell_*.parquet")) if (run_dir / "showcase").exists() else []
+    curves = [f for f in show if not f.stem.endswith("_scatter")]
+    return pd.read_parquet(curves[0]) if curves else None
+
+
+def _paper_terms(g) -> dict[str, np.ndarray]:
+    """s0, s1, s2 of Eq. 14 from the paper's Eqs. 15-17 at G = ``g``."""
+    return {k: np.polynomial.polynomial.polyval(np.asarray(g, float), PAPER_COEFFICIENTS[k]) for k in ("s0", "s1", "s2")}
+
+
+def _key_numbers(fit, f90: pd.DataFrame, noise: np.ndarray, showcase: pd.DataFrame | None, p: float,
+                 cases: list[str]) -> list[str]:
+    """The headline numbers, each with the interval the run provides for it."""
+    items = []
+    rms = fit.rms.set_index("g_bin")
+    bins = rms.drop(index="all").dropna(subset=["mean_diff_dex"])
+    if "all" in rms.index and rms.loc["all", "n_cells"] > 0:
+        a = rms.loc["all"]
+        text = (f"Difference from the paper, log10(ours / Eqs. 14-17) over the {int(a['n_cells'])} cells with a "
+                f"sigma_F90: RMS {a['rms_diff_dex']:.3f} dex, mean {a['mean_diff_dex']:+.3f} dex")
+        if len(noise):
+            text += (f"; a cell's own Monte Carlo uncertainty is {np.median(noise):.3f} dex (median half-width "
+                     "of its 16-84 % bootstrap interval)")
+        items.append(text + ".")
+    if len(bins) > 1:
+        lo, hi = bins["mean_diff_dex"].idxmin(), bins["mean_diff_dex"].idxmax()
+        items.append(f"Mean difference per G bin from {bins.loc[lo, 'mean_diff_dex']:+.3f} dex (G = {lo}) to "
+                     f"{bins.loc[hi, 'mean_diff_dex']:+.3f} dex (G = {hi}); RMS per bin "
+                     f"{bins['rms_diff_dex'].min():.3f}-{bins['rms_diff_dex'].max():.3f} dex.")
+    coef = fit.coefficients
+    if coef["fitted"].notna().any():
+        for name, eq in (("s0", 15), ("s1", 16), ("s2", 17)):
+            rows = coef[coef["term"].str.startswith(f"{name}_")]
+            parts = []
+            for r in rows.itertuples(index=False):
+                power = r.term.split("_c")[1]
+                if not np.isfinite(r.fitted):
+                    parts.append(f"c{power} not determined (paper {r.paper:g})")
+                    continue
+                if "fitted_lo" in coef and np.isfinite(r.fitted_lo):
+                    parts.append(f"c{power} {_with_interval(r.fitted, r.fitted_lo, r.fitted_hi)} (paper {r.paper:g})")
+                else:
+                    parts.append(f"c{power} {r.fitted:.3g} (paper {r.paper:g})")
+            items.append(f"{name} (Eq. {eq}) coefficients, ours [16-84 %] (paper): " + ", ".join(parts) + ".")
+        if "paper_inside" in coef:
+            inside = coef.loc[coef["paper_inside"].astype(bool), "term"].str.replace("_", " ").tolist()
+            items.append(f"The paper's coefficient lies inside our 16-84 % interval for {len(inside)} of "
+                         f"{len(coef)} terms" + (f" ({', '.join(inside)})." if inside else "."))
+    terms = fit.terms.dropna(subset=["s0", "s1", "s2"])
+    if len(terms) and {"s0_lo", "s0_hi"} <= set(terms.columns):
+        paper = _paper_terms(terms["g"])
+        outside = {k: int(((paper[k] < terms[f"{k}_lo"]) | (paper[k] > terms[f"{k}_hi"])).sum())
+                   for k in ("s0", "s1", "s2")}
+        items.append("Eq. 14 per G bin: the paper's term lies outside our 16-84 % interval in "
+                     f"{outside['s0']} of {len(terms)} bins for s0 (constant), {outside['s1']} for s1 (|sin b|) "
+                     f"and {outside['s2']} for s2 (cos b cos l).")
+    if showcase is not None and len(showcase):
+        r = showcase.iloc[0]
+        g = (float(r["g_min"]) + float(r["g_max"])) / 2
+        paper = float(evaluate_formula(PAPER_COEFFICIENTS, float(r["l_deg"]), float(r["b_deg"]), g))
+        iv = (f" [{r['sigma_f90_lo_mas']:.3g}, {r['sigma_f90_hi_mas']:.3g}]"
+              if {"sigma_f90_lo_mas", "sigma_f90_hi_mas"} <= set(showcase.columns) else "")
+        items.append(f"The paper's Table 1 beam, (l, b) = ({r['l_deg']:.1f}, {r['b_deg']:.1f}) deg, "
+                     f"G = {r['g_min']:g}-{r['g_max']:g}: sigma_F90 = {r['sigma_f90_mas']:.3g} mas{iv} "
+                     f"(16-84 %), the paper's formula {paper:.3g} mas.")
+    # In the config's order of the cases (one, two, ..., eight), not the pivot's alphabetical one.
+    frac_cols = sorted((c for c in f90.columns if c.startswith("fraction_at_f90_")),
+                       key=lambda c: (cases.index(c[16:]) if c[16:] in cases else len(cases), c))
+    if frac_cols:
+        med = f90[frac_cols].median()
+        items.append(f"At each cell's sigma_F90 the median fraction inside the P = {p:g} ellipse is "
+                     f"{med.min():.3f}-{med.max():.3f} over the {len(frac_cols)} observation cases "
+                     f"({', '.join(c.removeprefix('fraction_at_f90_') for c in frac_cols)}): one prior serves "
+                     "every case, as in the paper's Fig. 3.")
+    return items
+
+
+#: Where the reasons for a difference from the paper are written down.
+_DOCS_MODEL = "docs/galaxy_model.md, 'Default sweep and Table 2'"
+_DOCS_DIFFERENCES = "docs/architecture.md, 'Known modelling differences'"
+#: Faint edge of the bins where the galaxy model's bright-star calibration puts the
+#: default sweep's sigma_F90 above the paper's by +0.05 dex or more (docs/galaxy_model.md,
+#: G = 6-12 with besancon-r03-3; README: +0.10 to +0.11 dex at G = 6-10 with r03-4).
+_BRIGHT_G = 12.0
+
+
+def _difference_sentence(fit, noise: np.ndarray, cfg: dict, prov: dict) -> str:
+    """One sentence: the G bin that differs most, by how much against the noise, and the
+    documented reason for a difference of that kind."""
+    bins = fit.compared[fit.compared["f90_flag"] == "ok"].dropna(subset=["diff_dex"])
+    if bins.empty:
+        return "No cell has a sigma_F90, so nothing can be compared with the paper."
+    per_bin = bins.groupby(["g_min", "g_max"])["diff_dex"].agg(["mean", "count"])
+    g0, g1 = per_bin["mean"].abs().idxmax()
+    worst = per_bin.loc[(g0, g1)]
+    mean = float(worst["mean"])
+    # Uncertainty of a bin's mean from the cells' own Monte Carlo noise alone.
+    sigma = float(np.median(noise)) / np.sqrt(worst["count"]) if len(noise) else float("nan")
+    text = (f"Our sigma_F90 differs most from the paper's at G = {g0:g}-{g1:g}, by {mean:+.3f} dex on average "
+            f"(our prior {'looser' if mean > 0 else 'tighter'} than the paper's")
+    if np.isfinite(sigma) and sigma > 0:
+        text += f"; {abs(mean) / sigma:.0f} x the {sigma:.3f} dex Monte Carlo uncertainty of that mean"
+        if abs(mean) < 2 * sigma:
+            return text + "), which is within the noise of this run."
+    text += ")"
+    pop = cfg.get("population", {}).get("name", "galaxy_model")
+    law = cfg.get("scanning", {}).get("name")
+    if pop == "galaxy_model" and g1 <= _BRIGHT_G and mean > 0:
+        return (text + ": the built-in galaxy model's bright stars follow the published local densities and "
+                "counts of the real sky, which puts them nearer than in GUMS, on which Eqs. 14-17 were "
+                f"fitted, so their parallaxes and sigma_F90 are larger ({_DOCS_MODEL}).")
+    source = (f"the built-in galaxy model ({prov.get('galaxy_model_version') or 'version not recorded'})"
+              if pop == "galaxy_model" else f"the '{pop}' population")
+    return (text + f": Eqs. 14-17 were fitted to GUMS stars on the pre-launch nominal scanning law, this run "
+            f"draws {source}" + (f" on the '{law}' law" if law and law != "nominal" else "")
+            + f", whose star counts and distances differ from GUMS ({_DOCS_DIFFERENCES}; {_DOCS_MODEL}).")
 
 
 def write_prior_maps(run_dir: Path, fit, cfg: dict) -> Prior | None:
@@ -217,8 +375,21 @@ def _showcase_groups_note(doc: Document, groups: pd.DataFrame, ra_dec: tuple[flo
 
 def provenance_section(doc: Document, run_dir: Path, prov: dict) -> None:
     doc.heading("Provenance")
+    seeds = prov.get("seeds") or {}
+    seeds = seeds if isinstance(seeds, dict) else {"seed": seeds}
     doc.para(f"mcsweep {prov.get('mcsweep_version')}, git commit {prov.get('git_commit') or 'unknown'}, "
-             f"Python {prov.get('python')}; config hash {prov.get('config_hash')}; seeds: {prov.get('seeds')}.")
+             f"Python {prov.get('python')}; config hash {prov.get('config_hash')}; seed {plain(seeds.get('seed'))}"
+             + ("; the random streams derived from it:" if len(seeds) > 1 else "."))
+    streams = []
+    for name, how in seeds.items():
+        if name == "seed":
+            continue
+        if isinstance(how, dict):
+            streams += [f"{name}, {part}: {plain(v)}" for part, v in how.items()]
+        else:
+            streams.append(f"{name}: {plain(how)}")
+    if streams:
+        doc.bullets(streams)
     t = prov.get("timings_s", {})
     if t:
         doc.table(pd.DataFrame({"stage": list(t), "seconds": list(t.values())}), "Per-stage wall time",

@@ -138,7 +138,8 @@ class Document:
         e, t = html.escape, _inline_html
 
         def fig(path: str, caption: str) -> str:
-            return (f'<figure><img src="{e(path)}" alt="{e(_no_ticks(caption))}">'
+            # The image links to itself: panels in a row are small, the file is full size.
+            return (f'<figure><a href="{e(path)}"><img src="{e(path)}" alt="{e(_no_ticks(caption))}"></a>'
                     f"<figcaption>{t(caption)}</figcaption></figure>")
 
         body = [f"<h1>{t(self.title)}</h1>"]

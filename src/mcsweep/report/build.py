@@ -86,8 +86,9 @@ def sweep_section(doc: Document, run_dir: Path, prov: dict) -> None:
             row.append((f"{FIG_DIR}/{name}", cap))
         doc.figure_row(row)
     noise = _cell_noise_dex(f90)
-    doc.bullets(_key_numbers(fit, f90, noise, showcase, p, list(cfg.get("observations", {}).get("cases", {}))))
+    # The conclusion before the numbers behind it, so both fit under the figures on one screen.
     doc.para(_difference_sentence(fit, noise, cfg, prov))
+    doc.bullets(_key_numbers(fit, f90, noise, showcase, p, list(cfg.get("observations", {}).get("cases", {}))))
     maps = []
     if run_prior is not None:
         figures.plot_prior_mollweide(run_dir / MAPS_FILE, Prior.paper(), figdir / "prior_maps.png")

@@ -15,7 +15,7 @@ from pathlib import Path
 import pandas as pd
 
 from ..experiments.primary_table import table3_layout
-from ..experiments.secondary_table import FRACTION_INTERVAL
+from ..experiments.global_table import FRACTION_INTERVAL
 from .document import FIG_DIR, Document
 from .figures import plot_primary_attitude_error, plot_primary_convergence
 

@@ -28,7 +28,7 @@ from .execution import executor, release_free_memory
 from .global_runner import GlobalExperiment, GlobalRun, run_global
 from .store import atomic_write_bytes
 
-__all__ = ["PRIMARY", "run_primary"]
+__all__ = ["PRIMARY", "run_primary", "solution_line"]
 
 
 def _prior_id(label: str) -> str:
@@ -40,6 +40,14 @@ def _groups(pri) -> list[tuple[float, int, int]]:
     if pri.primary_sources > 0:  # optional extra attitude carriers (0: the paper's three classes only)
         groups.append((float(pri.primary_g_min), pri.primary_sources, PRIMARY_KEY))
     return groups
+
+
+def solution_line(label: str, extra: dict) -> str:
+    """What the command prints when a prior's solution is done: iterations, convergence and the
+    attitude error RMS per axis, written as the table notes write it."""
+    rms = " / ".join(f"{v:.1f}" for v in extra["attitude_rms_uas"])
+    return (f"mcsweep: primary: prior {label}: {extra['iterations']} PCG iterations, converged "
+            f"{extra['converged']}, attitude error RMS {rms} uas (x / y / z)")
 
 
 def _transits(run: GlobalRun, stars: pd.DataFrame) -> dict:
@@ -78,8 +86,7 @@ def _solve(run: GlobalRun, data, label: str, cluster: contextlib.ExitStack) -> N
         atomic_write_bytes(run.chunks / f"{cid}.json", json.dumps(extra).encode())
         run.store.write(cid, res)
         release_free_memory()  # the solution's temporaries, before the next one
-        print(f"mcsweep: primary: prior {label}: {extra['iterations']} PCG iterations, converged "
-              f"{extra['converged']}, attitude error RMS {np.round(extra['attitude_rms_uas'], 2)} uas", flush=True)
+        print(solution_line(label, extra), flush=True)
 
 
 def _compute(run: GlobalRun) -> None:

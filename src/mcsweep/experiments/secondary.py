@@ -32,11 +32,12 @@ The attitude is known from an earlier solution, so each star is solved on its ow
 Reproducibility: the stars of a class come from ``SeedSequence(seed, spawn_key=(41, 0,
 class key))``, its dilution key from ``(41, 1, class key)``, and the measurement noise
 of each fixed block of :data:`BLOCK_STARS` consecutive stars from ``(41, 2, class key,
-block index)`` (class key = round(100 G0)). Chunks of ``chunk_stars`` (rounded up to a
-whole number of blocks) only group blocks, so results are identical for any chunk
-size, number of workers, backend or completion order. Each finished chunk is written
-atomically (:class:`~mcsweep.sweep.store.CellStore`), so a killed run resumes; the
-tables are written, atomically, only when every chunk is done.
+block index)`` (class key = round(100 G0); :mod:`mcsweep.experiments.global_settings`).
+Chunks of ``chunk_stars`` (rounded up to a whole number of blocks) only group blocks, so
+results are identical for any chunk size, number of workers, backend or completion
+order. Each finished chunk is written atomically (:mod:`mcsweep.sweep.global_runner`),
+so a killed run resumes; the tables are written, atomically, only when every chunk is
+done.
 """
 
 from __future__ import annotations
@@ -56,8 +57,8 @@ from ..errors import UserInputError
 from ..scanning.ephemeris import gaia_position_au
 from .global_classes import STAR_COLUMNS, class_key, diluted, star_transits
 from .global_settings import GlobalSettings, global_fields, spawn
-from .secondary_table import SOLUTION_COLUMNS
 from .global_table import g_label
+from .secondary_table import SOLUTION_COLUMNS
 
 __all__ = [
     "BLOCK_STARS",

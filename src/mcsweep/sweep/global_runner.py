@@ -14,9 +14,10 @@ to it. :func:`run_global` owns the rest, in this order:
 3. the chunk store ``<chunks_dir>/`` (atomic Parquet files with checksums; temporaries
    of a killed write removed): the experiment's ``compute`` fills it in stages of its
    own, skipping what is finished (:meth:`GlobalRun.pending`), through the configured
-   executor (:meth:`GlobalRun.map`);
-4. stage ``aggregate``: the experiment's ``aggregate`` turns the store into its tables;
-   each is written atomically, only now, so a table never describes a partial run;
+   executor (:meth:`GlobalRun.map`), and returns what its tables need besides the store;
+4. stage ``aggregate``: the experiment's ``aggregate`` turns the store (and what
+   ``compute`` returned) into its tables; each is written atomically, only now, so a
+   table never describes a partial run;
 5. the seeds of the experiment, the code versions of the results read, returned with the
    path of the main table.
 """
@@ -55,9 +56,9 @@ class GlobalExperiment:
     build_settings: Callable
     #: experiment.<kind> section -> [(G0, number of stars, class key), ...] to draw.
     groups: Callable
-    #: The experiment's own stages: fill the chunk store (GlobalRun -> None).
+    #: The experiment's own stages: fill the chunk store (GlobalRun -> what aggregate needs).
     compute: Callable
-    #: GlobalRun -> {file name: text} of the tables, from the finished store.
+    #: (GlobalRun, what compute returned) -> {file name: text} of the tables.
     aggregate: Callable
     #: What provenance records under ``seeds.<kind>``.
     seeds: dict
@@ -80,8 +81,6 @@ class GlobalRun:
     #: (G0, class key, stars) per group of :attr:`GlobalExperiment.groups`, in order.
     classes: list
     store: CellStore
-    #: Anything the experiment's compute hands to its aggregate (e.g. prepared data).
-    state: dict = dataclasses.field(default_factory=dict)
 
     @property
     def section(self):
@@ -157,9 +156,9 @@ def run_global(experiment: GlobalExperiment, config, raw_cfg: dict, run_dir, *, 
     store.remove_stale_temporaries()  # left by a killed write, never a result
     run = GlobalRun(config=config, run_dir=run_dir, prov=prov, settings=settings, epoch=epoch, classes=classes,
                     store=store)
-    experiment.compute(run)
+    computed = experiment.compute(run)
     with prov.stage("aggregate"):
-        outputs = experiment.aggregate(run)
+        outputs = experiment.aggregate(run, computed)
         prov.cell_versions = dict(store.versions_read)
         for name, text in outputs.items():
             atomic_write_bytes(run_dir / name, text.encode())

@@ -13,8 +13,11 @@ factor search and the summaries.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
+import functools
 import json
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 import pandas as pd
@@ -62,8 +65,18 @@ def _transits(run: GlobalRun, stars: pd.DataFrame) -> dict:
     return {k: np.concatenate([found[i][k] for i in range(len(jobs))]) for k in ("star", "t", "psi")}
 
 
-def _solve(run: GlobalRun, data, label: str, cluster: contextlib.ExitStack) -> None:
-    """The solution of prior ``label`` and its side files, unless finished (resume)."""
+@dataclasses.dataclass
+class _Computed:
+    """What the tables need besides the solutions in the store."""
+
+    data: object        # experiments.primary.PreparedData
+    stars: pd.DataFrame
+    factors: dict       # factor k -> its prior label (experiment.primary.factor_grid)
+
+
+def _solve(run: GlobalRun, data, label: str, dask_executor: Callable) -> None:
+    """The solution of prior ``label`` and its side files, unless finished (resume);
+    ``dask_executor()``: the Dask client's map, opened at its first call."""
     config, settings = run.config, run.settings
     cid = _prior_id(label)
     if run.pending([cid]) or not (run.chunks / f"{cid}.json").exists():
@@ -74,9 +87,7 @@ def _solve(run: GlobalRun, data, label: str, cluster: contextlib.ExitStack) -> N
         # On this machine the n_jobs workers are forked per solution and keep their share of
         # the blocks (mcsweep.solver.resident); results are the same bits either way.
         if config.execution.backend == "dask":
-            if "dask" not in run.state:
-                run.state["dask"] = cluster.enter_context(executor(config.execution))
-            res, hist, extra, series = solve_prior(settings, data, label, run=run.state["dask"],
+            res, hist, extra, series = solve_prior(settings, data, label, run=dask_executor(),
                                                    chunk_stars=int(config.execution.chunk_stars))
         else:
             workers = int(config.execution.n_jobs) if config.execution.backend in ("loky", "threading") else 1
@@ -89,7 +100,7 @@ def _solve(run: GlobalRun, data, label: str, cluster: contextlib.ExitStack) -> N
         print(solution_line(label, extra), flush=True)
 
 
-def _compute(run: GlobalRun) -> None:
+def _compute(run: GlobalRun) -> _Computed:
     parts = []
     for _, key, df in run.classes:
         df = df[list(STAR_COLUMNS)]
@@ -105,16 +116,17 @@ def _compute(run: GlobalRun) -> None:
     # The factor search (experiment.primary.factor_grid) shares solutions with Table 3's priors.
     factors = {float(k): factor_label(k) for k in run.section.factor_grid}
     with contextlib.ExitStack() as cluster:
+        dask_executor = functools.cache(lambda: cluster.enter_context(executor(run.config.execution)))
         for label in dict.fromkeys([*run.settings.priors, *factors.values()]):
             with run.prov.stage(f"solve {label}"):
-                _solve(run, data, label, cluster)
-    run.state.update(data=data, stars=stars, factors=factors)
+                _solve(run, data, label, dask_executor)
+    return _Computed(data=data, stars=stars, factors=factors)
 
 
-def _read_solutions(run: GlobalRun) -> tuple[dict, list, dict, list]:
+def _read_solutions(run: GlobalRun, factors: dict) -> tuple[dict, list, dict, list]:
     """Per prior: the per-star results, convergence history, summary and attitude errors."""
     results, histories, extras, attitude = {}, [], {}, []
-    for label in dict.fromkeys([*run.settings.priors, *run.state["factors"].values()]):
+    for label in dict.fromkeys([*run.settings.priors, *factors.values()]):
         cid = _prior_id(label)
         (results[label],) = run.read_all([cid])
         histories.append(pd.read_csv(run.chunks / f"{cid}_history.csv"))
@@ -125,9 +137,9 @@ def _read_solutions(run: GlobalRun) -> tuple[dict, list, dict, list]:
     return results, histories, extras, attitude
 
 
-def _aggregate(run: GlobalRun) -> dict[str, str]:
-    pri, settings, data, factors = run.section, run.settings, run.state["data"], run.state["factors"]
-    results, histories, extras, attitude = _read_solutions(run)
+def _aggregate(run: GlobalRun, computed: _Computed) -> dict[str, str]:
+    pri, settings, data, factors = run.section, run.settings, computed.data, computed.factors
+    results, histories, extras, attitude = _read_solutions(run, factors)
     table = table3_rows({k: results[k] for k in settings.priors}, pri.g_classes, settings.confidence)
     outputs = {}
     if factors:
@@ -147,7 +159,7 @@ def _aggregate(run: GlobalRun) -> dict[str, str]:
     summary["n_attitude_coefficients"] = 3 * data.spline.n_coef
     summary["knot_interval_hours"] = pri.knot_interval_hours
     summary["dead_fraction"] = data.dead_days / (settings.end_jd - settings.start_jd)
-    counts = run.state["stars"].groupby("class_key").size().to_dict()
+    counts = computed.stars.groupby("class_key").size().to_dict()
     notes = [run.conditions(f"{pri.mission_years:g} year(s) from {pri.mission_start} (TCB), dead time "
                             f"{100 * pri.dead_time_fraction:g} % in blocks of {pri.dead_time_block_days:g} d"),
              f"Stars: {pri.class_size} per class (paper 5e5), {counts.get(PRIMARY_KEY, 0)} primary sources "

@@ -51,7 +51,7 @@ def _compute(run: GlobalRun) -> None:
     run.map("chunks", _chunk_task, jobs, desc="secondary chunks", done=len(plan) - len(jobs))
 
 
-def _aggregate(run: GlobalRun) -> dict[str, str]:
+def _aggregate(run: GlobalRun, _computed=None) -> dict[str, str]:
     plan, sec, settings = _plan(run), run.section, run.settings
     per_class, summary = [], []
     for g, _, stars in run.classes:

@@ -40,8 +40,9 @@ The attitude is now *not* known: stars and attitude are solved together
    2012, Sect. 3.3) with ``knot_interval_hours``. No instrument calibration (none is
    simulated). Frame: zero mean rotation and spin of the corrections over all sources
    (:mod:`mcsweep.solver.frame`). One PCG solution per prior of ``priors``
-   (``'<k>F90'`` = k sigma_F90, ``'<s>mas'`` = a fixed sigma; default the rows of
-   Table 3: F90, 10F90, 1000mas).
+   (``'<k>F90'`` = k sigma_F90, ``'<s>mas'`` = a fixed sigma,
+   :mod:`mcsweep.experiments.global_priors`; default the rows of Table 3: F90, 10F90,
+   1000mas).
 5. *Evaluation.* As the frame rotator: the rotation and spin fitted to (estimated -
    true) over all sources are removed; each star's formal covariance is its own block
    ``(N_ss + N_p)^-1`` with the attitude taken as known (as AGIS gives it). Per star:
@@ -64,8 +65,6 @@ in star order).
 from __future__ import annotations
 
 import dataclasses
-import math
-import re
 
 import numpy as np
 import pandas as pd
@@ -83,6 +82,7 @@ from ..solver import (BLOCK_STARS, AttitudeSpline, GlobalProblem, build_observat
                       frame_offsets, in_block_order, make_blocks, precision_weights, solve_global,
                       source_normals)
 from .global_classes import dead_time, star_transits
+from .global_priors import parse_prior, prior_sigma_mas
 from .global_settings import GlobalSettings, global_fields, spawn
 
 __all__ = [
@@ -93,8 +93,6 @@ __all__ = [
     "PrimarySettings",
     "PreparedData",
     "build_settings",
-    "parse_prior",
-    "prior_sigma_mas",
     "stream_seed",
     "transits_of",
     "prepare",
@@ -113,24 +111,10 @@ PRIMARY_KEY = 0
 TAG = 42  # Sect. 4.2: first element of every spawn key of this experiment
 #: Stream numbers of the spawn keys (the population's is POPULATION_STREAM = 0).
 DEAD_STREAM, ATTITUDE_STREAM, NOISE_STREAM, FACTOR_STREAM = 1, 2, 3, 4
-_PRIOR_RE = re.compile(r"^(?:(?P<k>\d+(?:\.\d*)?(?:[eE][-+]?\d+)?)?F90|(?P<s>\d+(?:\.\d*)?(?:[eE][-+]?\d+)?)mas)$")
 
 
 def stream_seed(seed: int, stream: int, *key: int) -> np.random.SeedSequence:
     return spawn(seed, TAG, stream, *key)
-
-
-def parse_prior(label: str) -> tuple[str, float]:
-    """``'10F90'`` -> ('F90', 10.0); ``'1000mas'`` -> ('mas', 1000.0); user error otherwise."""
-    m = _PRIOR_RE.match(str(label).strip())
-    value = None
-    if m:
-        kind, value = ("F90", float(m["k"] or 1.0)) if m["s"] is None else ("mas", float(m["s"]))
-    if value is None or not (math.isfinite(value) and value > 0):
-        raise UserInputError(f"experiment.primary.priors entry {label!r} is not accepted; expected "
-                             "'<k>F90' (k times sigma_F90, e.g. F90, 10F90) or '<sigma>mas' (e.g. 1000mas) "
-                             "with a positive number")
-    return kind, value
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
@@ -173,12 +157,6 @@ def build_settings(config) -> PrimarySettings:
         attitude_timescale_days=float(pri.attitude_timescale_hours) / 24.0,
         rtol=float(pri.solver_rtol), update_tol_uas=float(pri.solver_update_tol_uas),
         max_iter=int(pri.solver_max_iter), frame_fit=str(pri.frame_fit))
-
-
-def prior_sigma_mas(settings: PrimarySettings, label: str, sigma_f90_mas: np.ndarray) -> np.ndarray:
-    """Parallax prior sigma of every star for one entry of ``priors``."""
-    kind, value = parse_prior(label)
-    return value * sigma_f90_mas if kind == "F90" else np.full(sigma_f90_mas.shape, value)
 
 
 # --------------------------------------------------------------------------- data
@@ -380,7 +358,7 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
     """
     st = data.stars
     s = data.solved
-    sig = prior_sigma_mas(settings, label, settings.sigma_f90_mas(
+    sig = prior_sigma_mas(label, settings.sigma_f90_mas(
         st["l"].to_numpy()[s], st["b"].to_numpy()[s], st["phot_g_mean_mag"].to_numpy()[s]))
     prior = prior_diagonal(sig, settings.ratio_R)
     # Raises if a star's block is singular: every solved star has >= 1 AL+AC or 2 AL

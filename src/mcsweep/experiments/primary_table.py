@@ -28,11 +28,12 @@ import pandas as pd
 
 from ..astrometry.confidence import percentile_interval
 from .global_classes import class_key
+from .global_priors import prior_label
 from .global_table import (FRACTION_INTERVAL, PAPER_G_CLASSES, SUBSETS, error_percentile, fraction_statistics,
                            g_label, layout_markdown, paper_layout, published_value, subset_masks)
 
 __all__ = ["PAPER_TABLE3", "PAPER_G_CLASSES", "TABLE3_COLUMNS", "paper_value3", "cell_mask",
-           "cell_statistics", "table3_rows", "table3_layout", "table3_markdown", "prior_label"]
+           "cell_statistics", "table3_rows", "table3_layout", "table3_markdown"]
 
 #: Table 3 transcribed from the LaTeX source: (subset, prior) -> (fractions in per cent
 #: for G ~ 11, 15, 19; 90th percentiles of the position errors in mas).
@@ -47,14 +48,6 @@ PAPER_TABLE3: Mapping[tuple[str, str], tuple[tuple[float, ...], tuple[float, ...
 TABLE3_COLUMNS = ("subset", "prior", "g_class", "n_stars", "n_valid", "n_inside", "fraction_inside",
                   "fraction_lo", "fraction_hi", "p90_error_mas", "p90_error_lo_mas", "p90_error_hi_mas",
                   "paper_fraction_inside", "paper_p90_error_mas", "error_percentile")
-
-
-def prior_label(prior: str) -> str:
-    """The paper's row label of a prior setting ('10F90' -> '10 sigma_F90')."""
-    if prior.endswith("F90"):
-        k = prior[:-3]
-        return "sigma_F90" if k in ("", "1") else f"{k} sigma_F90"
-    return prior.replace("mas", " mas")
 
 
 def paper_value3(subset: str, prior: str, g_class: float, confidence: float) -> tuple[float, float]:

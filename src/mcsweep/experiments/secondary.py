@@ -56,9 +56,10 @@ from ..astrometry.solve import normal_equations, solve_no_prior, solve_position_
 from ..errors import UserInputError
 from ..scanning.ephemeris import gaia_position_au
 from .global_classes import STAR_COLUMNS, class_key, diluted, star_transits
+from .global_priors import prior_sigma_mas
 from .global_settings import GlobalSettings, global_fields, spawn
 from .global_table import g_label
-from .secondary_table import SOLUTION_COLUMNS
+from .secondary_table import PRIORS, SOLUTION_COLUMNS
 
 __all__ = [
     "BLOCK_STARS",
@@ -80,9 +81,6 @@ CHUNKS_DIR = "secondary_chunks"
 #: when a fresh run stops on a user error: no partial output).
 OUTPUTS = (CHUNKS_DIR, "table2.csv", "table2.md", "no_prior.csv", "secondary_summary.csv", "report.md",
            "report.html", "provenance.json")
-#: Prior sigmas of the fixed rows of Table 2 [mas], and the multiple of sigma_F90.
-TIGHT_PRIOR_MAS, LOOSE_PRIOR_MAS, F90_FACTOR = 0.01, 1000.0, 10.0
-
 TAG = 41  # Sect. 4.1: first element of every spawn key of this experiment
 #: Stream numbers of the spawn keys (dilution, noise; the population's is POPULATION_STREAM = 0).
 DILUTION_STREAM, NOISE_STREAM = 1, 2
@@ -135,11 +133,10 @@ def _block_normals(st: dict, sel: np.ndarray, rows: dict, k: int, settings: Seco
 
 
 def _solutions(N0, b0, sigma_f90_mas, ratio_R):
+    """The rows of Table 2 (position only, then each prior row), then five parameters without prior."""
     yield "none", solve_position_only(N0, b0)
-    yield "0.01mas", solve_with_prior(N0, b0, TIGHT_PRIOR_MAS, ratio_R)
-    yield "F90", solve_with_prior(N0, b0, sigma_f90_mas, ratio_R)
-    yield "10F90", solve_with_prior(N0, b0, F90_FACTOR * sigma_f90_mas, ratio_R)
-    yield "1000mas", solve_with_prior(N0, b0, LOOSE_PRIOR_MAS, ratio_R)
+    for label in PRIORS[1:]:
+        yield label, solve_with_prior(N0, b0, prior_sigma_mas(label, sigma_f90_mas), ratio_R)
     yield "5p", solve_no_prior(N0, b0)
 
 

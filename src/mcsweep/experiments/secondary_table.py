@@ -18,6 +18,7 @@ from typing import Mapping, Sequence
 import numpy as np
 import pandas as pd
 
+from .global_priors import prior_label
 from .global_table import (PAPER_CONFIDENCE, SUBSETS, error_percentile, fraction_statistics, g_label, layout_markdown,
                            paper_layout, published_value, subset_masks)
 
@@ -35,7 +36,8 @@ __all__ = [
     "table2_markdown",
 ]
 
-#: The rows of Table 2, in the paper's order (values of the ``prior`` column).
+#: The rows of Table 2, in the paper's order (values of the ``prior`` column): position
+#: only, then the priors (:mod:`mcsweep.experiments.global_priors`).
 PRIORS = ("none", "0.01mas", "F90", "10F90", "1000mas")
 #: Column stem of each solution in the per-star results ("5p" = five parameters, no prior).
 SOLUTION_COLUMNS: Mapping[str, str] = MappingProxyType({
@@ -43,8 +45,7 @@ SOLUTION_COLUMNS: Mapping[str, str] = MappingProxyType({
     "5p": "no_prior"})
 #: Row labels of the paper's first column.
 PRIOR_LABELS: Mapping[str, str] = MappingProxyType({
-    "none": "none (2 parameters)", "0.01mas": "0.01 mas", "F90": "sigma_F90",
-    "10F90": "10 sigma_F90", "1000mas": "1000 mas"})
+    "none": "none (2 parameters)", **{p: prior_label(p) for p in PRIORS[1:]}})
 #: Table 2 of the paper, transcribed from the LaTeX source: (subset, prior) ->
 #: (fraction in the 90 % ellipse in per cent for G ~ 11, 15, 19;
 #:  90th percentile of the actual position errors in mas for G ~ 11, 15, 19).

@@ -28,8 +28,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from mcsweep.experiments.secondary_table import (PAPER_G_CLASSES, PAPER_TABLE2, PRIORS, SOLUTION_COLUMNS,
-                                                 SUBSETS, subset_masks)
+from mcsweep.experiments.global_table import PAPER_G_CLASSES, SUBSETS, subset_masks
+from mcsweep.experiments.secondary_table import PAPER_TABLE2, PRIORS, SOLUTION_COLUMNS
 
 Q = 0.9
 ROUND_FRAC = 0.0005 / np.sqrt(3.0)  # the paper's fractions are given to 0.1 %

@@ -12,6 +12,7 @@ from omegaconf import OmegaConf
 
 from mcsweep.errors import UserInputError
 from mcsweep.experiments import primary as P
+from mcsweep.experiments.global_priors import parse_prior
 from mcsweep.experiments.primary_table import PAPER_TABLE3, TABLE3_COLUMNS, cell_statistics, paper_value3
 from mcsweep.sweep.validate import compose_config, to_config
 
@@ -128,10 +129,10 @@ def test_default_is_the_papers_three_classes_only():
 
 
 def test_prior_grammar():
-    assert P.parse_prior("F90") == ("F90", 1.0)
-    assert P.parse_prior("10F90") == ("F90", 10.0)
-    assert P.parse_prior("2.5F90") == ("F90", 2.5)
-    assert P.parse_prior("1000mas") == ("mas", 1000.0)
+    assert parse_prior("F90") == ("F90", 1.0)
+    assert parse_prior("10F90") == ("F90", 10.0)
+    assert parse_prior("2.5F90") == ("F90", 2.5)
+    assert parse_prior("1000mas") == ("mas", 1000.0)
 
 
 TABLE3_SOURCE = Path(__file__).parent / "data" / "table3_source.tex"

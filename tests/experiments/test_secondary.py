@@ -14,8 +14,11 @@ import pytest
 from omegaconf import OmegaConf
 
 from mcsweep.errors import UserInputError
+from mcsweep.experiments import global_classes as C
 from mcsweep.experiments import secondary as S
-from mcsweep.experiments.secondary_table import (NO_PRIOR_COLUMNS, PAPER_TABLE2, PRIORS, SOLUTION_COLUMNS, SUBSETS,
+from mcsweep.experiments.global_settings import load_f90_coefficients
+from mcsweep.experiments.global_table import SUBSETS
+from mcsweep.experiments.secondary_table import (NO_PRIOR_COLUMNS, PAPER_TABLE2, PRIORS, SOLUTION_COLUMNS,
                                                  TABLE2_COLUMNS, paper_value)
 from mcsweep.population import CatalogueSource, GalaxyModel
 from mcsweep.prior import PAPER_COEFFICIENTS, sigma_f90
@@ -192,7 +195,7 @@ def test_class_is_the_brightest_stars_fainter_than_g0_in_a_catalogue(tmp_path, r
     path = tmp_path / "stars.csv"
     cat.to_csv(path, index=False)
     src = CatalogueSource(path)
-    got = S.select_class_stars(src, 15.0, 50, np.random.default_rng(0))
+    got = C.select_class_stars(src, 15.0, 50, np.random.default_rng(0))
     expect = np.sort(g[g >= 15.0])[:50]
     assert np.array_equal(np.sort(got["phot_g_mean_mag"].to_numpy()), expect)
     # Kept in catalogue order.
@@ -200,30 +203,30 @@ def test_class_is_the_brightest_stars_fainter_than_g0_in_a_catalogue(tmp_path, r
     assert pos == sorted(pos)
     with warnings.catch_warnings(record=True) as w:
         warnings.simplefilter("always")
-        few = S.select_class_stars(src, 19.5, 10_000, np.random.default_rng(0))
+        few = C.select_class_stars(src, 19.5, 10_000, np.random.default_rng(0))
     assert len(few) == int((g >= 19.5).sum()) and any("fewer than" in str(x.message) for x in w)
 
 
 def test_class_from_the_galaxy_model_matches_its_expected_counts():
     model, n, g0 = GalaxyModel(), 2000, 15.0
-    stars = S.select_class_stars(model, g0, n, np.random.default_rng(1))
+    stars = C.select_class_stars(model, g0, n, np.random.default_rng(1))
     g = stars["phot_g_mean_mag"].to_numpy()
     assert len(stars) == n and g.min() >= g0
     # The n-th brightest star of a Poisson sky: expected count to its G is n +- sqrt(n).
     assert abs(model.expected_count(0, 90, 180, g0, g.max()) - n) < N_SIGMA * math.sqrt(n)
-    assert model.expected_count(0, 90, 180, g0, stars.attrs["g_upper"]) >= n + S.MARGIN_SIGMAS * math.sqrt(n)
+    assert model.expected_count(0, 90, 180, g0, stars.attrs["g_upper"]) >= n + C.MARGIN_SIGMAS * math.sqrt(n)
 
 
 def test_faint_limit_on_closed_forms():
     def power(g):  # count(g) = 1e6 (g - 10)^2 -> exact G1 = 10 + sqrt(target / 1e6)
         return 1e6 * (g - 10.0) ** 2
 
-    g1 = S.faint_limit(power, 10.0, 21.0, 5e5)
+    g1 = C.faint_limit(power, 10.0, 21.0, 5e5)
     assert 5e5 <= power(g1) <= 1.05 * 5e5
-    assert S.faint_limit(power, 10.0, 10.5, 5e5) == 10.5  # not enough stars: the limit itself
+    assert C.faint_limit(power, 10.0, 10.5, 5e5) == 10.5  # not enough stars: the limit itself
     steps = np.sort(np.random.default_rng(3).uniform(10.0, 21.0, 1000))  # a catalogue's step function
     count = lambda g: float(np.searchsorted(steps, g, side="left"))  # noqa: E731
-    assert count(S.faint_limit(count, 10.0, 21.0, 300)) >= 300
+    assert count(C.faint_limit(count, 10.0, 21.0, 300)) >= 300
 
 
 # ----------------------------------------------------------------------------- data and config
@@ -254,17 +257,17 @@ def test_fitted_formula_from_a_sweep_coefficients_file(tmp_path):
     rows = [(f"{k}_c{i}", c) for k, cs in PAPER_COEFFICIENTS.items() for i, c in enumerate(cs)]
     pd.DataFrame(rows, columns=["term", "fitted"]).assign(paper=0.0).to_csv(tmp_path / "coefficients.csv",
                                                                            index=False)
-    coeffs = S.load_f90_coefficients(str(tmp_path))
+    coeffs = load_f90_coefficients(str(tmp_path))
     s = S.SecondarySettings(seed=0, start_jd=0, end_jd=1, law=None, dilution=0.95, noise=None,
                             confidence=0.9, ratio_R=10.0, f90_coefficients=coeffs)
     l, b, g = np.array([0.0, 120.0]), np.array([5.0, -60.0]), np.array([11.0, 20.5])
     np.testing.assert_allclose(s.sigma_f90_mas(l, b, g), sigma_f90(l, b, g), rtol=1e-14)
-    assert S.load_f90_coefficients("paper") is None
+    assert load_f90_coefficients("paper") is None
     with pytest.raises(UserInputError, match="f90_formula"):
-        S.load_f90_coefficients(str(tmp_path / "missing.csv"))
+        load_f90_coefficients(str(tmp_path / "missing.csv"))
     pd.DataFrame({"term": ["s0_c0"], "fitted": [1.0]}).to_csv(tmp_path / "short.csv", index=False)
     with pytest.raises(UserInputError, match="f90_formula"):
-        S.load_f90_coefficients(str(tmp_path / "short.csv"))
+        load_f90_coefficients(str(tmp_path / "short.csv"))
 
 
 @pytest.mark.parametrize("override, key", [

@@ -5,7 +5,7 @@ The attitude is now *not* known: stars and attitude are solved together
 
 1. *Stars.* The three classes of Table 2 (the ``class_size`` brightest stars fainter
    than G0 = 11, 15, 19 over the whole sky, drawn exactly as in the secondary
-   experiment by :func:`~mcsweep.experiments.secondary.select_class_stars`), and only
+   experiment, :mod:`mcsweep.experiments.global_classes`), and only
    those: the paper's global solution holds these 1.5e6 stars (Sect. 4: 5e5 per class)
    and determines the attitude from them, all with the prior. ``primary_sources`` (default
    0) adds that many extra stars (the brightest fainter than ``primary_g_min``) to the
@@ -15,7 +15,7 @@ The attitude is now *not* known: stars and attitude are solved together
 2. *Observations.* FoV transits of the configured scanning law (default the flown NSL)
    over ``mission_years`` (1) from ``mission_start`` (start of routine operations,
    2014-07-25; Prusti et al. 2016), 20 % dead time as blocks of the time line
-   (:func:`mcsweep.scanning.timeline.draw_dead_time`; paper Sect. 4.2), one AL
+   (:func:`mcsweep.experiments.global_classes.dead_time`; paper Sect. 4.2), one AL
    measurement per FoV transit and one AC measurement where the noise config uses AC,
    with the uncertainties of :class:`~mcsweep.astrometry.noise.NoiseModel`.
 3. *True attitude.* The scanning law plus a smooth random rotation about all three axes:
@@ -40,8 +40,9 @@ The attitude is now *not* known: stars and attitude are solved together
    2012, Sect. 3.3) with ``knot_interval_hours``. No instrument calibration (none is
    simulated). Frame: zero mean rotation and spin of the corrections over all sources
    (:mod:`mcsweep.solver.frame`). One PCG solution per prior of ``priors``
-   (``'<k>F90'`` = k sigma_F90, ``'<s>mas'`` = a fixed sigma; default the rows of
-   Table 3: F90, 10F90, 1000mas).
+   (``'<k>F90'`` = k sigma_F90, ``'<s>mas'`` = a fixed sigma,
+   :mod:`mcsweep.experiments.global_priors`; default the rows of Table 3: F90, 10F90,
+   1000mas).
 5. *Evaluation.* As the frame rotator: the rotation and spin fitted to (estimated -
    true) over all sources are removed; each star's formal covariance is its own block
    ``(N_ss + N_p)^-1`` with the attitude taken as known (as AGIS gives it). Per star:
@@ -64,8 +65,6 @@ in star order).
 from __future__ import annotations
 
 import dataclasses
-import math
-import re
 
 import numpy as np
 import pandas as pd
@@ -73,30 +72,27 @@ import pandas as pd
 from ..astrometry.confidence import inside as inside_ellipse
 from ..astrometry.confidence import mahalanobis_sq
 from ..astrometry.design import JULIAN_YEAR_DAYS
-from ..astrometry.noise import G_MAX, NoiseModel
+from ..astrometry.noise import G_MAX
 from ..astrometry.solve import prior_diagonal
 from ..errors import UserInputError
-from ..prior import G_FIT_MAX, sigma_f90, sigma_from_coefficients
-from ..scanning import ScanningLaw, find_transits
-from ..scanning.ephemeris import TABLE_END_JD_TCB, TABLE_START_JD_TCB, gaia_position_au
-from ..scanning.timeline import DeadTime, draw_dead_time
-from ..scanning.timescale import tcb_jd
+from ..scanning.ephemeris import gaia_position_au
+from ..scanning.timeline import DeadTime
 from ..solver.blocks import att_rows, spline_values, src_forward
 from ..solver import (BLOCK_STARS, AttitudeSpline, GlobalProblem, build_observations, fit_frame, frame_attitude,
                       frame_offsets, in_block_order, make_blocks, precision_weights, solve_global,
                       source_normals)
-from .epoch import resolve_reference_epoch
-from .secondary import load_f90_coefficients
+from .global_classes import dead_time, star_transits
+from .global_priors import parse_prior, prior_sigma_mas
+from .global_settings import GlobalSettings, global_fields, spawn
 
 __all__ = [
     "CHUNKS_DIR",
     "OUTPUTS",
     "PRIMARY_KEY",
+    "TAG",
     "PrimarySettings",
     "PreparedData",
     "build_settings",
-    "parse_prior",
-    "prior_sigma_mas",
     "stream_seed",
     "transits_of",
     "prepare",
@@ -112,42 +108,21 @@ OUTPUTS = (CHUNKS_DIR, "table3.csv", "table3.md", "primary_convergence.csv", "pr
            "primary_factor.csv", "primary_factor_curves.csv", "report.md", "report.html", "provenance.json")
 #: Class key of the primary sources in the seeds and the results.
 PRIMARY_KEY = 0
-_TAG = 42  # Sect. 4.2
-POPULATION_STREAM, DEAD_STREAM, ATTITUDE_STREAM, NOISE_STREAM, FACTOR_STREAM = 0, 1, 2, 3, 4
-STAR_COLUMNS = ("ra", "dec", "l", "b", "parallax", "pmra", "pmdec", "phot_g_mean_mag")
-_PRIOR_RE = re.compile(r"^(?:(?P<k>\d+(?:\.\d*)?(?:[eE][-+]?\d+)?)?F90|(?P<s>\d+(?:\.\d*)?(?:[eE][-+]?\d+)?)mas)$")
+TAG = 42  # Sect. 4.2: first element of every spawn key of this experiment
+#: Stream numbers of the spawn keys (the population's is POPULATION_STREAM = 0).
+DEAD_STREAM, ATTITUDE_STREAM, NOISE_STREAM, FACTOR_STREAM = 1, 2, 3, 4
 
 
 def stream_seed(seed: int, stream: int, *key: int) -> np.random.SeedSequence:
-    return np.random.SeedSequence(seed, spawn_key=(_TAG, stream, *key))
+    return spawn(seed, TAG, stream, *key)
 
 
-def parse_prior(label: str) -> tuple[str, float]:
-    """``'10F90'`` -> ('F90', 10.0); ``'1000mas'`` -> ('mas', 1000.0); user error otherwise."""
-    m = _PRIOR_RE.match(str(label).strip())
-    value = None
-    if m:
-        kind, value = ("F90", float(m["k"] or 1.0)) if m["s"] is None else ("mas", float(m["s"]))
-    if value is None or not (math.isfinite(value) and value > 0):
-        raise UserInputError(f"experiment.primary.priors entry {label!r} is not accepted; expected "
-                             "'<k>F90' (k times sigma_F90, e.g. F90, 10F90) or '<sigma>mas' (e.g. 1000mas) "
-                             "with a positive number")
-    return kind, value
-
-
-@dataclasses.dataclass(frozen=True)
-class PrimarySettings:
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class PrimarySettings(GlobalSettings):
     """Everything the experiment needs besides its stars."""
 
-    seed: int
-    start_jd: float
-    end_jd: float
-    law: ScanningLaw
     dead_time_fraction: float
     dead_time_block_days: float
-    noise: NoiseModel
-    confidence: float
-    ratio_R: float
     priors: tuple
     knot_interval_days: float
     attitude_amplitude_mas: float
@@ -155,29 +130,13 @@ class PrimarySettings:
     rtol: float
     update_tol_uas: float
     max_iter: int
-    f90_coefficients: tuple | None = None
-    reference_epoch: str = "dataset_mean"
     frame_fit: str = "precision"
-
-    @property
-    def t_ref_jd(self) -> float:
-        return float(np.ravel(resolve_reference_epoch(self.reference_epoch, self.start_jd, self.end_jd))[0])
-
-    def sigma_f90_mas(self, l_deg, b_deg, g) -> np.ndarray:
-        if self.f90_coefficients is None:
-            return sigma_f90(l_deg, b_deg, g)
-        return sigma_from_coefficients(l_deg, b_deg, g, dict(self.f90_coefficients), g_max=G_FIT_MAX)
 
 
 def build_settings(config) -> PrimarySettings:
     """Settings from a checked :class:`~mcsweep.sweep.schema.Config`; user errors raised here."""
     pri = config.experiment.primary
-    start_jd = tcb_jd(str(pri.mission_start), "experiment.primary.mission_start")
-    end_jd = start_jd + 365.25 * pri.mission_years
-    if start_jd < TABLE_START_JD_TCB + 1.0 or end_jd > TABLE_END_JD_TCB - 1.0:
-        raise UserInputError(f"experiment.primary.mission_start={pri.mission_start!r} with mission_years="
-                             f"{pri.mission_years:g} is not accepted; expected a mission within 2013-2031 "
-                             "(the observer ephemeris)")
+    fields = global_fields(config, "primary")
     if pri.reference_epoch == "star_mean":
         raise UserInputError("experiment.primary.reference_epoch='star_mean' is not accepted; a global "
                              "solution has one reference epoch: expected 'dataset_mean' or an ISO date")
@@ -191,35 +150,20 @@ def build_settings(config) -> PrimarySettings:
         raise UserInputError(f"experiment.primary.g_classes={list(pri.g_classes)} / primary_g_min="
                              f"{pri.primary_g_min:g} is not accepted; expected magnitudes below {G_MAX:g}")
     return PrimarySettings(
-        seed=int(config.seed), start_jd=start_jd, end_jd=end_jd,
-        law=ScanningLaw.from_config(dataclasses.asdict(config.scanning)),
+        **fields,
         dead_time_fraction=float(pri.dead_time_fraction), dead_time_block_days=float(pri.dead_time_block_days),
-        noise=NoiseModel.from_config(config.noise),
-        confidence=float(config.confidence), ratio_R=float(config.ratio_R), priors=priors,
-        knot_interval_days=float(pri.knot_interval_hours) / 24.0,
+        priors=priors, knot_interval_days=float(pri.knot_interval_hours) / 24.0,
         attitude_amplitude_mas=float(pri.attitude_amplitude_mas),
         attitude_timescale_days=float(pri.attitude_timescale_hours) / 24.0,
         rtol=float(pri.solver_rtol), update_tol_uas=float(pri.solver_update_tol_uas),
-        max_iter=int(pri.solver_max_iter),
-        f90_coefficients=load_f90_coefficients(pri.f90_formula) if pri.f90_formula != "paper" else None,
-        reference_epoch=str(pri.reference_epoch), frame_fit=str(pri.frame_fit))
-
-
-def prior_sigma_mas(settings: PrimarySettings, label: str, sigma_f90_mas: np.ndarray) -> np.ndarray:
-    """Parallax prior sigma of every star for one entry of ``priors``."""
-    kind, value = parse_prior(label)
-    return value * sigma_f90_mas if kind == "F90" else np.full(sigma_f90_mas.shape, value)
+        max_iter=int(pri.solver_max_iter), frame_fit=str(pri.frame_fit))
 
 
 # --------------------------------------------------------------------------- data
 def transits_of(job) -> tuple[int, dict]:
     """FoV transits of one chunk of stars (executor task): (chunk index, arrays)."""
     index, first, ra, dec, start_jd, end_jd, law = job
-    tr = find_transits(ra, dec, start_jd, end_jd, law=law, compact=True)
-    # compact: 16 bytes per transit (the full-scale run finds 2.6e7); float32 scan angles
-    # are find_transits' own precision (compact=True)
-    return index, {"star": (first + tr["source_index"].to_numpy()).astype(np.int32),
-                   "t": tr["tcb_jd"].to_numpy(), "psi": tr["scan_angle_deg"].to_numpy().astype(np.float32)}
+    return index, star_transits(ra, dec, start_jd, end_jd, law, first=first)
 
 
 @dataclasses.dataclass
@@ -313,9 +257,8 @@ def prepare(settings: PrimarySettings, stars: pd.DataFrame, transits: dict, *,
     star, t, psi = transits["star"], transits["t"], transits["psi"]
     if star.size and np.any(np.diff(star) < 0):
         raise ValueError("transits must be sorted by star")
-    dead = draw_dead_time(settings.start_jd, settings.end_jd, settings.dead_time_fraction,
-                          block_days=settings.dead_time_block_days,
-                          rng=np.random.default_rng(stream_seed(settings.seed, DEAD_STREAM)))
+    dead = dead_time(stream_seed(settings.seed, DEAD_STREAM), settings.start_jd, settings.end_jd,
+                     settings.dead_time_fraction, block_days=settings.dead_time_block_days)
     live = ~dead.is_dead(t)
     n_fov = np.bincount(star, weights=live, minlength=n).astype(np.int64)
     stars = stars.copy()
@@ -415,7 +358,7 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
     """
     st = data.stars
     s = data.solved
-    sig = prior_sigma_mas(settings, label, settings.sigma_f90_mas(
+    sig = prior_sigma_mas(label, settings.sigma_f90_mas(
         st["l"].to_numpy()[s], st["b"].to_numpy()[s], st["phot_g_mean_mag"].to_numpy()[s]))
     prior = prior_diagonal(sig, settings.ratio_R)
     # Raises if a star's block is singular: every solved star has >= 1 AL+AC or 2 AL

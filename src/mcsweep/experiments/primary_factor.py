@@ -25,7 +25,7 @@ import pandas as pd
 
 from .pencil_beam import sigma_f90_from_curve, sigma_f90_interval
 from .primary_table import cell_mask
-from .secondary_table import SUBSETS, fraction_statistics, g_label
+from .global_table import SUBSETS, fraction_statistics, g_label
 
 __all__ = ["FACTOR_COLUMNS", "CURVE_COLUMNS", "factor_label", "factor_curves", "factor_rows", "overall_factor"]
 

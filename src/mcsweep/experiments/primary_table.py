@@ -4,13 +4,13 @@ Michalik et al. (2015), Table 3 ("Global astrometric solutions using 12 months o
 simulated Gaia data. The attitude is determined as part of the solution"): per subset
 (<= 4, > 4 FoV transits), prior and class (G ~ 11, 15, 19), the fraction of actual
 position errors inside the 90 % confidence ellipse and the 90th percentile of the
-actual position errors [mas]. Columns as Table 2
-(:mod:`mcsweep.experiments.secondary_table`); here the transits are all those of one
+actual position errors [mas]. Layout and columns as Table 2
+(:mod:`mcsweep.experiments.global_table`); here the transits are all those of one
 year minus the dead time (no dilution).
 
 Uncertainties exactly as Table 2's: every fraction carries its Clopper-Pearson interval
 (:func:`~mcsweep.astrometry.confidence.binomial_interval`, probability
-:data:`~mcsweep.experiments.secondary_table.FRACTION_INTERVAL`) over the stars with a
+:data:`~mcsweep.experiments.global_table.FRACTION_INTERVAL`) over the stars with a
 confidence region in the cell, and every percentile of the errors its distribution-free
 order-statistic (rank) interval of the same probability
 (:func:`~mcsweep.astrometry.confidence.percentile_interval`). The paper gives no
@@ -27,12 +27,13 @@ import numpy as np
 import pandas as pd
 
 from ..astrometry.confidence import percentile_interval
-from .secondary_table import (FRACTION_INTERVAL, PAPER_CONFIDENCE, PAPER_G_CLASSES, SUBSETS, error_percentile,
-                              fraction_statistics, g_label, layout_markdown, paper_layout,
-                              subset_masks)
+from .global_classes import class_key
+from .global_priors import prior_label
+from .global_table import (FRACTION_INTERVAL, PAPER_G_CLASSES, SUBSETS, error_percentile, fraction_statistics,
+                           g_label, layout_markdown, paper_layout, published_value, subset_masks)
 
 __all__ = ["PAPER_TABLE3", "PAPER_G_CLASSES", "TABLE3_COLUMNS", "paper_value3", "cell_mask",
-           "cell_statistics", "table3_rows", "table3_layout", "table3_markdown", "prior_label"]
+           "cell_statistics", "table3_rows", "table3_layout", "table3_markdown"]
 
 #: Table 3 transcribed from the LaTeX source: (subset, prior) -> (fractions in per cent
 #: for G ~ 11, 15, 19; 90th percentiles of the position errors in mas).
@@ -49,25 +50,10 @@ TABLE3_COLUMNS = ("subset", "prior", "g_class", "n_stars", "n_valid", "n_inside"
                   "paper_fraction_inside", "paper_p90_error_mas", "error_percentile")
 
 
-def prior_label(prior: str) -> str:
-    """The paper's row label of a prior setting ('10F90' -> '10 sigma_F90')."""
-    if prior.endswith("F90"):
-        k = prior[:-3]
-        return "sigma_F90" if k in ("", "1") else f"{k} sigma_F90"
-    return prior.replace("mas", " mas")
-
-
 def paper_value3(subset: str, prior: str, g_class: float, confidence: float) -> tuple[float, float]:
-    """(fraction, 90th percentile [mas]) of the paper's Table 3, NaN where not comparable."""
-    try:
-        i = PAPER_G_CLASSES.index(float(g_class))
-    except ValueError:
-        return float("nan"), float("nan")
-    key = (subset, "F90" if prior == "1F90" else prior)
-    if key not in PAPER_TABLE3 or abs(confidence - PAPER_CONFIDENCE) >= 1e-12:
-        return float("nan"), float("nan")
-    frac, p90 = PAPER_TABLE3[key]
-    return frac[i] / 100.0, p90[i]
+    """(fraction, 90th percentile [mas]) of the paper's Table 3, NaN where not comparable
+    (:func:`~mcsweep.experiments.global_table.published_value`; '1F90' is its sigma_F90 row)."""
+    return published_value(PAPER_TABLE3, subset, "F90" if prior == "1F90" else prior, g_class, confidence)
 
 
 def cell_mask(results: pd.DataFrame, subset: str, g_class: float) -> np.ndarray:
@@ -78,7 +64,7 @@ def cell_mask(results: pd.DataFrame, subset: str, g_class: float) -> np.ndarray:
     same in every solution of a run, so one mask serves them all.
     """
     in_subset = subset_masks(results["n_fov"].to_numpy())[subset]
-    return in_subset & (results["class_key"].to_numpy() == int(round(100 * g_class)))
+    return in_subset & (results["class_key"].to_numpy() == class_key(g_class))
 
 
 def cell_statistics(inside: np.ndarray, err_mas: np.ndarray, confidence: float) -> tuple:
@@ -87,7 +73,7 @@ def cell_statistics(inside: np.ndarray, err_mas: np.ndarray, confidence: float) 
     ``inside``: per-star flags (1 inside, 0 outside, -1 no confidence region: left out,
     the NaN rule of :func:`~mcsweep.astrometry.confidence.inside_counts`); ``err_mas``: the
     position errors. Fraction with its Clopper-Pearson interval
-    (:func:`~mcsweep.experiments.secondary_table.fraction_statistics`, Table 2's), the
+    (:func:`~mcsweep.experiments.global_table.fraction_statistics`, Table 2's), the
     100 P-th percentile of the errors with its rank interval, both of probability
     ``FRACTION_INTERVAL``.
     """
@@ -119,7 +105,7 @@ def table3_rows(results: Mapping[str, pd.DataFrame], g_classes: Sequence[float],
 
 def table3_layout(table: pd.DataFrame, confidence: float) -> dict[str, pd.DataFrame]:
     """Per subset: priors x (fraction | percentile) per class, ``ours [lo-hi] (paper)``: Table 2's
-    :func:`~mcsweep.experiments.secondary_table.paper_layout`, the priors in the table's order."""
+    :func:`~mcsweep.experiments.global_table.paper_layout`, the priors in the table's order."""
     return paper_layout(table, confidence, list(dict.fromkeys(table["prior"])), prior_label)
 
 

@@ -3,7 +3,8 @@
 Reads ``table3.csv``, ``primary_summary.csv``, ``primary_convergence.csv`` and
 ``primary_attitude_error.csv`` of a run directory (written by
 :func:`mcsweep.sweep.primary_runner.run_primary`): our Table 3 next to the paper's
-(fractions and percentiles with their 68 % intervals, as Table 2), the attitude error RMS
+(fractions and percentiles with their 68 % intervals, as Table 2;
+:func:`~mcsweep.report.global_section.global_section`), the attitude error RMS
 and its figure against time, the PCG iterations and their convergence figure, and the
 knot interval.
 """
@@ -14,10 +15,11 @@ from pathlib import Path
 
 import pandas as pd
 
+from ..experiments.global_table import FRACTION_INTERVAL
 from ..experiments.primary_table import table3_layout
-from ..experiments.secondary_table import FRACTION_INTERVAL
 from .document import FIG_DIR, Document
 from .figures import plot_primary_attitude_error, plot_primary_convergence
+from .global_section import global_section, section_config
 
 __all__ = ["primary_section"]
 
@@ -25,33 +27,28 @@ __all__ = ["primary_section"]
 def primary_section(doc: Document, run_dir: Path, prov: dict) -> None:
     """Add the Table 3 section to ``doc`` (see module notes)."""
     run_dir = Path(run_dir)
-    cfg = prov.get("config", {})
-    pri = cfg.get("experiment", {}).get("primary", {})
-    p = float(cfg.get("confidence", 0.9))
-    table = pd.read_csv(run_dir / "table3.csv")
+    cfg, pri, p = section_config(prov, "primary")
     summary = pd.read_csv(run_dir / "primary_summary.csv")
-    doc.heading("One-year global solution with the attitude (paper Sect. 4.2, Table 3)")
-    doc.para(
-        f"{pri.get('class_size')} stars per class (paper: 5e5), the attitude from the same stars"
-        + (f" and {pri.get('primary_sources')} extra stars G >= {pri.get('primary_g_min')} (not in the paper)"
-           if pri.get("primary_sources") else " (as the paper)")
-        + f"; {pri.get('mission_years')} year(s) from {pri.get('mission_start')} "
-        f"(TCB), {100 * float(pri.get('dead_time_fraction', 0.2)):g} % dead time; one AL "
-        f"{'and one AC measurement' if cfg.get('noise', {}).get('use_ac', True) else 'measurement (AL only)'} "
-        f"per FoV transit; attitude solved as cubic splines with a {pri.get('knot_interval_hours')} h knot "
-        f"interval; true attitude = law + {pri.get('attitude_amplitude_mas')} mas random rotation on a "
-        f"{pri.get('attitude_timescale_hours')} h time scale. Errors after removing the frame rotation "
-        f"and spin fitted with {'equal weights' if pri.get('frame_fit') == 'equal' else 'formal-precision weights'}; formal covariances from each star's own block with the attitude taken as known. Fractions "
-        f"inside the P = {p:g} ellipse (Clopper-Pearson {100 * FRACTION_INTERVAL:g} % interval); errors = "
-        f"{100 * p:g}th percentile [mas] (order-statistic {100 * FRACTION_INTERVAL:g} % interval). Each cell: "
-        "ours [interval] (paper).")
-    epoch = prov.get("derived", {}).get("primary", {}).get("reference_epoch", {})
-    doc.para(f"Reference epoch: {epoch.get('text') or pri.get('reference_epoch')}.")
-    for subset, df in table3_layout(table, p).items():
-        n = table[table["subset"] == subset].drop_duplicates("g_class")
-        counts = ", ".join(f"G~{g}: {int(v)}" for g, v in zip(n["g_class"], n["n_stars"]))
-        title = "<= 4" if subset == "<=4" else "> 4"
-        doc.table(df, f"Table 3, stars with {title} field-of-view transits ({counts} stars)")
+    global_section(
+        doc, run_dir, prov, kind="primary",
+        heading="One-year global solution with the attitude (paper Sect. 4.2, Table 3)",
+        description=(
+            f"{pri.get('class_size')} stars per class (paper: 5e5), the attitude from the same stars"
+            + (f" and {pri.get('primary_sources')} extra stars G >= {pri.get('primary_g_min')} (not in the paper)"
+               if pri.get("primary_sources") else " (as the paper)")
+            + f"; {pri.get('mission_years')} year(s) from {pri.get('mission_start')} "
+            f"(TCB), {100 * float(pri.get('dead_time_fraction', 0.2)):g} % dead time; one AL "
+            f"{'and one AC measurement' if cfg.get('noise', {}).get('use_ac', True) else 'measurement (AL only)'} "
+            f"per FoV transit; attitude solved as cubic splines with a {pri.get('knot_interval_hours')} h knot "
+            f"interval; true attitude = law + {pri.get('attitude_amplitude_mas')} mas random rotation on a "
+            f"{pri.get('attitude_timescale_hours')} h time scale. Errors after removing the frame rotation "
+            f"and spin fitted with {'equal weights' if pri.get('frame_fit') == 'equal' else 'formal-precision weights'}; "
+            "formal covariances from each star's own block with the attitude taken as known. Fractions "
+            f"inside the P = {p:g} ellipse (Clopper-Pearson {100 * FRACTION_INTERVAL:g} % interval); errors = "
+            f"{100 * p:g}th percentile [mas] (order-statistic {100 * FRACTION_INTERVAL:g} % interval). Each cell: "
+            "ours [interval] (paper)."),
+        table_file="table3.csv", layout=table3_layout,
+        caption="Table 3, stars with {subset} field-of-view transits")
     cols = [c for c in ("prior", "iterations", "converged", "attitude_rms_uas", "residual_rms", "seconds",
                         "n_stars_solved", "n_measurements", "n_attitude_coefficients", "knot_interval_hours",
                         "dead_fraction") if c in summary]

@@ -2,8 +2,9 @@
 
 Reads ``table2.csv``, ``no_prior.csv`` and ``secondary_summary.csv`` of a run
 directory (written by :func:`mcsweep.sweep.secondary_runner.run_secondary`) and adds our
-Table 2 next to the paper's, the five-parameter solution without prior, and the
-per-class statistics of the diluted observation histories.
+Table 2 next to the paper's (:func:`~mcsweep.report.global_section.global_section`), the
+five-parameter solution without prior, and the per-class statistics of the diluted
+observation histories.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ import pandas as pd
 
 from ..experiments.secondary_table import table2_layout
 from .document import Document
+from .global_section import global_section, section_config
 
 __all__ = ["secondary_section"]
 
@@ -21,29 +23,22 @@ __all__ = ["secondary_section"]
 def secondary_section(doc: Document, run_dir: Path, prov: dict) -> None:
     """Add the Table 2 section to ``doc`` (see module notes)."""
     run_dir = Path(run_dir)
-    cfg = prov.get("config", {})
-    sec = cfg.get("experiment", {}).get("secondary", {})
-    p = float(cfg.get("confidence", 0.9))
-    table = pd.read_csv(run_dir / "table2.csv")
+    cfg, sec, p = section_config(prov, "secondary")
     summary = pd.read_csv(run_dir / "secondary_summary.csv")
-    doc.heading("Secondary solution of stars with diluted histories (paper Sect. 4.1, Table 2)")
-    doc.para(
-        f"{len(summary)} magnitude classes of {int(summary['n_stars'].max())} stars each (the brightest "
-        f"over the whole sky fainter than G = {', '.join(map(str, summary['g_class']))}); "
-        f"{sec.get('mission_years')} years of FoV transits from {sec.get('mission_start')} (TCB) with the "
-        f"'{cfg.get('scanning', {}).get('name')}' scanning law, each transit removed with probability "
-        f"{sec.get('dilution')}; attitude known. Priors: sigma_F90 from '{sec.get('f90_formula')}', "
-        f"R = {cfg.get('ratio_R')} /yr. Fractions are inside the P = {p:g} confidence ellipse; errors are "
-        f"the {100 * p:g}th percentile of |estimated - true position| at the reference epoch (the paper's "
-        "values are shown only at its P = 0.9). Each cell: ours (paper).")
-    # Runs made before the setting existed referred each star to its own mean epoch.
-    epoch = prov.get("derived", {}).get("secondary", {}).get("reference_epoch", {})
-    doc.para(f"Reference epoch: {epoch.get('text') or sec.get('reference_epoch', 'star_mean (not recorded)')}.")
-    for subset, df in table2_layout(table, p).items():
-        n = table[table["subset"] == subset].drop_duplicates("g_class")
-        counts = ", ".join(f"G~{g}: {int(v)}" for g, v in zip(n["g_class"], n["n_stars"]))
-        title = "<= 4" if subset == "<=4" else "> 4"
-        doc.table(df, f"Table 2, stars with {title} retained field-of-view transits ({counts} stars)")
+    global_section(
+        doc, run_dir, prov, kind="secondary",
+        heading="Secondary solution of stars with diluted histories (paper Sect. 4.1, Table 2)",
+        description=(
+            f"{len(summary)} magnitude classes of {int(summary['n_stars'].max())} stars each (the brightest "
+            f"over the whole sky fainter than G = {', '.join(map(str, summary['g_class']))}); "
+            f"{sec.get('mission_years')} years of FoV transits from {sec.get('mission_start')} (TCB) with the "
+            f"'{cfg.get('scanning', {}).get('name')}' scanning law, each transit removed with probability "
+            f"{sec.get('dilution')}; attitude known. Priors: sigma_F90 from '{sec.get('f90_formula')}', "
+            f"R = {cfg.get('ratio_R')} /yr. Fractions are inside the P = {p:g} confidence ellipse; errors are "
+            f"the {100 * p:g}th percentile of |estimated - true position| at the reference epoch (the paper's "
+            "values are shown only at its P = 0.9). Each cell: ours (paper)."),
+        table_file="table2.csv", layout=table2_layout,
+        caption="Table 2, stars with {subset} retained field-of-view transits")
     no_prior_file = run_dir / "no_prior.csv"
     if no_prior_file.exists():
         doc.table(pd.read_csv(no_prior_file),

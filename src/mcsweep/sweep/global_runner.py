@@ -1,0 +1,166 @@
+"""The one path every global experiment runs along (paper Sect. 4: Tables 2 and 3).
+
+A global experiment (the secondary solution, Sect. 4.1; the primary solution, Sect.
+4.2; the real-sky validation to come) is a :class:`GlobalExperiment`: what is specific
+to it. :func:`run_global` owns the rest, in this order:
+
+1. provenance: refuse a run directory of another config; record the resolved reference
+   epoch under ``derived.<kind>``;
+2. stage ``population``: the experiment's classes of stars
+   (:func:`~mcsweep.experiments.global_classes.draw_classes`, seeds ``(tag, 0, class
+   key)``); then ``provenance.json`` is written without manifest, which claims the run
+   directory for this config before any result exists, so a killed run is resumed (and
+   guarded against other configs) like a finished one;
+3. the chunk store ``<chunks_dir>/`` (atomic Parquet files with checksums; temporaries
+   of a killed write removed): the experiment's ``compute`` fills it in stages of its
+   own, skipping what is finished (:meth:`GlobalRun.pending`), through the configured
+   executor (:meth:`GlobalRun.map`), and returns what its tables need besides the store;
+4. stage ``aggregate``: the experiment's ``aggregate`` turns the store (and what
+   ``compute`` returned) into its tables; each is written atomically, only now, so a
+   table never describes a partial run;
+5. the seeds of the experiment, the code versions of the results read, returned with the
+   path of the main table.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections import Counter
+from pathlib import Path
+from typing import Callable
+
+import pandas as pd
+
+from ..experiments.global_classes import POPULATION_STREAM, draw_classes
+from ..experiments.global_settings import spawn
+from ..population import make_source
+from .execution import executor
+from .progress import progress
+from .provenance import Provenance
+from .store import CellStore, atomic_write_bytes
+
+__all__ = ["GlobalExperiment", "GlobalRun", "run_global"]
+
+
+@dataclasses.dataclass(frozen=True)
+class GlobalExperiment:
+    """What a global experiment adds to :func:`run_global`."""
+
+    #: Run kind in provenance and the config section ``experiment.<kind>``.
+    kind: str
+    #: First element of every spawn key of the experiment (41: Sect. 4.1, 42: Sect. 4.2).
+    tag: int
+    #: Sub-directory of the run directory holding the chunk store.
+    chunks_dir: str
+    #: config -> the experiment's settings (a GlobalSettings); raises UserInputError.
+    build_settings: Callable
+    #: experiment.<kind> section -> [(G0, number of stars, class key), ...] to draw.
+    groups: Callable
+    #: The experiment's own stages: fill the chunk store (GlobalRun -> what aggregate needs).
+    compute: Callable
+    #: (GlobalRun, what compute returned) -> {file name: text} of the tables.
+    aggregate: Callable
+    #: What provenance records under ``seeds.<kind>``.
+    seeds: dict
+    #: The main table, returned by run_global.
+    result: str
+    #: Description of a progress bar over the classes being drawn (None: no bar).
+    population_bar: str | None = None
+
+
+@dataclasses.dataclass
+class GlobalRun:
+    """One run of a global experiment: what its stages share."""
+
+    config: object
+    run_dir: Path
+    prov: Provenance
+    settings: object
+    #: The resolved reference epoch (:func:`~mcsweep.experiments.epoch.describe_reference_epoch`).
+    epoch: dict
+    #: (G0, class key, stars) per group of :attr:`GlobalExperiment.groups`, in order.
+    classes: list
+    store: CellStore
+
+    @property
+    def section(self):
+        return getattr(self.config.experiment, self.prov.kind)
+
+    @property
+    def chunks(self) -> Path:
+        return self.store.directory
+
+    def pending(self, chunk_ids) -> list[str]:
+        """The chunks without a finished result (resume); checking is not using, so these
+        reads do not count in the code versions of the results (``cell_code_versions``)."""
+        seen = Counter(self.store.versions_read)
+        todo = [cid for cid in chunk_ids if self.store.read(cid) is None]
+        self.store.versions_read = seen
+        return todo
+
+    def read_all(self, chunk_ids) -> list[pd.DataFrame]:
+        """The finished results of ``chunk_ids``, in order."""
+        parts = [self.store.read(cid) for cid in chunk_ids]
+        if any(p is None for p in parts):  # pragma: no cover - a worker wrote a bad file
+            raise RuntimeError(f"a chunk of {self.chunks.name} has no valid result")
+        return parts
+
+    def map(self, stage: str, task: Callable, jobs: list, *, desc: str | None = None, done: int = 0,
+            release_workers: bool = False) -> list:
+        """``task`` of every job through the configured executor in provenance stage ``stage``,
+        results in completion order; ``desc``: a progress bar over ``done`` + len(jobs) chunks."""
+        out = []
+        with self.prov.stage(stage), executor(self.config.execution, release_workers=release_workers) as run:
+            bar = progress(done + len(jobs), initial=done, desc=desc, unit="chunks",
+                           enabled=self.config.execution.progress) if desc else None
+            for r in run(task, jobs):
+                out.append(r)
+                if bar is not None:
+                    bar.update(1)
+            if bar is not None:
+                bar.close()
+        return out
+
+    def conditions(self, specific: str) -> str:
+        """The first note of a table: P, what is ``specific`` to the experiment (mission,
+        losses), the law, the sigma_F90 formula, R and the reference epoch."""
+        return (f"Confidence P = {self.settings.confidence:g}; {specific}; scanning law "
+                f"'{self.config.scanning.name}'; sigma_F90: {self.section.f90_formula}; "
+                f"R = {self.settings.ratio_R:g} /yr; reference epoch: {self.epoch['text']}.")
+
+
+def run_global(experiment: GlobalExperiment, config, raw_cfg: dict, run_dir, *, prov=None) -> Path:
+    """Run (or resume) ``experiment`` in ``run_dir`` (module notes); returns its main table's path."""
+    run_dir = Path(run_dir)
+    kind = experiment.kind
+    prov = prov or Provenance(run_dir, raw_cfg, kind=kind)
+    prov.check_compatible()
+    settings = experiment.build_settings(config)
+    epoch = settings.describe_epoch()
+    prov.derived[kind] = {"reference_epoch": epoch}
+    section = getattr(config.experiment, kind)
+    with prov.stage("population"):
+        source = make_source(dataclasses.asdict(config.population))
+        groups = experiment.groups(section)
+        bar = progress(len(groups), desc=experiment.population_bar, unit="classes",
+                       enabled=config.execution.progress) if experiment.population_bar else None
+        classes = draw_classes(source, groups, lambda key: spawn(settings.seed, experiment.tag, POPULATION_STREAM,
+                                                                 key),
+                               size_key=f"experiment.{kind}.class_size", bar=bar)
+        if bar is not None:
+            bar.close()
+        del source  # the galaxy model's whole-sky tables (~0.5 GB) are not needed any more
+    prov.write(with_manifest=False)
+    store = CellStore(run_dir / experiment.chunks_dir, prov.hash,
+                      accept_other_versions=config.resume.accept_other_versions)
+    store.remove_stale_temporaries()  # left by a killed write, never a result
+    run = GlobalRun(config=config, run_dir=run_dir, prov=prov, settings=settings, epoch=epoch, classes=classes,
+                    store=store)
+    computed = experiment.compute(run)
+    with prov.stage("aggregate"):
+        outputs = experiment.aggregate(run, computed)
+        prov.cell_versions = dict(store.versions_read)
+        for name, text in outputs.items():
+            atomic_write_bytes(run_dir / name, text.encode())
+    prov.seeds[kind] = dict(experiment.seeds)
+    return run_dir / experiment.result

@@ -31,7 +31,7 @@ from .experiments.primary import OUTPUTS as PRIMARY_OUTPUTS
 from .experiments.secondary import OUTPUTS as SECONDARY_OUTPUTS
 from .sweep.interruption import EXIT_INTERRUPTED, exit_on_second_interrupt, is_disk_full, kept_in_run, report_stop
 from .sweep.provenance import PROVENANCE_FILE, Provenance, config_hash
-from .sweep.rundir import release, snapshot_for
+from .sweep.rundir import release, snapshot_for, undo_unstarted
 from .sweep.runner import OUTPUTS, run_sweep
 from .sweep.logs import quiet_third_party_console
 from .sweep.schema import register_configs
@@ -139,6 +139,11 @@ def _hydra_entry(cfg: DictConfig) -> None:
 
 
 def main() -> None:
+    # Hydra prints any exception escaping its own code (its .hydra/*.yaml on a full disk)
+    # as a traceback and exits 1; with this it is raised instead, so a full disk gets its
+    # one line here and a bug still ends with its (whole) traceback and status 1.
+    full_error = os.environ.get("HYDRA_FULL_ERROR")
+    os.environ["HYDRA_FULL_ERROR"] = "1"
     try:
         try:
             configs = preflight(sys.argv[1:])
@@ -151,3 +156,15 @@ def main() -> None:
         # Before a job started (or between the jobs of a multirun): no result of it exists yet.
         print("mcsweep: interrupted before a run started; run the same command to start it", file=sys.stderr)
         sys.exit(EXIT_INTERRUPTED)
+    except Exception as exc:
+        if not is_disk_full(exc):
+            raise
+        # Only Hydra's own writes get here (the job handles its own): nothing of a run yet.
+        where = ", ".join(map(str, undo_unstarted())) or "its directory"
+        sys.exit(report_stop("mcsweep", exc, f"the run had not started in {where} (earlier results there are kept)",
+                             "run the same command"))
+    finally:
+        if full_error is None:
+            os.environ.pop("HYDRA_FULL_ERROR", None)
+        else:
+            os.environ["HYDRA_FULL_ERROR"] = full_error

@@ -312,3 +312,22 @@ def test_resident_solver_workers_leave_an_interrupt_to_the_parent(tmp_path):
     assert "Traceback" not in err and "KeyboardInterrupt" not in err, err  # the workers printed nothing
     assert not any(Path(f"/proc/{pid}").exists() and "Z" not in Path(f"/proc/{pid}/stat").read_text().split()[2]
                    for pid in workers)
+
+
+def test_disk_full_in_hydras_own_files_before_the_job_one_line_and_nothing_left(monkeypatch, capsys, tmp_path):
+    import hydra.core.utils
+
+    def full(cfg, filename, output_dir):  # Hydra's .hydra/*.yaml, written before the job starts
+        (output_dir / filename).parent.mkdir(parents=True, exist_ok=True)
+        (output_dir / filename).write_text("")
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(hydra.core.utils, "_save_config", full)
+    before = os.environ.get("HYDRA_FULL_ERROR")
+    run = tmp_path / "run"
+    code, lines = _mcsweep(monkeypatch, capsys, [f"hydra.run.dir={run}", "sky=single", "magnitudes=g15"])
+    assert code == 1
+    assert lines == [f"mcsweep: error: no space left on device; the run had not started in {run} (earlier results "
+                     "there are kept); free space, then run the same command"]
+    assert not run.exists()
+    assert os.environ.get("HYDRA_FULL_ERROR") == before  # the command's setting does not outlive it

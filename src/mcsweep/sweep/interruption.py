@@ -80,12 +80,11 @@ def exit_on_second_interrupt() -> None:
 def kept_in_run(config, config_hash: str, run_dir) -> str:
     """What a rerun of ``config`` in ``run_dir`` will keep, as the middle of the stop line."""
     run_dir = Path(run_dir)
-    keep_old = config.resume.accept_other_versions
     name = config.experiment.name
     if name == "secondary":
         from ..experiments.secondary import CHUNKS_DIR
 
-        n = len(CellStore(run_dir / CHUNKS_DIR, config_hash, accept_other_versions=keep_old).finished())
+        n = len(CellStore(run_dir / CHUNKS_DIR, config_hash).finished())
         return f"{n} solved chunk{'s' * (n != 1)} of stars kept in {run_dir}"
     if name == "primary":
         from ..experiments.primary import CHUNKS_DIR
@@ -94,7 +93,7 @@ def kept_in_run(config, config_hash: str, run_dir) -> str:
 
         pri = config.experiment.primary
         labels = list(dict.fromkeys([*map(str, pri.priors), *map(factor_label, pri.factor_grid)]))
-        done = set(CellStore(run_dir / CHUNKS_DIR, config_hash, accept_other_versions=keep_old).finished())
+        done = set(CellStore(run_dir / CHUNKS_DIR, config_hash).finished())
         kept = [lab for lab in labels
                 if _prior_id(lab) in done and (run_dir / CHUNKS_DIR / f"{_prior_id(lab)}.json").exists()]
         which = f" ({', '.join(kept)})" if kept else ""
@@ -104,5 +103,5 @@ def kept_in_run(config, config_hash: str, run_dir) -> str:
     from .runner import CELLS_DIR
 
     cells = {c.cell_id for c in enumerate_cells(config.sky, config.magnitudes)}
-    done = CellStore(run_dir / CELLS_DIR, config_hash, accept_other_versions=keep_old).finished()
+    done = CellStore(run_dir / CELLS_DIR, config_hash).finished()
     return f"{sum(c in cells for c in done)} of {len(cells)} cells kept in {run_dir}"

@@ -146,19 +146,16 @@ class CellStore:
         return df
 
     def finished(self) -> list[str]:
-        """Ids of the files :meth:`read` would return, in name order.
+        """Ids of the whole results of this config (name order), whatever code version wrote them.
 
-        Quiet and never raising: it tells a stopped command's user what a rerun will keep.
-        Temporaries of unfinished writes (``.*.tmp``) are never counted.
+        Quiet and never raising: it tells a stopped command's user what is kept. The code
+        version is left to :meth:`read`, which names both versions if a rerun meets cells of
+        another (the checkout may change while a long run goes on). Temporaries of
+        unfinished writes (``.*.tmp``) are never counted.
         """
         if not self.directory.is_dir():
             return []
-        ids = []
-        for p in sorted(self.directory.glob("*.parquet")):
-            _, meta, problem = self._verified(p.stem)
-            if problem is None and (self.accept_other_versions or meta.get("code_version") == self.version):
-                ids.append(p.stem)
-        return ids
+        return [p.stem for p in sorted(self.directory.glob("*.parquet")) if self._verified(p.stem)[2] is None]
 
     def _verified(self, cell_id: str):
         """``(table, metadata, problem)``; ``problem`` is None when the file is a finished result."""

@@ -124,6 +124,11 @@ def test_disk_full_in_a_sweep_one_line_exit_1_then_same_command_resumes(monkeypa
                                   check_exact=True)
 
 
+def _ignores_sigint(pid: str) -> bool:
+    ignored = next(ln for ln in Path(f"/proc/{pid}/status").read_text().splitlines() if ln.startswith("SigIgn:"))
+    return bool(int(ignored.split()[1], 16) >> (signal.SIGINT - 1) & 1)
+
+
 def _group_alive(pgid: int) -> list[str]:
     """Processes of process group ``pgid`` that still run (zombies are dead, awaiting their reaper)."""
     alive = []
@@ -148,6 +153,9 @@ def test_sigint_to_the_process_group_one_line_exit_130_no_worker_left_then_resum
         while len(list((run / "cells").glob("cell_*.parquet"))) < 2:
             assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()[1][-3000:]
             time.sleep(0.02)
+        workers = [pid for pid in subprocess.run(["pgrep", "-P", str(proc.pid), "-f", "popen_loky_posix"],
+                                                 capture_output=True, text=True).stdout.split()]
+        assert len(workers) == 2 and all(_ignores_sigint(pid) for pid in workers)  # only the app acts on Ctrl-C
         os.killpg(proc.pid, signal.SIGINT)  # Ctrl-C: the app and its loky workers
         out, err = proc.communicate(timeout=120)
     finally:

@@ -8,11 +8,14 @@ value. Bad values end the command with one line on stderr and exit status 2 befo
 any output is written (:func:`mcsweep.sweep.validate.preflight`); a user error found
 once the job has started (a catalogue, a run directory) removes exactly the paths this
 command created and puts back what Hydra rewrote (:mod:`mcsweep.sweep.rundir`), never
-a file or directory that was there before.
+a file or directory that was there before. Ctrl-C and a full disk end it with one line
+saying how many results are kept and to rerun the same command to resume, exit status
+130 or 1 (:mod:`mcsweep.sweep.interruption`); their traceback goes to the run's log only.
 """
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 import sys
@@ -26,8 +29,9 @@ from .errors import UserInputError, report_user_error
 from .report.build import build_report
 from .experiments.primary import OUTPUTS as PRIMARY_OUTPUTS
 from .experiments.secondary import OUTPUTS as SECONDARY_OUTPUTS
-from .sweep.provenance import PROVENANCE_FILE, Provenance
-from .sweep.rundir import release, snapshot_for
+from .sweep.interruption import EXIT_INTERRUPTED, exit_on_second_interrupt, is_disk_full, kept_in_run, report_stop
+from .sweep.provenance import PROVENANCE_FILE, Provenance, config_hash
+from .sweep.rundir import release, snapshot_for, undo_unstarted
 from .sweep.runner import OUTPUTS, run_sweep
 from .sweep.logs import quiet_third_party_console
 from .sweep.schema import register_configs
@@ -59,10 +63,29 @@ def refuse_foreign_outputs(run_dir: Path, outputs) -> None:
 def _log_to_files(logger: logging.Logger, msg: str, exc_info) -> None:
     """Write ``msg`` and the traceback to the log files only (the terminal gets Hydra's copy)."""
     record = logger.makeRecord(logger.name, logging.ERROR, __file__, 0, msg, (), exc_info)
-    for h in logging.getLogger().handlers:
-        if isinstance(h, logging.FileHandler):
-            h.handle(record)
-            h.flush()
+    # On a full disk the log cannot take it: the terminal must not get logging's own trace.
+    quiet, logging.raiseExceptions = logging.raiseExceptions, False
+    try:
+        for h in logging.getLogger().handlers:
+            if isinstance(h, logging.FileHandler):
+                h.handle(record)
+                with contextlib.suppress(OSError):
+                    h.flush()
+    finally:
+        logging.raiseExceptions = quiet
+
+
+def _stopped(cfg: DictConfig, run_dir: Path, exc: BaseException) -> int:
+    """Ctrl-C or a full disk: the one line on the terminal, the traceback in the log; the exit status."""
+    exit_on_second_interrupt()
+    what = "interrupted" if isinstance(exc, KeyboardInterrupt) else "stopped: the disk is full"
+    _log_to_files(logging.getLogger(__name__), f"mcsweep {what}", (type(exc), exc, exc.__traceback__))
+    try:
+        config = to_config(cfg)
+        kept = kept_in_run(config, config_hash(OmegaConf.to_container(cfg, resolve=True)), run_dir)
+    except Exception:  # noqa: BLE001 - the line must come out; the count is a courtesy
+        kept = f"finished results kept in {run_dir}"
+    return report_stop("mcsweep", exc, kept)
 
 
 def _undo(run_dir: Path) -> None:
@@ -101,7 +124,11 @@ def _hydra_entry(cfg: DictConfig) -> None:
     except UserInputError as exc:
         _undo(run_dir)
         sys.exit(report_user_error(exc))
-    except Exception:
+    except KeyboardInterrupt as exc:
+        sys.exit(_stopped(cfg, run_dir, exc))
+    except Exception as exc:
+        if is_disk_full(exc):
+            sys.exit(_stopped(cfg, run_dir, exc))
         # A bug, not a user error: the outputs stay (a rerun resumes), the traceback is
         # printed by Hydra (exit status 1) and kept in the run's log for the bug report.
         _log_to_files(logging.getLogger(__name__), "mcsweep stopped on an unexpected error", sys.exc_info())
@@ -112,10 +139,32 @@ def _hydra_entry(cfg: DictConfig) -> None:
 
 
 def main() -> None:
+    # Hydra prints any exception escaping its own code (its .hydra/*.yaml on a full disk)
+    # as a traceback and exits 1; with this it is raised instead, so a full disk gets its
+    # one line here and a bug still ends with its (whole) traceback and status 1.
+    full_error = os.environ.get("HYDRA_FULL_ERROR")
+    os.environ["HYDRA_FULL_ERROR"] = "1"
     try:
-        configs = preflight(sys.argv[1:])
-    except UserInputError as exc:
-        sys.exit(report_user_error(exc))
-    for line in ignored_settings(sys.argv[1:], configs):
-        print(f"mcsweep: warning: {line}", file=sys.stderr)
-    _hydra_entry()
+        try:
+            configs = preflight(sys.argv[1:])
+        except UserInputError as exc:
+            sys.exit(report_user_error(exc))
+        for line in ignored_settings(sys.argv[1:], configs):
+            print(f"mcsweep: warning: {line}", file=sys.stderr)
+        _hydra_entry()
+    except KeyboardInterrupt:
+        # Before a job started (or between the jobs of a multirun): no result of it exists yet.
+        print("mcsweep: interrupted before a run started; run the same command to start it", file=sys.stderr)
+        sys.exit(EXIT_INTERRUPTED)
+    except Exception as exc:
+        if not is_disk_full(exc):
+            raise
+        # Only Hydra's own writes get here (the job handles its own): nothing of a run yet.
+        where = ", ".join(map(str, undo_unstarted())) or "its directory"
+        sys.exit(report_stop("mcsweep", exc, f"the run had not started in {where} (earlier results there are kept)",
+                             "run the same command"))
+    finally:
+        if full_error is None:
+            os.environ.pop("HYDRA_FULL_ERROR", None)
+        else:
+            os.environ["HYDRA_FULL_ERROR"] = full_error

@@ -16,7 +16,9 @@ input ends with one line on stderr and exit status 2, and nothing is written: th
 output goes to a temporary name in the destination directory and is moved into place
 (atomically, with the mode ``0666 & ~umask`` of a normally created file) only when
 complete. The command sits after every stage (like ``mcsweep``), so it may use the
-sweep's file conventions.
+sweep's file conventions. Ctrl-C and a full disk end it with one line naming what was
+written, exit status 130 or 1 (:mod:`mcsweep.sweep.interruption`); the unfinished
+output's temporary file is removed.
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ from pathlib import Path
 from .errors import UserInputError, report_user_error
 from .prior import Prior
 from .prior.annotate import detect_format
+from .sweep.interruption import exit_on_second_interrupt, is_disk_full, report_stop
 from .sweep.store import atomic_write_via
 
 __all__ = ["main"]
@@ -41,6 +44,10 @@ def _prior(args) -> Prior:
     return Prior.from_run(args.run, bright=bright) if args.run else Prior.paper(bright=bright)
 
 
+#: Outputs moved into place by this command so far (what a stopped command still leaves).
+_published: list[Path] = []
+
+
 def _publish(out: Path, write) -> None:
     """Call ``write(tmp_path)`` and move the finished file to ``out``; no file is left on error."""
     out = Path(out)
@@ -49,6 +56,13 @@ def _publish(out: Path, write) -> None:
     if out.is_dir():
         raise UserInputError(f"--out {out} is a directory; expected a file name")
     atomic_write_via(out, write)
+    _published.append(out)
+
+
+def _stopped(exc: BaseException) -> int:
+    exit_on_second_interrupt()
+    done = f"{', '.join(map(str, _published))} written, nothing else" if _published else "nothing written"
+    return report_stop(PROG, exc, done, "run the same command again")
 
 
 def _annotate(args) -> str:
@@ -135,10 +149,17 @@ def _parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
+    _published.clear()
     try:
         message = args.run_command(args)
     except UserInputError as exc:
         return report_user_error(exc, prog=PROG)
+    except KeyboardInterrupt as exc:
+        return _stopped(exc)
+    except OSError as exc:
+        if not is_disk_full(exc):
+            raise
+        return _stopped(exc)
     print(f"{PROG}: {message}", file=sys.stderr)
     return 0
 

@@ -4,6 +4,11 @@ An editable install reads configs and data files from the source tree, so a file
 out of the package data would pass every other test and still break users. This test
 builds the wheel as ``pip install .`` does, installs it into a fresh virtualenv and
 runs a tiny sweep from there, outside the source tree.
+
+The build must also be free of setuptools deprecations: each one announces a date after
+which a fresh clone stops building (the TOML-table ``project.license``: "By 2027-Feb-18
+... your builds will no longer be supported"). pip shows the backend's output only with
+``-v``, so the build runs verbosely and its output is searched.
 """
 
 import shutil
@@ -31,7 +36,10 @@ def _sh(args, **kw):
 def test_wheel_in_a_fresh_virtualenv_runs_a_tiny_sweep(tmp_path):
     src = tmp_path / "src_copy"
     shutil.copytree(ROOT, src, symlinks=True, ignore=SKIP)  # build outside the work tree
-    _sh([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", tmp_path / "dist", src])
+    built = _sh([sys.executable, "-m", "pip", "wheel", "--no-deps", "-v", "-w", tmp_path / "dist", src])
+    output = built.stdout + built.stderr
+    deprecations = [line.strip() for line in output.splitlines() if "SetuptoolsDeprecationWarning" in line]
+    assert not deprecations, "the build uses something setuptools will drop:\n" + "\n".join(deprecations)
     wheels = list((tmp_path / "dist").glob("mcsweep-*.whl"))
     assert len(wheels) == 1
 

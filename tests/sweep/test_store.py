@@ -55,3 +55,34 @@ def test_atomic_write_gives_the_mode_of_a_normally_created_file(tmp_path, mask, 
         os.umask(old)
     assert (tmp_path / "sub" / "f.csv").stat().st_mode & 0o777 == mode
     assert (tmp_path / "plain.csv").stat().st_mode & 0o777 == mode
+
+
+def test_a_write_stopped_by_a_full_disk_leaves_nothing_and_names_the_file(tmp_path, monkeypatch):
+    import errno
+    from pathlib import Path
+
+    store = CellStore(tmp_path, "h1")
+    store.write("c1", pd.DataFrame({"a": [1.0, 2.0]}))
+    real_write_bytes = Path.write_bytes
+
+    def half_then_full(self, data):  # a real write(): part of the bytes land, then ENOSPC without a name
+        real_write_bytes(self, data[: len(data) // 2])
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(Path, "write_bytes", half_then_full)
+    with pytest.raises(OSError) as info:
+        store.write("c2", pd.DataFrame({"a": [3.0]}))
+    monkeypatch.undo()
+    assert info.value.errno == errno.ENOSPC and info.value.filename == str(tmp_path / "c2.parquet")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["c1.parquet"]  # the temporary went with the error
+    assert store.finished() == ["c1"] and store.read("c2") is None
+
+
+def test_finished_counts_only_whole_results_of_this_config(tmp_path):
+    store = CellStore(tmp_path, "h1")
+    for cid in ("c1", "c2", "c3"):
+        store.write(cid, pd.DataFrame({"a": [1.0]}))
+    (tmp_path / "c2.parquet").write_bytes((tmp_path / "c2.parquet").read_bytes()[:-20])  # truncated
+    CellStore(tmp_path, "other").write("c4", pd.DataFrame({"a": [1.0]}))
+    (tmp_path / ".c5.parquet.x1.tmp").write_bytes((tmp_path / "c1.parquet").read_bytes())  # a killed write's temporary
+    assert CellStore(tmp_path, "h1", version="a later version").finished() == ["c1", "c3"]

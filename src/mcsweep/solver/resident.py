@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import contextlib
 import multiprocessing as mp
+import signal
 from multiprocessing.connection import Connection
 from typing import Callable, Iterator, Sequence
 
@@ -34,6 +35,10 @@ def fork_available() -> bool:
 
 def _serve(conn: Connection, chunks: dict) -> None:
     """Worker loop: run ``fn((ci, *chunks[ci], *rest))`` for every task of a message."""
+    # Ctrl-C reaches the terminal's whole process group; only the parent acts on it (it
+    # ends the pool). SIGINT stayed blocked since the fork, so none can slip in before this.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
     while True:
         msg = conn.recv()
         if msg is None:
@@ -56,16 +61,22 @@ class _Pool:
         bounds = [round(w * n / n_workers) for w in range(n_workers + 1)]
         self.owner = {}
         self.conns, self.procs = [], []
-        for w in range(n_workers):
-            own = {ci: chunks[ci] for ci in range(bounds[w], bounds[w + 1])}
-            for ci in own:
-                self.owner[ci] = w
-            parent, child = ctx.Pipe()
-            p = ctx.Process(target=_serve, args=(child, own), daemon=True)
-            p.start()
-            child.close()
-            self.conns.append(parent)
-            self.procs.append(p)
+        # Blocked across the forks (children inherit the mask; _serve then ignores it);
+        # an interrupt meanwhile reaches this process when the mask is restored.
+        mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+        try:
+            for w in range(n_workers):
+                own = {ci: chunks[ci] for ci in range(bounds[w], bounds[w + 1])}
+                for ci in own:
+                    self.owner[ci] = w
+                parent, child = ctx.Pipe()
+                p = ctx.Process(target=_serve, args=(child, own), daemon=True)
+                p.start()
+                child.close()
+                self.conns.append(parent)
+                self.procs.append(p)
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, mask)
 
     def run(self, fn: Callable, items) -> Iterator:
         """``fn(item)`` for items ``(ci, *chunks[ci], *rest)``; only ``ci, rest`` are sent (the
@@ -82,11 +93,15 @@ class _Pool:
                 raise out
         return (r for _, out in replies for r in out)
 
-    def close(self) -> None:
-        for c in self.conns:
+    def close(self, *, kill: bool = False) -> None:
+        """End the workers: after their current task, or at once with ``kill`` (the parent
+        was interrupted or failed, their results are not wanted)."""
+        for c in self.conns if not kill else ():
             with contextlib.suppress(OSError):
                 c.send(None)
         for p in self.procs:
+            if kill:
+                p.terminate()
             p.join(timeout=10)
             if p.is_alive():
                 p.terminate()
@@ -107,5 +122,7 @@ def forked_chunks(chunks: Sequence[tuple], n_workers: int):
     pool = _Pool(chunks, min(int(n_workers), len(chunks)))
     try:
         yield pool.run
-    finally:
-        pool.close()
+    except BaseException:
+        pool.close(kill=True)
+        raise
+    pool.close()

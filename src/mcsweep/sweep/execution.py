@@ -10,6 +10,7 @@ the number of workers or the completion order.
 from __future__ import annotations
 
 import os
+import signal
 from contextlib import contextmanager
 from typing import Callable, Iterable, Iterator
 
@@ -52,6 +53,24 @@ def _dask_client(conf: ExecutionConf):
             cluster.close()
 
 
+def ignore_sigint() -> None:
+    """Run in each loky worker as it starts (its ``initializer``).
+
+    Ctrl-C in a terminal reaches the whole process group, workers included. The parent
+    alone decides what an interrupt means (it stops the workers and says what is kept);
+    a worker hit by it would print its own KeyboardInterrupt traceback.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _shutdown_loky(*, kill: bool) -> None:
+    from joblib.externals.loky import get_reusable_executor
+
+    # Not reusable with these default arguments, joblib's executor is shut down by the call
+    # itself (with `kill_workers`); the fresh one it returns has no process yet.
+    get_reusable_executor(kill_workers=kill).shutdown(wait=True, kill_workers=kill)
+
+
 @contextmanager
 def executor(conf: ExecutionConf, *,
              release_workers: bool = False) -> Iterator[Callable[[Callable, Iterable], Iterator]]:
@@ -59,6 +78,8 @@ def executor(conf: ExecutionConf, *,
 
     ``release_workers``: on leaving, shut the local worker processes down (joblib keeps
     loky's workers for reuse) so they do not hold their memory through what comes next.
+    Leaving on an exception (Ctrl-C, a full disk) always kills and reaps them, so no
+    worker outlives the command or stays behind as a zombie.
     """
     for v in _THREAD_VARS:
         os.environ.setdefault(v, "1")
@@ -69,7 +90,8 @@ def executor(conf: ExecutionConf, *,
             if backend == "sequential" or (n_jobs == 1 and backend != "dask"):
                 yield from (fn(item) for item in items)
                 return
-            with parallel_config(backend=backend, n_jobs=n_jobs):
+            extra = {"initializer": ignore_sigint} if backend == "loky" else {}
+            with parallel_config(backend=backend, n_jobs=n_jobs, **extra):
                 yield from Parallel(return_as="generator_unordered")(delayed(fn)(i) for i in items)
         return run
 
@@ -79,10 +101,13 @@ def executor(conf: ExecutionConf, *,
         return
     try:
         yield make_run(conf.backend, conf.n_jobs)
-    finally:
+    except BaseException:
+        if conf.backend == "loky":
+            _shutdown_loky(kill=True)
+        raise
+    else:
         if release_workers and conf.backend == "loky":
-            from joblib.externals.loky import get_reusable_executor
-            get_reusable_executor().shutdown(wait=True)
+            _shutdown_loky(kill=False)
 
 
 def release_free_memory() -> None:

@@ -32,7 +32,7 @@ from typing import Any
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 
-__all__ = ["Snapshot", "RunDirGuard", "snapshot_for", "release", "MAX_ENTRIES"]
+__all__ = ["Snapshot", "RunDirGuard", "snapshot_for", "release", "undo_unstarted", "MAX_ENTRIES"]
 
 #: A directory with more entries than this is not listed in full (a run pointed at a
 #: home directory by mistake): its undo then removes only new names directly under it.
@@ -214,6 +214,18 @@ def snapshot_for(run_dir) -> Snapshot:
 def release(run_dir) -> None:
     """Forget the record of a finished single run (a later run in this process takes its own)."""
     _SNAPSHOTS.pop(Path(os.path.abspath(run_dir)), None)
+
+
+def undo_unstarted() -> list[Path]:
+    """Undo what Hydra wrote for a command stopped before its job ran; returns the directories.
+
+    Hydra creates the run directory and writes ``.hydra/*.yaml`` itself, not atomically:
+    a full disk there leaves empty files and directories that no result needs.
+    """
+    roots = list(_SNAPSHOTS)
+    for root in roots:
+        _SNAPSHOTS.pop(root).undo()
+    return roots
 
 
 def _record(config: DictConfig, key: str) -> None:

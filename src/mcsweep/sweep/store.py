@@ -82,6 +82,13 @@ def atomic_write_via(path: Path, write) -> None:
         finally:
             os.close(fd)
         os.replace(tmp, path)
+    except OSError as exc:
+        Path(tmp).unlink(missing_ok=True)
+        if exc.filename in (None, tmp):
+            # A failed write() or fsync() names no file, and the temporary name means
+            # nothing to the user: the message (a full disk) must say which file it was.
+            raise OSError(exc.errno, exc.strerror, str(path)) from exc
+        raise
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
@@ -125,6 +132,35 @@ class CellStore:
         path = self.path(cell_id)
         if not path.exists():
             return None
+        df, meta, problem = self._verified(cell_id)
+        if problem:
+            warnings.warn(f"recomputing {path.name}: {problem}", stacklevel=2)
+            return None
+        written_by = meta.get("code_version") or "an mcsweep too old to record its version"
+        if written_by != self.version and not self.accept_other_versions:
+            raise UserInputError(
+                f"{self.directory.name}/{path.name} was computed by {written_by}, this is {self.version}; "
+                "expected cells of one code version: resume with resume.accept_other_versions=true to keep "
+                "them, or use a new hydra.run.dir")
+        self.versions_read[written_by] += 1
+        return df
+
+    def finished(self) -> list[str]:
+        """Ids of the whole results of this config (name order), whatever code version wrote them.
+
+        Quiet and never raising: it tells a stopped command's user what is kept. The code
+        version is left to :meth:`read`, which names both versions if a rerun meets cells of
+        another (the checkout may change while a long run goes on). Temporaries of
+        unfinished writes (``.*.tmp``) are never counted.
+        """
+        if not self.directory.is_dir():
+            return []
+        return [p.stem for p in sorted(self.directory.glob("*.parquet")) if self._verified(p.stem)[2] is None]
+
+    def _verified(self, cell_id: str):
+        """``(table, metadata, problem)``; ``problem`` is None when the file is a finished result."""
+        path = self.path(cell_id)
+        df, meta = None, {}
         try:
             table = pq.read_table(path)
             meta = json.loads((table.schema.metadata or {})[_META_KEY])
@@ -138,17 +174,7 @@ class CellStore:
                 problem = "its checksum does not match its content"
         except Exception as exc:  # truncated, not Parquet, no metadata
             problem = f"it is unreadable ({type(exc).__name__})"
-        if problem:
-            warnings.warn(f"recomputing {path.name}: {problem}", stacklevel=2)
-            return None
-        written_by = meta.get("code_version") or "an mcsweep too old to record its version"
-        if written_by != self.version and not self.accept_other_versions:
-            raise UserInputError(
-                f"{self.directory.name}/{path.name} was computed by {written_by}, this is {self.version}; "
-                "expected cells of one code version: resume with resume.accept_other_versions=true to keep "
-                "them, or use a new hydra.run.dir")
-        self.versions_read[written_by] += 1
-        return df
+        return df, meta, problem
 
     def remove_stale_temporaries(self) -> int:
         """Delete temporaries left by writes that were killed (never valid results)."""

@@ -32,7 +32,7 @@ from ..experiments.global_table import FRACTION_INTERVAL, SUBSET_TITLES, g_label
 from .document import Document, plain
 
 __all__ = ["section_config", "global_section", "key_numbers", "difference_sentence", "largest_difference",
-           "find_row"]
+           "find_row", "readable_table"]
 
 #: A cause of a difference: (the cell that differs most, the run's table) -> the text after
 #: the colon of the difference sentence.
@@ -90,7 +90,7 @@ def key_numbers(table: pd.DataFrame, p: float, priors: Sequence[str], label: Cal
     subsets = list(dict.fromkeys(table["subset"]))
     lead = (f"Fraction of stars inside the {100 * p:g} % confidence ellipse in per cent, ours "
             f"[{100 * FRACTION_INTERVAL:g} % Clopper-Pearson interval] (paper), for "
-            f"G ~ {', '.join(plain(g_label(g)) for g in classes)}:")
+            f"G ~ {' / '.join(plain(g_label(g)) for g in classes)}:")
     items = []
     for prior in priors:
         parts = []
@@ -98,7 +98,7 @@ def key_numbers(table: pd.DataFrame, p: float, priors: Sequence[str], label: Cal
             rows = [find_row(table, subset, prior, g) for g in classes]
             if any(r is not None for r in rows):
                 parts.append(f"{SUBSET_TITLES.get(subset, subset)} transits "
-                             + ", ".join("–" if r is None else _fraction(r) for r in rows))
+                             + " / ".join("–" if r is None else _fraction(r) for r in rows))
         if parts:
             items.append(f"{label(prior)}: " + "; ".join(parts))
         else:
@@ -142,6 +142,15 @@ def difference_sentence(table: pd.DataFrame, label: Callable[[str], str], cause:
                 "run's Monte Carlo noise.")
     where = f", outside our {100 * FRACTION_INTERVAL:g} % interval)" if outside else "; no interval recorded)"
     return text + where + f": {cause(cell, table)}."
+
+
+def readable_table(doc: Document, df: pd.DataFrame, caption: str, floatfmt: dict | None = None,
+                   names: dict[str, str] | None = None) -> None:
+    """A table of a result file with headers a person reads and a browser can wrap: ``names``
+    where given, else the file's column name with spaces for underscores (``floatfmt`` by
+    the file's names)."""
+    header = {c: (names or {}).get(c, str(c).replace("_", " ")) for c in df.columns}
+    doc.table(df.rename(columns=header), caption, {header[c]: f for c, f in (floatfmt or {}).items() if c in header})
 
 
 def global_section(doc: Document, run_dir: Path, prov: dict, *, kind: str, heading: str, description: str,

@@ -23,7 +23,7 @@ from ..experiments.global_table import FRACTION_INTERVAL
 from ..experiments.primary_table import table3_layout
 from .document import FIG_DIR, Document, plain
 from .figures import plot_primary_attitude_error, plot_primary_convergence
-from .global_section import find_row, global_section, section_config
+from .global_section import find_row, global_section, readable_table, section_config
 
 __all__ = ["primary_section", "table3_cause", "HEADLINE_PRIORS"]
 
@@ -71,9 +71,11 @@ def primary_section(doc: Document, run_dir: Path, prov: dict) -> None:
 
     def diagnostics(doc: Document, table: pd.DataFrame) -> None:
         summary = pd.read_csv(run_dir / "primary_summary.csv")
-        doc.table(_summary_table(summary), "Global solutions: PCG iterations, attitude error RMS per axis "
-                  "(x, y, z) [uas] after the frame correction, RMS of the normalised residuals",
-                  {"residual_rms": ".4f", "seconds": ".1f", "dead_fraction": ".3f"})
+        readable_table(doc, _summary_table(summary), "Global solutions: PCG iterations, attitude error RMS per "
+                       "axis after the frame correction, RMS of the normalised residuals",
+                       {"residual_rms": ".4f", "seconds": ".1f", "dead_fraction": ".3f"},
+                       {"attitude_rms_uas": "attitude error RMS x, y, z [uas]", "residual_rms": "residual RMS",
+                        "n_attitude_coefficients": "n attitude coefficients", "knot_interval_hours": "knot interval [h]"})
         figdir = run_dir / FIG_DIR
         figdir.mkdir(exist_ok=True)
         plot_primary_convergence(pd.read_csv(run_dir / "primary_convergence.csv"), figdir / "primary_convergence.png")
@@ -125,4 +127,5 @@ def primary_section(doc: Document, run_dir: Path, prov: dict) -> None:
                  "cell value: the smallest k that keeps P inside in every cell. Flags: `below_grid` = the "
                  "smallest k already reaches P (an upper limit); `never_reached` = above the grid. Curves: "
                  "`primary_factor_curves.csv`.")
-        doc.table(fac, "Smallest factor k per G class and subset", {"k_min": ".3g", "k_lo": ".3g", "k_hi": ".3g"})
+        readable_table(doc, fac, "Smallest factor k per G class and subset",
+                       {"k_min": ".3g", "k_lo": ".3g", "k_hi": ".3g"}, {"g_class": "G class"})

@@ -136,3 +136,33 @@ def test_html_text_has_no_python_reprs_or_raw_backticks(run):
     page = (out / "report.html").read_text()
     for span in spans:
         assert f"<code>{html.escape(span)}</code>" in page, span
+
+
+def _table(ours, paper, lo, hi, prior="F90"):
+    return pd.DataFrame({"subset": [">4"], "prior": [prior], "g_class": [11], "n_stars": [100], "n_valid": [100],
+                         "fraction_inside": [ours], "fraction_lo": [lo], "fraction_hi": [hi],
+                         "paper_fraction_inside": [paper]})
+
+
+def _never(cell, table):
+    raise AssertionError("no cause is asked for a difference within the interval")
+
+
+def test_a_largest_difference_within_its_interval_names_no_cause():
+    from mcsweep.report.global_section import difference_sentence
+
+    text = difference_sentence(_table(0.90, 0.894, 0.88, 0.92), prior_label, _never)
+    assert "sigma_F90, > 4 transits, G ~ 11, 90.0 [88.0-92.0] % against 89.4 % (+0.6 points" in text
+    assert "within our 68 % interval" in text and "docs/" not in text
+
+
+def test_no_comparable_cell_and_missing_rows_are_said_in_words():
+    from mcsweep.report.global_section import difference_sentence, key_numbers
+
+    table = _table(0.80, float("nan"), 0.7, 0.9, prior="2F90")
+    lead, items = key_numbers(table, 0.8, ("F90", "2F90"), prior_label, "experiment.primary.priors")
+    assert "80 % confidence ellipse" in lead
+    assert items[0] == "sigma_F90: not in this run (`experiment.primary.priors`)"
+    assert items[1] == "2 sigma_F90: > 4 transits 80.0 [70.0-90.0]"
+    assert items[2].startswith("No cell can be compared with the paper")
+    assert difference_sentence(table, prior_label, _never).startswith("No cell of this run can be compared")

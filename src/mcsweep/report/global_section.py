@@ -110,7 +110,7 @@ def key_numbers(table: pd.DataFrame, p: float, priors: Sequence[str], label: Cal
     judged = [f for f in flags if f is not None]
     if comp.empty:
         items.append(f"No cell can be compared with the paper, whose values are for P = 0.9 and "
-                     f"G ~ 11, 15, 19 (this run: P = {p:g}).")
+                     f"G ~ 11 / 15 / 19 (this run: P = {p:g}, G ~ {' / '.join(plain(g_label(g)) for g in classes)}).")
     elif judged:
         items.append(f"The paper's fraction lies outside our {100 * FRACTION_INTERVAL:g} % interval in "
                      f"{sum(judged)} of {len(judged)} cells.")
@@ -130,13 +130,12 @@ def difference_sentence(table: pd.DataFrame, label: Callable[[str], str], cause:
     cell = largest_difference(table)
     if cell is None:
         return "No cell of this run can be compared with the paper's table."
+    outside = _outside(cell)
     text = (f"Largest difference from the paper: {label(str(cell['prior']))}, "
             f"{SUBSET_TITLES.get(cell['subset'], cell['subset'])} transits, G ~ {plain(g_label(cell['g_class']))}, "
             f"{100 * cell['fraction_inside']:.1f}"
-            + (f" [{100 * cell['fraction_lo']:.1f}-{100 * cell['fraction_hi']:.1f}]"
-               if _outside(cell) is not None else "")
+            + (f" [{100 * cell['fraction_lo']:.1f}-{100 * cell['fraction_hi']:.1f}]" if outside is not None else "")
             + f" % against {100 * cell['paper_fraction_inside']:.1f} % ({100 * cell['diff']:+.1f} points")
-    outside = _outside(cell)
     if outside is False:
         return (text + f"), within our {100 * FRACTION_INTERVAL:g} % interval, so not distinguishable from this "
                 "run's Monte Carlo noise.")

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from ..errors import UserInputError
 from ..experiments.global_priors import parse_prior, prior_label
 from ..experiments.global_table import FRACTION_INTERVAL
 from ..experiments.primary_table import table3_layout
@@ -37,7 +38,7 @@ def table3_cause(cell: pd.Series, table: pd.DataFrame) -> str:
     """The documented cause of a Table 3 cell's difference, with this run's numbers."""
     try:
         tight = parse_prior(str(cell["prior"])) == ("F90", 1.0)
-    except Exception:
+    except UserInputError:
         tight = False
     if tight and cell["diff"] > 0:
         ten = find_row(table, cell["subset"], "10F90", cell["g_class"])
@@ -75,7 +76,8 @@ def primary_section(doc: Document, run_dir: Path, prov: dict) -> None:
                        "axis after the frame correction, RMS of the normalised residuals",
                        {"residual_rms": ".4f", "seconds": ".1f", "dead_fraction": ".3f"},
                        {"attitude_rms_uas": "attitude error RMS x, y, z [uas]", "residual_rms": "residual RMS",
-                        "n_attitude_coefficients": "n attitude coefficients", "knot_interval_hours": "knot interval [h]"})
+                        "n_attitude_coefficients": "n attitude coefficients",
+                        "knot_interval_hours": "knot interval [h]"})
         figdir = run_dir / FIG_DIR
         figdir.mkdir(exist_ok=True)
         plot_primary_convergence(pd.read_csv(run_dir / "primary_convergence.csv"), figdir / "primary_convergence.png")

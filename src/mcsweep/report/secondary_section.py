@@ -59,8 +59,8 @@ def secondary_section(doc: Document, run_dir: Path, prov: dict) -> None:
         no_prior_file = run_dir / "no_prior.csv"
         if no_prior_file.exists():
             readable_table(doc, pd.read_csv(no_prior_file),
-                      "Five-parameter solution without prior: stars it cannot solve (singular or condition "
-                      f"number > 1e6) and, for the others, fraction inside and {100 * p:g}th percentile [mas]",
+                           "Five-parameter solution without prior: stars it cannot solve (singular or condition "
+                           f"number > 1e6) and, for the others, fraction inside and {100 * p:g}th percentile [mas]",
                            {"fraction_unsolved": ".3f", "fraction_inside": ".3f", "p90_error_mas": ".3g"},
                            {"g_class": "G class", "p90_error_mas": f"p{100 * p:g} error [mas]"})
         cols = ["g_class", "n_stars", "g_faintest", "mean_transits_undiluted", "mean_fov_retained",
@@ -69,7 +69,8 @@ def secondary_section(doc: Document, run_dir: Path, prov: dict) -> None:
                        "Observation histories per class (paper: ~4.4 retained transits per star on average)",
                        {"g_faintest": ".4f", "mean_transits_undiluted": ".1f", "mean_fov_retained": ".2f",
                         "mean_fov_retained_observed": ".2f", "median_sigma_f90_mas": ".3g"},
-                       {"g_class": "G class", "g_faintest": "G faintest", "mean_fov_retained": "mean FoV transits retained",
+                       {"g_class": "G class", "g_faintest": "G faintest",
+                        "mean_fov_retained": "mean FoV transits retained",
                         "mean_fov_retained_observed": "mean FoV transits retained, stars with any",
                         "n_le4": "n <= 4", "n_gt4": "n > 4", "median_sigma_f90_mas": "median sigma_F90 [mas]"})
         unsolved = [c for c in summary.columns if c.startswith("n_unsolved_") and c != "n_unsolved_no_prior"]

@@ -25,11 +25,12 @@ import hydra
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf
 
-from .errors import UserInputError, report_user_error
+from .errors import EXIT_NOT_CONVERGED, NotConvergedError, UserInputError, report_user_error
 from .report.build import build_report
 from .experiments.primary import OUTPUTS as PRIMARY_OUTPUTS
 from .experiments.secondary import OUTPUTS as SECONDARY_OUTPUTS
-from .sweep.interruption import EXIT_INTERRUPTED, exit_on_second_interrupt, is_disk_full, kept_in_run, report_stop
+from .sweep.interruption import (EXIT_INTERRUPTED, exit_on_second_interrupt, is_disk_full, kept_in_run,
+                                 remove_unfinished_writes, report_stop)
 from .sweep.provenance import PROVENANCE_FILE, Provenance, config_hash
 from .sweep.rundir import release, snapshot_for, undo_unstarted
 from .sweep.runner import OUTPUTS, run_sweep
@@ -80,6 +81,7 @@ def _stopped(cfg: DictConfig, run_dir: Path, exc: BaseException) -> int:
     exit_on_second_interrupt()
     what = "interrupted" if isinstance(exc, KeyboardInterrupt) else "stopped: the disk is full"
     _log_to_files(logging.getLogger(__name__), f"mcsweep {what}", (type(exc), exc, exc.__traceback__))
+    remove_unfinished_writes(run_dir)
     try:
         config = to_config(cfg)
         kept = kept_in_run(config, config_hash(OmegaConf.to_container(cfg, resolve=True)), run_dir)
@@ -126,6 +128,10 @@ def _hydra_entry(cfg: DictConfig) -> None:
         sys.exit(report_user_error(exc))
     except KeyboardInterrupt as exc:
         sys.exit(_stopped(cfg, run_dir, exc))
+    except NotConvergedError as exc:
+        _log_to_files(logging.getLogger(__name__), "mcsweep stopped: a solution did not converge", sys.exc_info())
+        print(f"mcsweep: error: {exc}", file=sys.stderr)
+        sys.exit(EXIT_NOT_CONVERGED)
     except Exception as exc:
         if is_disk_full(exc):
             sys.exit(_stopped(cfg, run_dir, exc))

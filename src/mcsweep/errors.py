@@ -11,9 +11,11 @@ from __future__ import annotations
 
 import sys
 
-__all__ = ["UserInputError", "EXIT_USER_ERROR", "report_user_error"]
+__all__ = ["UserInputError", "EXIT_USER_ERROR", "report_user_error", "NotConvergedError", "EXIT_NOT_CONVERGED"]
 
 EXIT_USER_ERROR = 2
+#: A global solution that did not converge: no table is written from it.
+EXIT_NOT_CONVERGED = 3
 
 
 class UserInputError(ValueError):
@@ -30,3 +32,15 @@ def report_user_error(exc: UserInputError, prog: str = "mcsweep") -> int:
     """Print ``exc`` as one line on stderr and return the exit status to use."""
     print(f"{prog}: error: {exc}", file=sys.stderr)
     return EXIT_USER_ERROR
+
+
+class NotConvergedError(RuntimeError):
+    """An iterative solution stopped at its iteration limit without meeting its criterion.
+
+    Not a bug and not a bad value as such (the same settings converge on other data), so
+    neither a traceback nor exit status 2: one line naming the solution, its iterations
+    and residual, and :data:`EXIT_NOT_CONVERGED`. Results finished before it are kept.
+    """
+
+    def __init__(self, message: str):
+        super().__init__(" ".join(str(message).split()))

@@ -8,15 +8,21 @@ import pytest
 from mcsweep.astrometry.noise import NoiseModel
 from mcsweep.scanning import find_transits
 from mcsweep.scanning.ephemeris import gaia_position_au
+from mcsweep.scanning.timeline import draw_dead_time
 from mcsweep.solver import AttitudeSpline, build_observations
 
 START_JD = 2456863.9375  # 2014-07-25 10:30 TCB, start of routine operations (Prusti et al. 2016)
 
 
-def make_problem(n_stars=20000, days=10.0, knot_days=0.5, seed=5, min_transits=4, use_ac=True, keep_fraction=1.0):
+def make_problem(n_stars=20000, days=10.0, knot_days=0.5, seed=5, min_transits=4, use_ac=True, keep_fraction=1.0,
+                 dead_fraction=0.0, dead_block_days=0.25, transits_per_knot=None):
     """Random stars over the sky, their FoV transits, and the partials; truth drawn separately.
 
     ``keep_fraction < 1`` keeps that random fraction of the transits (dilution).
+    ``dead_fraction > 0``: dead time in blocks of ``dead_block_days`` (the primary
+    experiment's model), and the attitude spline broken at those gaps.
+    ``transits_per_knot``: knots placed by the kept transits, that many per interval, instead
+    of ``knot_days``.
     """
     rng = np.random.default_rng(seed)
     ra = rng.uniform(0.0, 360.0, n_stars)
@@ -24,6 +30,10 @@ def make_problem(n_stars=20000, days=10.0, knot_days=0.5, seed=5, min_transits=4
     tr = find_transits(ra, dec, START_JD, START_JD + days)
     if keep_fraction < 1.0:
         tr = tr[rng.uniform(size=len(tr)) < keep_fraction].reset_index(drop=True)
+    dead = None
+    if dead_fraction > 0.0:
+        dead = draw_dead_time(START_JD, START_JD + days, dead_fraction, block_days=dead_block_days, rng=rng)
+        tr = tr[~dead.is_dead(tr["tcb_jd"].to_numpy())].reset_index(drop=True)
     src = tr["source_index"].to_numpy()
     count = np.bincount(src, minlength=n_stars)
     keep_star = count >= min_transits
@@ -38,12 +48,18 @@ def make_problem(n_stars=20000, days=10.0, knot_days=0.5, seed=5, min_transits=4
     t = tr["tcb_jd"].to_numpy()
     s_al = noise.sigma_al_mas(g)[star]
     s_ac = noise.sigma_ac_mas(g)[star] if use_ac else None
-    spline = AttitudeSpline(START_JD, START_JD + days, knot_days)
+    if transits_per_knot is not None:
+        live_days = days - (dead.total_days if dead is not None else 0.0)
+        knot_days = live_days * transits_per_knot / len(tr)
+    spline = AttitudeSpline(START_JD, START_JD + days, knot_days,
+                            gaps=None if dead is None else (dead.starts, dead.stops),
+                            epochs=tr["tcb_jd"].to_numpy(), transits_per_knot=transits_per_knot)
     t_ref = START_JD + 0.5 * days
     obs = build_observations(ra, dec, star, t, tr["scan_angle_deg"].to_numpy(), gaia_position_au(t),
                              t_ref_jd=t_ref, sigma_al_mas=s_al, sigma_ac_mas=s_ac, spline=spline)
     return {"ra": ra, "dec": dec, "g": g, "obs": obs, "spline": spline, "t_ref": t_ref, "rng": rng,
-            "transits": tr, "star": star, "s_al": s_al, "s_ac": s_ac}
+            "transits": tr, "star": star, "s_al": s_al, "s_ac": s_ac, "dead": dead, "days": days,
+            "knot_days": knot_days}
 
 
 @pytest.fixture(scope="session")
@@ -56,3 +72,13 @@ def weak_problem():
     """One year, a quarter of the transits kept: many stars with 1-4 transits, as Table 3's
     first subset, next to well-observed ones."""
     return make_problem(n_stars=2000, days=365.0, knot_days=4.0, seed=8, min_transits=1, keep_fraction=0.25)
+
+
+@pytest.fixture(scope="session")
+def gapped_problem():
+    """One year with 20 % dead time in 2-day blocks (gaps longer than the knots) and ~12 FoV
+    transits per knot interval: the attitude freedom of AGIS's 30 s knots at the paper's 1.5e6
+    stars (~25 per knot), and less."""
+    return make_problem(n_stars=800, days=365.0, seed=11, min_transits=1, keep_fraction=0.6, dead_fraction=0.2,
+                        dead_block_days=2.0,
+                        transits_per_knot=12.0)

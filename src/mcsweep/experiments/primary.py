@@ -77,6 +77,7 @@ from ..astrometry.solve import prior_diagonal
 from ..errors import UserInputError
 from ..scanning.ephemeris import gaia_position_au
 from ..scanning.timeline import DeadTime
+from ..solver.attitude_spline import DEGREE
 from ..solver.blocks import att_rows, spline_values, src_forward
 from ..solver import (BLOCK_STARS, AttitudeSpline, GlobalProblem, build_observations, fit_frame, frame_attitude,
                       frame_offsets, in_block_order, make_blocks, precision_weights, solve_global,
@@ -104,7 +105,7 @@ __all__ = [
 #: Sub-directory of the run directory holding one result file per prior.
 CHUNKS_DIR = "primary_chunks"
 OUTPUTS = (CHUNKS_DIR, "table3.csv", "table3.md", "primary_convergence.csv", "primary_summary.csv",
-           "primary_attitude_error.csv", "figures",
+           "primary_attitude_error.csv", "primary_attitude_segments.csv", "figures",
            "primary_factor.csv", "primary_factor_curves.csv", "report.md", "report.html", "provenance.json")
 #: Class key of the primary sources in the seeds and the results.
 PRIMARY_KEY = 0
@@ -125,11 +126,13 @@ class PrimarySettings(GlobalSettings):
     dead_time_block_days: float
     priors: tuple
     knot_interval_days: float
+    knot_transits: float | None
     attitude_amplitude_mas: float
     attitude_timescale_days: float
     rtol: float
     update_tol_uas: float
     max_iter: int
+    allow_unconverged: bool = False
     frame_fit: str = "precision"
 
 
@@ -153,10 +156,12 @@ def build_settings(config) -> PrimarySettings:
         **fields,
         dead_time_fraction=float(pri.dead_time_fraction), dead_time_block_days=float(pri.dead_time_block_days),
         priors=priors, knot_interval_days=float(pri.knot_interval_hours) / 24.0,
+        knot_transits=None if pri.knot_transits is None else float(pri.knot_transits),
         attitude_amplitude_mas=float(pri.attitude_amplitude_mas),
         attitude_timescale_days=float(pri.attitude_timescale_hours) / 24.0,
         rtol=float(pri.solver_rtol), update_tol_uas=float(pri.solver_update_tol_uas),
-        max_iter=int(pri.solver_max_iter), frame_fit=str(pri.frame_fit))
+        max_iter=int(pri.solver_max_iter), allow_unconverged=bool(pri.allow_unconverged),
+        frame_fit=str(pri.frame_fit))
 
 
 # --------------------------------------------------------------------------- data
@@ -190,6 +195,34 @@ class PreparedData:
     @property
     def dead_days(self) -> float:
         return self.dead.total_days
+
+    @property
+    def n_fov_transits(self) -> int:
+        """Live FoV transits of the solved stars (the data of the attitude)."""
+        return int(self.stars["n_fov"].to_numpy()[self.solved].sum())
+
+    def coefficients_with_data(self) -> int:
+        """Spline coefficients (per axis) with at least one measurement in their support: all
+        of them when the spline is broken at the gaps; the solver holds others at zero."""
+        covered = np.zeros(self.spline.n_coef, dtype=bool)
+        for b in self.blocks:  # the runs of equal first coefficient: a few per knot and block
+            covered[(b.seg_j0[:, None] + np.arange(DEGREE + 1)).ravel()] = True
+        return int(covered.sum())
+
+    @property
+    def n_knot_intervals(self) -> int:
+        return self.spline.n_coef - DEGREE * self.spline.n_segments
+
+    @property
+    def transits_per_knot(self) -> float:
+        """Realised mean number of FoV transits per knot interval (``knot_transits``)."""
+        return self.n_fov_transits / max(self.n_knot_intervals, 1)
+
+    @property
+    def knot_interval_hours(self) -> float:
+        """Realised mean knot interval over the live time [h]."""
+        live = float(np.sum(self.spline.segments[:, 1] - self.spline.segments[:, 0]))
+        return 24.0 * live / max(self.n_knot_intervals, 1)
 
     @property
     def n_measurements(self) -> int:
@@ -242,6 +275,17 @@ def _true_attitude(settings: PrimarySettings) -> tuple[AttitudeSpline, np.ndarra
     return spline, rng.normal(0.0, settings.attitude_amplitude_mas, (spline.n_coef, 3))
 
 
+def knot_interval_days(settings: PrimarySettings, n_fov_transits: int, dead: DeadTime) -> float:
+    """The solver's knot interval [day]: ``knot_interval_hours``, or with ``knot_transits`` the
+    mean live time per ``knot_transits`` FoV transits (the density of AGIS's 30 s knots at the
+    paper's 1.5e6 stars: ~25 per knot; Lindegren et al. 2016, A&A 595, A4, Fig. D.4); the
+    knots themselves are then placed by the data (:class:`~mcsweep.solver.AttitudeSpline`)."""
+    if settings.knot_transits is None:
+        return settings.knot_interval_days
+    live_days = (settings.end_jd - settings.start_jd) - dead.total_days
+    return live_days * settings.knot_transits / max(int(n_fov_transits), 1)
+
+
 def prepare(settings: PrimarySettings, stars: pd.DataFrame, transits: dict, *,
             with_noise: bool = True, block_stars: int = BLOCK_STARS) -> PreparedData:
     """Dead time, observations of the stars with >= 1 transit, truth and noisy measurements.
@@ -270,7 +314,13 @@ def prepare(settings: PrimarySettings, stars: pd.DataFrame, transits: dict, *,
     gs = g[solved]
     s_al_star = settings.noise.sigma_al_mas(gs)
     s_ac_star = settings.noise.sigma_ac_mas(gs) if settings.noise.use_ac else None
-    spline = AttitudeSpline(settings.start_jd, settings.end_jd, settings.knot_interval_days)
+    in_solution = np.zeros(n, dtype=bool)
+    in_solution[solved] = True
+    epochs = t[live & in_solution[star]]  # the solution's FoV transits
+    # Segments between the gaps, as AGIS; with knot_transits, knots placed by the data.
+    spline = AttitudeSpline(settings.start_jd, settings.end_jd, knot_interval_days(settings, epochs.size, dead),
+                            gaps=(dead.starts, dead.stops), epochs=epochs, transits_per_knot=settings.knot_transits)
+    del epochs
     t_ref = settings.t_ref_jd
     ra, dec = stars["ra"].to_numpy()[solved], stars["dec"].to_numpy()[solved]
     # Truth: position zero at the reference epoch (the offsets are what is solved for),
@@ -332,12 +382,11 @@ def attitude_error(data: PreparedData, coef, eps, omega, tcb_jd, estimated=None)
 
 def attitude_error_series(data: PreparedData, coef, eps, omega, *, per_knot: int = 1) -> pd.DataFrame:
     """The attitude error on a regular grid (``per_knot`` points per knot interval, at
-    interval centres), live time only (dead intervals hold no data, their coefficients
-    are held at zero): columns ``tcb_jd``, ``x_uas``, ``y_uas``, ``z_uas``."""
+    interval centres), live time only (the spline has no segment in the dead time): columns ``tcb_jd``, ``x_uas``, ``y_uas``, ``z_uas``."""
     step = data.spline.knot_interval_days / per_knot
     t = data.spline.start_jd + step * (0.5 + np.arange(int(round((data.spline.end_jd - data.spline.start_jd)
                                                                    / step))))
-    t = t[~data.dead.is_dead(t)]
+    t = t[data.spline.segment_of(t) >= 0]  # live time: the spline's segments
     err = 1e3 * attitude_error(data, coef, eps, omega, t)
     return pd.DataFrame({"tcb_jd": t, "x_uas": err[:, 0].astype(np.float32), "y_uas": err[:, 1].astype(np.float32),
                          "z_uas": err[:, 2].astype(np.float32)})

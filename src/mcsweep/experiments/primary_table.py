@@ -85,11 +85,14 @@ def cell_statistics(inside: np.ndarray, err_mas: np.ndarray, confidence: float) 
     return n_valid, n_in, frac, lo, hi, p, plo, phi
 
 
-def table3_rows(results: Mapping[str, pd.DataFrame], g_classes: Sequence[float], confidence: float) -> pd.DataFrame:
+def table3_rows(results: Mapping[str, pd.DataFrame], g_classes: Sequence[float], confidence: float,
+                converged: Mapping[str, bool] | None = None) -> pd.DataFrame:
     """``table3.csv``: one row per subset x prior x class (extra primary sources are not tabulated).
 
     ``results[prior]`` holds the per-star results of one solution (columns ``class_key``,
     ``n_fov``, ``inside``, ``err_mas``; :func:`mcsweep.experiments.primary.solve_prior`).
+    ``converged[prior]``: whether its solution met the PCG criterion (column ``converged``;
+    only with ``experiment.primary.allow_unconverged`` can a False reach the table).
     """
     q = error_percentile(confidence)
     rows = []
@@ -100,13 +103,18 @@ def table3_rows(results: Mapping[str, pd.DataFrame], g_classes: Sequence[float],
                 stats = cell_statistics(res["inside"].to_numpy()[sel], res["err_mas"].to_numpy()[sel], confidence)
                 pf, pp = paper_value3(subset, prior, g, confidence)
                 rows.append((subset, prior, g_label(g), int(sel.sum()), *stats, pf, pp, q))
-    return pd.DataFrame(rows, columns=list(TABLE3_COLUMNS))
+    table = pd.DataFrame(rows, columns=list(TABLE3_COLUMNS))
+    if converged is not None:
+        table["converged"] = table["prior"].map(lambda p: bool(converged[p]))
+    return table
 
 
 def table3_layout(table: pd.DataFrame, confidence: float) -> dict[str, pd.DataFrame]:
     """Per subset: priors x (fraction | percentile) per class, ``ours [lo-hi] (paper)``: Table 2's
     :func:`~mcsweep.experiments.global_table.paper_layout`, the priors in the table's order."""
-    return paper_layout(table, confidence, list(dict.fromkeys(table["prior"])), prior_label)
+    failed = set(table.loc[~table["converged"], "prior"]) if "converged" in table else set()
+    return paper_layout(table, confidence, list(dict.fromkeys(table["prior"])),
+                        lambda p: prior_label(p) + (" (NOT converged)" if p in failed else ""))
 
 
 def table3_markdown(table: pd.DataFrame, confidence: float, notes: Sequence[str] = ()) -> str:

@@ -12,10 +12,32 @@ growing linearly in time are then exactly in the spline space (B-splines sum to 
 a linear function has the Greville abscissae as coefficients), so the 6-dof frame
 degeneracy (orientation and spin, Lindegren et al. 2012, Sect. 6.1) is exact, as in
 AGIS, and can be fixed by a constraint and removed by the frame rotator
-(:mod:`mcsweep.solver.frame`).
+(:mod:`mcsweep.solver.frame`). This holds segment by segment, so it holds for a spline
+broken at data gaps too.
 
-Knots: a uniform sequence of interval ``knot_interval_days`` over ``[start, end]``,
-clamped (end knots repeated 4 times). Each epoch touches 4 consecutive coefficients.
+Segments at data gaps. AGIS does not run the attitude spline through an interruption of
+the data: the attitude is fitted in independent segments between gaps (Lindegren et al.
+2012, Sect. 3.3; the Gaia DR2 documentation, Sect. 3.4.5, notes that AGIS converges in a
+few iterations only when the gaps are handled). A spline run through a gap has
+coefficients that no measurement constrains (held at zero) and, at each edge, coefficients
+whose support reaches the data only in the last sliver of a knot interval, where a cubic
+B-spline is ``u^3 / 6`` small: weights of order ``(u^3 / 6)^2 ~ 1e-8`` of the others, so the
+attitude block is nearly singular there. Measured (12000 stars, one year, 20 % dead time in
+6 h blocks, 1 h knots, ~25 FoV transits per knot): PCG stopped at 400 iterations without
+converging for priors 0.01, 1 and 1000 mas; 2400 of the 25401 attitude unknowns had no data.
+With ``gaps`` each live stretch gets its own clamped knot sequence (end knots repeated four
+times), so every coefficient's support lies inside the data; gaps shorter than a knot
+interval are bridged (``min_gap_days``): no coefficient is weak there.
+
+Knots: within each segment a uniform sequence whose interval is the segment length
+divided by ``ceil(length / knot_interval_days)`` (at most ``knot_interval_days``; the knots
+then fall on the segment's ends instead of reaching into the gap). Or, with
+``transits_per_knot``, placed by the data: each interval of a segment holds the same number
+of the given epochs (FoV transits). Uniform knots at a mean of ~25 transits per knot leave
+intervals with almost none where the stars are sparse: measured in the primary experiment
+(3 x 30000 galaxy-model stars, one year, 0.19 h knots), the attitude error reached 5 arcsec
+in such intervals and its RMS over the measurements was 1.5-3.5 mas per axis. Each epoch
+touches 4 consecutive coefficients; coefficients are numbered segment after segment.
 """
 
 from __future__ import annotations
@@ -25,53 +47,157 @@ import math
 import numpy as np
 from scipy.interpolate import BSpline
 
-__all__ = ["AttitudeSpline", "DEGREE"]
+__all__ = ["AttitudeSpline", "DEGREE", "live_segments"]
 
 #: Cubic splines, as AGIS (Lindegren et al. 2012, Sect. 3.3).
 DEGREE = 3
 
 
+def live_segments(start_jd: float, end_jd: float, gap_starts=(), gap_stops=(), *,
+                  min_gap_days: float = 0.0) -> np.ndarray:
+    """``(k, 2)`` [start, end] of the stretches of ``[start_jd, end_jd]`` outside the gaps.
+
+    Gaps are ``[gap_start, gap_stop)`` (e.g. :class:`mcsweep.scanning.timeline.DeadTime`);
+    overlapping or touching gaps merge first, then gaps shorter than ``min_gap_days`` are
+    bridged (not split at); zero-length stretches are dropped.
+    """
+    s = np.asarray(gap_starts, dtype=float).ravel()
+    e = np.asarray(gap_stops, dtype=float).ravel()
+    if s.shape != e.shape or np.any(e < s):
+        raise ValueError("gap starts and stops must pair up with stop >= start")
+    order = np.argsort(s, kind="stable")
+    merged = []  # a loop over gaps (hundreds per year), not over data
+    for a, b in zip(np.clip(s[order], start_jd, end_jd), np.clip(e[order], start_jd, end_jd)):
+        if merged and a <= merged[-1][1]:
+            merged[-1][1] = max(merged[-1][1], b)
+        elif b > a:
+            merged.append([a, b])
+    bounds, cursor = [], float(start_jd)
+    for a, b in merged:
+        if b - a < min_gap_days and a > start_jd and b < end_jd:
+            continue  # bridged: the segment runs on through it
+        if a > cursor:
+            bounds.append((cursor, a))
+        cursor = b
+    if cursor < end_jd:
+        bounds.append((cursor, float(end_jd)))
+    return np.array(bounds, dtype=float).reshape(-1, 2)
+
+
 class AttitudeSpline:
-    """Clamped cubic B-spline basis with uniform knots.
+    """Clamped cubic B-splines with uniform knots, in independent segments between gaps.
 
     Parameters
     ----------
     start_jd, end_jd : float
         Interval covered (TCB JD) [day].
     knot_interval_days : float
-        Knot interval [day].
+        Largest knot interval [day] (module notes).
+    gaps : tuple of array_like, optional, keyword-only
+        ``(starts, stops)`` of data gaps ``[start, stop)`` [TCB JD], e.g. the dead time
+        (``(dead.starts, dead.stops)``). Default: one segment over the whole interval.
+    min_gap_days : float, optional, keyword-only
+        Gaps shorter than this are bridged (default: the knot interval). Such a gap leaves
+        every coefficient's support (four intervals) more than three intervals of data, so
+        none is weak, and bridging keeps the attitude continuous there; splitting would
+        leave a short live stretch between two gaps its own four coefficients per axis.
+        Measured (1950 stars, one year, 24 h knots, 6 h dead blocks): split at every gap,
+        the attitude error was ~20 times that of the bridged spline.
+    epochs, transits_per_knot : optional, keyword-only
+        Knots placed by the data (module notes): the FoV transit epochs [TCB JD] and how
+        many of them each knot interval holds (``knot_interval_days`` then only sets
+        ``min_gap_days``' default; give the mean interval).
     """
 
-    def __init__(self, start_jd: float, end_jd: float, knot_interval_days: float):
+    def __init__(self, start_jd: float, end_jd: float, knot_interval_days: float, *, gaps=None,
+                 min_gap_days: float | None = None, epochs=None, transits_per_knot: float | None = None):
         if not (end_jd > start_jd and knot_interval_days > 0):
             raise ValueError(f"need end_jd > start_jd and knot_interval_days > 0, got {start_jd}, {end_jd}, "
                              f"{knot_interval_days}")
-        n_int = max(1, math.ceil((end_jd - start_jd) / knot_interval_days - 1e-9))
-        self.start_jd = float(start_jd)
         self.knot_interval_days = float(knot_interval_days)
-        self.end_jd = self.start_jd + n_int * self.knot_interval_days
-        inner = self.start_jd + self.knot_interval_days * np.arange(n_int + 1)
-        self.knots = np.concatenate([np.full(DEGREE, inner[0]), inner, np.full(DEGREE, inner[-1])])
-        self.n_coef = n_int + DEGREE
+        if gaps is None:
+            # One segment, whose knots keep the interval exactly and end at or after end_jd.
+            n_int = max(1, math.ceil((end_jd - start_jd) / knot_interval_days - 1e-9))
+            self.segments = np.array([[start_jd, start_jd + n_int * self.knot_interval_days]], dtype=float)
+            n_ints = [n_int]
+        else:
+            self.segments = live_segments(start_jd, end_jd, *gaps, min_gap_days=self.knot_interval_days
+                                          if min_gap_days is None else float(min_gap_days))
+            if self.segments.shape[0] == 0:
+                raise ValueError("the gaps cover the whole interval: no attitude segment")
+            n_ints = [max(1, math.ceil((b - a) / knot_interval_days - 1e-9)) for a, b in self.segments]
+        self.start_jd = float(self.segments[0, 0])
+        self.end_jd = float(self.segments[-1, 1])
+        if transits_per_knot is not None:
+            inners = self._data_knots(np.asarray(epochs, dtype=float).ravel(), float(transits_per_knot))
+            n_ints = [k.size - 1 for k in inners]
+        else:
+            inners = [np.linspace(a, b, n + 1) for (a, b), n in zip(self.segments, n_ints)]
+        self.segment_knots = [np.concatenate([np.full(DEGREE, k[0]), k, np.full(DEGREE, k[-1])]) for k in inners]
+        #: First coefficient of each segment (coefficients are numbered segment after segment).
+        self.segment_first = np.concatenate([[0], np.cumsum([n + DEGREE for n in n_ints])]).astype(np.int64)
+        self.n_coef = int(self.segment_first[-1])
+        self.segment_first = self.segment_first[:-1]
+
+    def _data_knots(self, epochs: np.ndarray, per_knot: float) -> list:
+        """Per segment: its ends and inner knots at equal counts of ``epochs`` in between."""
+        if not per_knot >= 1:
+            raise ValueError(f"transits_per_knot must be >= 1, got {per_knot}")
+        t = np.sort(epochs)
+        out = []
+        for a, b in self.segments:  # a loop over segments, each a vector operation
+            ts = t[np.searchsorted(t, a, "left"):np.searchsorted(t, b, "right")]
+            n_int = max(1, int(round(ts.size / per_knot)))
+            inner = np.quantile(ts, np.arange(1, n_int) / n_int) if ts.size else np.zeros(0)
+            knots = np.unique(np.concatenate([[a], inner[(inner > a) & (inner < b)], [b]]))
+            out.append(knots)
+        return out
+
+    @property
+    def n_segments(self) -> int:
+        return int(self.segments.shape[0])
+
+    @property
+    def knots(self) -> np.ndarray:
+        """The knot sequence (clamped) of a spline of one segment."""
+        if self.n_segments != 1:
+            raise ValueError(f"a spline of {self.n_segments} segments has one knot sequence per segment "
+                             "(segment_knots)")
+        return self.segment_knots[0]
+
+    def segment_of(self, tcb_jd) -> np.ndarray:
+        """Segment index of each epoch (-1 where it falls in a gap or outside)."""
+        t = np.asarray(tcb_jd, dtype=float).ravel()
+        k = np.searchsorted(self.segments[:, 0], t, side="right") - 1
+        inside = (k >= 0) & (t <= self.segments[np.maximum(k, 0), 1])
+        return np.where(inside, k, -1)
 
     def basis(self, tcb_jd) -> tuple[np.ndarray, np.ndarray]:
         """First coefficient index ``j0 (m,)`` and the 4 non-zero basis values ``(m, 4)``.
 
         The basis functions ``j0, j0 + 1, j0 + 2, j0 + 3`` are the only non-zero ones at
-        each epoch (from :meth:`scipy.interpolate.BSpline.design_matrix`).
+        each epoch (from :meth:`scipy.interpolate.BSpline.design_matrix`, one call per
+        segment holding epochs).
         """
         t = np.asarray(tcb_jd, dtype=float).ravel()
-        if t.size and (t.min() < self.start_jd or t.max() > self.end_jd):
-            raise ValueError("epochs outside the spline interval")
+        j0, bval = np.empty(t.size, dtype=np.int64), np.empty((t.size, DEGREE + 1))
         if t.size == 0:
-            return np.empty(0, dtype=np.int64), np.empty((0, DEGREE + 1))
-        dm = BSpline.design_matrix(t, self.knots, DEGREE).tocsr()
-        dm.sort_indices()
-        counts = np.diff(dm.indptr)
-        if not np.all(counts == DEGREE + 1):  # pragma: no cover - scipy contract
-            raise RuntimeError("unexpected B-spline design matrix structure")
-        idx = dm.indices.reshape(-1, DEGREE + 1)
-        return idx[:, 0].astype(np.int64), dm.data.reshape(-1, DEGREE + 1).copy()
+            return j0, bval
+        k = self.segment_of(t)
+        if np.any(k < 0):
+            raise ValueError("epochs outside the spline's segments (in a gap or outside the interval)")
+        order = np.argsort(k, kind="stable")
+        ks = k[order]
+        edges = np.flatnonzero(np.r_[True, ks[1:] != ks[:-1], True])
+        for lo, hi in zip(edges[:-1], edges[1:]):  # a loop over segments, each a vector call
+            seg, sel = int(ks[lo]), order[lo:hi]
+            dm = BSpline.design_matrix(t[sel], self.segment_knots[seg], DEGREE).tocsr()
+            dm.sort_indices()
+            if not np.all(np.diff(dm.indptr) == DEGREE + 1):  # pragma: no cover - scipy contract
+                raise RuntimeError("unexpected B-spline design matrix structure")
+            j0[sel] = self.segment_first[seg] + dm.indices.reshape(-1, DEGREE + 1)[:, 0]
+            bval[sel] = dm.data.reshape(-1, DEGREE + 1)
+        return j0, bval
 
     def evaluate(self, coef, tcb_jd) -> np.ndarray:
         """Spline value ``(m, c)`` at ``tcb_jd`` for coefficients ``coef (n_coef, c)``."""
@@ -84,5 +210,17 @@ class AttitudeSpline:
 
     def greville(self) -> np.ndarray:
         """Greville abscissae (n_coef,): coefficients that reproduce ``f(t) = t`` exactly."""
-        window = np.convolve(self.knots, np.full(DEGREE, 1.0 / DEGREE), mode="valid")
-        return window[1:self.n_coef + 1]
+        out = []
+        for knots in self.segment_knots:
+            window = np.convolve(knots, np.full(DEGREE, 1.0 / DEGREE), mode="valid")
+            out.append(window[1:knots.size - DEGREE])
+        return np.concatenate(out)
+
+    def segments_frame(self):
+        """The segments as a table: ``start_tcb_jd``, ``end_tcb_jd``, ``first_coefficient``,
+        ``n_coefficients`` (provenance of a solution)."""
+        import pandas as pd
+
+        n = np.diff(np.r_[self.segment_first, self.n_coef])
+        return pd.DataFrame({"start_tcb_jd": self.segments[:, 0], "end_tcb_jd": self.segments[:, 1],
+                             "first_coefficient": self.segment_first, "n_coefficients": n})

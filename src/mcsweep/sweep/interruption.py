@@ -27,7 +27,7 @@ from pathlib import Path
 from .store import CellStore
 
 __all__ = ["EXIT_INTERRUPTED", "EXIT_DISK_FULL", "RESUME", "is_disk_full", "report_stop",
-           "exit_on_second_interrupt", "kept_in_run"]
+           "exit_on_second_interrupt", "kept_in_run", "remove_unfinished_writes"]
 
 EXIT_INTERRUPTED = 128 + signal.SIGINT
 EXIT_DISK_FULL = 1
@@ -75,6 +75,21 @@ def exit_on_second_interrupt() -> None:
     are shut down and the kept results are counted wants out, not a second traceback.
     """
     signal.signal(signal.SIGINT, lambda *_: os._exit(EXIT_INTERRUPTED))
+
+
+def remove_unfinished_writes(run_dir) -> int:
+    """Delete the temporaries of writes that never finished under ``run_dir``; their number.
+
+    A worker process killed by its parent on Ctrl-C (:func:`mcsweep.sweep.execution.executor`)
+    may die between creating a temporary and moving it into place, where its own clean-up
+    never runs. Called once the workers are reaped, so no live write owns one. Only names
+    of :func:`~mcsweep.sweep.store.atomic_write_via` (``.NAME.XXXX.tmp``) are touched.
+    """
+    n = 0
+    for p in Path(run_dir).rglob(".*.tmp") if Path(run_dir).is_dir() else ():
+        p.unlink(missing_ok=True)
+        n += 1
+    return n
 
 
 def kept_in_run(config, config_hash: str, run_dir) -> str:

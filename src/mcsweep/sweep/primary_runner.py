@@ -30,6 +30,7 @@ from ..experiments.primary_table import table3_markdown, table3_rows
 from .execution import executor, release_free_memory
 from .global_runner import GlobalExperiment, GlobalRun, run_global
 from .store import atomic_write_bytes
+from ..errors import NotConvergedError
 
 __all__ = ["PRIMARY", "run_primary", "solution_line"]
 
@@ -51,6 +52,13 @@ def solution_line(label: str, extra: dict) -> str:
     rms = " / ".join(f"{v:.1f}" for v in extra["attitude_rms_uas"])
     return (f"mcsweep: primary: prior {label}: {extra['iterations']} PCG iterations, converged "
             f"{extra['converged']}, attitude error RMS {rms} uas (x / y / z)")
+
+
+def knot_rule(pri) -> str:
+    """How the knot interval was chosen, as the notes of Table 3 say it."""
+    if pri.knot_transits is None:
+        return f"at most knot_interval_hours = {pri.knot_interval_hours:g} h"
+    return f"knot_transits = {pri.knot_transits:g} FoV transits per knot"
 
 
 def _transits(run: GlobalRun, stars: pd.DataFrame) -> dict:
@@ -93,6 +101,17 @@ def _solve(run: GlobalRun, data, label: str, dask_executor: Callable) -> None:
             workers = int(config.execution.n_jobs) if config.execution.backend in ("loky", "threading") else 1
             res, hist, extra, series = solve_prior(settings, data, label, workers=workers)
         atomic_write_bytes(run.chunks / f"{cid}_history.csv", hist.to_csv(index=False).encode())
+        if not extra["converged"] and not settings.allow_unconverged:
+            # Not a result (Table 3 would tabulate a solution PCG did not reach): only its
+            # history is kept, for the diagnosis; no store entry, so no resume takes it.
+            last = hist.iloc[-1] if len(hist) else None
+            raise NotConvergedError(
+                f"the {label} solution did not converge in {extra['iterations']} PCG iterations "
+                f"(relative residual {last['relative_residual']:.2e}, last update {last['update_max_uas']:.3g} uas"
+                f" against rtol {settings.rtol:g} and {settings.update_tol_uas:g} uas); no table3 written, the "
+                f"history is in {run.chunks / f'{cid}_history.csv'}; raise experiment.primary.solver_max_iter or set "
+                "experiment.primary.allow_unconverged=true to tabulate it marked" if last is not None else
+                f"the {label} solution did not start (no PCG iteration); no table3 written")
         atomic_write_bytes(run.chunks / f"{cid}_attitude.csv", series.to_csv(index=False).encode())
         atomic_write_bytes(run.chunks / f"{cid}.json", json.dumps(extra).encode())
         run.store.write(cid, res)
@@ -112,6 +131,10 @@ def _compute(run: GlobalRun) -> _Computed:
     with run.prov.stage("observations"):
         data = prepare(run.settings, stars, transits)
         del transits  # 16 bytes per transit, 2.6e7 transits at the paper's scale
+        run.prov.derived.setdefault("primary", {}).update(
+            {"attitude_segments": data.spline.n_segments, "knot_interval_hours": data.knot_interval_hours,
+             "fov_transits_per_knot": data.transits_per_knot, "attitude_coefficients": 3 * data.spline.n_coef,
+             "attitude_coefficients_without_data": 3 * (data.spline.n_coef - data.coefficients_with_data())})
         release_free_memory()  # the blocks' build leaves free holes in the heap (1/3 of it at 3e5 stars)
     # The factor search (experiment.primary.factor_grid) shares solutions with Table 3's priors.
     factors = {float(k): factor_label(k) for k in run.section.factor_grid}
@@ -140,7 +163,8 @@ def _read_solutions(run: GlobalRun, factors: dict) -> tuple[dict, list, dict, li
 def _aggregate(run: GlobalRun, computed: _Computed) -> dict[str, str]:
     pri, settings, data, factors = run.section, run.settings, computed.data, computed.factors
     results, histories, extras, attitude = _read_solutions(run, factors)
-    table = table3_rows({k: results[k] for k in settings.priors}, pri.g_classes, settings.confidence)
+    table = table3_rows({k: results[k] for k in settings.priors}, pri.g_classes, settings.confidence,
+                        converged={k: extras[k]["converged"] for k in settings.priors})
     outputs = {}
     if factors:
         by_k = {k: results[lab] for k, lab in factors.items()}
@@ -157,15 +181,19 @@ def _aggregate(run: GlobalRun, computed: _Computed) -> dict[str, str]:
     summary["n_stars_solved"] = data.solved.size
     summary["n_measurements"] = n_obs
     summary["n_attitude_coefficients"] = 3 * data.spline.n_coef
-    summary["knot_interval_hours"] = pri.knot_interval_hours
+    summary["knot_interval_hours"] = data.knot_interval_hours  # realised mean over the live time
+    summary["fov_transits_per_knot"] = data.transits_per_knot
+    summary["attitude_segments"] = data.spline.n_segments
     summary["dead_fraction"] = data.dead_days / (settings.end_jd - settings.start_jd)
     counts = computed.stars.groupby("class_key").size().to_dict()
     notes = [run.conditions(f"{pri.mission_years:g} year(s) from {pri.mission_start} (TCB), dead time "
                             f"{100 * pri.dead_time_fraction:g} % in blocks of {pri.dead_time_block_days:g} d"),
              f"Stars: {pri.class_size} per class (paper 5e5), {counts.get(PRIMARY_KEY, 0)} primary sources "
              f"(G >= {pri.primary_g_min:g}); {data.solved.size} with >= 1 transit, {n_obs} measurements; "
-             f"attitude: cubic spline, knot interval {pri.knot_interval_hours:g} h "
-             f"({3 * data.spline.n_coef} coefficients); true attitude = law + {pri.attitude_amplitude_mas:g} mas "
+             f"attitude: cubic spline in {data.spline.n_segments} segments between the dead-time gaps, "
+             f"knot interval {data.knot_interval_hours:.3g} h ({knot_rule(pri)}), "
+             f"{data.transits_per_knot:.1f} FoV transits per knot, {3 * data.spline.n_coef} coefficients; "
+             f"true attitude = law + {pri.attitude_amplitude_mas:g} mas "
              f"random spline rotation on a {pri.attitude_timescale_hours:g} h time scale.",
              "PCG iterations / attitude error RMS (x, y, z) [uas] after the frame correction: "
              + "; ".join(f"{k}: {e['iterations']} ({'converged' if e['converged'] else 'NOT converged'}), "
@@ -175,6 +203,7 @@ def _aggregate(run: GlobalRun, computed: _Computed) -> dict[str, str]:
                     "table3.md": table3_markdown(table, settings.confidence, notes),
                     "primary_convergence.csv": pd.concat(histories, ignore_index=True).to_csv(index=False),
                     "primary_summary.csv": summary.to_csv(index=False)})
+    outputs["primary_attitude_segments.csv"] = data.spline.segments_frame().to_csv(index=False)
     if attitude:
         outputs["primary_attitude_error.csv"] = pd.concat(attitude, ignore_index=True).to_csv(index=False)
     return outputs

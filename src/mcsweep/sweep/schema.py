@@ -339,11 +339,13 @@ class PrimaryConf:
     f90_formula: str = "paper"
     reference_epoch: str = "dataset_mean"
     knot_interval_hours: float = 3.0
+    knot_transits: Optional[float] = None
     attitude_amplitude_mas: float = 10.0
     attitude_timescale_hours: float = 24.0
     solver_rtol: float = 1e-8
     solver_update_tol_uas: float = 1e-2
     solver_max_iter: int = 2000
+    allow_unconverged: bool = False
     factor_grid: List[float] = field(default_factory=list)
     factor_resamples: int = 200
     frame_fit: str = "precision"
@@ -354,6 +356,9 @@ class PrimaryConf:
                  and len(set(self.factor_grid)) == len(self.factor_grid),
                  "experiment.primary.factor_grid", list(self.factor_grid),
                  "distinct positive factors k of sigma_F90 (empty: no factor search)")
+        _require(self.knot_transits is None or (math.isfinite(self.knot_transits) and self.knot_transits >= 1),
+                 "experiment.primary.knot_transits", self.knot_transits,
+                 "null (use knot_interval_hours) or a number of FoV transits per knot interval >= 1")
         _require(self.frame_fit in ("precision", "equal"), "experiment.primary.frame_fit", self.frame_fit,
                  "'precision' (the frame rotator weighted by formal precision) or 'equal'")
         _require(self.factor_resamples >= 0, "experiment.primary.factor_resamples", self.factor_resamples,

@@ -25,6 +25,7 @@ to it. :func:`run_global` owns the rest, in this order:
 from __future__ import annotations
 
 import dataclasses
+import importlib
 from collections import Counter
 from pathlib import Path
 from typing import Callable
@@ -39,7 +40,7 @@ from .progress import progress
 from .provenance import Provenance
 from .store import CellStore, atomic_write_bytes
 
-__all__ = ["GlobalExperiment", "GlobalRun", "run_global"]
+__all__ = ["GlobalExperiment", "GlobalRun", "run_global", "GLOBAL_EXPERIMENTS"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -66,6 +67,19 @@ class GlobalExperiment:
     result: str
     #: Description of a progress bar over the classes being drawn (None: no bar).
     population_bar: str | None = None
+    #: (section, finished chunk ids, run_dir) -> what a rerun keeps, for the line of a
+    #: stopped command (:func:`~mcsweep.sweep.interruption.kept_in_run`).
+    kept: Callable = lambda section, done, run_dir: (
+        f"{len(done)} finished chunk{'s' * (len(done) != 1)} kept in {run_dir}")
+
+
+def _spec(module: str, name: str) -> Callable[[], "GlobalExperiment"]:
+    return lambda: getattr(importlib.import_module(f"{__package__}.{module}"), name)
+
+
+#: Every global experiment by kind, each spec imported when asked for (its module imports this one).
+GLOBAL_EXPERIMENTS: dict[str, Callable[[], GlobalExperiment]] = {
+    "secondary": _spec("secondary_runner", "SECONDARY"), "primary": _spec("primary_runner", "PRIMARY")}
 
 
 @dataclasses.dataclass

@@ -96,24 +96,12 @@ def kept_in_run(config, config_hash: str, run_dir) -> str:
     """What a rerun of ``config`` in ``run_dir`` will keep, as the middle of the stop line."""
     run_dir = Path(run_dir)
     name = config.experiment.name
-    if name == "secondary":
-        from ..experiments.secondary import CHUNKS_DIR
+    if name != "f90_sweep":  # a global experiment says what its chunks are
+        from .global_runner import GLOBAL_EXPERIMENTS
 
-        n = len(CellStore(run_dir / CHUNKS_DIR, config_hash).finished())
-        return f"{n} solved chunk{'s' * (n != 1)} of stars kept in {run_dir}"
-    if name == "primary":
-        from ..experiments.primary import CHUNKS_DIR
-        from ..experiments.primary_factor import factor_label
-        from .primary_runner import _prior_id
-
-        pri = config.experiment.primary
-        labels = list(dict.fromkeys([*map(str, pri.priors), *map(factor_label, pri.factor_grid)]))
-        done = set(CellStore(run_dir / CHUNKS_DIR, config_hash).finished())
-        kept = [lab for lab in labels
-                if _prior_id(lab) in done and (run_dir / CHUNKS_DIR / f"{_prior_id(lab)}.json").exists()]
-        which = f" ({', '.join(kept)})" if kept else ""
-        return (f"the solutions of {len(kept)} of {len(labels)} priors{which} kept in {run_dir} "
-                "(the stars and their transits are recomputed)")
+        exp = GLOBAL_EXPERIMENTS[name]()
+        done = set(CellStore(run_dir / exp.chunks_dir, config_hash).finished())
+        return exp.kept(getattr(config.experiment, name), done, run_dir)
     from .cells import enumerate_cells
     from .runner import CELLS_DIR
 

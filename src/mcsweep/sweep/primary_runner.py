@@ -22,6 +22,7 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 
+from ..errors import NotConvergedError
 from ..experiments.global_classes import STAR_COLUMNS, class_key
 from ..experiments.primary import (CHUNKS_DIR, FACTOR_STREAM, PRIMARY_KEY, TAG, build_settings, prepare, solve_prior,
                                    stream_seed, transits_of)
@@ -30,13 +31,23 @@ from ..experiments.primary_table import table3_markdown, table3_rows
 from .execution import executor, release_free_memory
 from .global_runner import GlobalExperiment, GlobalRun, run_global
 from .store import atomic_write_bytes
-from ..errors import NotConvergedError
+
 
 __all__ = ["PRIMARY", "run_primary", "solution_line"]
 
 
 def _prior_id(label: str) -> str:
     return "prior_" + label.replace(".", "p")
+
+
+def _kept(pri, done, run_dir) -> str:
+    """The priors whose solutions a rerun keeps (result and summary both written)."""
+    labels = list(dict.fromkeys([*map(str, pri.priors), *map(factor_label, pri.factor_grid)]))
+    kept = [lab for lab in labels
+            if _prior_id(lab) in done and (Path(run_dir) / CHUNKS_DIR / f"{_prior_id(lab)}.json").exists()]
+    which = f" ({', '.join(kept)})" if kept else ""
+    return (f"the solutions of {len(kept)} of {len(labels)} priors{which} kept in {run_dir} "
+            "(the stars and their transits are recomputed)")
 
 
 def _groups(pri) -> list[tuple[float, int, int]]:
@@ -212,7 +223,7 @@ def _aggregate(run: GlobalRun, computed: _Computed) -> dict[str, str]:
 #: The primary experiment on the global path (:func:`~mcsweep.sweep.global_runner.run_global`).
 PRIMARY = GlobalExperiment(
     kind="primary", tag=TAG, chunks_dir=CHUNKS_DIR, build_settings=build_settings, groups=_groups,
-    compute=_compute, aggregate=_aggregate, result="table3.csv",
+    compute=_compute, aggregate=_aggregate, result="table3.csv", kept=_kept,
     seeds={"population": "SeedSequence(seed, spawn_key=(42, 0, round(100*G0) or 0 for the primaries))",
            "dead_time": "SeedSequence(seed, spawn_key=(42, 1))",
            "true_attitude": "SeedSequence(seed, spawn_key=(42, 2))",

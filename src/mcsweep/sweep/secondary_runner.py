@@ -75,6 +75,7 @@ SECONDARY = GlobalExperiment(
     kind="secondary", tag=TAG, chunks_dir=CHUNKS_DIR, build_settings=build_settings,
     groups=lambda sec: [(float(g), sec.class_size, class_key(g)) for g in sec.g_classes],
     compute=_compute, aggregate=_aggregate, result="table2.csv", population_bar="population classes",
+    kept=lambda section, done, run_dir: f"{len(done)} solved chunk{'s' * (len(done) != 1)} of stars kept in {run_dir}",
     seeds={"population": "SeedSequence(seed, spawn_key=(41, 0, round(100*G0)))",
            "dilution": "key from SeedSequence(seed, spawn_key=(41, 1, round(100*G0))), hashed with the star index",
            "noise": f"SeedSequence(seed, spawn_key=(41, 2, round(100*G0), star index // {BLOCK_STARS}))"})

@@ -144,6 +144,35 @@ def _group_alive(pgid: int) -> list[str]:
 
 
 @pytest.mark.slow
+def test_sigint_with_a_dask_cluster_one_line_no_worker_traceback(tmp_path):
+    # The Dask workers run asyncio, which turns SIGINT into a traceback per worker unless
+    # they start with SIGINT ignored (mcsweep.sweep.execution): the same one line as loky.
+    pytest.importorskip("distributed", reason="execution=dask needs the dask extra")
+    run = tmp_path / "run"
+    cmd = [str(BIN / "mcsweep"), f"hydra.run.dir={run}", *SMALL, "execution=dask", "execution.n_jobs=2"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 300
+        while len(list((run / "cells").glob("cell_*.parquet"))) < 2:
+            assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()[1][-3000:]
+            time.sleep(0.02)
+        os.killpg(proc.pid, signal.SIGINT)  # Ctrl-C: the app, the cluster's nannies and workers
+        out, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 130, err[-3000:]
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and re.fullmatch(rf"mcsweep: interrupted: \d+ of {N_CELLS} cells kept in .*; {RESUME}",
+                                            lines[0]), lines
+    assert _temporaries(run) == []
+    deadline = time.monotonic() + 60
+    while (left := _group_alive(proc.pid)) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert left == []
+
+
+@pytest.mark.slow
 def test_sigint_to_the_process_group_one_line_exit_130_no_worker_left_then_resumes(tmp_path, reference):
     run = tmp_path / "run"
     cmd = [str(BIN / "mcsweep"), f"hydra.run.dir={run}", *SMALL, "execution.n_jobs=2"]

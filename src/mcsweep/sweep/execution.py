@@ -10,6 +10,7 @@ the number of workers or the completion order.
 from __future__ import annotations
 
 import os
+import logging
 import signal
 from contextlib import contextmanager
 from typing import Callable, Iterable, Iterator
@@ -42,8 +43,20 @@ def _dask_client(conf: ExecutionConf):
                                  f"({type(exc).__name__}); expected a running Dask scheduler") from None
         cluster = None
     else:
-        cluster = LocalCluster(n_workers=conf.n_jobs, threads_per_worker=1, processes=True,
-                               dashboard_address=None, env={v: "1" for v in _THREAD_VARS})
+        # Ctrl-C reaches the whole process group. The workers run asyncio, whose runner turns
+        # SIGINT into KeyboardInterrupt and a traceback per worker, unless SIGINT is ignored
+        # when it starts: an ignored signal is inherited through fork and exec, and neither
+        # Python nor asyncio.Runner installs a handler over it. So the workers are started
+        # with SIGINT ignored; the parent alone acts on it (it closes the cluster).
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+        try:
+            # silence_logs: the workers' own warnings (a task cancelled when the cluster
+            # closes on Ctrl-C) would reach the terminal; errors still do.
+            cluster = LocalCluster(n_workers=conf.n_jobs, threads_per_worker=1, processes=True,
+                                   dashboard_address=None, env={v: "1" for v in _THREAD_VARS},
+                                   silence_logs=logging.ERROR)
+        finally:
+            signal.signal(signal.SIGINT, previous)
         client = Client(cluster)
     try:
         yield client

@@ -9,6 +9,7 @@ workers get it too.
 """
 
 import errno
+import logging
 import os
 import re
 import shutil
@@ -81,11 +82,21 @@ def _fail_store_write(monkeypatch, after: int, exc: BaseException, match=lambda 
 
 def _mcsweep(monkeypatch, capsys, args) -> tuple[int, list[str]]:
     monkeypatch.setattr(sys, "argv", ["mcsweep", *map(str, args)])
+    # Hydra's job logging puts handlers on the captured stderr, which pytest closes after
+    # the test: later tests that log or flush would write to a closed file. Put the root
+    # logger's handlers back as they were.
+    root = logging.getLogger()
+    before = list(root.handlers)
     try:
         cli.main()
         code = 0
     except SystemExit as e:
         code = e.code
+    finally:
+        for h in [h for h in root.handlers if h not in before]:
+            root.removeHandler(h)
+        for h in [h for h in before if h not in root.handlers]:
+            root.addHandler(h)
     err = capsys.readouterr().err
     return code, [ln for ln in err.splitlines() if ln.strip()]
 

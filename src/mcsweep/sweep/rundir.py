@@ -122,7 +122,10 @@ class Snapshot:
     def undo(self, scope=None) -> None:
         """Remove what is new under ``scope`` (default: the whole root) and restore the rest."""
         for h in logging.getLogger().handlers:  # nothing buffered may land after the undo
-            h.flush()
+            try:
+                h.flush()
+            except ValueError:  # its stream is closed: nothing of it can land
+                pass
         scope = Path(os.path.abspath(scope)) if scope is not None else self.root
         if not scope.exists():
             return

@@ -1,7 +1,7 @@
 """The one path every global experiment runs along (paper Sect. 4: Tables 2 and 3).
 
 A global experiment (the secondary solution, Sect. 4.1; the primary solution, Sect.
-4.2; the real-sky validation to come) is a :class:`GlobalExperiment`: what is specific
+4.2; the real-sky validation of issue 25) is a :class:`GlobalExperiment`: what is specific
 to it. :func:`run_global` owns the rest, in this order:
 
 1. provenance: refuse a run directory of another config; record the resolved reference

@@ -28,6 +28,7 @@ from omegaconf import DictConfig, OmegaConf
 from .errors import EXIT_NOT_CONVERGED, NotConvergedError, UserInputError, report_user_error
 from .report.build import build_report
 from .experiments.primary import OUTPUTS as PRIMARY_OUTPUTS
+from .experiments.real_sky import OUTPUTS as REAL_SKY_OUTPUTS
 from .experiments.secondary import OUTPUTS as SECONDARY_OUTPUTS
 from .sweep.interruption import (EXIT_INTERRUPTED, exit_on_second_interrupt, is_disk_full, kept_in_run,
                                  remove_unfinished_writes, report_stop)
@@ -37,6 +38,7 @@ from .sweep.runner import OUTPUTS, run_sweep
 from .sweep.logs import quiet_third_party_console
 from .sweep.schema import register_configs
 from .sweep.primary_runner import run_primary
+from .sweep.real_sky_runner import run_real_sky
 from .sweep.secondary_runner import run_secondary
 from .sweep.validate import ignored_settings, preflight, to_config
 
@@ -105,9 +107,10 @@ def run_job(cfg: DictConfig, run_dir: Path) -> Path:
     name = config.experiment.name
     prov = Provenance(run_dir, raw, kind=name)
     refuse_foreign_outputs(run_dir, {"f90_sweep": OUTPUTS, "secondary": SECONDARY_OUTPUTS,
-                                     "primary": PRIMARY_OUTPUTS}[name])
+                                     "primary": PRIMARY_OUTPUTS, "real_sky": REAL_SKY_OUTPUTS}[name])
     prov.check_compatible()
-    run = {"f90_sweep": run_sweep, "secondary": run_secondary, "primary": run_primary}[name]
+    run = {"f90_sweep": run_sweep, "secondary": run_secondary, "primary": run_primary,
+           "real_sky": run_real_sky}[name]
     run(config, raw, run_dir, prov=prov)
     prov.write()
     with prov.stage("report"):

@@ -1,7 +1,7 @@
 """What every global experiment is given: mission, scanning law, noise, priors, epoch, seeds.
 
 The global experiments (the secondary solution of paper Sect. 4.1, the primary solution
-of Sect. 4.2, and the real-sky validation to come) observe whole-sky classes of stars
+of Sect. 4.2, and the real-sky validation of issue 25) observe whole-sky classes of stars
 over a mission interval with one scanning law and one noise model, refer the astrometry
 to one reference epoch (Sect. 2.1, :mod:`mcsweep.experiments.epoch`), and set priors
 from sigma_F90 (Eqs. 14-17 or a sweep's fitted coefficients) with R = sigma_mu /

@@ -25,6 +25,7 @@ from . import figures
 from .document import FIG_DIR, Document, counts_text, plain
 from .fit import PAPER_COEFFICIENTS, evaluate_formula, fit_all
 from .primary_section import primary_section
+from .real_sky_section import real_sky_section
 from .secondary_section import secondary_section
 
 __all__ = ["build_report", "SECTION_BUILDERS", "REQUIRED_RESULTS", "sweep_section", "provenance_section",
@@ -417,12 +418,13 @@ def manifest_summary(manifest: list[dict]) -> str:
 
 #: Extra sections by run kind; each takes (doc, run_dir, provenance dict).
 SECTION_BUILDERS: dict[str, list[Callable]] = {"f90_sweep": [sweep_section], "secondary": [secondary_section],
-                                               "primary": [primary_section]}
+                                               "primary": [primary_section], "real_sky": [real_sky_section]}
 #: Result files each run kind's sections read: all must exist before anything is written.
 REQUIRED_RESULTS: dict[str, tuple[str, ...]] = {
     "f90_sweep": ("cells.parquet",),
     "secondary": ("table2.csv", "no_prior.csv", "secondary_summary.csv"),
     "primary": ("table3.csv", "primary_summary.csv", "primary_convergence.csv"),
+    "real_sky": ("real_sky.csv", "real_sky_errors.csv"),
 }
 
 

@@ -1,7 +1,7 @@
 """The one path every global experiment runs along (paper Sect. 4: Tables 2 and 3).
 
 A global experiment (the secondary solution, Sect. 4.1; the primary solution, Sect.
-4.2; the real-sky validation to come) is a :class:`GlobalExperiment`: what is specific
+4.2; the real-sky validation of issue 25) is a :class:`GlobalExperiment`: what is specific
 to it. :func:`run_global` owns the rest, in this order:
 
 1. provenance: refuse a run directory of another config; record the resolved reference
@@ -71,6 +71,10 @@ class GlobalExperiment:
     #: stopped command (:func:`~mcsweep.sweep.interruption.kept_in_run`).
     kept: Callable = lambda section, done, run_dir: (
         f"{len(done)} finished chunk{'s' * (len(done) != 1)} kept in {run_dir}")
+    #: (settings, section, seed_of) -> the classes [(G0, key, stars), ...] when the stars do
+    #: not come from the configured population (the real-sky validation's Hipparcos
+    #: stars); None: :attr:`groups` drawn from ``config.population``.
+    draw: Callable | None = None
 
 
 def _spec(module: str, name: str) -> Callable[[], "GlobalExperiment"]:
@@ -79,7 +83,8 @@ def _spec(module: str, name: str) -> Callable[[], "GlobalExperiment"]:
 
 #: Every global experiment by kind, each spec imported when asked for (its module imports this one).
 GLOBAL_EXPERIMENTS: dict[str, Callable[[], GlobalExperiment]] = {
-    "secondary": _spec("secondary_runner", "SECONDARY"), "primary": _spec("primary_runner", "PRIMARY")}
+    "secondary": _spec("secondary_runner", "SECONDARY"), "primary": _spec("primary_runner", "PRIMARY"),
+    "real_sky": _spec("real_sky_runner", "REAL_SKY")}
 
 
 @dataclasses.dataclass
@@ -143,6 +148,21 @@ class GlobalRun:
                 f"R = {self.settings.ratio_R:g} /yr; reference epoch: {self.epoch['text']}.")
 
 
+def _draw_population(experiment: GlobalExperiment, config, settings, section, kind: str) -> list:
+    """The classes of ``experiment.groups`` drawn from the configured population."""
+    source = make_source(dataclasses.asdict(config.population))
+    groups = experiment.groups(section)
+    bar = progress(len(groups), desc=experiment.population_bar, unit="classes",
+                   enabled=config.execution.progress) if experiment.population_bar else None
+    classes = draw_classes(source, groups, lambda key: spawn(settings.seed, experiment.tag, POPULATION_STREAM,
+                                                             key),
+                           size_key=f"experiment.{kind}.class_size", bar=bar)
+    if bar is not None:
+        bar.close()
+    del source  # the galaxy model's whole-sky tables (~0.5 GB) are not needed any more
+    return classes
+
+
 def run_global(experiment: GlobalExperiment, config, raw_cfg: dict, run_dir, *, prov=None) -> Path:
     """Run (or resume) ``experiment`` in ``run_dir`` (module notes); returns its main table's path."""
     run_dir = Path(run_dir)
@@ -154,16 +174,11 @@ def run_global(experiment: GlobalExperiment, config, raw_cfg: dict, run_dir, *, 
     prov.derived[kind] = {"reference_epoch": epoch}
     section = getattr(config.experiment, kind)
     with prov.stage("population"):
-        source = make_source(dataclasses.asdict(config.population))
-        groups = experiment.groups(section)
-        bar = progress(len(groups), desc=experiment.population_bar, unit="classes",
-                       enabled=config.execution.progress) if experiment.population_bar else None
-        classes = draw_classes(source, groups, lambda key: spawn(settings.seed, experiment.tag, POPULATION_STREAM,
-                                                                 key),
-                               size_key=f"experiment.{kind}.class_size", bar=bar)
-        if bar is not None:
-            bar.close()
-        del source  # the galaxy model's whole-sky tables (~0.5 GB) are not needed any more
+        if experiment.draw is not None:
+            classes = experiment.draw(settings, section,
+                                      lambda key: spawn(settings.seed, experiment.tag, POPULATION_STREAM, key))
+        else:
+            classes = _draw_population(experiment, config, settings, section, kind)
     prov.write(with_manifest=False)
     store = CellStore(run_dir / experiment.chunks_dir, prov.hash,
                       accept_other_versions=config.resume.accept_other_versions)

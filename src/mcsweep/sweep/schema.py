@@ -34,6 +34,7 @@ __all__ = [
     "CellConf",
     "ShowcaseConf",
     "SecondaryConf",
+    "RealSkyConf",
     "ExperimentConf",
     "ExecutionConf",
     "ResumeConf",
@@ -323,6 +324,34 @@ class SecondaryConf:
 
 
 @dataclass
+class RealSkyConf:
+    """Real-sky validation with Hipparcos stars as truth (issue 25); documented in
+    conf/experiment/real_sky.yaml and :mod:`mcsweep.experiments.real_sky`."""
+
+    #: G range of the Hipparcos stars (G derived from Hp and the colours).
+    g_min: float = 6.0
+    g_max: float = 9.0
+    #: Observation cases of ``observations.cases`` solved (Fig. 3's visits).
+    cases: List[str] = field(default_factory=lambda: ["one", "two", "four", "eight"])
+    #: 0: every star of the G range; else an unbiased seeded subset of that many.
+    max_stars: int = 0
+    #: The prior besides the paper's: 'paper' (only the paper's) or a sweep run directory.
+    f90_formula: str = "paper"
+    #: Multiplier of sigma_F90 (k sigma_F90 with Eq. 18).
+    factor: float = 1.0
+
+    def __post_init__(self):
+        _require(0 <= self.g_min < self.g_max <= 21, "experiment.real_sky.g_min/g_max", (self.g_min, self.g_max),
+                 "0 <= g_min < g_max <= 21")
+        _require(len(self.cases) > 0 and len(set(self.cases)) == len(self.cases), "experiment.real_sky.cases",
+                 list(self.cases), "a non-empty list of distinct observation case names")
+        _require(self.max_stars >= 0, "experiment.real_sky.max_stars", self.max_stars,
+                 "0 (all stars) or a positive number of stars")
+        _require(self.factor > 0 and math.isfinite(self.factor), "experiment.real_sky.factor", self.factor,
+                 "a positive, finite multiplier")
+
+
+@dataclass
 class PrimaryConf:
     """One-year global solution with the attitude of Sect. 4.2 (Table 3); documented in
     conf/experiment/primary.yaml and :mod:`mcsweep.experiments.primary`."""
@@ -384,15 +413,17 @@ class PrimaryConf:
 
 @dataclass
 class ExperimentConf:
-    #: 'f90_sweep' (Sect. 3, main job), 'secondary' (Sect. 4.1) or 'primary' (Sect. 4.2).
+    #: 'f90_sweep' (Sect. 3, main job), 'secondary' (Sect. 4.1), 'primary' (Sect. 4.2) or
+    #: 'real_sky' (Hipparcos stars as truth, issue 25).
     name: str = "f90_sweep"
     showcase: ShowcaseConf = field(default_factory=ShowcaseConf)
     secondary: SecondaryConf = field(default_factory=SecondaryConf)
     primary: PrimaryConf = field(default_factory=PrimaryConf)
+    real_sky: RealSkyConf = field(default_factory=RealSkyConf)
 
     def __post_init__(self):
-        _require(self.name in ("f90_sweep", "secondary", "primary"), "experiment", self.name,
-                 "'f90_sweep', 'secondary' or 'primary'")
+        _require(self.name in ("f90_sweep", "secondary", "primary", "real_sky"), "experiment", self.name,
+                 "'f90_sweep', 'secondary', 'primary' or 'real_sky'")
 
 
 @dataclass
@@ -471,14 +502,18 @@ class Config:
 #: reference epoch from the config (issue 11).
 IGNORED_BY_EXPERIMENT: Dict[str, tuple] = {
     # experiment.primary (added later) is ignored by the others so their config hashes stay as they were.
-    "f90_sweep": ("experiment.primary",),
+    # experiment.real_sky likewise (added after primary).
+    "f90_sweep": ("experiment.primary", "experiment.real_sky"),
     "secondary": ("sky", "magnitudes", "prior_grid", "cell", "experiment.showcase", "experiment.primary",
+                  "experiment.real_sky",
                   "observations.cases",
                   "observations.f90_case", "observations.start", "observations.end",
                   "observations.fixed_epoch", "prior_maps"),
     "primary": ("sky", "magnitudes", "prior_grid", "cell", "experiment.showcase", "experiment.secondary",
-                "observations.cases", "observations.f90_case", "observations.start", "observations.end",
+                "experiment.real_sky", "observations.cases", "observations.f90_case", "observations.start", "observations.end",
                 "observations.fixed_epoch", "prior_maps"),
+    "real_sky": ("sky", "magnitudes", "prior_grid", "cell", "population", "experiment.showcase",
+                 "experiment.secondary", "experiment.primary", "observations.f90_case", "prior_maps"),
 }
 
 

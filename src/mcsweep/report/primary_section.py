@@ -52,11 +52,26 @@ def table3_cause(cell: pd.Series, table: pd.DataFrame) -> str:
             f"{int(cell['n_valid']) if 'n_valid' in cell else int(cell['n_stars'])} stars)")
 
 
+def _knots_text(run_dir: Path, pri) -> str:
+    """The knots as realised (mean interval, transits per knot, segments), or as configured
+    for a run written before those were recorded."""
+    f = run_dir / "primary_summary.csv"
+    s = pd.read_csv(f).iloc[0] if f.exists() else None
+    if s is None or "fov_transits_per_knot" not in s:
+        return f"with a {plain(pri.get('knot_interval_hours'))} h knot interval"
+    rule = (f"`knot_transits` = {plain(pri.get('knot_transits'))}, knots placed by the data"
+            if pri.get("knot_transits") is not None else
+            f"`knot_interval_hours` = {plain(pri.get('knot_interval_hours'))}")
+    return (f"in {plain(int(s['attitude_segments']))} segments between the dead-time gaps ({rule}: mean knot "
+            f"interval {plain(float(s['knot_interval_hours']), '.3g')} h, "
+            f"{plain(float(s['fov_transits_per_knot']), '.3g')} FoV transits per knot)")
+
+
 def _summary_table(summary: pd.DataFrame) -> pd.DataFrame:
     """The solutions' summary with its per-axis vectors as "x, y, z" numbers, not list reprs."""
     cols = [c for c in ("prior", "iterations", "converged", "attitude_rms_uas", "residual_rms", "seconds",
                         "n_stars_solved", "n_measurements", "n_attitude_coefficients", "knot_interval_hours",
-                        "dead_fraction") if c in summary]
+                        "fov_transits_per_knot", "attitude_segments", "dead_fraction") if c in summary]
     out = summary[cols].copy()
     for c in _VECTOR_COLUMNS:
         if c in out:
@@ -77,7 +92,8 @@ def primary_section(doc: Document, run_dir: Path, prov: dict) -> None:
                        {"residual_rms": ".4f", "seconds": ".1f", "dead_fraction": ".3f"},
                        {"attitude_rms_uas": "attitude error RMS x, y, z [uas]", "residual_rms": "residual RMS",
                         "n_attitude_coefficients": "n attitude coefficients",
-                        "knot_interval_hours": "knot interval [h]"})
+                        "knot_interval_hours": "mean knot interval [h]",
+                        "fov_transits_per_knot": "FoV transits per knot", "attitude_segments": "segments"})
         figdir = run_dir / FIG_DIR
         figdir.mkdir(exist_ok=True)
         plot_primary_convergence(pd.read_csv(run_dir / "primary_convergence.csv"), figdir / "primary_convergence.png")
@@ -105,8 +121,7 @@ def primary_section(doc: Document, run_dir: Path, prov: dict) -> None:
             f"{pri.get('mission_start')} "
             f"(TCB), {100 * float(pri.get('dead_time_fraction', 0.2)):g} % dead time; one AL "
             f"{'and one AC measurement' if cfg.get('noise', {}).get('use_ac', True) else 'measurement (AL only)'} "
-            f"per FoV transit; attitude solved as cubic splines with a {plain(pri.get('knot_interval_hours'))} h "
-            f"knot interval; true attitude = law + {plain(pri.get('attitude_amplitude_mas'))} mas random rotation "
+            f"per FoV transit; attitude solved as cubic splines {_knots_text(run_dir, pri)}; true attitude = law + {plain(pri.get('attitude_amplitude_mas'))} mas random rotation "
             f"on a {plain(pri.get('attitude_timescale_hours'))} h time scale. Errors after removing the frame "
             "rotation and spin fitted with "
             f"{'equal weights' if pri.get('frame_fit') == 'equal' else 'formal-precision weights'} "

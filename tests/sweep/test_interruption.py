@@ -154,6 +154,14 @@ def _group_alive(pgid: int) -> list[str]:
     return alive
 
 
+def _wait_for_cells(proc, run: Path, n: int) -> None:
+    """Until the running ``proc`` has written ``n`` cells of ``run`` (5 min at most)."""
+    deadline = time.monotonic() + 300
+    while len(list((run / "cells").glob("cell_*.parquet"))) < n:
+        assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()[1][-3000:]
+        time.sleep(0.02)
+
+
 @pytest.mark.slow
 def test_sigint_with_a_dask_cluster_one_line_no_worker_traceback(tmp_path):
     # The Dask workers run asyncio, which turns SIGINT into a traceback per worker unless
@@ -163,10 +171,7 @@ def test_sigint_with_a_dask_cluster_one_line_no_worker_traceback(tmp_path):
     cmd = [str(BIN / "mcsweep"), f"hydra.run.dir={run}", *SMALL, "execution=dask", "execution.n_jobs=2"]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
     try:
-        deadline = time.monotonic() + 300
-        while len(list((run / "cells").glob("cell_*.parquet"))) < 2:
-            assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()[1][-3000:]
-            time.sleep(0.02)
+        _wait_for_cells(proc, run, 2)
         os.killpg(proc.pid, signal.SIGINT)  # Ctrl-C: the app, the cluster's nannies and workers
         out, err = proc.communicate(timeout=120)
     finally:
@@ -189,10 +194,7 @@ def test_sigint_to_the_process_group_one_line_exit_130_no_worker_left_then_resum
     cmd = [str(BIN / "mcsweep"), f"hydra.run.dir={run}", *SMALL, "execution.n_jobs=2"]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
     try:
-        deadline = time.monotonic() + 300
-        while len(list((run / "cells").glob("cell_*.parquet"))) < 2:
-            assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()[1][-3000:]
-            time.sleep(0.02)
+        _wait_for_cells(proc, run, 2)
         workers = [pid for pid in subprocess.run(["pgrep", "-P", str(proc.pid), "-f", "popen_loky_posix"],
                                                  capture_output=True, text=True).stdout.split()]
         assert len(workers) == 2 and all(_ignores_sigint(pid) for pid in workers)  # only the app acts on Ctrl-C

@@ -56,11 +56,41 @@ def test_scale_factors_and_config():
     assert base.design_sigmas(g)[1].shape == (3, 1)
 
 
+def test_al_floor_adds_in_quadrature_by_hand():
+    # G = 15: sigma_fov^2 = 6723.33 uas^2 (test above); floor 0.039 mas = 39 uas:
+    # sigma^2 = 6723.33 + 1521 = 8244.33 uas^2 -> 90.798 uas. With al_scale = 2 the
+    # published part doubles, the floor does not: 4 * 6723.33 + 1521.
+    # G = 12: (3344.07 + 1.2341) / 9 + 800 + 1521 uas^2.
+    floor = NoiseModel(al_floor_mas=0.039)
+    expected_mas = 1e-3 * np.sqrt([53310 / 9 + 800 + 39.0**2,
+                                   (53000 * 10**-1.2 + 310 * 10**-2.4) / 9 + 800 + 39.0**2])
+    np.testing.assert_allclose(floor.sigma_al_mas([15.0, 12.0]), expected_mas, rtol=FORMULA_RTOL)
+    np.testing.assert_allclose(floor.sigma_al_mas(15.0), 0.090798, rtol=1e-5)
+    scaled = NoiseModel(al_scale=2.0, al_floor_mas=0.039)
+    np.testing.assert_allclose(scaled.sigma_al_mas(15.0), 1e-3 * np.sqrt(4 * (53310 / 9 + 800) + 39.0**2),
+                               rtol=FORMULA_RTOL)
+    # AC is not touched by the AL floor.
+    np.testing.assert_array_equal(floor.sigma_ac_mas([12.0, 15.0]), NoiseModel().sigma_ac_mas([12.0, 15.0]))
+
+
+def test_zero_floor_is_the_published_model_exactly():
+    g = np.linspace(3.0, G_MAX, 301)
+    for kw in (dict(), dict(al_scale=1.7)):
+        np.testing.assert_array_equal(NoiseModel(al_floor_mas=0.0, **kw).sigma_al_mas(g),
+                                      NoiseModel(**kw).sigma_al_mas(g))
+    cfg = NoiseModel.from_config({"name": "gaia", "al_scale": 1.0, "ac_scale": 1.0, "use_ac": True})
+    assert cfg.al_floor_mas == 0.0
+    assert NoiseModel.from_config({"al_floor_mas": 0.039}).al_floor_mas == 0.039
+
+
 @pytest.mark.parametrize("kwargs", [dict(al_scale=0.0), dict(ac_scale=-1.0), dict(al_scale=float("nan")),
-                                    dict(use_ac="yes")])
+                                    dict(use_ac="yes"), dict(al_floor_mas=-0.01),
+                                    dict(al_floor_mas=float("nan")), dict(al_floor_mas=float("inf")),
+                                    dict(al_floor_mas="0.1")])
 def test_rejects_bad_parameters(kwargs):
-    with pytest.raises(UserInputError):
+    with pytest.raises(UserInputError) as exc:
         NoiseModel(**kwargs)
+    assert "\n" not in str(exc.value) and next(iter(kwargs)) in str(exc.value)
 
 
 @pytest.mark.parametrize("g", [21.5, np.nan])

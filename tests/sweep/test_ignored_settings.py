@@ -28,6 +28,15 @@ def test_ignored_settings_do_not_change_the_secondary_hash():
     assert _hash(["sky=single"]) != _hash([])
 
 
+def test_zero_noise_floor_keeps_the_hash_of_configs_made_before_the_option():
+    cfg = OmegaConf.to_container(compose_config(["experiment=secondary"]), resolve=True)
+    assert cfg["noise"]["al_floor_mas"] == 0.0
+    before = {**cfg, "noise": {k: v for k, v in cfg["noise"].items() if k != "al_floor_mas"}}
+    assert config_hash(cfg) == config_hash(before)
+    assert _hash(["experiment=secondary", "noise=edr3_floor"]) != config_hash(cfg)
+    assert _hash(["experiment=secondary", "noise.al_floor_mas=0.039"]) != config_hash(cfg)
+
+
 def test_ignored_settings_get_one_warning_line_per_experiment():
     argv = ["experiment=secondary", *IGNORED, "confidence=0.8"]
     lines = ignored_settings(argv, preflight(argv))

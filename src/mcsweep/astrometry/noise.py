@@ -45,6 +45,21 @@ G = 12, 0.70 mas at G = 15, 8.7 mas at G = 20). This is a derived, approximate
 model (factor ~2; the 2 x 2 binned SM samples degrade it further, which is not
 modelled); use ``ac_scale`` to explore it, or ``use_ac=False`` to drop AC entirely.
 
+Calibration-limited floor (option, default off)
+-----------------------------------------------
+``al_floor_mas`` adds an extra AL error per FoV transit in quadrature:
+
+    sigma_al = sqrt((al_scale sigma_fov)^2 + al_floor^2).
+
+Default 0: the model above, unchanged. The real Gaia data of bright stars are
+limited by attitude and calibration errors well above the photon noise: the robust
+scatter of the AL residuals per CCD observation in Gaia EDR3 is ~0.15 mas at
+G ~ 9-13 (Lindegren et al. 2021, A&A 649, A2, Fig. A.1, read off the figure; see
+docs/noise_floor.md for the read-off, its uncertainty and the conversion to a FoV
+transit), against 0.058 mas of photon noise per CCD at G <= 12 in the model above.
+The preset ``noise=edr3_floor`` holds the published value converted to one FoV
+transit. AC is left as it is (no published AC floor was found).
+
 Validity
 --------
 The formulas hold for 12 <= G <= 20.7 (Gaia's faint detection limit). Brighter than
@@ -101,32 +116,46 @@ class NoiseModel:
     use_ac : bool
         Whether AC measurements enter the solution. The model always returns AC
         numbers; callers consult this flag (see :meth:`design_sigmas`).
+    al_floor_mas : float
+        Extra AL error per FoV transit in mas, added in quadrature after ``al_scale``
+        (non-negative; 0 = the published model alone; module notes).
     """
 
     al_scale: float = 1.0
     ac_scale: float = 1.0
     use_ac: bool = True
+    al_floor_mas: float = 0.0
 
     def __post_init__(self):
         for name in ("al_scale", "ac_scale"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float, np.floating, np.integer)) and np.isfinite(v) and v > 0):
                 raise UserInputError(f"{name}={v!r} is not accepted; expected a positive finite factor")
+        f = self.al_floor_mas
+        if not (isinstance(f, (int, float, np.floating, np.integer)) and not isinstance(f, bool)
+                and np.isfinite(f) and f >= 0):
+            raise UserInputError(f"al_floor_mas={f!r} is not accepted; expected a non-negative finite "
+                                 "AL error per FoV transit in mas")
         if not isinstance(self.use_ac, (bool, np.bool_)):
             raise UserInputError(f"use_ac={self.use_ac!r} is not accepted; expected true or false")
 
     @classmethod
     def from_config(cls, cfg) -> "NoiseModel":
-        """Build from a mapping or object with ``al_scale``, ``ac_scale``, ``use_ac``."""
+        """Build from a mapping or object with ``al_scale``, ``ac_scale``, ``use_ac``,
+        ``al_floor_mas``."""
         get = cfg.get if hasattr(cfg, "get") else lambda k, d: getattr(cfg, k, d)
         return cls(al_scale=float(get("al_scale", 1.0)), ac_scale=float(get("ac_scale", 1.0)),
-                   use_ac=bool(get("use_ac", True)))
+                   use_ac=bool(get("use_ac", True)), al_floor_mas=float(get("al_floor_mas", 0.0)))
 
     def sigma_al_mas(self, G) -> np.ndarray:
-        """AL uncertainty per FoV transit in mas (Perryman et al. 2014, Eqs. 1-3)."""
+        """AL uncertainty per FoV transit in mas (Perryman et al. 2014, Eqs. 1-3), with the
+        optional floor ``al_floor_mas`` in quadrature (module notes)."""
         eta2 = _sigma_eta2_uas2(G)
         var = eta2 / _N_AF_CCD + _SIGMA_ATT_UAS**2 + _SIGMA_CAL_UAS**2
-        return self.al_scale * 1e-3 * np.sqrt(var)
+        sigma = self.al_scale * 1e-3 * np.sqrt(var)
+        if self.al_floor_mas == 0:
+            return sigma  # the published model exactly, bit for bit
+        return np.sqrt(sigma**2 + self.al_floor_mas**2)
 
     def sigma_ac_mas(self, G) -> np.ndarray:
         """AC uncertainty per FoV transit in mas (module notes)."""

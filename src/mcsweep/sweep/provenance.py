@@ -50,6 +50,11 @@ def _science_part(cfg: dict) -> dict:
             node = child
         else:
             node.pop(leaf, None)
+    # noise.al_floor_mas = 0 (the default) is the model from before the option existed:
+    # left out so run directories made before it keep their hash (and can be resumed).
+    noise = out.get("noise")
+    if isinstance(noise, dict) and noise.get("al_floor_mas", None) == 0:
+        out["noise"] = {k: v for k, v in noise.items() if k != "al_floor_mas"}
     return out
 
 

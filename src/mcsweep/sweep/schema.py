@@ -180,10 +180,15 @@ class NoiseConf:
     ac_scale: float = 1.0
     #: Whether AC measurements enter the solution (they matter for G < 10).
     use_ac: bool = True
+    #: Extra AL error per FoV transit [mas], added in quadrature (calibration-limited
+    #: floor of bright stars; 0 = the published model alone; preset noise=edr3_floor).
+    al_floor_mas: float = 0.0
 
     def __post_init__(self):
         _require(self.al_scale > 0, "noise.al_scale", self.al_scale, "a positive factor")
         _require(self.ac_scale > 0, "noise.ac_scale", self.ac_scale, "a positive factor")
+        _require(math.isfinite(self.al_floor_mas) and self.al_floor_mas >= 0, "noise.al_floor_mas",
+                 self.al_floor_mas, "a non-negative finite AL error per FoV transit in mas")
 
 
 @dataclass

@@ -37,7 +37,7 @@ from functools import cached_property
 from ..errors import UserInputError
 from .timescale import tcb_jd
 
-__all__ = ["Segment", "SEGMENT_KINDS", "FLOWN_SEGMENTS", "segments_from_config", "check_sequence"]
+__all__ = ["Segment", "SEGMENT_KINDS", "FLOWN_SEGMENTS", "DATA_RELEASE_SPANS", "segments_from_config", "check_sequence"]
 
 #: Law kinds of a segment and the sign of the square root in dnu/dt (0: nu held fixed).
 SEGMENT_KINDS = {"nsl": 1.0, "nsl_reversed": -1.0, "epsl": 0.0}
@@ -196,3 +196,15 @@ FLOWN_SEGMENTS: tuple[Segment, ...] = (
     Segment(kind="nsl", start_tcb="2020-08-01T00:00:00", end_tcb="2025-01-15T00:00:00",
             ref_epoch_tcb="2020-08-01T00:00:00", nu_ref_deg=244.289, omega_ref_deg=32.975),
 )
+
+
+#: Observation spans of the Gaia data releases, [start, end) in TCB (research note
+#: scanning-law-history.md, from the Gaia Collaboration release papers; each starts at
+#: the start of routine operations). The ``observations=dr1..dr5`` presets.
+DATA_RELEASE_SPANS = {
+    "dr1": ("2014-07-25T10:30:00", "2015-09-16T00:00:00"),
+    "dr2": ("2014-07-25T10:30:00", "2016-05-23T00:00:00"),
+    "dr3": ("2014-07-25T10:30:00", "2017-05-28T00:00:00"),  # also EDR3
+    "dr4": ("2014-07-25T10:30:00", "2020-01-20T00:00:00"),
+    "dr5": ("2014-07-25T10:30:00", "2025-01-15T00:00:00"),  # end of science operations
+}

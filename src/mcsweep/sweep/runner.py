@@ -9,6 +9,8 @@ aggregation into ``cells.parquet``, and the report.
 
 from __future__ import annotations
 
+import logging
+
 import dataclasses
 from functools import lru_cache
 from pathlib import Path
@@ -140,6 +142,12 @@ def run_sweep(config: Config, raw_cfg: dict, run_dir: Path, *, prov: Provenance 
         # Built here first so a bad catalogue fails before any file is written.
         _source(_freeze(_pop_dict(config)))
     settings = build_settings(config)
+    law = ScanningLaw.from_config(dataclasses.asdict(config.scanning))
+    note = law.extrapolation_note(tcb_jd(config.observations.start, "observations.start"),
+                                  tcb_jd(config.observations.end, "observations.end"))
+    prov.derived["scanning"] = {"extrapolated": note}
+    if note:
+        logging.getLogger("mcsweep").warning(note)
     cells = enumerate_cells(config.sky, config.magnitudes)
     keep = config.resume.accept_other_versions
     store = CellStore(run_dir / CELLS_DIR, prov.hash, accept_other_versions=keep)

@@ -475,12 +475,14 @@ class Config:
 IGNORED_BY_EXPERIMENT: Dict[str, tuple] = {
     # experiment.primary (added later) is ignored by the others so their config hashes stay as they were.
     "f90_sweep": ("experiment.primary",),
+    # observations.start/end are read by the global experiments under a release preset
+    # (observations=dr1..dr5 sets their mission), so they stay in the hash.
     "secondary": ("sky", "magnitudes", "prior_grid", "cell", "experiment.showcase", "experiment.primary",
                   "observations.cases",
-                  "observations.f90_case", "observations.start", "observations.end",
+                  "observations.f90_case",
                   "observations.fixed_epoch", "prior_maps"),
     "primary": ("sky", "magnitudes", "prior_grid", "cell", "experiment.showcase", "experiment.secondary",
-                "observations.cases", "observations.f90_case", "observations.start", "observations.end",
+                "observations.cases", "observations.f90_case",
                 "observations.fixed_epoch", "prior_maps"),
 }
 

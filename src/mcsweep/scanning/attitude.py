@@ -363,17 +363,30 @@ class SegmentedAttitude:
             return getattr(self.parts[0], name)(t)
         k = self.segment_index(t) if seg is None else np.broadcast_to(np.asarray(seg), t.shape)
         tf, kf = t.reshape(-1), k.reshape(-1)
-        probe = getattr(self.parts[0], name)(np.array([self.parts[0].t0_jd]))
-        single = not isinstance(probe, tuple)
-        probe = (probe,) if single else probe
-        out = [np.full(tf.shape + p.shape[1:], np.nan) for p in probe]
+        # Epochs grouped by segment with one O(n) radix sort (small ints), so each segment's
+        # table is evaluated once on a contiguous slice (the hot path of the transit search).
+        order = np.argsort(kf.astype(np.int8), kind="stable")
+        counts = np.bincount(kf + 1, minlength=len(self.parts) + 1)  # gap (-1) first
+        ts = tf[order]
+        out, single = None, False
+        pos = int(counts[0])
         for i, part in enumerate(self.parts):
-            m = kf == i
-            if not m.any():
+            c = int(counts[i + 1])
+            if c == 0:
                 continue
-            res = getattr(part, name)(tf[m])
-            for o, r in zip(out, (res,) if single else res):
-                o[m] = r
+            res = getattr(part, name)(ts[pos:pos + c])
+            single = not isinstance(res, tuple)
+            res = (res,) if single else res
+            if out is None:
+                out = [np.full(tf.shape + r.shape[1:], np.nan) for r in res]
+            idx = order[pos:pos + c]
+            for o, r in zip(out, res):
+                o[idx] = r
+            pos += c
+        if out is None:  # every epoch in a gap: NaN of the right shapes
+            probe = getattr(self.parts[0], name)(np.array([self.parts[0].t0_jd]))
+            single = not isinstance(probe, tuple)
+            out = [np.full(tf.shape + p.shape[1:], np.nan) for p in ((probe,) if single else probe)]
         out = [o.reshape(t.shape + o.shape[1:]) for o in out]
         return out[0] if single else tuple(out)
 

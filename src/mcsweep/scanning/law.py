@@ -167,6 +167,28 @@ class ScanningLaw:
         """Reference epoch of the top-level phases (one-segment law) as a TCB Julian date [day]."""
         return self.segment_list[0].ref_epoch_jd if not self.segments else math.nan
 
+    def segment_labels(self, tcb_jd) -> list[str]:
+        """Name of the segment holding each epoch (e.g. ``'nsl 2014-09-25..2017-01-27'``), with
+        ``' (extrapolated)'`` outside the law's validity and ``'gap'`` between segments."""
+        import numpy as np
+
+        segs = self.segment_list
+        starts = np.array([s.start_jd for s in segs])
+        t = np.atleast_1d(np.asarray(tcb_jd, dtype=float))
+        k = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(segs) - 1)
+        out = []
+        for ti, ki in zip(t, k):
+            seg = segs[ki]
+            if seg.start_jd <= ti < seg.end_jd:
+                out.append(seg.label())
+            elif ki == 0 and ti < seg.start_jd or ki == len(segs) - 1 and ti >= seg.end_jd:
+                out.append(seg.label() + " (extrapolated)")
+            else:
+                out.append("gap")
+        if not self.segments:
+            out = [f"{self.name} (extrapolated)" for _ in out]
+        return out
+
     @property
     def validity_jd(self) -> tuple[float, float] | None:
         """``(start, end)`` (TCB JD) of the span the law was fitted to; None (``nominal``): nowhere."""

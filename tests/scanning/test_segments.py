@@ -22,9 +22,10 @@ from mcsweep.scanning.timescale import tcb_jd
 #: Table interpolation vs a direct solve_ivp of the segment's ODE [rad] (the table's
 #: Hermite error is ~1e-11 rad; both integrations run at rtol 1e-12 over <= 5 years).
 DIRECT_SOLVE_TOLERANCE_RAD = 1e-8
-#: The same for Omega, which the direct solve integrates itself (|Omega| reaches ~2e4 rad in
-#: a 2.4-year segment; rtol 1e-12 per step accumulates to < 1e-6 rad, 3.4 ms of spin).
-DIRECT_OMEGA_TOLERANCE_RAD = 1e-6
+#: The same for Omega, which the direct solve integrates itself (its slow part, Omega -
+#: omega_z (t - t_ref)); omega_z t is ~2e4 rad in a 2.4-year segment, so its rounding
+#: (~4e-12 rad) is negligible; 1e-8 rad is 34 us of spin.
+DIRECT_OMEGA_TOLERANCE_RAD = 1e-8
 #: EPSL closed form (nu fixed, Omega linear in t) [rad]: only rounding remains.
 CLOSED_FORM_TOLERANCE_RAD = 1e-9
 
@@ -48,12 +49,14 @@ def _direct(law, seg, t_end):
         _, lam_dot = nominal_sun_longitude(t)
         root = sign * math.sqrt(law.precession_S ** 2 - math.cos(y[0]) ** 2) if sign else 0.0
         nu_dot = lam_dot * (root + math.cos(xi) * math.sin(y[0])) / math.sin(xi) if sign else 0.0
-        om_dot = law.spin_rate_rad_day - math.cos(xi) * nu_dot - math.sin(xi) * math.sin(y[0]) * lam_dot
-        return [nu_dot, om_dot]
+        # dOmega/dt less its constant omega_z (added back below), so the integrated value stays
+        # small and the solver's relative tolerance means the same as for nu.
+        om_slow_dot = -math.cos(xi) * nu_dot - math.sin(xi) * math.sin(y[0]) * lam_dot
+        return [nu_dot, om_slow_dot]
 
     y0 = [math.radians(seg.nu_ref_deg), math.radians(seg.omega_ref_deg)]
     sol = solve_ivp(rhs, (seg.ref_epoch_jd, t_end), y0, method="LSODA", rtol=1e-12, atol=1e-12)
-    return sol.y[0, -1], sol.y[1, -1]
+    return sol.y[0, -1], sol.y[1, -1] + law.spin_rate_rad_day * (t_end - seg.ref_epoch_jd)
 
 
 def _wrap(x):

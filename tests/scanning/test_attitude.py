@@ -1,4 +1,8 @@
-"""Attitude of the nominal scanning law: closed-form geometry and the NSL equations."""
+"""Attitude of the nominal scanning law: closed-form geometry and the NSL equations.
+
+On one NSL segment over 2014-2020 (the flown law's 2014-09-25 - 2017-01-27 segment,
+extended): the segmented flown law is checked per segment in test_segments.py.
+"""
 
 import math
 
@@ -21,7 +25,10 @@ PRECESSION_PERIOD_DAYS = (62.0, 64.0)  # "about 63 days" (S = 4.22)
 
 @pytest.fixture(scope="module")
 def law():
-    return ScanningLaw()
+    # The flown law's 2014-09-25 - 2017-01-27 segment as a one-segment law (mcsweep's
+    # flown law before issue 28).
+    return ScanningLaw(name="one_segment", segments=(), ref_epoch_tcb="2015-01-01T00:00:00",
+                       nu_ref_deg=323.3708, omega_ref_deg=95.1324)
 
 
 @pytest.fixture(scope="module")

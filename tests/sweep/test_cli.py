@@ -171,3 +171,29 @@ def test_sweep_writes_prior_maps_equal_to_prior_from_run(small_run):
         assert len(hdul["CELLS"].data) == 16
     assert (small_run / "figures" / "prior_maps.png").exists()
     assert "figures/prior_maps.png" in (small_run / "report.md").read_text()
+
+
+@pytest.mark.slow
+def test_default_run_is_not_extrapolated_and_names_each_visits_segment(small_run):
+    # The paper's window lies inside the flown law's 2014-09-25 - 2017-01-27 segment (issue 28).
+    prov = json.loads((small_run / "provenance.json").read_text())
+    assert prov["derived"]["scanning"] == {"extrapolated": None}
+    groups = pd.read_csv(small_run / "showcase" / "groups.csv")
+    assert set(groups["segment"]) == {"nsl 2014-09-25..2017-01-27"}
+    assert "extrapolated" not in (small_run / "report.md").read_text()
+
+
+@pytest.mark.slow
+def test_nominal_law_and_a_window_outside_the_mission_are_said_extrapolated(tmp_path):
+    tiny = ["sky=single", "magnitudes.edges=[14,15]", "prior_grid.n=5", "cell.max_stars=100",
+            "cell.min_stars=50", "cell.n_bootstrap=0", "experiment.showcase.enabled=false",
+            "execution.progress=false", "execution.n_jobs=1"]
+    for name, extra in (("nominal", ["scanning=nominal"]),
+                        ("late", ["observations.start=2025-01-01T00:00:00", "observations.end=2025-06-01T00:00:00"])):
+        out = tmp_path / name
+        r = run([f"hydra.run.dir={out}", *tiny, *extra])
+        assert r.returncode == 0, r.stderr[-3000:]
+        note = json.loads((out / "provenance.json").read_text())["derived"]["scanning"]["extrapolated"]
+        assert "extrapolated" in note
+        assert "Scanning law: " + note in (out / "report.md").read_text()
+        assert note in r.stderr + r.stdout + "".join(p.read_text() for p in out.glob("*.log"))

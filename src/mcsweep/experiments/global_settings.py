@@ -27,6 +27,7 @@ from ..errors import UserInputError
 from ..prior import G_FIT_MAX, PAPER_COEFFICIENTS, sigma_f90, sigma_from_coefficients
 from ..scanning import ScanningLaw
 from ..scanning.ephemeris import TABLE_END_JD_TCB, TABLE_START_JD_TCB
+from ..scanning.segments import DATA_RELEASE_SPANS
 from ..scanning.timescale import tcb_jd
 from .epoch import describe_reference_epoch, resolve_reference_epoch
 
@@ -108,8 +109,14 @@ def global_fields(config, name: str) -> dict:
     section (``mission_start``, ``mission_years``, ``f90_formula``, ``reference_epoch``)
     and the run's seed, scanning law, noise model, P and R; user errors raised here."""
     section = getattr(config.experiment, name)
-    start_jd = tcb_jd(str(section.mission_start), f"experiment.{name}.mission_start")
-    end_jd = start_jd + 365.25 * section.mission_years
+    obs = getattr(config, "observations", None)
+    if obs is not None and obs.name in DATA_RELEASE_SPANS:
+        # observations=dr1..dr5: the release's span is the mission (replaces mission_start/_years).
+        start_jd = tcb_jd(str(obs.start), "observations.start")
+        end_jd = tcb_jd(str(obs.end), "observations.end")
+    else:
+        start_jd = tcb_jd(str(section.mission_start), f"experiment.{name}.mission_start")
+        end_jd = start_jd + 365.25 * section.mission_years
     if start_jd < TABLE_START_JD_TCB + 1.0 or end_jd > TABLE_END_JD_TCB - 1.0:
         raise UserInputError(f"experiment.{name}.mission_start={section.mission_start!r} with mission_years="
                              f"{section.mission_years:g} is not accepted; expected a mission within 2013-2031 "

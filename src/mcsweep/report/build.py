@@ -52,6 +52,13 @@ def _f90_table(cells: pd.DataFrame) -> pd.DataFrame:
     return base.merge(at, left_on="cell_id", right_index=True, how="left").reset_index(drop=True)
 
 
+def extrapolation_para(doc: Document, prov: dict) -> None:
+    """One paragraph when the run's interval reaches outside the scanning law's validity (issue 28)."""
+    note = (prov.get("derived", {}).get("scanning") or {}).get("extrapolated")
+    if note:
+        doc.para(f"Scanning law: {note}.")
+
+
 def sweep_section(doc: Document, run_dir: Path, prov: dict) -> None:
     """The F90 sweep: the headline (Fig. 4 analogues, key numbers, what differs and why,
     the sky maps) first, then the long tables, then the Table 1 beam (Figs. 1-3)."""
@@ -89,6 +96,7 @@ def sweep_section(doc: Document, run_dir: Path, prov: dict) -> None:
     noise = _cell_noise_dex(f90)
     # The conclusion before the numbers behind it, so both fit under the figures on one screen.
     doc.para(_difference_sentence(fit, noise, cfg, prov))
+    extrapolation_para(doc, prov)
     doc.bullets(_key_numbers(fit, f90, noise, showcase, p, list(cfg.get("observations", {}).get("cases", {}))))
     maps = []
     if run_prior is not None:

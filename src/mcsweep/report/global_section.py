@@ -173,6 +173,9 @@ def global_section(doc: Document, run_dir: Path, prov: dict, *, kind: str, headi
     doc.para(lead)
     doc.bullets(items)
     doc.para(difference_sentence(table, label, cause))
+    from .build import extrapolation_para
+
+    extrapolation_para(doc, prov)
 
     doc.heading(f"{table_name} in the paper's layout", level=3)
     doc.para(description)

@@ -24,6 +24,15 @@ Method (vectorised over stars in chunks, no loop over stars or transits):
    kept if zeta is accepted and its time lies in the cell that proposed it, so each
    transit is found exactly once.
 
+Segments (:mod:`mcsweep.scanning.segments`): the interval is cut at the law's segment
+boundaries and each piece gets its own node grid, evaluated with its own segment's
+law (the last node may lie past the piece's end: the segment's law, extrapolated).
+The grids are concatenated, so one matrix product per chunk still flags the cells of
+all pieces; the cell joining two pieces is never flagged, and a transit is kept only
+inside its own piece ``[lo, hi)``. A transit at a boundary therefore belongs to
+exactly one segment (the one whose interval holds its time under that segment's
+law), and the gaps between segments have no cells at all.
+
 The public entry point is :func:`mcsweep.scanning.find_transits`; this module holds the
 per-chunk numerics so that :mod:`mcsweep.scanning.transits` only deals with inputs,
 randomness, parallel blocks and the output table.
@@ -36,7 +45,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .attitude import Attitude, frame_axes_from_angles, scan_frame_from_trig, spin_axis_from_trig
+from .attitude import Attitude, SegmentedAttitude, frame_axes_from_angles, scan_frame_from_trig, spin_axis_from_trig
 from .ephemeris import gaia_position_au
 from .groups import assign_groups
 from .law import ScanningLaw
@@ -75,10 +84,20 @@ _TWO_PI = 2.0 * math.pi
 
 @dataclass(frozen=True, eq=False)
 class Nodes:
-    """Spin-axis samples on the node grid plus what the candidate step needs."""
+    """Spin-axis samples on the node grids of all pieces plus what the candidate step needs.
 
-    t0: float
-    step: float
+    Cell ``c`` lies between nodes ``c`` and ``c + 1``; the cells joining two pieces are
+    not ``valid``.
+    """
+
+    cell_t0: np.ndarray   # (K+1,) start of each cell [TCB JD] (the node times)
+    cell_step: np.ndarray  # (K+1,) length of each cell [day] (its piece's step)
+    cell_seg: np.ndarray  # (K+1,) segment index of each cell's piece
+    cell_lo: np.ndarray   # (K+1,) start of each cell's piece (transits kept in [lo, hi))
+    cell_hi: np.ndarray   # (K+1,) end of each cell's piece
+    valid: np.ndarray | None  # (K,) bool, False for the cells joining two pieces; None: one piece
+    max_step: float
+    single: bool          # one piece: the refinement evaluates its segment directly
     z32: np.ndarray       # (K+1, 3) float32
     z: np.ndarray         # (K+1, 3)
     z_dot: np.ndarray     # (K+1, 3) [1/day]
@@ -110,8 +129,8 @@ def spin_axis_and_rate(att: Attitude, t):
     return np.stack([zx, zy, zz], -1), np.stack([dzx, dzy, dzz], -1), lam, nu, omega
 
 
-def build_nodes(att: Attitude, start_jd: float, end_jd: float) -> Nodes:
-    """Node grid over ``[start_jd, end_jd]`` and the cell-flag threshold (steps 1-2)."""
+def _piece_nodes(att: Attitude, start_jd: float, end_jd: float) -> dict:
+    """Node grid over one piece ``[start_jd, end_jd]`` of one segment and its flag threshold."""
     step = NODE_STEP_SPIN_FRACTION * att.law.spin_period_days - 2.0 * PREDICTION_WINDOW_DAYS
     n_cells = max(1, math.ceil((end_jd - start_jd) / step))
     t = start_jd + step * np.arange(n_cells + 1)
@@ -124,8 +143,38 @@ def build_nodes(att: Attitude, start_jd: float, end_jd: float) -> Nodes:
     m2 = float(np.max(np.linalg.norm(np.diff(zd_fine, axis=0), axis=1)) / fine_step) * _M2_SAFETY
     threshold = (math.sin(math.radians(att.law.max_abs_ac_deg)) + m2 * step * step / 8.0
                  + _FLOAT32_MARGIN)
-    return Nodes(t0=start_jd, step=step, z32=z.astype(np.float32), z=z, z_dot=z_dot, a=a, b=b,
-                 omega=omega, threshold=threshold)
+    return dict(t=t, step=step, z=z, z_dot=z_dot, a=a, b=b, omega=omega, threshold=threshold)
+
+
+def build_nodes(att: SegmentedAttitude, start_jd: float, end_jd: float) -> Nodes | None:
+    """Node grids over the pieces of ``[start_jd, end_jd)`` and the cell-flag threshold (steps 1-2).
+
+    None when the interval lies entirely in a gap between segments (no transits).
+    """
+    pieces = att.pieces(start_jd, end_jd)
+    if not pieces:
+        return None
+    grids = [_piece_nodes(att.parts[k], lo, hi) for k, lo, hi in pieces]
+    sizes = [g["t"].size for g in grids]
+
+    def per_node(values):
+        return np.concatenate([np.full(n, v) for n, v in zip(sizes, values)])
+
+    z = np.concatenate([g["z"] for g in grids])
+    valid = None
+    if len(grids) > 1:
+        valid = np.ones(z.shape[0] - 1, dtype=bool)
+        valid[np.cumsum(sizes)[:-1] - 1] = False  # from a piece's last node to the next piece's first
+    return Nodes(cell_t0=np.concatenate([g["t"] for g in grids]),
+                 cell_step=per_node([g["step"] for g in grids]),
+                 cell_seg=per_node([k for k, _, _ in pieces]).astype(np.int64),
+                 cell_lo=per_node([lo for _, lo, _ in pieces]), cell_hi=per_node([hi for _, _, hi in pieces]),
+                 valid=valid, max_step=max(g["step"] for g in grids), single=len(grids) == 1,
+                 z32=z.astype(np.float32), z=z, z_dot=np.concatenate([g["z_dot"] for g in grids]),
+                 a=np.concatenate([g["a"] for g in grids]), b=np.concatenate([g["b"] for g in grids]),
+                 omega=np.concatenate([g["omega"] for g in grids]),
+                 # The largest piece threshold is safe for all (a cell flagged too many is only tested).
+                 threshold=max(g["threshold"] for g in grids))
 
 
 def _dot(u, v):
@@ -164,50 +213,54 @@ def flag_cells(u_ecl, nodes: Nodes, buf: ChunkBuffers):
     # class product <= 0: a zero class (|f| <= thr) at either end, or a sign change.
     np.multiply(cls[:, :-1], cls[:, 1:], out=prod)
     flat = np.flatnonzero(prod <= 0)
-    return np.divmod(flat, nodes.n_cells)
+    star, cell = np.divmod(flat, nodes.n_cells)
+    if nodes.valid is not None:
+        ok = nodes.valid[cell]
+        star, cell = star[ok], cell[ok]
+    return star, cell
 
 
-def chunk_transits(u_ecl, north_ecl, east_ecl, first_index, nodes: Nodes, att: Attitude,
+def chunk_transits(u_ecl, north_ecl, east_ecl, first_index, nodes: Nodes, att: SegmentedAttitude,
                    opts: dict, buf: ChunkBuffers) -> dict:
     """All accepted transits of one chunk of stars (steps 2-4), as a dict of column arrays.
 
-    ``opts`` holds ``start_jd, end_jd`` (interval), ``dead`` (:class:`DeadTime` or None),
+    ``opts`` holds ``dead`` (:class:`DeadTime` or None),
     ``dilution_key`` (int or None), ``dilution`` (probability) and ``compact`` (bool).
     Rows are sorted by (source, time); ``fov_code`` is 0 for P and 1 for F.
     """
     law = att.law
     omega_z = law.spin_rate_rad_day
     xi = math.radians(law.solar_aspect_deg)
-    start_jd, end_jd = opts["start_jd"], opts["end_jd"]
     # --- 2. cells that may hold an accepted transit
     star, cell = flag_cells(u_ecl, nodes, buf)
     u = u_ecl[star]
-    t_k = nodes.t0 + nodes.step * cell
+    t_k = nodes.cell_t0[cell]
+    step = nodes.cell_step[cell]
     f0, f1 = _dot(u, nodes.z[cell]), _dot(u, nodes.z[cell + 1])
-    d0, d1 = _dot(u, nodes.z_dot[cell]) * nodes.step, _dot(u, nodes.z_dot[cell + 1]) * nodes.step
+    d0, d1 = _dot(u, nodes.z_dot[cell]) * step, _dot(u, nodes.z_dot[cell + 1]) * step
     # Azimuth phi at both nodes; its slow part phi + omega_z (t - t_k) is interpolated linearly.
     phi0 = np.arctan2(_dot(u, nodes.b[cell]), _dot(u, nodes.a[cell])) - nodes.omega[cell]
     phi1 = np.arctan2(_dot(u, nodes.b[cell + 1]), _dot(u, nodes.a[cell + 1])) - nodes.omega[cell + 1]
-    slow = np.mod(phi1 - phi0 + omega_z * nodes.step + math.pi, _TWO_PI) - math.pi
-    rate = omega_z - slow / nodes.step  # -d phi / dt across the cell [rad/day]
+    slow = np.mod(phi1 - phi0 + omega_z * step + math.pi, _TWO_PI) - math.pi
+    rate = omega_z - slow / step  # -d phi / dt across the cell [rad/day]
     # --- 3. candidates: predicted FoV passages and the Hermite-interpolated f there
     window = PREDICTION_WINDOW_DAYS
-    n_j = math.ceil((nodes.step + 2.0 * window) * float(np.max(rate, initial=omega_z)) / _TWO_PI)
+    n_j = math.ceil((nodes.max_step + 2.0 * window) * float(np.max(rate, initial=omega_z)) / _TWO_PI)
     cand_pair, cand_fov, cand_t, cand_df = [], [], [], []
     for fov_code, azimuth, (lo, hi) in _fov_specs(law):
         base = np.mod(phi0 - azimuth + rate * window, _TWO_PI) - rate * window
         s_lo, s_hi = math.sin(lo) - PRUNE_MARGIN, math.sin(hi) + PRUNE_MARGIN
         for j in range(n_j):
             tc = t_k + (base + _TWO_PI * j) / rate
-            tau = (tc - t_k) / nodes.step
+            tau = (tc - t_k) / step
             tau2, om = tau * tau, 1.0 - tau
             fc = ((1.0 + 2.0 * tau) * om * om * f0 + tau * om * om * d0
                   + tau2 * (3.0 - 2.0 * tau) * f1 + tau2 * (tau - 1.0) * d1)
-            idx = np.flatnonzero((tc < t_k + nodes.step + window) & (fc >= s_lo) & (fc <= s_hi))
+            idx = np.flatnonzero((tc < t_k + step + window) & (fc >= s_lo) & (fc <= s_hi))
             tau, tau2 = tau[idx], tau2[idx]
             # df/dt of the Hermite interpolant, to carry zeta from the evaluation to the root
             dfc = (6.0 * tau * (tau - 1.0) * (f0[idx] - f1[idx]) + (1.0 - 4.0 * tau + 3.0 * tau2) * d0[idx]
-                   + (3.0 * tau2 - 2.0 * tau) * d1[idx]) / nodes.step
+                   + (3.0 * tau2 - 2.0 * tau) * d1[idx]) / step[idx]
             cand_pair.append(idx)
             cand_fov.append(np.full(idx.size, fov_code, dtype=np.int8))
             cand_t.append(tc[idx])
@@ -219,7 +272,11 @@ def chunk_transits(u_ecl, north_ecl, east_ecl, first_index, nodes: Nodes, att: A
     # --- 4. refinement: one Newton step on phi(t) = FoV azimuth with the full attitude
     half = 0.5 * math.radians(law.basic_angle_deg)
     azimuth = np.where(fov == 1, -half, half)
-    lam, nu, omega = att.lam_nu_omega(t_eval)
+    # Each candidate in its cell's segment (near a boundary, the time alone could name the other one).
+    if nodes.single:
+        lam, nu, omega = att.parts[int(nodes.cell_seg[0])].lam_nu_omega(t_eval)
+    else:
+        lam, nu, omega = att.lam_nu_omega(t_eval, seg=nodes.cell_seg[cell[pair]])
     trig = (np.cos(lam), np.sin(lam), np.cos(nu), np.sin(nu))
     psi_w, zc = scan_frame_from_trig(u[pair], *trig, xi)
     resid = np.mod(psi_w - omega - azimuth + math.pi, _TWO_PI) - math.pi
@@ -229,8 +286,9 @@ def chunk_transits(u_ecl, north_ecl, east_ecl, first_index, nodes: Nodes, att: A
     f_lo, f_hi = (math.radians(v) for v in law.ac_limits_f_deg)
     is_f = fov == 1
     tk_c = t_k[pair]
+    cell_c = cell[pair]
     keep = ((zeta > np.where(is_f, f_lo, p_lo)) & (zeta < np.where(is_f, f_hi, p_hi))
-            & (t >= tk_c) & (t < tk_c + nodes.step) & (t >= start_jd) & (t < end_jd))
+            & (t >= tk_c) & (t < tk_c + step[pair]) & (t >= nodes.cell_lo[cell_c]) & (t < nodes.cell_hi[cell_c]))
     if opts["dead"] is not None:
         keep &= ~opts["dead"].is_dead(t)
     src = star[pair] + first_index
@@ -245,7 +303,7 @@ def chunk_transits(u_ecl, north_ecl, east_ecl, first_index, nodes: Nodes, att: A
     psi = np.mod(np.degrees(np.arctan2(_dot(z_spin, north_ecl[local]), -_dot(z_spin, east_ecl[local]))),
                  360.0)
     # Pairs are in (star, time) order and every kept transit lies in its pair's cell.
-    order = np.argsort(pair[idx] + (t - t_k[pair[idx]]) / nodes.step, kind="stable")
+    order = np.argsort(pair[idx] + (t - t_k[pair[idx]]) / step[pair[idx]], kind="stable")
     src, t, fov, psi, zeta = src[order], t[order], fov[order], psi[order], zeta[order]
     if opts["compact"]:
         int_t, grp_t, flt_t = np.int32, np.int16, np.float32

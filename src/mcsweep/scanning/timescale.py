@@ -13,7 +13,7 @@ from astropy.time import Time
 
 from ..errors import UserInputError
 
-__all__ = ["tcb_jd"]
+__all__ = ["tcb_jd", "iso_tcb"]
 
 
 def tcb_jd(value, name: str) -> float:
@@ -41,3 +41,8 @@ def tcb_jd(value, name: str) -> float:
         return float(value)
     raise UserInputError(f"{name}={value!r} is not accepted; expected an astropy Time, an ISO date (TCB) "
                          "or a TCB Julian date")
+
+
+def iso_tcb(jd: float) -> str:
+    """ISO date (TCB, to the minute) of a TCB Julian date, for messages and reports."""
+    return Time(float(jd), format="jd", scale="tcb").isot[:16]

@@ -114,7 +114,9 @@ def find_transits(ra_deg, dec_deg, start, end, *, law: ScanningLaw | None = None
         Interval ``[start, end)``; a string is an ISO date in TCB, a float a TCB Julian
         date. Must lie within 2013-2031 (the observer-ephemeris table).
     law : ScanningLaw, keyword-only
-        Scanning law; default the flown law (``ScanningLaw()``).
+        Scanning law; default the flown law (``ScanningLaw()``), a sequence of segments
+        valid 2014-07-25T10:30 - 2025-01-15 (TCB) and extrapolated outside; the gaps
+        between segments (2017-01-27 - 02-08) have no transits.
     dead_time_fraction : float, keyword-only
         Fraction of the time line lost, in [0, 1) (the paper's 20 % is 0.2); drawn as
         blocks of ``dead_time_block_days`` (see :mod:`mcsweep.scanning.timeline`).
@@ -145,7 +147,8 @@ def find_transits(ra_deg, dec_deg, start, end, *, law: ScanningLaw | None = None
         dilution; see :mod:`mcsweep.scanning.groups`) and
         ``obs_x_au, obs_y_au, obs_z_au`` (Gaia's BCRS position, ICRS axes; not in
         compact output).
-        ``df.attrs`` holds the law, the interval and the options.
+        ``df.attrs`` holds the law, the interval, the options and ``extrapolated`` (the
+        sentence of :meth:`ScanningLaw.extrapolation_note`, or None).
 
     Raises
     ------
@@ -185,11 +188,14 @@ def find_transits(ra_deg, dec_deg, start, end, *, law: ScanningLaw | None = None
 
     att = attitude_for(law)
     nodes = build_nodes(att, start_jd, end_jd)
+    attrs = {"dead_time_fraction": dead_time_fraction, "dilution": dilution,
+             "dead_time_block_days": dead_time_block_days}
+    if nodes is None:  # the interval lies in a gap between the law's segments: no transits
+        return _to_frame(_empty_columns(compact), law, start_jd, end_jd, attrs=attrs)
     u_ecl = unit_vector(ra, dec) @ ICRS_TO_ECLIPTIC.T
     north, east = local_north_east(ra, dec)
     north_ecl, east_ecl = north @ ICRS_TO_ECLIPTIC.T, east @ ICRS_TO_ECLIPTIC.T
-    opts = {"start_jd": start_jd, "end_jd": end_jd, "dead": dead, "dilution_key": dil_key,
-            "dilution": dilution, "compact": compact}
+    opts = {"dead": dead, "dilution_key": dil_key, "dilution": dilution, "compact": compact}
     chunk = max(64, _F_ENTRIES_PER_CHUNK // (nodes.n_cells + 1))
     n = ra.size
     n_blocks = max(1, math.ceil(n / _STARS_PER_BLOCK))
@@ -205,9 +211,17 @@ def find_transits(ra_deg, dec_deg, start, end, *, law: ScanningLaw | None = None
 
         blocks = Parallel(n_jobs=n_jobs)(delayed(run_block)(*task) for task in tasks)
     cols = _assemble(blocks)
-    return _to_frame(cols, law, start_jd, end_jd,
-                     attrs={"dead_time_fraction": dead_time_fraction, "dilution": dilution,
-                            "dead_time_block_days": dead_time_block_days})
+    return _to_frame(cols, law, start_jd, end_jd, attrs=attrs)
+
+
+def _empty_columns(compact: bool) -> dict:
+    """The column dict of :func:`mcsweep.scanning.search.chunk_transits` with no rows."""
+    int_t, grp_t, flt_t = (np.int32, np.int16, np.float32) if compact else (np.int64, np.int64, np.float64)
+    cols = {"source_index": np.empty(0, int_t), "tcb_jd": np.empty(0), "fov_code": np.empty(0, np.int8),
+            "scan_angle_deg": np.empty(0, flt_t), "ac_offset_deg": np.empty(0, flt_t), "group": np.empty(0, grp_t)}
+    if not compact:
+        cols.update(obs_x_au=np.empty(0), obs_y_au=np.empty(0), obs_z_au=np.empty(0))
+    return cols
 
 
 def _to_frame(cols: dict, law: ScanningLaw, start_jd: float, end_jd: float, attrs: dict) -> pd.DataFrame:
@@ -220,5 +234,6 @@ def _to_frame(cols: dict, law: ScanningLaw, start_jd: float, end_jd: float, attr
         else:
             data[key] = cols.pop(key)
     df = pd.DataFrame(data, copy=False)
-    df.attrs.update({"scanning_law": law.name, "start_tcb_jd": start_jd, "end_tcb_jd": end_jd, **attrs})
+    df.attrs.update({"scanning_law": law.name, "start_tcb_jd": start_jd, "end_tcb_jd": end_jd,
+                     "extrapolated": law.extrapolation_note(start_jd, end_jd), **attrs})
     return df

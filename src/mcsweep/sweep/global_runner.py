@@ -24,6 +24,8 @@ to it. :func:`run_global` owns the rest, in this order:
 
 from __future__ import annotations
 
+import logging
+
 import dataclasses
 import importlib
 from collections import Counter
@@ -172,6 +174,10 @@ def run_global(experiment: GlobalExperiment, config, raw_cfg: dict, run_dir, *, 
     settings = experiment.build_settings(config)
     epoch = settings.describe_epoch()
     prov.derived[kind] = {"reference_epoch": epoch}
+    note = settings.law.extrapolation_note(settings.start_jd, settings.end_jd)
+    prov.derived["scanning"] = {"extrapolated": note}
+    if note:
+        logging.getLogger("mcsweep").warning(note)
     section = getattr(config.experiment, kind)
     with prov.stage("population"):
         if experiment.draw is not None:

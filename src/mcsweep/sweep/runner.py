@@ -9,6 +9,8 @@ aggregation into ``cells.parquet``, and the report.
 
 from __future__ import annotations
 
+import logging
+
 import dataclasses
 from functools import lru_cache
 from pathlib import Path
@@ -68,15 +70,20 @@ def build_settings(config: Config) -> CellSettings:
     )
 
 
-def showcase_groups(transits: pd.DataFrame) -> pd.DataFrame:
-    """One row per distinct transit (visit) of a direction: group, first and last UTC, FoVs, psi."""
+def showcase_groups(transits: pd.DataFrame, law: ScanningLaw | None = None) -> pd.DataFrame:
+    """One row per distinct transit (visit) of a direction: group, first and last UTC, FoVs, psi,
+    and (with ``law``) the scanning-law segment of its first transit."""
     g = transits.groupby("group", sort=True, observed=True)
     out = g.agg(first_tcb_jd=("tcb_jd", "first"), last_tcb_jd=("tcb_jd", "last"),
                 fovs=("fov", lambda f: "".join(f.astype(str))),
                 scan_angle_deg=("scan_angle_deg", "first")).reset_index()
     for col in ("first", "last"):
         out[f"{col}_utc"] = Time(out[f"{col}_tcb_jd"].to_numpy(float), format="jd", scale="tcb").utc.iso
-    return out[["group", "first_utc", "last_utc", "fovs", "scan_angle_deg"]]
+    cols = ["group", "first_utc", "last_utc", "fovs", "scan_angle_deg"]
+    if law is not None:
+        out["segment"] = law.segment_labels(out["first_tcb_jd"].to_numpy(float))
+        cols.append("segment")
+    return out[cols]
 
 
 def showcase_cell(config: Config) -> Cell:
@@ -140,6 +147,12 @@ def run_sweep(config: Config, raw_cfg: dict, run_dir: Path, *, prov: Provenance 
         # Built here first so a bad catalogue fails before any file is written.
         _source(_freeze(_pop_dict(config)))
     settings = build_settings(config)
+    law = ScanningLaw.from_config(dataclasses.asdict(config.scanning))
+    note = law.extrapolation_note(tcb_jd(config.observations.start, "observations.start"),
+                                  tcb_jd(config.observations.end, "observations.end"))
+    prov.derived["scanning"] = {"extrapolated": note}
+    if note:
+        logging.getLogger("mcsweep").warning(note)
     cells = enumerate_cells(config.sky, config.magnitudes)
     keep = config.resume.accept_other_versions
     store = CellStore(run_dir / CELLS_DIR, prov.hash, accept_other_versions=keep)
@@ -184,7 +197,7 @@ def run_sweep(config: Config, raw_cfg: dict, run_dir: Path, *, prov: Provenance 
     if show_todo:
         (run_dir / SHOWCASE_DIR).mkdir(exist_ok=True)
         atomic_write_bytes(run_dir / SHOWCASE_DIR / SHOWCASE_GROUPS_FILE,
-                           showcase_groups(transits[show.direction.index]).to_csv(index=False).encode())
+                           showcase_groups(transits[show.direction.index], law).to_csv(index=False).encode())
     pop = _freeze(_pop_dict(config))
     jobs = [(c, transits[c.direction.index], pop, settings, store, False, radii.get(c.cell_id)) for c in todo]
     if show_todo:

@@ -225,19 +225,22 @@ _LAW = ScanningLaw()
 class ScanningConf:
     """Scanning law; the fields of mcsweep.scanning.ScanningLaw (Sect. 3.1; conf/scanning/).
 
-    Defaults and range checks are ScanningLaw's own (the flown law).
+    Defaults and range checks are ScanningLaw's own (the flown law: a list of segments,
+    mcsweep.scanning.segments; the top-level phases are for a one-segment law, ``nominal``).
     """
 
     name: str = _LAW.name
     spin_rate_arcsec_s: float = _LAW.spin_rate_arcsec_s
     solar_aspect_deg: float = _LAW.solar_aspect_deg
     precession_S: float = _LAW.precession_S
-    ref_epoch_tcb: str = _LAW.ref_epoch_tcb
-    nu_ref_deg: float = _LAW.nu_ref_deg
-    omega_ref_deg: float = _LAW.omega_ref_deg
+    ref_epoch_tcb: Optional[str] = _LAW.ref_epoch_tcb
+    nu_ref_deg: Optional[float] = _LAW.nu_ref_deg
+    omega_ref_deg: Optional[float] = _LAW.omega_ref_deg
     basic_angle_deg: float = _LAW.basic_angle_deg
     ac_limits_p_deg: List[float] = field(default_factory=lambda: list(_LAW.ac_limits_p_deg))
     ac_limits_f_deg: List[float] = field(default_factory=lambda: list(_LAW.ac_limits_f_deg))
+    #: Segments (kind, start_tcb, end_tcb, ref_epoch_tcb, nu_ref_deg, omega_ref_deg); [] with the phases above.
+    segments: List[Any] = field(default_factory=lambda: [s.as_dict() for s in _LAW.segments])
 
     def __post_init__(self):
         ScanningLaw.from_config(dataclasses.asdict(self))  # raises UserInputError
@@ -509,13 +512,15 @@ IGNORED_BY_EXPERIMENT: Dict[str, tuple] = {
     # experiment.primary (added later) is ignored by the others so their config hashes stay as they were.
     # experiment.real_sky likewise (added after primary).
     "f90_sweep": ("experiment.primary", "experiment.real_sky"),
+    # observations.start/end are read by the global experiments under a release preset
+    # (observations=dr1..dr5 sets their mission), so they stay in the hash.
     "secondary": ("sky", "magnitudes", "prior_grid", "cell", "experiment.showcase", "experiment.primary",
                   "experiment.real_sky",
                   "observations.cases",
-                  "observations.f90_case", "observations.start", "observations.end",
+                  "observations.f90_case",
                   "observations.fixed_epoch", "prior_maps"),
     "primary": ("sky", "magnitudes", "prior_grid", "cell", "experiment.showcase", "experiment.secondary",
-                "experiment.real_sky", "observations.cases", "observations.f90_case", "observations.start", "observations.end",
+                "experiment.real_sky", "observations.cases", "observations.f90_case",
                 "observations.fixed_epoch", "prior_maps"),
     "real_sky": ("sky", "magnitudes", "prior_grid", "cell", "population", "experiment.showcase",
                  "experiment.secondary", "experiment.primary", "observations.f90_case", "prior_maps"),

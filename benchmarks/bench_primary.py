@@ -16,7 +16,9 @@ only 1-4 transits), AL + AC, noisy measurements, the prior of Eq. 18 (R = 10 /yr
    (loky, 2 workers; the iteration passes stay in-process), and with every pass in 2 forked
    workers that keep their blocks (``workers=2``);
 5. scaling with the number of stars (3 sizes): ms per iteration, ns per measurement and
-   iteration, bytes per measurement held by the solver, peak traced memory;
+   iteration, bytes per measurement held by the solver, peak traced memory, and the
+   memory-bandwidth floor measured in the same run (two plain numpy streaming reads of the
+   solver's stored bytes per iteration) with the ratio of the solver's time to it;
 6. an extrapolation to the issue's full scale.
 
 Times are CPU seconds of this process (``time.process_time``) except where marked wall: the
@@ -89,6 +91,18 @@ def wall(fn, *args, **kwargs):
     w0 = time.perf_counter()
     out = fn(*args, **kwargs)
     return out, time.perf_counter() - w0
+
+
+def streaming_seconds(nbytes: int, repeats: int = 5) -> float:
+    """CPU seconds of one plain streaming read of ``nbytes`` (numpy sum over a float64 array),
+    best of ``repeats``: the memory-bandwidth floor of a pass over the solver's stored bytes."""
+    a = np.ones(max(nbytes // 8, 1))
+    best = np.inf
+    for _ in range(repeats):
+        c0 = time.process_time()
+        a.sum()
+        best = min(best, time.process_time() - c0)
+    return best
 
 
 def block_jacobi(problem, obs, h, rtol=1e-8, update_tol_uas=1e-2, max_iter=5000):
@@ -212,11 +226,15 @@ def main():
         peak = tracemalloc.get_traced_memory()[1] - base
         tracemalloc.stop()
         per_it = dt / len(s.history)
+        floor = streaming_seconds(int(pb.nbytes_per_measurement * o.size))
         rows.append((o.size, per_it, pb.nbytes_per_measurement))
         print(f"  {o.n_stars:7d} stars {o.size:8d} measurements: {len(s.history)} it, {per_it * 1e3:.1f} ms/it, "
               f"{per_it / o.size * 1e9:.0f} ns/(measurement iteration), solver storage "
               f"{pb.nbytes_per_measurement:.0f} B/measurement, solve peak above storage {peak / 2**20:.0f} MB "
               f"({peak / o.size:.0f} B/measurement)")
+        print(f"      memory-bandwidth floor (2 streaming reads of the stored bytes per iteration, plain numpy, "
+              f"this run): {2 * floor / o.size * 1e9:.1f} ns/(measurement iteration); ratio "
+              f"{per_it / (2 * floor):.1f} (goal: <= 40 ns/(measurement iteration), issue 23)")
 
     print("\n6. extrapolation to full scale (1.5e6 stars, 1 year, 20 % dead time; measured: docs/table3.md)")
     m_per_star_day = rows[-1][0] / (args.stars * 4 * args.days * args.keep)

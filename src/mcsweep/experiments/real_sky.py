@@ -170,7 +170,8 @@ def _case_rows(src: np.ndarray, group: np.ndarray, n: int, groups: tuple) -> tup
     np.maximum.at(n_groups, src, group.astype(np.int64) + 1)
     chosen = np.stack([np.where(np.int64(g) >= 0, g, n_groups + g) for g in groups])  # (len(groups), n)
     ok = np.all((chosen >= 0) & (chosen < n_groups), axis=0)
-    ok &= np.array([len(np.unique(chosen[:, i])) == len(groups) for i in range(n)]) if len(groups) > 1 else ok
+    if len(groups) > 1:  # the case's groups must be distinct visits of the star (vectorised over stars)
+        ok &= np.all(np.diff(np.sort(chosen, axis=0), axis=0) != 0, axis=0)
     keep = np.zeros(src.size, dtype=bool)
     for row in chosen:
         keep |= group == row[src]

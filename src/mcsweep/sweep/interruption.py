@@ -24,7 +24,7 @@ import signal
 import sys
 from pathlib import Path
 
-from .store import CellStore
+from .store import CellStore, remove_temporaries
 
 __all__ = ["EXIT_INTERRUPTED", "EXIT_DISK_FULL", "RESUME", "is_disk_full", "report_stop",
            "exit_on_second_interrupt", "kept_in_run", "remove_unfinished_writes"]
@@ -78,18 +78,13 @@ def exit_on_second_interrupt() -> None:
 
 
 def remove_unfinished_writes(run_dir) -> int:
-    """Delete the temporaries of writes that never finished under ``run_dir``; their number.
+    """Delete the temporaries of writes that never finished anywhere under ``run_dir``.
 
     A worker process killed by its parent on Ctrl-C (:func:`mcsweep.sweep.execution.executor`)
     may die between creating a temporary and moving it into place, where its own clean-up
-    never runs. Called once the workers are reaped, so no live write owns one. Only names
-    of :func:`~mcsweep.sweep.store.atomic_write_via` (``.NAME.XXXX.tmp``) are touched.
+    never runs. Called once the workers are reaped, so no live write owns one.
     """
-    n = 0
-    for p in Path(run_dir).rglob(".*.tmp") if Path(run_dir).is_dir() else ():
-        p.unlink(missing_ok=True)
-        n += 1
-    return n
+    return remove_temporaries(run_dir, recursive=True)
 
 
 def kept_in_run(config, config_hash: str, run_dir) -> str:

@@ -31,7 +31,7 @@ import pyarrow.parquet as pq
 from ..errors import UserInputError
 from .version import code_version
 
-__all__ = ["CellStore", "atomic_write_bytes", "atomic_write_via", "current_umask", "table_checksum"]
+__all__ = ["CellStore", "atomic_write_bytes", "atomic_write_via", "current_umask", "remove_temporaries", "table_checksum"]
 
 _META_KEY = b"mcsweep"
 
@@ -92,6 +92,20 @@ def atomic_write_via(path: Path, write) -> None:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def remove_temporaries(directory, *, recursive: bool = False) -> int:
+    """Delete the temporaries of :func:`atomic_write_via` (``.NAME.XXXX.tmp``) in ``directory``
+    (and below it with ``recursive``); their number. Call only when no write is running:
+    a killed writer never removes its own, and they are never valid results."""
+    directory = Path(directory)
+    if not directory.is_dir():
+        return 0
+    n = 0
+    for p in (directory.rglob if recursive else directory.glob)(".*.tmp"):
+        p.unlink(missing_ok=True)
+        n += 1
+    return n
 
 
 def atomic_write_bytes(path: Path, data: bytes) -> None:
@@ -178,8 +192,4 @@ class CellStore:
 
     def remove_stale_temporaries(self) -> int:
         """Delete temporaries left by writes that were killed (never valid results)."""
-        n = 0
-        for p in self.directory.glob(".*.tmp") if self.directory.exists() else ():
-            p.unlink(missing_ok=True)
-            n += 1
-        return n
+        return remove_temporaries(self.directory)

@@ -270,3 +270,42 @@ def test_banded_schur_preconditioner_equals_its_dense_definition(weak_problem, w
         dense -= G[rows].T @ Pi @ G[rows]
     np.testing.assert_allclose(band_to_dense(band), dense, rtol=0, atol=RTOL_SUMS * np.abs(dense).max())
     assert np.linalg.eigvalsh(dense).min() > -RTOL_SUMS * np.abs(dense).max()
+
+
+@pytest.mark.parametrize("compact", [False, True])
+def test_compiled_preconditioner_sweeps_equal_sparse_products(weak_problem, compact):
+    # mcsweep.solver.kernels (the PCG's hot path) against the same products formed with the
+    # sparse design matrix of the stored partials (independent of blocks.py and kernels.py)
+    from mcsweep.solver import kernels
+
+    P = weak_problem
+    problem = GlobalProblem(P["obs"], prior_diagonal(1.0, 10.0), P["ra"], P["dec"], block_stars=512,
+                            compact=compact)
+    A = _sparse_design(P, problem).tocsr()
+    n5 = problem.n_src
+    A_s, A_a = A[:, :n5], A[:, n5:]
+    rng = np.random.default_rng(71)
+    r_s, z_a = rng.normal(size=(problem.n_stars, 5)), rng.normal(size=(problem.n_coef, 3))
+    binv = problem.src_inv
+    y = np.einsum("nij,nj->ni", binv, r_s)
+    fwd = A_a.T @ (A_s @ y.ravel())
+    u = A_a @ z_a.ravel()
+    w = r_s - (A_s.T @ u).reshape(-1, 5)
+    z_s = np.einsum("nij,nj->ni", binv, w)
+    got_f, got_zs, got_ys, got_ya = np.zeros(problem.n_att), [], [], np.zeros(problem.n_att)
+    for b in problem.blocks:
+        rows = slice(b.first, b.first + b.n)
+        got_f += kernels.precondition_forward(b, y[rows]).ravel()
+        zs, ys, ya = kernels.precondition_back(b, r_s[rows], z_a)
+        got_zs.append(zs)
+        got_ys.append(ys.ravel())
+        got_ya += ya.ravel()
+    got_zs = np.concatenate(got_zs)
+    np.testing.assert_allclose(got_f, fwd, rtol=0, atol=RTOL_SUMS * np.abs(fwd).max())
+    # z_s = B^-1 w: rounding of w (other summation order) grows with each star's |B^-1|
+    # (condition up to ~1e10 for a star seen once under a loose prior)
+    scale = np.abs(binv).max(axis=(1, 2)) * np.abs(w).max(axis=1)
+    assert np.all(np.abs(got_zs - z_s).max(axis=1) <= RTOL_SUMS * 5 * scale)
+    f = u + A_s @ got_zs.ravel()  # the last products, from the kernel's own z_s
+    for got, want in ((np.concatenate(got_ys), A_s.T @ f), (got_ya, A_a.T @ f)):
+        np.testing.assert_allclose(got, want, rtol=0, atol=RTOL_SUMS * np.abs(want).max())

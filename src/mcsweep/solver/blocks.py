@@ -30,6 +30,7 @@ import dataclasses
 
 import numpy as np
 
+from . import kernels
 from .attitude_update import band_of_rows
 
 __all__ = ["StarBlock", "gather", "spline_values", "att_rows", "src_rows", "att_forward", "att_adjoint", "att_band", "src_forward",
@@ -58,8 +59,9 @@ class StarBlock:
     t : ndarray (m,)
         Epoch minus the reference epoch [Julian years]: the proper-motion partials are
         ``t * src[0]``, ``t * src[1]``.
-    pq : ndarray (6, n)
-        Each star's tangent directions ``p`` (rows 0-2) and ``q`` (rows 3-5), ICRS.
+    pq : ndarray (n, 6)
+        Each star's tangent directions ``p`` (columns 0-2) and ``q`` (columns 3-5), ICRS
+        (one row per star: the compiled passes read a star's six values together).
     j0 : ndarray (m,) int32
         First spline coefficient touching the epoch.
     bval : ndarray (4, m)
@@ -113,7 +115,7 @@ def gather(blk: StarBlock, sel=slice(None)) -> tuple[np.ndarray, np.ndarray]:
     star's ``p, q`` (6, m). One task computes it once and passes it to every product
     (``gathered=``) instead of each product gathering again."""
     star = blk.star[sel].astype(np.intp)
-    return star, blk.pq.take(star, axis=1)
+    return star, blk.pq.take(star, axis=0).T
 
 
 def att_rows(blk: StarBlock, sel=slice(None), gathered=None) -> np.ndarray:
@@ -276,22 +278,20 @@ def block_setup(blk: StarBlock, h) -> dict:
 
 # ------------------------------------------------------------------ iteration
 def block_precondition_forward(blk: StarBlock, r_s) -> np.ndarray:
-    """The block's part of ``N_as B^-1 r_s`` (n_coef, 3): first sweep of the preconditioner."""
-    g = gather(blk)
-    return att_adjoint(blk, src_forward(blk, _binv(blk, r_s), g), g)
+    """The block's part of ``N_as B^-1 r_s`` (n_coef, 3): first sweep of the preconditioner
+    (one compiled pass, :func:`~mcsweep.solver.kernels.precondition_forward`)."""
+    return kernels.precondition_forward(blk, _binv(blk, r_s))
 
 
 def block_precondition_back(blk: StarBlock, r_s, z_a) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Last sweep of the preconditioner and the data part of ``N z`` for the result.
 
     Returns ``z_s = B^-1 (r_s - N_sa z_a)`` (n, 5), and ``A' A z`` as (stars (n, 5),
-    attitude (n_coef, 3)).
+    attitude (n_coef, 3)) (compiled passes, :func:`~mcsweep.solver.kernels.precondition_back`;
+    the same products as :func:`att_forward`, :func:`src_adjoint`, :func:`src_forward` and
+    :func:`att_adjoint` in sequence).
     """
-    g = gather(blk)
-    u = att_forward(blk, z_a, g)
-    z_s = _binv(blk, r_s - src_adjoint(blk, u, g))
-    f = u + src_forward(blk, z_s, g)
-    return z_s, src_adjoint(blk, f, g), att_adjoint(blk, f, g)
+    return kernels.precondition_back(blk, r_s, z_a)
 
 
 def block_residuals(blk: StarBlock, h, x_s, x_a) -> np.ndarray:

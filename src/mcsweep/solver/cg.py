@@ -75,6 +75,7 @@ from scipy.linalg import LinAlgError, cho_solve_banded, cholesky_banded
 
 from ..astrometry.design import tangent_triad
 from . import blocks as B
+from . import kernels
 from .attitude_update import free_coefficients
 from .frame import precision_weights, rotation_matrices
 from .observations import Observations
@@ -142,7 +143,7 @@ def make_blocks(obs: Observations, ra_deg, dec_deg, *, block_stars: int = BLOCK_
     real = np.float32 if compact else np.float64
     star_int = np.int16 if block_stars <= np.iinfo(np.int16).max + 1 else np.int32
     p, q, _ = tangent_triad(np.asarray(ra_deg, dtype=float), np.asarray(dec_deg, dtype=float))
-    pq = np.concatenate([p.T, q.T])  # (6, n)
+    pq = np.column_stack([p, q])  # (n, 6)
     out = []
     for first in range(0, obs.n_stars, block_stars):
         last = min(first + block_stars, obs.n_stars)
@@ -155,7 +156,7 @@ def make_blocks(obs: Observations, ra_deg, dec_deg, *, block_stars: int = BLOCK_
                                rows=rows.astype(np.int32 if obs.size < 2**31 else np.int64),
                                star=(obs.star[rows] - first).astype(star_int),
                                src=np.ascontiguousarray(obs.src[rows, :3].T, dtype=np.float64),
-                               t=obs.t_yr[rows], pq=np.ascontiguousarray(pq[:, first:last]),
+                               t=obs.t_yr[rows], pq=np.ascontiguousarray(pq[first:last]),
                                j0=j0.astype(np.int32), bval=np.ascontiguousarray(obs.bval[rows].T, dtype=real),
                                binv=None, n_coef=obs.n_coef, seg=seg, seg_j0=j0[seg].astype(np.int64)))
     return out
@@ -292,17 +293,10 @@ class GlobalProblem:
         return out
 
     def frame_penalty(self, xs) -> np.ndarray:
-        """``F x`` (n, 5): the penalty of the weighted zero-mean rotation and spin constraint."""
-        out = np.zeros_like(xs)
-        g, K = self.frame_weights, self.K
-        # element-wise products and axis sums in a fixed order (rounding independent of
-        # memory alignment, see _dot), not einsum / matmul
-        for col, gk, w in ((0, g[:, 0], self.w_pos), (3, g[:, 1], self.w_pm)):
-            t = (gk * xs[:, col])[:, None] * K[:, 0, :] + (gk * xs[:, col + 1])[:, None] * K[:, 1, :]
-            c = np.sum(t, axis=0)
-            rot = K[:, :, 0] * c[0] + K[:, :, 1] * c[1] + K[:, :, 2] * c[2]  # (n, 2)
-            out[:, col:col + 2] = (w * gk)[:, None] * rot
-        return out
+        """``F x`` (n, 5): the penalty of the weighted zero-mean rotation and spin constraint
+        (one compiled pass over the stars, summed in star order,
+        :func:`~mcsweep.solver.kernels.frame_penalty`)."""
+        return kernels.frame_penalty(self.K, self.frame_weights, xs, self.w_pos, self.w_pm)
 
     def apply(self, v) -> np.ndarray:
         """``N v`` of the full system (unobserved attitude coefficients: identity rows)."""
@@ -481,15 +475,17 @@ def _pcg(pb: GlobalProblem, h, chunks, hs, run, run_it, *, rtol, update_tol_uas,
         back = _ordered(run_it, _back_task, [(i, bl, hh, r_s[sl], z_a)
                                              for i, (bl, hh, sl) in enumerate(zip(chunks, hs, stars))])
         z_s = np.concatenate([o[0] for o in back])
-        nz_s = np.concatenate([o[1] for o in back]) + extra_s(z_s)
+        e_s = extra_s(z_s)
+        nz_s = np.concatenate([o[1] for o in back]) + e_s
         nz_a = pairwise_sum(o[2] for o in back)
         nz_a[~free] = z_a[~free]
-        return z_s, z_a, nz_s, nz_a
+        return z_s, z_a, nz_s, nz_a, e_s
 
     hh = glob["hh"]
     x_s, x_a = np.zeros_like(b_s), np.zeros_like(b_a)
     r_s, r_a = b_s.copy(), b_a.copy()
-    p_s, p_a, q_s, q_a = precondition(r_s, r_a)
+    p_s, p_a, q_s, q_a, e_p = precondition(r_s, r_a)
+    e_x = np.zeros_like(x_s)  # (N_p + F) x_s and (N_p + F) p_s by the same recursions as x and q
     rz = float(_dot(r_s, p_s) + _dot(r_a, p_a))
     history, converged = [], False
     t0 = time.perf_counter()
@@ -500,11 +496,12 @@ def _pcg(pb: GlobalProblem, h, chunks, hs, run, run_it, *, rtol, update_tol_uas,
         alpha = rz / pq
         x_s += alpha * p_s
         x_a += alpha * p_a
+        e_x += alpha * e_p
         r_s -= alpha * q_s
         r_a -= alpha * q_a
         # |h - A x|^2 = h'h - 2 x'b + x'A'A x with A'A x = b - r - (N_p + F) x_s
         res2 = (hh - float(_dot(x_s, b_s + r_s) + _dot(x_a, b_a + r_a))
-                - _dot(x_s, extra_s(x_s)))
+                - _dot(x_s, e_x))
         step_s, step_a = alpha * p_s, alpha * p_a
         rec = ConvergenceRecord(
             iteration=it,
@@ -521,11 +518,12 @@ def _pcg(pb: GlobalProblem, h, chunks, hs, run, run_it, *, rtol, update_tol_uas,
         if it >= min_iter and rec.update_max_uas < update_tol_uas and rec.relative_residual < rtol:
             converged = True
             break
-        z_s, z_a, nz_s, nz_a = precondition(r_s, r_a)
+        z_s, z_a, nz_s, nz_a, e_z = precondition(r_s, r_a)
         rz_new = float(_dot(r_s, z_s) + _dot(r_a, z_a))
         beta = rz_new / rz
         p_s, p_a = z_s + beta * p_s, z_a + beta * p_a
         q_s, q_a = nz_s + beta * q_s, nz_a + beta * q_a   # N p without another pass
+        e_p = e_z + beta * e_p
         rz = rz_new
     out = _ordered(run, _residual_task, [(i, bl, hh_, x_s[sl], x_a, residuals)
                                           for i, (bl, hh_, sl) in enumerate(zip(chunks, hs, stars))])

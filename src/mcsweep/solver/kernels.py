@@ -1,0 +1,203 @@
+"""Compiled passes over a block's measurements: the two preconditioner sweeps of every PCG iteration.
+
+These are the solver's hot path (issue 23: every iteration reads every measurement
+three times). In numpy each product of :mod:`~mcsweep.solver.blocks` is a vector
+operation with its own temporaries, so one pass streams some 30 measurement-length
+arrays through memory; here one loop reads each measurement's 70 stored bytes once and
+keeps everything else in registers. Measured with ``benchmarks/bench_primary.py``
+(docs/table3.md, "Speed").
+
+The loops run over the block's measurements in their stored (time) order and add into
+the per-star and attitude sums in that order, one measurement after the other: no
+reassociation (numba compiles without ``fastmath``), so a block's result does not
+depend on the process, the memory alignment or the chunking, and the solver's fixed
+reduction order over blocks (:mod:`~mcsweep.solver.reduction`) keeps solutions
+bit-identical across workers and backends.
+
+Notation as in :mod:`~mcsweep.solver.blocks`: ``src (3, m)`` partials w.r.t. (alpha*,
+delta, parallax), ``t (m,)`` epochs, ``star (m,)`` star in the block, ``j0 (m,)`` first
+spline coefficient, ``bval (4, m)`` spline values, ``pq (n, 6)`` each star's ``p, q``,
+``binv (n, 5, 5)``.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+__all__ = ["precondition_forward", "precondition_back", "frame_penalty"]
+
+_jit = numba.njit(cache=True, nogil=True, fastmath=False, error_model="numpy", boundscheck=False)
+
+
+@_jit
+def _forward(src, t, star, seg, seg_j0, bval, pq, y, out):
+    """``out += A_a' A_s y`` for per-star ``y (n, 5)``: ``out (n_coef, 3)``.
+
+    Measurements come in runs of equal first coefficient (``seg``, ``seg_j0``): a run's
+    attitude sums are kept in registers and added to ``out`` once, which spares each
+    measurement a chain of twelve dependent memory updates.
+    """
+    m = t.shape[0]
+    for r in range(seg.shape[0]):
+        hi = seg[r + 1] if r + 1 < seg.shape[0] else m
+        a00 = a01 = a02 = a10 = a11 = a12 = a20 = a21 = a22 = a30 = a31 = a32 = 0.0
+        for i in range(seg[r], hi):
+            s = star[i]
+            sa, sd, ti = src[0, i], src[1, i], t[i]
+            v = sa * (y[s, 0] + ti * y[s, 3]) + sd * (y[s, 1] + ti * y[s, 4]) + src[2, i] * y[s, 2]
+            wd, wa = sd * v, sa * v
+            w0 = wd * pq[s, 0] - wa * pq[s, 3]
+            w1 = wd * pq[s, 1] - wa * pq[s, 4]
+            w2 = wd * pq[s, 2] - wa * pq[s, 5]
+            b0, b1, b2, b3 = bval[0, i], bval[1, i], bval[2, i], bval[3, i]
+            a00 += b0 * w0
+            a01 += b0 * w1
+            a02 += b0 * w2
+            a10 += b1 * w0
+            a11 += b1 * w1
+            a12 += b1 * w2
+            a20 += b2 * w0
+            a21 += b2 * w1
+            a22 += b2 * w2
+            a30 += b3 * w0
+            a31 += b3 * w1
+            a32 += b3 * w2
+        j = seg_j0[r]
+        out[j, 0] += a00
+        out[j, 1] += a01
+        out[j, 2] += a02
+        out[j + 1, 0] += a10
+        out[j + 1, 1] += a11
+        out[j + 1, 2] += a12
+        out[j + 2, 0] += a20
+        out[j + 2, 1] += a21
+        out[j + 2, 2] += a22
+        out[j + 3, 0] += a30
+        out[j + 3, 1] += a31
+        out[j + 3, 2] += a32
+
+
+@_jit
+def _back(src, t, star, seg, seg_j0, bval, pq, binv, r_s, z_a, z_s, ys, ya, u):
+    """Last preconditioner sweep and ``A' A z`` (:func:`precondition_back`); ``u (m,)`` scratch.
+    Runs of equal first coefficient as in :func:`_forward`."""
+    n = r_s.shape[0]
+    m = t.shape[0]
+    acc = np.zeros((n, 5))
+    for r in range(seg.shape[0]):  # u = A_a z_a, acc = A_s' u
+        hi = seg[r + 1] if r + 1 < seg.shape[0] else m
+        j = seg_j0[r]
+        z00, z01, z02 = z_a[j, 0], z_a[j, 1], z_a[j, 2]
+        z10, z11, z12 = z_a[j + 1, 0], z_a[j + 1, 1], z_a[j + 1, 2]
+        z20, z21, z22 = z_a[j + 2, 0], z_a[j + 2, 1], z_a[j + 2, 2]
+        z30, z31, z32 = z_a[j + 3, 0], z_a[j + 3, 1], z_a[j + 3, 2]
+        for i in range(seg[r], hi):
+            s = star[i]
+            b0, b1, b2, b3 = bval[0, i], bval[1, i], bval[2, i], bval[3, i]
+            v0 = b0 * z00 + b1 * z10 + b2 * z20 + b3 * z30
+            v1 = b0 * z01 + b1 * z11 + b2 * z21 + b3 * z31
+            v2 = b0 * z02 + b1 * z12 + b2 * z22 + b3 * z32
+            ap = pq[s, 0] * v0 + pq[s, 1] * v1 + pq[s, 2] * v2
+            aq = pq[s, 3] * v0 + pq[s, 4] * v1 + pq[s, 5] * v2
+            sa, sd, ti = src[0, i], src[1, i], t[i]
+            ui = sd * ap - sa * aq
+            u[i] = ui
+            wa, wd = sa * ui, sd * ui
+            acc[s, 0] += wa
+            acc[s, 1] += wd
+            acc[s, 2] += src[2, i] * ui
+            acc[s, 3] += ti * wa
+            acc[s, 4] += ti * wd
+    for s in range(n):  # z_s = B^-1 (r_s - A_s' u)
+        for a in range(5):
+            w = 0.0
+            for b in range(5):
+                w += binv[s, a, b] * (r_s[s, b] - acc[s, b])
+            z_s[s, a] = w
+    for r in range(seg.shape[0]):  # f = u + A_s z_s; ys = A_s' f, ya = A_a' f
+        hi = seg[r + 1] if r + 1 < seg.shape[0] else m
+        a00 = a01 = a02 = a10 = a11 = a12 = a20 = a21 = a22 = a30 = a31 = a32 = 0.0
+        for i in range(seg[r], hi):
+            s = star[i]
+            sa, sd, ti = src[0, i], src[1, i], t[i]
+            f = u[i] + sa * (z_s[s, 0] + ti * z_s[s, 3]) + sd * (z_s[s, 1] + ti * z_s[s, 4]) + src[2, i] * z_s[s, 2]
+            wa, wd = sa * f, sd * f
+            ys[s, 0] += wa
+            ys[s, 1] += wd
+            ys[s, 2] += src[2, i] * f
+            ys[s, 3] += ti * wa
+            ys[s, 4] += ti * wd
+            w0 = wd * pq[s, 0] - wa * pq[s, 3]
+            w1 = wd * pq[s, 1] - wa * pq[s, 4]
+            w2 = wd * pq[s, 2] - wa * pq[s, 5]
+            b0, b1, b2, b3 = bval[0, i], bval[1, i], bval[2, i], bval[3, i]
+            a00 += b0 * w0
+            a01 += b0 * w1
+            a02 += b0 * w2
+            a10 += b1 * w0
+            a11 += b1 * w1
+            a12 += b1 * w2
+            a20 += b2 * w0
+            a21 += b2 * w1
+            a22 += b2 * w2
+            a30 += b3 * w0
+            a31 += b3 * w1
+            a32 += b3 * w2
+        j = seg_j0[r]
+        ya[j, 0] += a00
+        ya[j, 1] += a01
+        ya[j, 2] += a02
+        ya[j + 1, 0] += a10
+        ya[j + 1, 1] += a11
+        ya[j + 1, 2] += a12
+        ya[j + 2, 0] += a20
+        ya[j + 2, 1] += a21
+        ya[j + 2, 2] += a22
+        ya[j + 3, 0] += a30
+        ya[j + 3, 1] += a31
+        ya[j + 3, 2] += a32
+
+
+def precondition_forward(blk, y) -> np.ndarray:
+    """``A_a' A_s y`` (n_coef, 3) of the block for per-star ``y (n, 5)`` (``B^-1 r_s``)."""
+    out = np.zeros((blk.n_coef, 3))
+    _forward(blk.src, blk.t, blk.star, blk.seg, blk.seg_j0, blk.bval, blk.pq, np.ascontiguousarray(y, dtype=float), out)
+    return out
+
+
+def precondition_back(blk, r_s, z_a) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``z_s = B^-1 (r_s - A_s' A_a z_a)`` (n, 5) and ``A' A z`` as (stars (n, 5), attitude (n_coef, 3))."""
+    z_s, ys = np.empty((blk.n, 5)), np.zeros((blk.n, 5))
+    ya = np.zeros((blk.n_coef, 3))
+    _back(blk.src, blk.t, blk.star, blk.seg, blk.seg_j0, blk.bval, blk.pq, blk.binv, np.ascontiguousarray(r_s, dtype=float),
+          np.ascontiguousarray(z_a, dtype=float), z_s, ys, ya, np.empty(blk.t.shape[0]))
+    return z_s, ys, ya
+
+
+@_jit
+def _frame_penalty(K, g, xs, w, out):
+    n = xs.shape[0]
+    for col, kk in ((0, 0), (3, 1)):
+        c0 = 0.0
+        c1 = 0.0
+        c2 = 0.0
+        for s in range(n):  # the weighted mean rotation, summed star after star
+            a = g[s, kk] * xs[s, col]
+            d = g[s, kk] * xs[s, col + 1]
+            c0 += a * K[s, 0, 0] + d * K[s, 1, 0]
+            c1 += a * K[s, 0, 1] + d * K[s, 1, 1]
+            c2 += a * K[s, 0, 2] + d * K[s, 1, 2]
+        for s in range(n):
+            f = w[kk] * g[s, kk]
+            out[s, col] = f * (K[s, 0, 0] * c0 + K[s, 0, 1] * c1 + K[s, 0, 2] * c2)
+            out[s, col + 1] = f * (K[s, 1, 0] * c0 + K[s, 1, 1] * c1 + K[s, 1, 2] * c2)
+
+
+def frame_penalty(K, g, xs, w_pos: float, w_pm: float) -> np.ndarray:
+    """``F x`` (n, 5) of :meth:`~mcsweep.solver.cg.GlobalProblem.frame_penalty` for rotation
+    matrices ``K (n, 2, 3)``, weights ``g (n, 2)`` (position, proper motion) and ``xs (n, 5)``."""
+    out = np.zeros(xs.shape)
+    _frame_penalty(np.ascontiguousarray(K, dtype=float), np.ascontiguousarray(g, dtype=float),
+                   np.ascontiguousarray(xs, dtype=float), np.array([w_pos, w_pm]), out)
+    return out

@@ -35,6 +35,7 @@ from ..query import COLUMNS, POPULATION_CATEGORIES, ConeQuery
 from . import parameters as P
 from .density import component_shape, heliocentric_to_galactocentric
 from .extinction import AG_OVER_AV, AV_PER_KPC, DUST_SCALE_HEIGHT_PC, DUST_SCALE_LENGTH_KPC, DustModel
+from .extinction_arenou import ArenouDust
 from .kinematics import AstrometryTransform, draw_velocities, mean_lag_kms
 from .luminosity import build_luminosity_table
 
@@ -59,6 +60,7 @@ DEFAULT_PARAMS = {
     "v_circ_kms": P.V_CIRC_KMS,
     "thin_disc_scale_height_factor": P.THIN_DISC_THICKNESS_FACTOR,
     "extinction": True,
+    "extinction_model": "disc",
     "dust_av_per_kpc": AV_PER_KPC,
     "dust_scale_length_kpc": DUST_SCALE_LENGTH_KPC,
     "dust_scale_height_pc": DUST_SCALE_HEIGHT_PC,
@@ -67,6 +69,10 @@ DEFAULT_PARAMS = {
     "count": "poisson",
     "multiplicity_frequency": P.MULTIPLICITY_FREQUENCY,
 }
+
+#: ``extinction_model`` values: the smooth exponential disc (:mod:`.extinction`) alone, or
+#: Arenou et al. (1992) near the Sun joined to the disc beyond (:mod:`.extinction_arenou`).
+EXTINCTION_MODELS = ("disc", "arenou1992")
 
 _POSITIVE = ("r0_kpc", "v_circ_kms", "thin_disc_scale_height_factor", "dust_scale_length_kpc",
              "dust_scale_height_pc", "ag_over_av")
@@ -90,6 +96,9 @@ def _check_params(p):
     if not isinstance(p["extinction"], (bool, np.bool_)):
         raise UserInputError(f"galaxy_model: extinction={p['extinction']!r} is not accepted; "
                              "expected true or false")
+    if p["extinction_model"] not in EXTINCTION_MODELS:
+        raise UserInputError(f"galaxy_model: extinction_model={p['extinction_model']!r} is not "
+                             f"accepted; expected one of {list(EXTINCTION_MODELS)}")
     comps = p["components"]
     if isinstance(comps, str) or not comps or any(c not in POPULATION_CATEGORIES for c in comps):
         raise UserInputError(f"galaxy_model: components={comps!r} is not accepted; expected a "
@@ -181,6 +190,8 @@ class GalaxyModel:
             av_per_kpc=p["dust_av_per_kpc"] if p["extinction"] else 0.0,
             scale_length_kpc=p["dust_scale_length_kpc"], scale_height_pc=p["dust_scale_height_pc"],
             ag_over_av=p["ag_over_av"], r0_kpc=p["r0_kpc"], z_sun_pc=p["z_sun_pc"])
+        self.arenou = (ArenouDust(self.dust, ag_over_av=p["ag_over_av"])
+                       if p["extinction"] and p["extinction_model"] == "arenou1992" else None)
         u, v, w = P.SOLAR_PECULIAR_KMS
         self.transform = AstrometryTransform(r0_kpc=p["r0_kpc"], z_sun_pc=p["z_sun_pc"],
                                              v_sun_kms=(u, p["v_circ_kms"] + v, w))
@@ -221,7 +232,10 @@ class GalaxyModel:
         dn *= shell_pc3[None, None, :] * grid.solid_angle_sr[:, None, None]
         xe, ye, ze = heliocentric_to_galactocentric(grid.l_deg[:, None], grid.b_deg[:, None],
                                                     d_edges_pc[None, :] * 1e-3, **geo)
-        a_nodes = self.dust.a_g(xe, ye, ze, d_edges_pc * 1e-3)
+        if self.arenou is None:
+            a_nodes = self.dust.a_g(xe, ye, ze, d_edges_pc * 1e-3)
+        else:
+            a_nodes = self.arenou.a_g(grid.l_deg, grid.b_deg, xe, ye, ze, d_edges_pc * 1e-3)
         los = _LineOfSight(grid, mu_edges, d_edges_pc ** 3, mu_mid, dn, a_nodes,
                            0.5 * (a_nodes[:, 1:] + a_nodes[:, :-1]))
         self._cache[key] = los

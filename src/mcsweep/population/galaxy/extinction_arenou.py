@@ -43,8 +43,8 @@ exponential disc's increment, ``A(d) = A_AGG92(d_lim) + A_disc(d) - A_disc(d_lim
 within it AGG92 alone (its gamma included). At high latitude the disc adds little beyond
 |z| = 200 pc from the Sun (11-18 % of its column on either side, < 0.02 mag), in the plane it carries
 the extinction to the distant stars (G = 17-20) that AGG92's data never reached. AGG92's
-gamma beyond 2 kpc (0-0.37 mag/kpc, many cells 0) was fitted to few stars and would leave
-the distant disc almost transparent; the disc's 0.7 mag/kpc at the solar radius is the
+gamma (0-0.37 mag/kpc; 0 in 16 of the 36 plane cells) was fitted to stars within the limit
+and would leave the distant disc almost transparent; the disc's 0.7 mag/kpc at the solar radius is the
 published local mean (Sharma et al. 2011).
 """
 

@@ -2,6 +2,7 @@
 
 Modules: :mod:`.parameters` (published numbers), :mod:`.density` (density laws),
 :mod:`.luminosity` (luminosity functions in M_G), :mod:`.extinction` (dust disc),
+:mod:`.extinction_arenou` (Arenou et al. 1992 3-D extinction, ``extinction_model=arenou1992``),
 :mod:`.kinematics` (velocities and astrometry), :mod:`.model` (:class:`GalaxyModel`).
 """
 

@@ -115,6 +115,7 @@ def test_bad_prior_through_cli_exits_2_in_one_line_and_leaves_no_output(tmp_path
     ("experiment.primary.factor_grid=[2,2]", "factor_grid"),
     ("experiment.primary.frame_fit=median", "frame_fit"),
     ("experiment.primary.knot_transits=0.5", "knot_transits"),
+    ("experiment.primary.evaluation_epoch=star", "evaluation_epoch"),
 ])
 def test_bad_settings_are_user_errors(override, key):
     with pytest.raises(UserInputError, match=key):
@@ -334,3 +335,34 @@ def test_unconverged_solution_ends_the_run_in_one_line_and_writes_no_table(tmp_p
     md = (tmp_path / "kept" / "table3.md").read_text()
     rows = [ln for ln in md.splitlines() if ln.startswith("| ") and "sigma_F90" in ln]
     assert len(rows) == 2 * 2 and all("(NOT converged)" in ln for ln in rows)  # both priors, both subsets
+
+
+def test_positions_at_a_stars_own_epoch_equal_a_solution_referred_to_it():
+    # evaluation_epoch='star_mean' (issue 24, candidate 5): the propagated position and
+    # covariance against an independent solution of the same data whose design matrix is
+    # referred to the other epoch (the prior of Eq. 18 leaves positions free, so the two
+    # parametrisations give the same posterior).
+    from mcsweep.astrometry.design import design_matrix
+    from mcsweep.astrometry.solve import normal_equations, solve_with_prior
+
+    rng = np.random.default_rng(5)
+    n, k = 40, 3
+    ra, dec = rng.uniform(0, 360, n), rng.uniform(-80, 80, n)
+    t = np.sort(rng.uniform(-0.5, 0.5, (n, k)), axis=1)  # years from the reference epoch
+    psi = rng.uniform(0, 360, (n, k))
+    obs = rng.normal(0, 1, (n, k, 3))
+    tau = t.mean(axis=1)
+    kw = dict(sigma_al_mas=0.3, sigma_ac_mas=1.0)
+    A0 = design_matrix(ra, dec, t, psi, obs, **kw)
+    A1 = design_matrix(ra, dec, t - tau[:, None], psi, obs, **kw)
+    h = rng.normal(0, 1, A0.shape[:2])
+    sols = [solve_with_prior(*normal_equations(A, h), 1000.0) for A in (A0, A1)]
+    pos, cov = P.positions_at(sols[0].x, sols[0].cov, tau)
+    scale = np.abs(sols[1].cov[:, :2, :2]).max()
+    np.testing.assert_allclose(pos, sols[1].x[:, :2], rtol=0, atol=PROPAGATION_RTOL * np.abs(sols[1].x).max())
+    np.testing.assert_allclose(cov, sols[1].cov[:, :2, :2], rtol=0, atol=PROPAGATION_RTOL * scale)
+
+
+#: Two solutions of the same equations in other parameters (rounding of 5 x 5 solves whose
+#: condition reaches ~1e8 with a 1000 mas prior and three transits).
+PROPAGATION_RTOL = 1e-7

@@ -96,6 +96,7 @@ __all__ = [
     "build_settings",
     "stream_seed",
     "transits_of",
+    "positions_at",
     "prepare",
     "solve_prior",
     "attitude_error",
@@ -134,6 +135,7 @@ class PrimarySettings(GlobalSettings):
     max_iter: int
     allow_unconverged: bool = False
     frame_fit: str = "precision"
+    evaluation_epoch: str = "reference"
 
 
 def build_settings(config) -> PrimarySettings:
@@ -161,7 +163,7 @@ def build_settings(config) -> PrimarySettings:
         attitude_timescale_days=float(pri.attitude_timescale_hours) / 24.0,
         rtol=float(pri.solver_rtol), update_tol_uas=float(pri.solver_update_tol_uas),
         max_iter=int(pri.solver_max_iter), allow_unconverged=bool(pri.allow_unconverged),
-        frame_fit=str(pri.frame_fit))
+        frame_fit=str(pri.frame_fit), evaluation_epoch=str(pri.evaluation_epoch))
 
 
 # --------------------------------------------------------------------------- data
@@ -180,7 +182,8 @@ class PreparedData:
     at the paper's 1.5e6 stars that would double the largest arrays of the run.
     """
 
-    stars: pd.DataFrame      # STAR_COLUMNS + 'class_key' (round(100 G0), 0 = primary) + 'n_fov'
+    stars: pd.DataFrame      # STAR_COLUMNS + 'class_key' (round(100 G0), 0 = primary) + 'n_fov',
+    #                          'epoch_offset_yr' (mean live epoch - reference), 'span_days' (live transits)
     solved: np.ndarray       # indices into ``stars`` of the stars in the solution (>= 1 transit)
     blocks: list             # solver StarBlocks of the solved stars (mcsweep.solver.make_blocks)
     normals: np.ndarray      # (n_solved, 5, 5) data normal matrices of the solved stars
@@ -307,6 +310,18 @@ def prepare(settings: PrimarySettings, stars: pd.DataFrame, transits: dict, *,
     n_fov = np.bincount(star, weights=live, minlength=n).astype(np.int64)
     stars = stars.copy()
     stars["n_fov"] = n_fov
+    # Each star's mean epoch of its live transits relative to the reference epoch, and their
+    # time span (evaluation_epoch='star_mean'; the time spans of the <= 4 transit subset).
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean_t = np.bincount(star, weights=np.where(live, t, 0.0), minlength=n) / n_fov
+    stars["epoch_offset_yr"] = (mean_t - settings.t_ref_jd) / JULIAN_YEAR_DAYS
+    t_live = np.where(live, t, np.nan)
+    span = np.full(n, np.nan)
+    if star.size:
+        starts = np.flatnonzero(np.r_[True, star[1:] != star[:-1]])
+        with np.errstate(invalid="ignore"):
+            span[star[starts]] = (np.fmax.reduceat(t_live, starts) - np.fmin.reduceat(t_live, starts))
+    stars["span_days"] = span
     g = stars["phot_g_mean_mag"].to_numpy()
     solved = np.flatnonzero(n_fov > 0)
     if settings.noise.use_ac is False:  # AL only: a position needs two transits
@@ -392,6 +407,20 @@ def attitude_error_series(data: PreparedData, coef, eps, omega, *, per_knot: int
                          "z_uas": err[:, 2].astype(np.float32)})
 
 
+def positions_at(x, cov, tau_yr) -> tuple[np.ndarray, np.ndarray]:
+    """Position offsets (n, 2) [mas] and their covariances (n, 2, 2) at ``tau_yr`` Julian years
+    from the reference epoch, from five-parameter offsets ``x (n, 5)`` and covariances
+    ``cov (n, 5, 5)`` there: ``position + tau * proper motion`` (Eq. 1's linear motion),
+    exactly. The prior of Eq. 18 constrains only parallax and proper motion, so this equals a
+    solution referred to the epoch ``tau`` itself (tests)."""
+    tau = np.asarray(tau_yr, dtype=float)
+    C = np.asarray(cov, dtype=float)
+    pos = x[:, :2] + tau[:, None] * x[:, 3:5]
+    cov_pos = (C[:, :2, :2] + tau[:, None, None] * (C[:, :2, 3:5] + C[:, 3:5, :2])
+               + (tau ** 2)[:, None, None] * C[:, 3:5, 3:5])
+    return pos, cov_pos
+
+
 def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=None, *, run=None,
                 chunk_stars=None, workers: int = 1):
     """One global solution for the prior ``label``: (per-star results, history, attitude errors).
@@ -426,13 +455,16 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
     # collapse); not the default.
     eps, omega = fit_frame(dx, ra, dec, weights=weights if settings.frame_fit == "precision" else None)
     dx = dx - frame_offsets(ra, dec, eps, omega)
+    pos, cov_pos = dx[:, :2], sol.cov[:, :2, :2]
+    if settings.evaluation_epoch == "star_mean":
+        pos, cov_pos = positions_at(dx, sol.cov, st["epoch_offset_yr"].to_numpy()[s])
     # The project's one inside rule; -1 marks a star without a confidence region.
-    good = np.isfinite(mahalanobis_sq(dx[:, :2], sol.cov[:, :2, :2]))
+    good = np.isfinite(mahalanobis_sq(pos, cov_pos))
     n = len(st)
     inside = np.full(n, -1, dtype=np.int8)
-    inside[s[good]] = inside_ellipse(dx[good, :2], sol.cov[good, :2, :2], settings.confidence)
+    inside[s[good]] = inside_ellipse(pos[good], cov_pos[good], settings.confidence)
     err = np.full(n, np.nan)
-    err[s] = np.hypot(dx[:, 0], dx[:, 1])
+    err[s] = np.hypot(pos[:, 0], pos[:, 1])
     err_plx = np.full(n, np.nan)
     err_plx[s] = dx[:, 2]
     sigma_prior = np.full(n, np.nan)
@@ -440,7 +472,8 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
     res = pd.DataFrame({"star": np.arange(n, dtype=np.int32), "class_key": st["class_key"].to_numpy(),
                         "n_fov": st["n_fov"].to_numpy().astype(np.int16), "inside": inside,
                         "err_mas": err.astype(np.float32),
-                        "err_parallax_mas": err_plx.astype(np.float32), "sigma_prior_mas": sigma_prior.astype(np.float32)})
+                        "err_parallax_mas": err_plx.astype(np.float32), "sigma_prior_mas": sigma_prior.astype(np.float32),
+                        "span_days": st["span_days"].to_numpy().astype(np.float32)})
     sq = np.zeros(3)
     for b in data.blocks:  # block by block: bounded temporaries at any number of measurements
         est = spline_values(b, sol.attitude).T  # from the block's own spline values

@@ -65,6 +65,20 @@ def solution_line(label: str, extra: dict) -> str:
             f"{extra['converged']}, attitude error RMS {rms} uas (x / y / z)")
 
 
+def few_transit_spans(stars, g_classes) -> str:
+    """The note on the <= 4 transit subset's time spans (issue 24, candidate 5): whether its
+    stars were seen in one visit or in several months apart decides their errors."""
+    parts = []
+    for g in g_classes:
+        sub = stars[(stars["class_key"] == class_key(g)) & stars["n_fov"].between(1, 4)]
+        if len(sub):
+            q = np.nanquantile(sub["span_days"].to_numpy(), [0.1, 0.5, 0.9])
+            parts.append(f"G~{g:g}: {q[1]:.3g} d [{q[0]:.3g}-{q[2]:.3g}], {np.mean(sub['span_days'] < 1):.0%} "
+                         "within a day")
+    return ("Time span of the live transits of the <= 4 transit stars, median [10-90 %]: " + "; ".join(parts)
+            + ".") if parts else ""
+
+
 def knot_rule(pri) -> str:
     """How the knot interval was chosen, as the notes of Table 3 say it."""
     if pri.knot_transits is None:
@@ -205,7 +219,10 @@ def _aggregate(run: GlobalRun, computed: _Computed) -> dict[str, str]:
              f"knot interval {data.knot_interval_hours:.3g} h ({knot_rule(pri)}), "
              f"{data.transits_per_knot:.1f} FoV transits per knot, {3 * data.spline.n_coef} coefficients; "
              f"true attitude = law + {pri.attitude_amplitude_mas:g} mas "
-             f"random spline rotation on a {pri.attitude_timescale_hours:g} h time scale.",
+             f"random spline rotation on a {pri.attitude_timescale_hours:g} h time scale."
+             + (" Positions evaluated at each star's own mean epoch of its live transits "
+                "(experiment.primary.evaluation_epoch=star_mean)." if settings.evaluation_epoch == "star_mean" else ""),
+             *filter(None, [few_transit_spans(data.stars, pri.g_classes)]),
              "PCG iterations / attitude error RMS (x, y, z) [uas] after the frame correction: "
              + "; ".join(f"{k}: {e['iterations']} ({'converged' if e['converged'] else 'NOT converged'}), "
                          + ", ".join(f"{v:.2f}" for v in e["attitude_rms_uas"]) for k, e in extras.items())

@@ -50,12 +50,31 @@ def _science_part(cfg: dict) -> dict:
             node = child
         else:
             node.pop(leaf, None)
-    # noise.al_floor_mas = 0 (the default) is the model from before the option existed:
-    # left out so run directories made before it keep their hash (and can be resumed).
-    noise = out.get("noise")
-    if isinstance(noise, dict) and noise.get("al_floor_mas", None) == 0:
-        out["noise"] = {k: v for k, v in noise.items() if k != "al_floor_mas"}
+    # Options whose default is the model from before the option existed: left out at that
+    # value so run directories made before it keep their hash (and can be resumed).
+    for dotted, before in _DEFAULTS_FROM_BEFORE.items():
+        *parents, leaf = dotted.split(".")
+        node = out
+        for k in parents:
+            if not isinstance(node.get(k), dict):
+                break
+            node = node[k]
+        else:
+            if leaf in node and node[leaf] == before:
+                node = out
+                for k in parents:  # copy on the way down: cfg itself stays whole
+                    node[k] = dict(node[k])
+                    node = node[k]
+                node.pop(leaf)
     return out
+
+
+#: dotted key -> the value that reproduces the model from before the option existed.
+_DEFAULTS_FROM_BEFORE = {
+    "noise.al_floor_mas": 0,
+    "population.params.extinction_model": "disc",
+    "experiment.primary.evaluation_epoch": "reference",
+}
 
 
 def config_hash(cfg: dict) -> str:

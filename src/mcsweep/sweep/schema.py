@@ -386,9 +386,13 @@ class PrimaryConf:
     factor_grid: List[float] = field(default_factory=list)
     factor_resamples: int = 200
     frame_fit: str = "precision"
+    evaluation_epoch: str = "reference"
 
     def __post_init__(self):
         _check_reference_epoch("experiment.primary.reference_epoch", self.reference_epoch)
+        _require(self.evaluation_epoch in ("reference", "star_mean"), "experiment.primary.evaluation_epoch",
+                 self.evaluation_epoch, "'reference' (the solution's epoch) or 'star_mean' (each star's mean "
+                 "epoch of its transits)")
         _require(all(math.isfinite(k) and k > 0 for k in self.factor_grid)
                  and len(set(self.factor_grid)) == len(self.factor_grid),
                  "experiment.primary.factor_grid", list(self.factor_grid),

@@ -24,6 +24,7 @@ from typing import Any
 from .. import __version__
 from ..errors import UserInputError
 from .schema import IGNORED_BY_EXPERIMENT
+from ..population.galaxy.parameters import GIANT_THICKNESS_FACTOR
 from ..population.galaxy.parameters import MODEL_VERSION as GALAXY_MODEL_VERSION
 from .store import atomic_write_bytes
 from .version import git_commit
@@ -55,6 +56,13 @@ def _science_part(cfg: dict) -> dict:
     noise = out.get("noise")
     if isinstance(noise, dict) and noise.get("al_floor_mas", None) == 0:
         out["noise"] = {k: v for k, v in noise.items() if k != "al_floor_mas"}
+    # population.params.giant_thickness_factor at its default is the model from before the
+    # key was exposed (issue 25): left out for the same reason.
+    pop = out.get("population")
+    params = pop.get("params") if isinstance(pop, dict) else None
+    if isinstance(params, dict) and params.get("giant_thickness_factor", None) == GIANT_THICKNESS_FACTOR:
+        out["population"] = {**pop, "params": {k: v for k, v in params.items()
+                                               if k != "giant_thickness_factor"}}
     return out
 
 

@@ -129,7 +129,11 @@ GCNS_MG_LIMIT = 15.5
 #: (x 1.0: 284 pc). Bovy (2017, abstract [V]) finds sech^2 profiles with scale heights
 #: ~150 pc for giants: 126 pc is what sech^2(z / h) with h = 150 pc gives (half density
 #: at 0.88 h = 132 pc); with the convention sech^2(z / 2h) it would be 264 pc. The
-#: abstract does not say which; the counts decide (docs/galaxy_model.md).
+#: abstract does not say which; the counts decide (docs/galaxy_model.md). User-adjustable as
+#: ``population.params.giant_thickness_factor`` (:func:`thin_disc_giants`). With the
+#: Arenou et al. (1992) dust, issue 25 repeated the calibration (report/thickness_grid.py):
+#: x 0.60 (thin disc x 1.18) meets G = 4-10, the beam and the DR3 total, but G = 11-13 stay
+#: 13-17 % low for every factor the beam and the published scale heights allow.
 GIANT_THICKNESS_FACTOR = 0.45
 #: Factor on the velocity dispersions (U, V and W) of the giant-only thin-disc components,
 #: so that their kinematics match their thinner discs (issue #14). The thickness of an

@@ -119,8 +119,25 @@ def test_extinction_and_thin_disc_parameters_act_in_the_expected_direction():
     assert set(only_halo) == {"halo"}
 
 
+def test_giant_thickness_factor_scales_the_giants_discs_and_velocities_only():
+    from mcsweep.population.galaxy import parameters as P
+    default, thick = GalaxyModel(), GalaxyModel(giant_thickness_factor=0.9)
+    assert default.components == P.COMPONENTS
+    for c0, c1 in zip(default.components, thick.components):
+        if c0.lf_part == "giants":
+            assert c1.eps == pytest.approx(c0.eps * 2.0)
+            assert np.allclose(c1.sigma_uvw, np.array(c0.sigma_uvw) * np.sqrt(2.0))
+        else:
+            assert c1 == c0
+    # the local luminosity function does not depend on the giants' thickness
+    assert np.array_equal(default.lf.cdf, thick.lf.cdf)
+    # thicker giants: more bright stars at high latitude
+    assert thick.expected_count(0, 90, 10, 6, 8) > default.expected_count(0, 90, 10, 6, 8)
+
+
 @pytest.mark.parametrize("kwargs, word", [
     ({"thin_disc_scale_height_factor": -1}, "thin_disc_scale_height_factor"),
+    ({"giant_thickness_factor": 0}, "giant_thickness_factor"),
     ({"components": ["disc"]}, "components"),
     ({"extinction": "yes"}, "extinction"),
     ({"count": "exact"}, "count"),

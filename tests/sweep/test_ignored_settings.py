@@ -37,6 +37,16 @@ def test_zero_noise_floor_keeps_the_hash_of_configs_made_before_the_option():
     assert _hash(["experiment=secondary", "noise.al_floor_mas=0.039"]) != config_hash(cfg)
 
 
+def test_default_giant_thickness_keeps_the_hash_of_configs_made_before_the_option():
+    cfg = OmegaConf.to_container(compose_config([]), resolve=True)
+    params = cfg["population"]["params"]
+    assert params["giant_thickness_factor"] == 0.45
+    before = {**cfg, "population": {**cfg["population"], "params": {
+        k: v for k, v in params.items() if k != "giant_thickness_factor"}}}
+    assert config_hash(cfg) == config_hash(before)
+    assert _hash(["population.params.giant_thickness_factor=0.6"]) != config_hash(cfg)
+
+
 def test_ignored_settings_get_one_warning_line_per_experiment():
     argv = ["experiment=secondary", *IGNORED, "confidence=0.8"]
     lines = ignored_settings(argv, preflight(argv))

@@ -9,7 +9,8 @@ its parallax errors, 0.5-1 mas, are left in).
 
 Usage::
 
-    python -m mcsweep.report.hipparcos_population [--extinction-model arenou1992] [--out FILE.csv]
+    python -m mcsweep.report.hipparcos_population [--extinction-model arenou1992]
+        [--giant-thickness-factor 0.6] [--thin-disc-factor 1.18] [--out FILE.csv]
 """
 
 from __future__ import annotations
@@ -65,11 +66,20 @@ def main(argv=None):
     ap = argparse.ArgumentParser(prog="python -m mcsweep.report.hipparcos_population",
                                  description=__doc__.split("\n\n")[0])
     ap.add_argument("--extinction-model", default=None, help="galaxy model extinction_model")
+    ap.add_argument("--giant-thickness-factor", type=float, default=None,
+                    help="galaxy model giant_thickness_factor")
+    ap.add_argument("--thin-disc-factor", type=float, default=None,
+                    help="galaxy model thin_disc_scale_height_factor")
     ap.add_argument("--n-draw", type=int, default=200_000)
     ap.add_argument("--out", default=None, help="CSV file to write")
     args = ap.parse_args(argv)
     try:
-        params = {} if args.extinction_model is None else {"extinction_model": args.extinction_model}
+        given = {"extinction_model": args.extinction_model,
+                 "giant_thickness_factor": args.giant_thickness_factor,
+                 "thin_disc_scale_height_factor": args.thin_disc_factor}
+        params = {k: v for k, v in given.items() if v is not None}
+        if args.n_draw < 1:
+            raise UserInputError(f"--n-draw={args.n_draw} is not accepted; expected a positive integer")
         df = compare(GalaxyModel(params), n_draw=args.n_draw)
     except UserInputError as exc:
         print(f"hipparcos_population: {exc}", file=sys.stderr)

@@ -59,6 +59,7 @@ DEFAULT_PARAMS = {
     "z_sun_pc": P.Z_SUN_PC,
     "v_circ_kms": P.V_CIRC_KMS,
     "thin_disc_scale_height_factor": P.THIN_DISC_THICKNESS_FACTOR,
+    "giant_thickness_factor": P.GIANT_THICKNESS_FACTOR,
     "extinction": True,
     "extinction_model": "disc",
     "dust_av_per_kpc": AV_PER_KPC,
@@ -74,8 +75,8 @@ DEFAULT_PARAMS = {
 #: Arenou et al. (1992) near the Sun joined to the disc beyond (:mod:`.extinction_arenou`).
 EXTINCTION_MODELS = ("disc", "arenou1992")
 
-_POSITIVE = ("r0_kpc", "v_circ_kms", "thin_disc_scale_height_factor", "dust_scale_length_kpc",
-             "dust_scale_height_pc", "ag_over_av")
+_POSITIVE = ("r0_kpc", "v_circ_kms", "thin_disc_scale_height_factor", "giant_thickness_factor",
+             "dust_scale_length_kpc", "dust_scale_height_pc", "ag_over_av")
 
 
 def _check_params(p):
@@ -179,7 +180,10 @@ class GalaxyModel:
         self.params = p
         self.chunk_stars = 4 * BLOCK_STARS
         keep = set(p["components"])
-        self.components = tuple(c for c in P.COMPONENTS if c.label in keep)
+        # the giants' discs at this model's thickness factor (velocities follow, parameters.py)
+        comps = (P.THIN_DISC + P.thin_disc_giants(float(p["giant_thickness_factor"]))
+                 + (P.THICK_DISC, P.HALO, P.BULGE))
+        self.components = tuple(c for c in comps if c.label in keep)
         local = [c for c in P.COMPONENTS if c.law != "bulge" and c.lf_part != "giants"]
         lf = build_luminosity_table(self.components, local=local, faint_scale=gcns_faint_scale())
         # The calibrations (Bovy 2017, GCNS) count sources; counting component stars

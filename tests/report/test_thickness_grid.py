@@ -1,0 +1,32 @@
+"""report.thickness_grid: the vertical heights the thickness factors imply (issue 25)."""
+
+import pytest
+
+from mcsweep.population import GalaxyModel
+from mcsweep.report import thickness_grid as tg
+
+#: Relative agreement of heights that scale with a factor: approximate, as the Einasto law
+#: (a^2 = R^2 + z^2 / eps^2) is not self-similar in z alone (measured: 1.00-1.05 x for the
+#: giants, up to 1.26 / 1.2 for the thin disc).
+SCALING_TOL = 0.10
+
+
+def test_heights_follow_their_own_factor_only():
+    base = tg.vertical_heights_pc(GalaxyModel())
+    thick_giants = tg.vertical_heights_pc(GalaxyModel(giant_thickness_factor=0.9))
+    thick_disc = tg.vertical_heights_pc(GalaxyModel(thin_disc_scale_height_factor=1.15 * 1.2))
+    # the giants' factor moves the giants alone, about in proportion
+    assert thick_giants[1:] == base[1:]
+    assert thick_giants[0] / base[0] == pytest.approx(2.0, rel=SCALING_TOL)
+    # the thin-disc factor moves dwarfs and giants alike
+    for new, old in zip(thick_disc, base):
+        assert new / old == pytest.approx(1.2, rel=SCALING_TOL)
+    # the default model's thin-disc dwarfs against Juric et al. (2008): 300 pc
+    assert base[1] == pytest.approx(300.0, rel=0.10)
+
+
+def test_bad_factor_list_exits_2(capsys):
+    assert tg.main(["--giant", "0.5,x"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "--giant" in err and "\n" not in err
+    assert tg.main(["--thin", "-1"]) == 2

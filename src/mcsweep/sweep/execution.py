@@ -12,6 +12,7 @@ from __future__ import annotations
 import os
 import logging
 import signal
+import threading
 from contextlib import contextmanager
 from typing import Callable, Iterable, Iterator
 
@@ -52,8 +53,10 @@ def _dask_client(conf: ExecutionConf):
         try:
             # silence_logs: the workers' own warnings (a task cancelled when the cluster
             # closes on Ctrl-C) would reach the terminal; errors still do.
+            # dashboard_address ':0', a free port: distributed (2026.8) reads None as its
+            # default 8787 and warns on stderr when another cluster holds that port.
             cluster = LocalCluster(n_workers=conf.n_jobs, threads_per_worker=1, processes=True,
-                                   dashboard_address=None, env={v: "1" for v in _THREAD_VARS},
+                                   dashboard_address=":0", env={v: "1" for v in _THREAD_VARS},
                                    silence_logs=logging.ERROR)
         finally:
             signal.signal(signal.SIGINT, previous)
@@ -105,7 +108,18 @@ def executor(conf: ExecutionConf, *,
                 return
             extra = {"initializer": ignore_sigint} if backend == "loky" else {}
             with parallel_config(backend=backend, n_jobs=n_jobs, **extra):
-                yield from Parallel(return_as="generator_unordered")(delayed(fn)(i) for i in items)
+                # joblib starts dispatching (and loky spawns its workers) inside this call:
+                # spawned with SIGINT ignored, a worker ignores it from its first instruction,
+                # not only once its initializer has run (a Ctrl-C while a worker was still
+                # starting under load gave it a traceback; seen in CI).
+                previous = (signal.signal(signal.SIGINT, signal.SIG_IGN)
+                            if backend == "loky" and threading.current_thread() is threading.main_thread() else None)
+                try:
+                    results = Parallel(return_as="generator_unordered")(delayed(fn)(i) for i in items)
+                finally:
+                    if previous is not None:
+                        signal.signal(signal.SIGINT, previous)
+                yield from results
         return run
 
     if conf.backend == "dask":

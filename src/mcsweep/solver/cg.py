@@ -391,7 +391,8 @@ def _ordered(run, fn, items) -> list:
 def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_uas: float = 1e-3,
                  max_iter: int = 500, min_iter: int = 2, log=None, run: Callable | None = None,
                  chunk_stars: int | None = None, run_iterations: Callable | None = None,
-                 residuals: bool = True, workers: int = 1) -> GlobalSolution:
+                 residuals: bool = True, workers: int = 1, dask_client=None,
+                 resident_chunks=None) -> GlobalSolution:
     """Solve ``N x = A' h`` by PCG from ``x = 0`` (module notes).
 
     Parameters
@@ -429,11 +430,28 @@ def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_u
         Forked processes that keep their share of the chunks (:mod:`~mcsweep.solver.resident`)
         for every pass not given to ``run`` / ``run_iterations``; 1 (default) or no ``fork``:
         in-process. Results do not depend on it.
+    dask_client : distributed.Client, optional, keyword-only
+        Every pass on a Dask cluster whose workers keep the chunks
+        (:class:`~mcsweep.solver.dask_resident.DaskChunks`: scattered once, then only the
+        per-pass vectors travel); overrides ``run``, ``run_iterations`` and ``workers``.
+        Results do not depend on it.
+    resident_chunks : DaskChunks, optional, keyword-only
+        As ``dask_client``, with the chunks already on the workers (built there); its
+        chunk ``ci`` must be the problem's blocks of ``problem.chunks(chunk_stars)[ci]``
+        with their measurements.
     """
     h = np.asarray(h, dtype=float)
     ranges = problem.chunks(chunk_stars)
     chunks = [problem.blocks[lo:hi] for lo, hi in ranges]
     hs = [[h[b.rows] for b in bl] for bl in chunks]  # views when the rows are slices (in_block_order)
+    if resident_chunks is None and dask_client is not None:
+        from .dask_resident import DaskChunks
+
+        resident_chunks = DaskChunks.scatter(dask_client, list(zip(chunks, hs)))
+    if resident_chunks is not None:
+        return _pcg(problem, h, chunks, hs, resident_chunks.run, resident_chunks.run, rtol=rtol,
+                    update_tol_uas=update_tol_uas, max_iter=max_iter, min_iter=min_iter, log=log,
+                    residuals=residuals)
     with forked_chunks(list(zip(chunks, hs)), workers if run_iterations is None else 1) as pool:
         return _pcg(problem, h, chunks, hs, run or pool or sequential_run, run_iterations or pool or sequential_run,
                     rtol=rtol, update_tol_uas=update_tol_uas, max_iter=max_iter, min_iter=min_iter, log=log,

@@ -40,7 +40,8 @@ def _same(a, b):
     assert np.array_equal(a.x, b.x) and np.array_equal(a.attitude, b.attitude)
     assert np.array_equal(a.residuals, b.residuals) and a.residual_rms == b.residual_rms
     assert len(a.history) == len(b.history)
-    assert [r.relative_residual for r in a.history] == [r.relative_residual for r in b.history]
+    assert [(r.relative_residual, r.residual_rms, r.update_max_uas) for r in a.history] == \
+        [(r.relative_residual, r.residual_rms, r.update_max_uas) for r in b.history]
 
 
 def test_dask_resident_solution_is_bit_identical_to_in_process_and_forked(problem_and_h, client):

@@ -422,7 +422,7 @@ def positions_at(x, cov, tau_yr) -> tuple[np.ndarray, np.ndarray]:
 
 
 def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=None, *, run=None,
-                chunk_stars=None, workers: int = 1):
+                chunk_stars=None, workers: int = 1, dask_client=None):
     """One global solution for the prior ``label``: (per-star results, history, attitude errors).
 
     Per-star results (all stars of ``data.stars``): ``inside`` (1/0, -1 not solved),
@@ -430,9 +430,9 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
     (estimated - true parallax), ``sigma_prior_mas``. ``extra``: iterations, convergence,
     attitude error RMS per axis [uas] over the measurement epochs, fitted frame rotation and
     spin; the last element is the attitude error on a grid (:func:`attitude_error_series`).
-    ``run``, ``chunk_stars``, ``workers``: the executor, chunk size and forked workers for
-    the solver's per-chunk work (:func:`mcsweep.solver.solve_global`); results do not
-    depend on them.
+    ``run``, ``chunk_stars``, ``workers``, ``dask_client``: the executor, chunk size, forked
+    workers or Dask cluster (whose workers keep the chunks) for the solver's per-chunk work
+    (:func:`mcsweep.solver.solve_global`); results do not depend on them.
     """
     st = data.stars
     s = data.solved
@@ -445,7 +445,7 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
     ra, dec = st["ra"].to_numpy()[s], st["dec"].to_numpy()[s]
     sol = solve_global(problem, data.h, rtol=settings.rtol, update_tol_uas=settings.update_tol_uas,
                        max_iter=settings.max_iter, log=log, run=run, chunk_stars=chunk_stars, residuals=False,
-                       workers=workers)
+                       workers=workers, dask_client=dask_client)
     dx = sol.x - data.x_true
     # The frame rotator (Lindegren et al. 2012, Sect. 6.1), weighted by the formal
     # precisions: unweighted, the arcsec errors of 1-2-transit stars under 1000 mas set it.

@@ -194,6 +194,7 @@ class PreparedData:
     t_ref_jd: float
     dead: DeadTime
     _problem: GlobalProblem | None = dataclasses.field(default=None, repr=False)
+    _resident: tuple | None = dataclasses.field(default=None, repr=False)  # (key, DaskChunks)
 
     @property
     def dead_days(self) -> float:
@@ -256,6 +257,19 @@ class PreparedData:
         else:
             self._problem = self._problem.with_prior(prior_diagonal)
         return self._problem
+
+
+    def resident(self, client, ranges) -> "DaskChunks":
+        """The solver's chunks (blocks ``ranges``, their measurements) kept on the workers of a
+        Dask ``client``: sent once for every prior's solution (only the per-star inverses of
+        a prior are sent with it, :meth:`~mcsweep.solver.dask_resident.DaskChunks.with_inverses`)."""
+        from ..solver.dask_resident import DaskChunks
+
+        key = (id(client), tuple(ranges))
+        if self._resident is None or self._resident[0] != key:
+            self._resident = (key, DaskChunks.scatter(
+                client, [(self.blocks[lo:hi], [self.h[b.rows] for b in self.blocks[lo:hi]]) for lo, hi in ranges]))
+        return self._resident[1]
 
 
 def _block_epochs(t_ref_jd: float, block) -> np.ndarray:
@@ -443,9 +457,14 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
     # measurements, so it cannot be under a positive prior.
     problem = data.problem(prior)
     ra, dec = st["ra"].to_numpy()[s], st["dec"].to_numpy()[s]
+    resident = None
+    if dask_client is not None:  # the measurements stay on the workers from prior to prior
+        ranges = problem.chunks(chunk_stars)
+        stars = [slice(data.blocks[lo].first, data.blocks[hi - 1].first + data.blocks[hi - 1].n) for lo, hi in ranges]
+        resident = data.resident(dask_client, ranges).with_inverses([problem.src_inv[sl] for sl in stars])
     sol = solve_global(problem, data.h, rtol=settings.rtol, update_tol_uas=settings.update_tol_uas,
                        max_iter=settings.max_iter, log=log, run=run, chunk_stars=chunk_stars, residuals=False,
-                       workers=workers, dask_client=dask_client)
+                       workers=workers, resident_chunks=resident)
     dx = sol.x - data.x_true
     # The frame rotator (Lindegren et al. 2012, Sect. 6.1), weighted by the formal
     # precisions: unweighted, the arcsec errors of 1-2-transit stars under 1000 mas set it.

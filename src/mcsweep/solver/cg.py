@@ -486,12 +486,13 @@ def _pcg(pb: GlobalProblem, h, chunks, hs, run, run_it, *, rtol, update_tol_uas,
 
     def precondition(r_s, r_a):
         """``z = M^-1 r`` (symmetric block Gauss-Seidel with the banded Schur block) and ``N z``."""
-        fwd = _ordered(run_it, _forward_task, [(i, bl, hh, r_s[sl])
-                                               for i, (bl, hh, sl) in enumerate(zip(chunks, hs, stars))])
+        # the same slice objects in both passes: an executor whose workers keep data
+        # (mcsweep.solver.dask_resident) then sends each chunk's slice once
+        rs = [r_s[sl] for sl in stars]
+        fwd = _ordered(run_it, _forward_task, [(i, bl, hh, rs[i]) for i, (bl, hh) in enumerate(zip(chunks, hs))])
         w_a = np.where(free, r_a - pairwise_sum(f[0] for f in fwd), 0.0)
         z_a = np.where(free, cho_solve_banded((chol, False), w_a.ravel()).reshape(-1, 3), 0.0)
-        back = _ordered(run_it, _back_task, [(i, bl, hh, r_s[sl], z_a)
-                                             for i, (bl, hh, sl) in enumerate(zip(chunks, hs, stars))])
+        back = _ordered(run_it, _back_task, [(i, bl, hh, rs[i], z_a) for i, (bl, hh) in enumerate(zip(chunks, hs))])
         z_s = np.concatenate([o[0] for o in back])
         e_s = extra_s(z_s)
         nz_s = np.concatenate([o[1] for o in back]) + e_s

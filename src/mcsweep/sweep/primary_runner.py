@@ -61,8 +61,11 @@ def solution_line(label: str, extra: dict) -> str:
     """What the command prints when a prior's solution is done: iterations, convergence and the
     attitude error RMS per axis, written as the table notes write it."""
     rms = " / ".join(f"{v:.1f}" for v in extra["attitude_rms_uas"])
+    sent = extra.get("dask_mib_per_iteration")
     return (f"mcsweep: primary: prior {label}: {extra['iterations']} PCG iterations, converged "
-            f"{extra['converged']}, attitude error RMS {rms} uas (x / y / z)")
+            f"{extra['converged']}, attitude error RMS {rms} uas (x / y / z)"
+            + (f"; Dask: {sent[0]:.3g} MiB sent to and {sent[1]:.3g} MiB received from the workers per "
+               "iteration" if sent else ""))
 
 
 def few_transit_spans(stars, g_classes) -> str:

@@ -113,5 +113,20 @@ def test_chunks_kept_for_another_prior_give_that_priors_solution(problem_and_h, 
                                        for lo, hi in ranges])
     stars = [slice(problem.blocks[lo].first, problem.blocks[hi - 1].first + problem.blocks[hi - 1].n)
              for lo, hi in ranges]
+    ref = solve_global(other, h, **KW)
     res = base.with_inverses([other.src_inv[sl] for sl in stars])
-    _same(solve_global(other, h, resident_chunks=res, chunk_stars=256, **KW), solve_global(other, h, **KW))
+    _same(solve_global(other, h, resident_chunks=res, chunk_stars=256, **KW), ref)
+    # and with a worker killed mid-solve: chunks and inverses sent again
+    client.wait_for_workers(2, timeout=60)
+    victim = sorted(client.run(os.getpid).values())[0]
+    killed = []
+
+    def log(rec):
+        if rec.iteration == 3 and not killed:
+            os.kill(victim, signal.SIGKILL)
+            killed.append(rec.iteration)
+
+    res = base.with_inverses([other.src_inv[sl] for sl in stars])
+    _same(solve_global(other, h, resident_chunks=res, chunk_stars=256, log=log, **KW), ref)
+    assert killed and res.repeated >= 1
+    client.wait_for_workers(2, timeout=60)

@@ -2,8 +2,10 @@
 
 The cluster counterpart of :mod:`~mcsweep.solver.resident` (forked local workers). Each
 chunk's data (its blocks and measurements, what a task item carries after its index) is
-one Dask future, made once per solution: scattered from the driver, or built on a
-worker by a task (then Dask recomputes it from that task if its worker is lost). Every
+one Dask future, made once per solution: scattered from the driver (what the solver and
+the primary experiment do today), or any future of a task that builds it on a worker
+(the interface allows it; blocks built on the workers from their seeds are not written
+yet, issue 27). Every
 pass then submits one task per chunk that names the chunk's future, so the measurements
 never travel again; only the small per-pass arguments (the chunk's slice of the star
 vectors, the attitude vector) are sent and only the chunk results come back.
@@ -13,10 +15,10 @@ functions on the same block arrays (the numba kernels sum in stored order whatev
 memory alignment, :mod:`~mcsweep.solver.kernels`), and the driver adds the chunk results
 in its fixed order (:mod:`~mcsweep.solver.reduction`).
 
-A worker lost in the middle of a pass: Dask reschedules the pass's tasks; a chunk built
-by a task is rebuilt from that task on another worker; a scattered chunk (no task to
-recompute it from) is scattered again from the driver by ``rebuild`` and the pass is
-repeated. Either way the pass gives the same bits.
+A worker lost in the middle of a pass: its scattered chunks (no task to recompute them
+from) are scattered again from the driver by ``rebuild`` and the pass is repeated; its
+tasks are pure, so the repeat gives the same bits (tested by killing a worker process of
+a LocalCluster mid-solve).
 """
 
 from __future__ import annotations

@@ -194,6 +194,7 @@ class PreparedData:
     t_ref_jd: float
     dead: DeadTime
     _problem: GlobalProblem | None = dataclasses.field(default=None, repr=False)
+    _resident: tuple | None = dataclasses.field(default=None, repr=False)  # (key, DaskChunks)
 
     @property
     def dead_days(self) -> float:
@@ -256,6 +257,19 @@ class PreparedData:
         else:
             self._problem = self._problem.with_prior(prior_diagonal)
         return self._problem
+
+
+    def resident(self, client, ranges) -> "DaskChunks":
+        """The solver's chunks (blocks ``ranges``, their measurements) kept on the workers of a
+        Dask ``client``: sent once for every prior's solution (only the per-star inverses of
+        a prior are sent with it, :meth:`~mcsweep.solver.dask_resident.DaskChunks.with_inverses`)."""
+        from ..solver.dask_resident import DaskChunks
+
+        key = (id(client), tuple(ranges))
+        if self._resident is None or self._resident[0] != key:
+            self._resident = (key, DaskChunks.scatter(
+                client, [(self.blocks[lo:hi], [self.h[b.rows] for b in self.blocks[lo:hi]]) for lo, hi in ranges]))
+        return self._resident[1]
 
 
 def _block_epochs(t_ref_jd: float, block) -> np.ndarray:
@@ -422,7 +436,7 @@ def positions_at(x, cov, tau_yr) -> tuple[np.ndarray, np.ndarray]:
 
 
 def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=None, *, run=None,
-                chunk_stars=None, workers: int = 1):
+                chunk_stars=None, workers: int = 1, dask_client=None):
     """One global solution for the prior ``label``: (per-star results, history, attitude errors).
 
     Per-star results (all stars of ``data.stars``): ``inside`` (1/0, -1 not solved),
@@ -430,9 +444,9 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
     (estimated - true parallax), ``sigma_prior_mas``. ``extra``: iterations, convergence,
     attitude error RMS per axis [uas] over the measurement epochs, fitted frame rotation and
     spin; the last element is the attitude error on a grid (:func:`attitude_error_series`).
-    ``run``, ``chunk_stars``, ``workers``: the executor, chunk size and forked workers for
-    the solver's per-chunk work (:func:`mcsweep.solver.solve_global`); results do not
-    depend on them.
+    ``run``, ``chunk_stars``, ``workers``, ``dask_client``: the executor, chunk size, forked
+    workers or Dask cluster (whose workers keep the chunks) for the solver's per-chunk work
+    (:func:`mcsweep.solver.solve_global`); results do not depend on them.
     """
     st = data.stars
     s = data.solved
@@ -443,9 +457,14 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
     # measurements, so it cannot be under a positive prior.
     problem = data.problem(prior)
     ra, dec = st["ra"].to_numpy()[s], st["dec"].to_numpy()[s]
+    resident = None
+    if dask_client is not None:  # the measurements stay on the workers from prior to prior
+        ranges = problem.chunks(chunk_stars)
+        stars = [slice(data.blocks[lo].first, data.blocks[hi - 1].first + data.blocks[hi - 1].n) for lo, hi in ranges]
+        resident = data.resident(dask_client, ranges).with_inverses([problem.src_inv[sl] for sl in stars])
     sol = solve_global(problem, data.h, rtol=settings.rtol, update_tol_uas=settings.update_tol_uas,
                        max_iter=settings.max_iter, log=log, run=run, chunk_stars=chunk_stars, residuals=False,
-                       workers=workers)
+                       workers=workers, resident_chunks=resident)
     dx = sol.x - data.x_true
     # The frame rotator (Lindegren et al. 2012, Sect. 6.1), weighted by the formal
     # precisions: unweighted, the arcsec errors of 1-2-transit stars under 1000 mas set it.
@@ -486,4 +505,7 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
              "frame_rotation_mas": eps.tolist(), "frame_spin_mas_yr": omega.tolist(),
              "residual_rms": sol.residual_rms,
              "seconds": float(sol.history[-1].seconds) if sol.history else 0.0}
+    if resident is not None and sol.history:  # what travelled per iteration (issue 27), measured
+        extra["dask_mib_per_iteration"] = [resident.bytes_sent / len(sol.history) / 2**20,
+                                           resident.bytes_received / len(sol.history) / 2**20]
     return res, hist, extra, attitude_error_series(data, sol.attitude, eps, omega)

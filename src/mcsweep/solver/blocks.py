@@ -269,10 +269,12 @@ def block_setup(blk: StarBlock, h) -> dict:
     """Everything the solver needs once per prior from a block, for the measurements ``h (m,)``.
 
     Returns a dict of global contributions, ``absorption`` (:func:`_schur_absorption`),
-    ``b_a = A_a' h``, ``hh = h' h``, and per star ``b_s = A_s' h`` (n, 5).
+    ``b_a = A_a' h``, ``hh = h' h``, and per star ``b_s = A_s' h`` (n, 5). ``hh`` by numpy's
+    pairwise add-reduce, not ``h @ h``: BLAS ``ddot`` rounds differently with the alignment
+    of ``h``, which differs on a Dask worker (unpickled) from the driver.
     """
     g = gather(blk)
-    return {"absorption": _schur_absorption(blk), "b_a": att_adjoint(blk, h, g), "hh": float(h @ h),
+    return {"absorption": _schur_absorption(blk), "b_a": att_adjoint(blk, h, g), "hh": float(np.sum(np.multiply(h, h))),
             "b_s": src_adjoint(blk, h, g)}
 
 

@@ -391,7 +391,8 @@ def _ordered(run, fn, items) -> list:
 def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_uas: float = 1e-3,
                  max_iter: int = 500, min_iter: int = 2, log=None, run: Callable | None = None,
                  chunk_stars: int | None = None, run_iterations: Callable | None = None,
-                 residuals: bool = True, workers: int = 1) -> GlobalSolution:
+                 residuals: bool = True, workers: int = 1, dask_client=None,
+                 resident_chunks=None) -> GlobalSolution:
     """Solve ``N x = A' h`` by PCG from ``x = 0`` (module notes).
 
     Parameters
@@ -429,11 +430,28 @@ def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_u
         Forked processes that keep their share of the chunks (:mod:`~mcsweep.solver.resident`)
         for every pass not given to ``run`` / ``run_iterations``; 1 (default) or no ``fork``:
         in-process. Results do not depend on it.
+    dask_client : distributed.Client, optional, keyword-only
+        Every pass on a Dask cluster whose workers keep the chunks
+        (:class:`~mcsweep.solver.dask_resident.DaskChunks`: scattered once, then only the
+        per-pass vectors travel); overrides ``run``, ``run_iterations`` and ``workers``.
+        Results do not depend on it.
+    resident_chunks : DaskChunks, optional, keyword-only
+        As ``dask_client``, with the chunks already on the workers (built there); its
+        chunk ``ci`` must be the problem's blocks of ``problem.chunks(chunk_stars)[ci]``
+        with their measurements.
     """
     h = np.asarray(h, dtype=float)
     ranges = problem.chunks(chunk_stars)
     chunks = [problem.blocks[lo:hi] for lo, hi in ranges]
     hs = [[h[b.rows] for b in bl] for bl in chunks]  # views when the rows are slices (in_block_order)
+    if resident_chunks is None and dask_client is not None:
+        from .dask_resident import DaskChunks
+
+        resident_chunks = DaskChunks.scatter(dask_client, list(zip(chunks, hs)))
+    if resident_chunks is not None:
+        return _pcg(problem, h, chunks, hs, resident_chunks.run, resident_chunks.run, rtol=rtol,
+                    update_tol_uas=update_tol_uas, max_iter=max_iter, min_iter=min_iter, log=log,
+                    residuals=residuals)
     with forked_chunks(list(zip(chunks, hs)), workers if run_iterations is None else 1) as pool:
         return _pcg(problem, h, chunks, hs, run or pool or sequential_run, run_iterations or pool or sequential_run,
                     rtol=rtol, update_tol_uas=update_tol_uas, max_iter=max_iter, min_iter=min_iter, log=log,
@@ -468,12 +486,13 @@ def _pcg(pb: GlobalProblem, h, chunks, hs, run, run_it, *, rtol, update_tol_uas,
 
     def precondition(r_s, r_a):
         """``z = M^-1 r`` (symmetric block Gauss-Seidel with the banded Schur block) and ``N z``."""
-        fwd = _ordered(run_it, _forward_task, [(i, bl, hh, r_s[sl])
-                                               for i, (bl, hh, sl) in enumerate(zip(chunks, hs, stars))])
+        # the same slice objects in both passes: an executor whose workers keep data
+        # (mcsweep.solver.dask_resident) then sends each chunk's slice once
+        rs = [r_s[sl] for sl in stars]
+        fwd = _ordered(run_it, _forward_task, [(i, bl, hh, rs[i]) for i, (bl, hh) in enumerate(zip(chunks, hs))])
         w_a = np.where(free, r_a - pairwise_sum(f[0] for f in fwd), 0.0)
         z_a = np.where(free, cho_solve_banded((chol, False), w_a.ravel()).reshape(-1, 3), 0.0)
-        back = _ordered(run_it, _back_task, [(i, bl, hh, r_s[sl], z_a)
-                                             for i, (bl, hh, sl) in enumerate(zip(chunks, hs, stars))])
+        back = _ordered(run_it, _back_task, [(i, bl, hh, rs[i], z_a) for i, (bl, hh) in enumerate(zip(chunks, hs))])
         z_s = np.concatenate([o[0] for o in back])
         e_s = extra_s(z_s)
         nz_s = np.concatenate([o[1] for o in back]) + e_s

@@ -14,8 +14,8 @@ memory addresses, so the same alignment) the parent would, and the solver adds t
 chunk results in its fixed order (:mod:`~mcsweep.solver.reduction`).
 
 Only where the ``fork`` start method exists (Linux, macOS); elsewhere :func:`forked_chunks`
-yields ``None`` and the caller runs in-process. On a cluster the executor of
-:mod:`mcsweep.sweep.execution` (Dask) takes the one-off passes instead.
+yields ``None`` and the caller runs in-process. On a Dask cluster
+:mod:`~mcsweep.solver.dask_resident` keeps the chunks on the workers in the same way.
 """
 
 from __future__ import annotations

@@ -21,7 +21,7 @@ from joblib import Parallel, delayed, parallel_config
 from ..errors import UserInputError
 from .schema import ExecutionConf
 
-__all__ = ["executor", "release_free_memory"]
+__all__ = ["executor", "dask_client", "release_free_memory"]
 
 # BLAS threads per worker: the workers already use every core (Hydra/joblib trap:
 # oversubscribing 2 cores with n_jobs x BLAS threads).
@@ -29,7 +29,11 @@ _THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 
 
 @contextmanager
-def _dask_client(conf: ExecutionConf):
+def dask_client(conf: ExecutionConf):
+    """Context of a ``distributed.Client``: of ``conf.scheduler_address``, or of a new local
+    cluster of ``conf.n_jobs`` worker processes (closed on leaving). For work that keeps data
+    on the workers (the primary solution, :mod:`mcsweep.solver.dask_resident`); map-like
+    tasks go through :func:`executor`."""
     try:
         from dask.distributed import Client, LocalCluster
     except ImportError:
@@ -123,7 +127,7 @@ def executor(conf: ExecutionConf, *,
         return run
 
     if conf.backend == "dask":
-        with _dask_client(conf):
+        with dask_client(conf):
             yield make_run("dask", -1)
         return
     try:

@@ -28,7 +28,7 @@ from ..experiments.primary import (CHUNKS_DIR, FACTOR_STREAM, PRIMARY_KEY, TAG, 
                                    stream_seed, transits_of)
 from ..experiments.primary_factor import factor_curves, factor_label, factor_rows, overall_factor
 from ..experiments.primary_table import table3_markdown, table3_rows
-from .execution import executor, release_free_memory
+from .execution import dask_client, release_free_memory
 from .global_runner import GlobalExperiment, GlobalRun, run_global
 from .store import atomic_write_bytes
 
@@ -61,8 +61,11 @@ def solution_line(label: str, extra: dict) -> str:
     """What the command prints when a prior's solution is done: iterations, convergence and the
     attitude error RMS per axis, written as the table notes write it."""
     rms = " / ".join(f"{v:.1f}" for v in extra["attitude_rms_uas"])
+    sent = extra.get("dask_mib_per_iteration")
     return (f"mcsweep: primary: prior {label}: {extra['iterations']} PCG iterations, converged "
-            f"{extra['converged']}, attitude error RMS {rms} uas (x / y / z)")
+            f"{extra['converged']}, attitude error RMS {rms} uas (x / y / z)"
+            + (f"; Dask: {sent[0]:.3g} MiB sent to and {sent[1]:.3g} MiB received from the workers per "
+               "iteration" if sent else ""))
 
 
 def few_transit_spans(stars, g_classes) -> str:
@@ -107,20 +110,21 @@ class _Computed:
     factors: dict       # factor k -> its prior label (experiment.primary.factor_grid)
 
 
-def _solve(run: GlobalRun, data, label: str, dask_executor: Callable) -> None:
+def _solve(run: GlobalRun, data, label: str, client: Callable) -> None:
     """The solution of prior ``label`` and its side files, unless finished (resume);
-    ``dask_executor()``: the Dask client's map, opened at its first call."""
+    ``client()``: the Dask client (``execution.backend=dask``), opened at its first call."""
     config, settings = run.config, run.settings
     cid = _prior_id(label)
     if run.pending([cid]) or not (run.chunks / f"{cid}.json").exists():
-        # The solver's chunk work goes to the executor only on a Dask cluster (one client
-        # for every solution, opened when the first one is needed): local joblib processes
-        # re-receive every chunk's measurements per call, which costs more than the work
-        # (measured 6.6x slower setup pass, 32000 stars; see mcsweep.solver.cg.solve_global).
-        # On this machine the n_jobs workers are forked per solution and keep their share of
-        # the blocks (mcsweep.solver.resident); results are the same bits either way.
+        # On a Dask cluster the solver's chunks are sent to the workers once per solution and
+        # kept there; every pass sends only the star and attitude vectors
+        # (mcsweep.solver.dask_resident; one client for every solution, opened when the first
+        # one is needed). On this machine the n_jobs workers are forked per solution and keep
+        # their share of the blocks (mcsweep.solver.resident). A map-like executor would
+        # re-send every chunk's measurements per pass, which costs more than the work
+        # (mcsweep.solver.cg.solve_global). Results are the same bits either way.
         if config.execution.backend == "dask":
-            res, hist, extra, series = solve_prior(settings, data, label, run=dask_executor(),
+            res, hist, extra, series = solve_prior(settings, data, label, dask_client=client(),
                                                    chunk_stars=int(config.execution.chunk_stars))
         else:
             workers = int(config.execution.n_jobs) if config.execution.backend in ("loky", "threading") else 1
@@ -164,10 +168,10 @@ def _compute(run: GlobalRun) -> _Computed:
     # The factor search (experiment.primary.factor_grid) shares solutions with Table 3's priors.
     factors = {float(k): factor_label(k) for k in run.section.factor_grid}
     with contextlib.ExitStack() as cluster:
-        dask_executor = functools.cache(lambda: cluster.enter_context(executor(run.config.execution)))
+        client = functools.cache(lambda: cluster.enter_context(dask_client(run.config.execution)))
         for label in dict.fromkeys([*run.settings.priors, *factors.values()]):
             with run.prov.stage(f"solve {label}"):
-                _solve(run, data, label, dask_executor)
+                _solve(run, data, label, client)
     return _Computed(data=data, stars=stars, factors=factors)
 
 

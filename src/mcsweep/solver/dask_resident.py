@@ -1,0 +1,183 @@
+"""Chunks kept on the workers of a Dask cluster: the solver's passes beyond one machine.
+
+The cluster counterpart of :mod:`~mcsweep.solver.resident` (forked local workers). Each
+chunk's data (its blocks and measurements, what a task item carries after its index) is
+one Dask future, made once per solution: scattered from the driver (what the solver and
+the primary experiment do today), or any future of a task that builds it on a worker
+(the interface allows it; blocks built on the workers from their seeds are not written
+yet, issue 27). Every
+pass then submits one task per chunk that names the chunk's future, so the measurements
+never travel again; only the small per-pass arguments (the chunk's slice of the star
+vectors, the attitude vector) are sent and only the chunk results come back.
+
+Results are bit-identical to in-process ones: the chunk tasks are the solver's own
+functions on the same block arrays (the numba kernels sum in stored order whatever the
+memory alignment, :mod:`~mcsweep.solver.kernels`), and the driver adds the chunk results
+in its fixed order (:mod:`~mcsweep.solver.reduction`).
+
+A worker lost in the middle of a pass: its scattered chunks (no task to recompute them
+from) are scattered again from the driver by ``rebuild`` and the pass is repeated; its
+tasks are pure, so the repeat gives the same bits (tested by killing a worker process of
+a LocalCluster mid-solve).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+import uuid
+
+import numpy as np
+from typing import Callable, Sequence
+
+__all__ = ["DaskChunks"]
+
+
+def _call(fn: Callable, ci: int, chunk: tuple, rest: tuple):
+    return fn((ci, *chunk, *rest))
+
+
+def _attach(chunk: tuple, binv) -> tuple:
+    """A solver chunk ``(blocks, measurements)`` with its stars' inverses ``binv (n, 5, 5)``."""
+    blocks, hs = chunk
+    first = blocks[0].first
+    return [dataclasses.replace(b, binv=binv[b.first - first:b.first - first + b.n]) for b in blocks], hs
+
+
+def _nbytes(obj) -> int:
+    from dask.sizeof import sizeof
+
+    return int(sizeof(obj))
+
+
+class DaskChunks:
+    """Chunks resident on a Dask cluster and the executor of the solver's passes over them.
+
+    Parameters
+    ----------
+    client : distributed.Client
+    futures : sequence of Future
+        ``futures[ci]``: a future of chunk ``ci``'s tuple (the solver's: its blocks and
+        measurements).
+    width : int
+        Objects of a task item after its index that the worker holds (``len`` of the tuple).
+    rebuild : callable, optional
+        ``rebuild(ci) -> Future``: a new future of chunk ``ci`` when its data were lost with
+        a worker (for scattered chunks; a chunk built by a task needs none).
+    """
+
+    def __init__(self, client, futures: Sequence, width: int, rebuild: Callable | None = None):
+        self.client = client
+        self.futures = list(futures)
+        self.width = int(width)
+        self.rebuild = rebuild
+        #: Bytes sent to the workers (arguments) and received from them (results) by the
+        #: passes, as counted by ``dask.sizeof`` (the arrays' sizes): measured, not estimated.
+        self.bytes_sent = 0
+        self.bytes_received = 0
+        self.passes = 0
+        self.repeated = 0  # passes repeated after a failure (a lost worker)
+        self._previous: dict[int, tuple] = {}  # id -> (object, future) sent with the last pass
+
+    @classmethod
+    def scatter(cls, client, chunks: Sequence[tuple]) -> "DaskChunks":
+        """Chunks held by the driver, sent once to the workers (spread over them)."""
+        chunks = list(chunks)
+
+        def put(ci):
+            workers = sorted(client.scheduler_info()["workers"])  # the live ones (after a loss too)
+            # one worker per chunk, round robin: contiguous shares are not needed (no order
+            # of completion matters) and every worker gets its part of the memory
+            # (in a list: a tuple itself would be scattered element by element)
+            (fut,) = client.scatter([chunks[ci]], workers=[workers[ci % len(workers)]], hash=False)
+            return fut
+
+        return cls(client, [put(ci) for ci in range(len(chunks))], len(chunks[0]) if chunks else 0,
+                   rebuild=put)
+
+    def with_inverses(self, binv: Sequence) -> "DaskChunks":
+        """These chunks (the solver's blocks and measurements, kept on the workers) with the
+        per-star inverses of one prior, ``binv[ci]`` the stars of chunk ``ci``: what changes
+        from prior to prior is sent (200 bytes per star), not the measurements."""
+        if self.width != 2:
+            raise ValueError("with_inverses needs the solver's chunks (blocks, measurements)")
+        client = self.client
+
+        def make(ci):
+            if self.futures[ci].status in ("lost", "error", "cancelled") and self.rebuild is not None:
+                self.futures[ci] = self.rebuild(ci)
+            home = client.who_has(self.futures[ci]).get(self.futures[ci].key) or None
+            (inv,) = client.scatter([binv[ci]], workers=list(home) if home else None, hash=False)
+            out.bytes_sent += _nbytes(binv[ci])
+            return client.submit(_attach, self.futures[ci], inv, pure=False)
+
+        out = DaskChunks(client, [], 2, rebuild=make)
+        out.futures = [make(ci) for ci in range(len(self.futures))]
+        return out
+
+    def _send(self, obj, ci: int | None, sent: dict):
+        """A future of ``obj`` (on chunk ``ci``'s worker, or on every worker for ``None``),
+        reusing the one of the previous pass if ``obj`` is the same object."""
+        key = id(obj)
+        if key in sent:
+            return sent[key][1]
+        if key in self._previous:  # the same object as last pass (held there, so the id is its own)
+            sent[key] = self._previous[key]
+            return sent[key][1]
+        n = _nbytes(obj)
+        if ci is None:
+            fut = self.client.scatter(obj, broadcast=True, hash=False)
+            n *= len(self.client.scheduler_info()["workers"])
+        else:
+            home = self.client.who_has(self.futures[ci]).get(self.futures[ci].key) or None
+            (fut,) = self.client.scatter([obj], workers=list(home) if home else None, hash=False)
+        self.bytes_sent += n
+        sent[key] = (obj, fut)
+        return fut
+
+    def run(self, fn: Callable, items):
+        """``fn(item)`` for items ``(ci, *chunk ci, *rest)``, in item order; only ``rest`` is sent.
+
+        Arrays of ``rest`` are sent once each (an object in several items, the attitude
+        vector, once to every worker) and kept for the next pass, which reuses them if it
+        gets the very same objects: the caller must not modify them in between (the solver
+        passes the same slices of the star vector to both sweeps of a preconditioning).
+        """
+        items = list(items)
+        rests = [tuple(item[1 + self.width:]) for item in items]
+        counts: dict[int, int] = {}
+        for rest in rests:
+            for obj in rest:
+                counts[id(obj)] = counts.get(id(obj), 0) + 1
+        for attempt in range(3):
+            sent: dict[int, tuple] = {}
+            try:
+                args = [tuple(self._send(o, None if counts[id(o)] > 1 else item[0], sent)
+                              if isinstance(o, np.ndarray) else o for o in rest)
+                        for item, rest in zip(items, rests)]
+                tag = uuid.uuid4().hex[:12]
+                futs = [self.client.submit(_call, fn, item[0], self.futures[item[0]], a,
+                                           key=f"{getattr(fn, '__name__', 'task')}-{item[0]}-{tag}", pure=False)
+                        for item, a in zip(items, args)]
+                out = self.client.gather(futs)
+            except Exception:
+                # A worker lost mid-pass: a scatter to it or a task needing its data fails,
+                # before or after the scheduler marks its data lost. Give the scheduler a moment,
+                # send lost scattered chunks again and repeat the pass (its tasks are pure, so
+                # a repeat gives the same bits). An error of ``fn`` itself repeats too, and is
+                # raised after the last attempt.
+                if attempt == 2:
+                    raise
+                time.sleep(1.0)
+                lost = [ci for ci, f in enumerate(self.futures) if f.status in ("lost", "error", "cancelled")]
+                if lost and self.rebuild is None:
+                    raise
+                for ci in lost:
+                    self.futures[ci] = self.rebuild(ci)
+                self.repeated += 1
+                self._previous = {}  # the kept vectors may have gone with the worker
+                continue
+            self._previous = sent
+            self.passes += 1
+            self.bytes_received += sum(_nbytes(r) for r in out)
+            return iter(out)

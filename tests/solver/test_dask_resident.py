@@ -1,0 +1,132 @@
+"""The solver's passes on a Dask LocalCluster whose workers keep the chunks (issue 27)."""
+
+from __future__ import annotations
+
+import os
+import signal
+import warnings
+
+import numpy as np
+import pytest
+
+from mcsweep.astrometry.solve import prior_diagonal
+from mcsweep.solver import GlobalProblem, solve_global
+
+distributed = pytest.importorskip("distributed")
+
+KW = dict(rtol=1e-10, update_tol_uas=1e-3, max_iter=12)  # bit identity needs no convergence
+
+
+@pytest.fixture(scope="module")
+def client():
+    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
+                                       env={"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"})
+    with distributed.Client(cluster) as c:
+        yield c
+    cluster.close()
+
+
+@pytest.fixture(scope="module")
+def problem_and_h(weak_problem):
+    P = weak_problem
+    rng = np.random.default_rng(61)
+    problem = GlobalProblem(P["obs"], prior_diagonal(1000.0, 10.0), P["ra"], P["dec"], block_stars=128)
+    assert len(problem.blocks) > 8
+    # measurements: any vector will do for bit identity (the solver does not know the truth)
+    return problem, rng.normal(size=P["obs"].size)
+
+
+def _same(a, b):
+    assert np.array_equal(a.x, b.x) and np.array_equal(a.attitude, b.attitude)
+    assert np.array_equal(a.residuals, b.residuals) and a.residual_rms == b.residual_rms
+    assert len(a.history) == len(b.history)
+    assert [(r.relative_residual, r.residual_rms, r.update_max_uas) for r in a.history] == \
+        [(r.relative_residual, r.residual_rms, r.update_max_uas) for r in b.history]
+
+
+def test_dask_resident_solution_is_bit_identical_to_in_process_and_forked(problem_and_h, client):
+    problem, h = problem_and_h
+    ref = solve_global(problem, h, **KW)
+    forked = solve_global(problem, h, workers=2, chunk_stars=256, **KW)
+    for c in (128, 512):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            _same(solve_global(problem, h, dask_client=client, chunk_stars=c, **KW), ref)
+        # the chunks are scattered, not put into the task graph
+        assert not [w for w in caught if "large graph" in str(w.message).lower()]
+    _same(forked, ref)
+
+
+def test_dask_passes_send_no_measurements(problem_and_h, client):
+    # After the chunks are on the workers, a pass sends the star and attitude vectors only:
+    # at most a few star vectors (5 x 8 bytes per star) and attitude vectors per worker,
+    # far below the measurements (8 bytes each for h alone).
+    from mcsweep.solver.dask_resident import DaskChunks
+
+    problem, h = problem_and_h
+    ranges = problem.chunks(256)
+    chunks = [problem.blocks[lo:hi] for lo, hi in ranges]
+    res = DaskChunks.scatter(client, [(bl, [h[b.rows] for b in bl]) for bl in chunks])
+    sol = solve_global(problem, h, resident_chunks=res, chunk_stars=256, **KW)
+    per_pass = res.bytes_sent / res.passes
+    star_vector = 5 * 8 * problem.n_stars
+    att_vector = 8 * problem.n_att
+    assert per_pass <= 2 * star_vector + 2 * att_vector + 4096 * len(chunks)
+    assert per_pass < 8 * h.size
+    # setup, residuals, two per preconditioning: one before the first iteration and one after
+    # each but a converged last
+    assert res.passes == 2 + 2 * (len(sol.history) + (not sol.converged))
+
+
+def test_solution_survives_a_killed_worker(problem_and_h, client):
+    problem, h = problem_and_h
+    ref = solve_global(problem, h, **KW)
+    pids = client.run(os.getpid)
+    victim = sorted(pids.values())[0]
+    killed = []
+
+    def log(rec):
+        if rec.iteration == 3 and not killed:
+            os.kill(victim, signal.SIGKILL)
+            killed.append(rec.iteration)
+
+    from mcsweep.solver.dask_resident import DaskChunks
+
+    ranges = problem.chunks(256)
+    res = DaskChunks.scatter(client, [(problem.blocks[lo:hi], [h[b.rows] for b in problem.blocks[lo:hi]])
+                                      for lo, hi in ranges])
+    sol = solve_global(problem, h, resident_chunks=res, chunk_stars=256, log=log, **KW)
+    assert killed and res.repeated >= 1  # the loss was met, and the pass repeated
+    _same(sol, ref)
+    client.wait_for_workers(2, timeout=60)  # the nanny restarts it for the next test
+
+
+def test_chunks_kept_for_another_prior_give_that_priors_solution(problem_and_h, client):
+    # The measurements sent once, the per-star inverses of each prior sent with its solution
+    # (DaskChunks.with_inverses): the solution of the new prior, bit for bit.
+    from mcsweep.solver.dask_resident import DaskChunks
+
+    problem, h = problem_and_h
+    other = problem.with_prior(prior_diagonal(1.0, 10.0))
+    ranges = problem.chunks(256)
+    base = DaskChunks.scatter(client, [(problem.blocks[lo:hi], [h[b.rows] for b in problem.blocks[lo:hi]])
+                                       for lo, hi in ranges])
+    stars = [slice(problem.blocks[lo].first, problem.blocks[hi - 1].first + problem.blocks[hi - 1].n)
+             for lo, hi in ranges]
+    ref = solve_global(other, h, **KW)
+    res = base.with_inverses([other.src_inv[sl] for sl in stars])
+    _same(solve_global(other, h, resident_chunks=res, chunk_stars=256, **KW), ref)
+    # and with a worker killed mid-solve: chunks and inverses sent again
+    client.wait_for_workers(2, timeout=60)
+    victim = sorted(client.run(os.getpid).values())[0]
+    killed = []
+
+    def log(rec):
+        if rec.iteration == 3 and not killed:
+            os.kill(victim, signal.SIGKILL)
+            killed.append(rec.iteration)
+
+    res = base.with_inverses([other.src_inv[sl] for sl in stars])
+    _same(solve_global(other, h, resident_chunks=res, chunk_stars=256, log=log, **KW), ref)
+    assert killed and res.repeated >= 1
+    client.wait_for_workers(2, timeout=60)

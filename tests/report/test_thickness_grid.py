@@ -30,3 +30,10 @@ def test_bad_factor_list_exits_2(capsys):
     err = capsys.readouterr().err.strip()
     assert "--giant" in err and "\n" not in err
     assert tg.main(["--thin", "-1"]) == 2
+
+
+def test_unwritable_out_exits_2_before_computing(tmp_path, capsys):
+    # one line, status 2, and nothing computed (the grid takes ~5 s per pair)
+    assert tg.main(["--giant", "0.45", "--thin", "1.15", "--out", str(tmp_path / "missing" / "grid.csv")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--out" in err[0]

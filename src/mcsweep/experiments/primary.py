@@ -265,8 +265,8 @@ class PreparedData:
         a prior are sent with it, :meth:`~mcsweep.solver.dask_resident.DaskChunks.with_inverses`)."""
         from ..solver.dask_resident import DaskChunks
 
-        key = (id(client), tuple(ranges))
-        if self._resident is None or self._resident[0] != key:
+        key = (client, tuple(ranges))  # the client itself: a closed one's id may be reused
+        if self._resident is None or self._resident[0][0] is not client or self._resident[0][1] != key[1]:
             self._resident = (key, DaskChunks.scatter(
                 client, [(self.blocks[lo:hi], [self.h[b.rows] for b in self.blocks[lo:hi]]) for lo, hi in ranges]))
         return self._resident[1]

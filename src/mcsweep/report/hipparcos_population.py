@@ -16,7 +16,9 @@ Usage::
 from __future__ import annotations
 
 import argparse
+import os
 import sys
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -74,6 +76,10 @@ def main(argv=None):
     ap.add_argument("--out", default=None, help="CSV file to write")
     args = ap.parse_args(argv)
     try:
+        # a bad --out ends in one line before the computation, not in a traceback after it
+        if args.out and not os.access(Path(args.out).resolve().parent, os.W_OK):
+            raise UserInputError(f"--out={args.out!r} is not accepted; expected a file in an existing, "
+                                 "writable folder")
         given = {"extinction_model": args.extinction_model,
                  "giant_thickness_factor": args.giant_thickness_factor,
                  "thin_disc_scale_height_factor": args.thin_disc_factor}

@@ -27,7 +27,9 @@ from __future__ import annotations
 
 import argparse
 import itertools
+import os
 import sys
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -112,6 +114,10 @@ def main(argv=None):
     ap.add_argument("--out", default=None, help="CSV file to write")
     args = ap.parse_args(argv)
     try:
+        # a bad --out ends in one line before the computation, not in a traceback after it
+        if args.out and not os.access(Path(args.out).resolve().parent, os.W_OK):
+            raise UserInputError(f"--out={args.out!r} is not accepted; expected a file in an existing, "
+                                 "writable folder")
         df = grid(_floats(args.giant, "giant"), _floats(args.thin, "thin"),
                   extinction_model=args.extinction_model)
     except UserInputError as exc:

@@ -106,7 +106,9 @@ class AttitudeSpline:
     epochs, transits_per_knot : optional, keyword-only
         Knots placed by the data (module notes): the FoV transit epochs [TCB JD] and how
         many of them each knot interval holds (``knot_interval_days`` then only sets
-        ``min_gap_days``' default; give the mean interval).
+        ``min_gap_days``' default; give the mean interval). Each segment then shrinks to
+        the span of its ``epochs`` (``segments`` says so), so ``epochs`` must hold every
+        epoch later passed to :meth:`basis`.
     """
 
     def __init__(self, start_jd: float, end_jd: float, knot_interval_days: float, *, gaps=None,
@@ -126,13 +128,13 @@ class AttitudeSpline:
             if self.segments.shape[0] == 0:
                 raise ValueError("the gaps cover the whole interval: no attitude segment")
             n_ints = [max(1, math.ceil((b - a) / knot_interval_days - 1e-9)) for a, b in self.segments]
-        self.start_jd = float(self.segments[0, 0])
-        self.end_jd = float(self.segments[-1, 1])
         if transits_per_knot is not None:
             inners = self._data_knots(np.asarray(epochs, dtype=float).ravel(), float(transits_per_knot))
             n_ints = [k.size - 1 for k in inners]
         else:
             inners = [np.linspace(a, b, n + 1) for (a, b), n in zip(self.segments, n_ints)]
+        self.start_jd = float(self.segments[0, 0])
+        self.end_jd = float(self.segments[-1, 1])
         self.segment_knots = [np.concatenate([np.full(DEGREE, k[0]), k, np.full(DEGREE, k[-1])]) for k in inners]
         #: First coefficient of each segment (coefficients are numbered segment after segment).
         self.segment_first = np.concatenate([[0], np.cumsum([n + DEGREE for n in n_ints])]).astype(np.int64)
@@ -160,8 +162,6 @@ class AttitudeSpline:
             inner = np.quantile(ts, np.arange(1, n_int) / n_int) if ts.size else np.zeros(0)
             knots = np.unique(np.concatenate([[a], inner[(inner > a) & (inner < b)], [b]]))
             out.append(knots)
-        self.start_jd = float(self.segments[0, 0])
-        self.end_jd = float(self.segments[-1, 1])
         return out
 
     @property

@@ -24,7 +24,6 @@ from typing import Any
 from .. import __version__
 from ..errors import UserInputError
 from .schema import IGNORED_BY_EXPERIMENT
-from ..population.galaxy.parameters import GIANT_THICKNESS_FACTOR
 from ..population.galaxy.parameters import MODEL_VERSION as GALAXY_MODEL_VERSION
 from .store import atomic_write_bytes
 from .version import git_commit
@@ -75,7 +74,7 @@ _DEFAULTS_FROM_BEFORE = {
     "noise.al_floor_mas": 0,
     "population.params.extinction_model": "disc",
     "experiment.primary.evaluation_epoch": "reference",
-    "population.params.giant_thickness_factor": GIANT_THICKNESS_FACTOR,  # exposed in issue 25
+    "population.params.giant_thickness_factor": 0.45,  # exposed in issue 25 (besancon-r03-4)
 }
 
 

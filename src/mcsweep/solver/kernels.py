@@ -30,6 +30,36 @@ __all__ = ["precondition_forward", "precondition_back", "frame_penalty"]
 _jit = numba.njit(cache=True, nogil=True, fastmath=False, error_model="numpy", boundscheck=False)
 
 
+#: A run's attitude sums, (k, c) for spline value k and axis c, row-major: kept as a tuple
+#: of scalars, i.e. in registers, while the run lasts.
+_ZERO_RUN = (0.0,) * 12
+
+_inline = numba.njit(cache=True, nogil=True, fastmath=False, error_model="numpy", boundscheck=False,
+                     inline="always")
+
+
+@_inline
+def _adjoint_add(acc, pq, s, bval, i, wd, wa):
+    """``acc`` plus measurement ``i``'s attitude partials times its weight (``wd``, ``wa``:
+    the weight times the star's partials w.r.t. delta and alpha*)."""
+    w0 = wd * pq[s, 0] - wa * pq[s, 3]
+    w1 = wd * pq[s, 1] - wa * pq[s, 4]
+    w2 = wd * pq[s, 2] - wa * pq[s, 5]
+    b0, b1, b2, b3 = bval[0, i], bval[1, i], bval[2, i], bval[3, i]
+    return (acc[0] + b0 * w0, acc[1] + b0 * w1, acc[2] + b0 * w2,
+            acc[3] + b1 * w0, acc[4] + b1 * w1, acc[5] + b1 * w2,
+            acc[6] + b2 * w0, acc[7] + b2 * w1, acc[8] + b2 * w2,
+            acc[9] + b3 * w0, acc[10] + b3 * w1, acc[11] + b3 * w2)
+
+
+@_inline
+def _flush(out, j, acc):
+    """Add a run's sums to the attitude rows ``j .. j + 3``."""
+    for k in range(4):
+        for c in range(3):
+            out[j + k, c] += acc[3 * k + c]
+
+
 @_jit
 def _forward(src, t, star, seg, seg_j0, bval, pq, y, out):
     """``out += A_a' A_s y`` for per-star ``y (n, 5)``: ``out (n_coef, 3)``.
@@ -41,41 +71,14 @@ def _forward(src, t, star, seg, seg_j0, bval, pq, y, out):
     m = t.shape[0]
     for r in range(seg.shape[0]):
         hi = seg[r + 1] if r + 1 < seg.shape[0] else m
-        a00 = a01 = a02 = a10 = a11 = a12 = a20 = a21 = a22 = a30 = a31 = a32 = 0.0
+        acc = _ZERO_RUN
         for i in range(seg[r], hi):
             s = star[i]
             sa, sd, ti = src[0, i], src[1, i], t[i]
             v = sa * (y[s, 0] + ti * y[s, 3]) + sd * (y[s, 1] + ti * y[s, 4]) + src[2, i] * y[s, 2]
             wd, wa = sd * v, sa * v
-            w0 = wd * pq[s, 0] - wa * pq[s, 3]
-            w1 = wd * pq[s, 1] - wa * pq[s, 4]
-            w2 = wd * pq[s, 2] - wa * pq[s, 5]
-            b0, b1, b2, b3 = bval[0, i], bval[1, i], bval[2, i], bval[3, i]
-            a00 += b0 * w0
-            a01 += b0 * w1
-            a02 += b0 * w2
-            a10 += b1 * w0
-            a11 += b1 * w1
-            a12 += b1 * w2
-            a20 += b2 * w0
-            a21 += b2 * w1
-            a22 += b2 * w2
-            a30 += b3 * w0
-            a31 += b3 * w1
-            a32 += b3 * w2
-        j = seg_j0[r]
-        out[j, 0] += a00
-        out[j, 1] += a01
-        out[j, 2] += a02
-        out[j + 1, 0] += a10
-        out[j + 1, 1] += a11
-        out[j + 1, 2] += a12
-        out[j + 2, 0] += a20
-        out[j + 2, 1] += a21
-        out[j + 2, 2] += a22
-        out[j + 3, 0] += a30
-        out[j + 3, 1] += a31
-        out[j + 3, 2] += a32
+            acc = _adjoint_add(acc, pq, s, bval, i, wd, wa)
+        _flush(out, seg_j0[r], acc)
 
 
 @_jit
@@ -117,7 +120,7 @@ def _back(src, t, star, seg, seg_j0, bval, pq, binv, r_s, z_a, z_s, ys, ya, u):
             z_s[s, a] = w
     for r in range(seg.shape[0]):  # f = u + A_s z_s; ys = A_s' f, ya = A_a' f
         hi = seg[r + 1] if r + 1 < seg.shape[0] else m
-        a00 = a01 = a02 = a10 = a11 = a12 = a20 = a21 = a22 = a30 = a31 = a32 = 0.0
+        acc = _ZERO_RUN
         for i in range(seg[r], hi):
             s = star[i]
             sa, sd, ti = src[0, i], src[1, i], t[i]
@@ -128,35 +131,8 @@ def _back(src, t, star, seg, seg_j0, bval, pq, binv, r_s, z_a, z_s, ys, ya, u):
             ys[s, 2] += src[2, i] * f
             ys[s, 3] += ti * wa
             ys[s, 4] += ti * wd
-            w0 = wd * pq[s, 0] - wa * pq[s, 3]
-            w1 = wd * pq[s, 1] - wa * pq[s, 4]
-            w2 = wd * pq[s, 2] - wa * pq[s, 5]
-            b0, b1, b2, b3 = bval[0, i], bval[1, i], bval[2, i], bval[3, i]
-            a00 += b0 * w0
-            a01 += b0 * w1
-            a02 += b0 * w2
-            a10 += b1 * w0
-            a11 += b1 * w1
-            a12 += b1 * w2
-            a20 += b2 * w0
-            a21 += b2 * w1
-            a22 += b2 * w2
-            a30 += b3 * w0
-            a31 += b3 * w1
-            a32 += b3 * w2
-        j = seg_j0[r]
-        ya[j, 0] += a00
-        ya[j, 1] += a01
-        ya[j, 2] += a02
-        ya[j + 1, 0] += a10
-        ya[j + 1, 1] += a11
-        ya[j + 1, 2] += a12
-        ya[j + 2, 0] += a20
-        ya[j + 2, 1] += a21
-        ya[j + 2, 2] += a22
-        ya[j + 3, 0] += a30
-        ya[j + 3, 1] += a31
-        ya[j + 3, 2] += a32
+            acc = _adjoint_add(acc, pq, s, bval, i, wd, wa)
+        _flush(ya, seg_j0[r], acc)
 
 
 def precondition_forward(blk, y) -> np.ndarray:

@@ -35,37 +35,38 @@ PROVENANCE_FILE = "provenance.json"
 _EXCLUDED_KEYS = ("execution", "resume", "prior_maps")
 
 
+_ANY = object()
+
+
+def _drop(out: dict, dotted: str, only_if=_ANY) -> None:
+    """Remove the dotted key from ``out`` (where it exists, and with ``only_if`` only where
+    its value equals that), copying the dicts on its path: the config they came from stays
+    whole."""
+    *parents, leaf = dotted.split(".")
+    node = out
+    for k in parents:
+        if not isinstance(node.get(k), dict):
+            return
+        node = node[k]
+    if leaf not in node or (only_if is not _ANY and node[leaf] != only_if):
+        return
+    node = out
+    for k in parents:
+        node[k] = dict(node[k])
+        node = node[k]
+    node.pop(leaf)
+
+
 def _science_part(cfg: dict) -> dict:
     """The keys that can change results: not execution/resume, nor what the experiment ignores."""
     out = {k: v for k, v in cfg.items() if k not in _EXCLUDED_KEYS}
     name = (cfg.get("experiment") or {}).get("name", "f90_sweep")
     for dotted in IGNORED_BY_EXPERIMENT.get(name, ()):
-        *parents, leaf = dotted.split(".")
-        node = out
-        for k in parents:
-            if not isinstance(node.get(k), dict):
-                break
-            child = dict(node[k])  # copy on the way down: cfg itself stays whole
-            node[k] = child
-            node = child
-        else:
-            node.pop(leaf, None)
+        _drop(out, dotted)
     # Options whose default is the model from before the option existed: left out at that
     # value so run directories made before it keep their hash (and can be resumed).
     for dotted, before in _DEFAULTS_FROM_BEFORE.items():
-        *parents, leaf = dotted.split(".")
-        node = out
-        for k in parents:
-            if not isinstance(node.get(k), dict):
-                break
-            node = node[k]
-        else:
-            if leaf in node and node[leaf] == before:
-                node = out
-                for k in parents:  # copy on the way down: cfg itself stays whole
-                    node[k] = dict(node[k])
-                    node = node[k]
-                node.pop(leaf)
+        _drop(out, dotted, only_if=before)
     return out
 
 

@@ -137,3 +137,26 @@ def test_iterative_equals_direct_with_gaps_and_few_transits_per_knot(gapped_prob
     assert sol.converged and rel < RTOL_ITER_DIRECT
     n_fov = np.bincount(P["star"])
     assert (n_fov <= 4).sum() > 100 and (n_fov > 4).sum() > 100  # both of Table 3's subsets
+
+
+def test_a_segment_with_fewer_transits_than_a_knot_is_joined_across_the_shorter_gap():
+    # Three live stretches between two gaps: the middle one (1 day) holds 5 epochs, fewer than
+    # one knot interval's 20, too few for its 4 coefficients per axis. It is joined to the
+    # neighbour across the shorter gap (0.3 d before it, 0.5 d after), so the spline runs on
+    # through that gap; every segment then holds >= 20 epochs.
+    gaps = ([START_JD + 3.0, START_JD + 4.3], [START_JD + 3.3, START_JD + 4.8])
+    rng = np.random.default_rng(5)
+    t = np.sort(np.concatenate([rng.uniform(START_JD, START_JD + 3.0, 200), rng.uniform(START_JD + 3.3, START_JD + 4.3, 5),
+                                rng.uniform(START_JD + 4.8, START_JD + 8.0, 200)]))
+    sp = AttitudeSpline(START_JD, START_JD + 8.0, 0.25, gaps=gaps, epochs=t, transits_per_knot=20)
+    assert sp.n_segments == 2
+    assert sp.segments[0, 0] == t[0] and sp.segments[0, 1] == t[204]  # the first two stretches, one segment
+    assert sp.segments[1, 0] == t[205] and sp.segments[1, 1] == t[-1]
+    counts = np.searchsorted(t, sp.segments[:, 1], "right") - np.searchsorted(t, sp.segments[:, 0], "left")
+    assert counts.min() >= 20 and counts.sum() == t.size
+    j0, _ = sp.basis(t)  # every epoch lies in a segment
+    assert j0.max() + 4 == sp.n_coef
+    # An empty middle stretch is joined the same way (before, it became a segment whose four
+    # coefficients per axis had no data at all).
+    sp2 = AttitudeSpline(START_JD, START_JD + 8.0, 0.25, gaps=gaps, epochs=np.r_[t[:200], t[205:]], transits_per_knot=20)
+    assert sp2.n_segments == 2 and sp2.segments[0, 1] == t[199]

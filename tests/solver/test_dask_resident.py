@@ -130,3 +130,36 @@ def test_chunks_kept_for_another_prior_give_that_priors_solution(problem_and_h, 
     _same(solve_global(other, h, resident_chunks=res, chunk_stars=256, log=log, **KW), ref)
     assert killed and res.repeated >= 1
     client.wait_for_workers(2, timeout=60)
+
+
+def _fails(item):
+    raise ValueError(f"chunk {item[0]}: a bug in the task, not a lost worker")
+
+
+def test_an_error_of_the_task_is_raised_at_once_not_repeated(problem_and_h, client):
+    from mcsweep.solver.dask_resident import DaskChunks
+
+    problem, h = problem_and_h
+    ranges = problem.chunks(256)
+    res = DaskChunks.scatter(client, [(problem.blocks[lo:hi], [h[b.rows] for b in problem.blocks[lo:hi]])
+                                      for lo, hi in ranges])
+    with pytest.raises(ValueError, match="a bug in the task"):
+        list(res.run(_fails, [(ci, None, None) for ci in range(len(ranges))]))
+    assert res.repeated == 0 and res.passes == 0
+
+
+def test_bytes_per_iteration_pass_are_tallied_apart_from_the_one_off_passes(problem_and_h, client):
+    # The per-iteration figure the primary experiment prints (issue 27) counts the iteration
+    # passes only; together with the setup and residual passes it is every byte sent.
+    from mcsweep.solver.dask_resident import DaskChunks
+
+    problem, h = problem_and_h
+    ranges = problem.chunks(256)
+    res = DaskChunks.scatter(client, [(problem.blocks[lo:hi], [h[b.rows] for b in problem.blocks[lo:hi]])
+                                      for lo, hi in ranges])
+    solve_global(problem, h, resident_chunks=res, chunk_stars=256, **KW)
+    it = res.bytes_per_call("_forward_task", "_back_task")
+    once = res.bytes_per_call("_setup_task", "_residual_task")
+    assert set(res.bytes_by_task) == {"_setup_task", "_forward_task", "_back_task", "_residual_task"}
+    assert it[0] + once[0] == res.bytes_sent and it[1] + once[1] == res.bytes_received
+    assert it[0] > 0 and once[0] > 0

@@ -18,11 +18,15 @@ in its fixed order (:mod:`~mcsweep.solver.reduction`).
 A worker lost in the middle of a pass: its scattered chunks (no task to recompute them
 from) are scattered again from the driver by ``rebuild`` and the pass is repeated; its
 tasks are pure, so the repeat gives the same bits (tested by killing a worker process of
-a LocalCluster mid-solve).
+a LocalCluster mid-solve). Only a loss repeats a pass (a chunk's data lost, or a
+cancelled result, a closed connection, a time-out, a killed worker); an error of the task
+itself is raised at once. Which worker holds a chunk is asked once per chunk (and again
+after a loss), not every pass.
 """
 
 from __future__ import annotations
 
+import concurrent.futures
 import dataclasses
 import time
 import uuid
@@ -42,6 +46,16 @@ def _attach(chunk: tuple, binv) -> tuple:
     blocks, hs = chunk
     first = blocks[0].first
     return [dataclasses.replace(b, binv=binv[b.first - first:b.first - first + b.n]) for b in blocks], hs
+
+
+#: Exceptions by which a lost worker shows: its results cancelled, a connection closed,
+#: a time-out, a task whose worker died (``distributed.scheduler.KilledWorker``, matched by
+#: name so this module imports without distributed).
+_LOSS = (concurrent.futures.CancelledError, OSError, TimeoutError)
+
+
+def _is_loss(exc: BaseException) -> bool:
+    return isinstance(exc, _LOSS) or type(exc).__name__ == "KilledWorker"
 
 
 def _nbytes(obj) -> int:
@@ -75,9 +89,14 @@ class DaskChunks:
         #: passes, as counted by ``dask.sizeof`` (the arrays' sizes): measured, not estimated.
         self.bytes_sent = 0
         self.bytes_received = 0
+        #: The same per task function (``fn.__name__`` -> [sent, received]): the solver's
+        #: iteration passes apart from its one-off setup and residual passes.
+        self.bytes_by_task: dict[str, list] = {}
         self.passes = 0
+        self._pass_sent = 0
         self.repeated = 0  # passes repeated after a failure (a lost worker)
         self._previous: dict[int, tuple] = {}  # id -> (object, future) sent with the last pass
+        self._homes: dict[int, list] = {}  # chunk -> the workers holding it (asked once, again after a loss)
 
     @classmethod
     def scatter(cls, client, chunks: Sequence[tuple]) -> "DaskChunks":
@@ -106,8 +125,8 @@ class DaskChunks:
         def make(ci):
             if self.futures[ci].status in ("lost", "error", "cancelled") and self.rebuild is not None:
                 self.futures[ci] = self.rebuild(ci)
-            home = client.who_has(self.futures[ci]).get(self.futures[ci].key) or None
-            (inv,) = client.scatter([binv[ci]], workers=list(home) if home else None, hash=False)
+            self._homes.pop(ci, None)
+            (inv,) = client.scatter([binv[ci]], workers=self._home(ci), hash=False)
             out.bytes_sent += _nbytes(binv[ci])
             return client.submit(_attach, self.futures[ci], inv, pure=False)
 
@@ -129,11 +148,23 @@ class DaskChunks:
             fut = self.client.scatter(obj, broadcast=True, hash=False)
             n *= len(self.client.scheduler_info()["workers"])
         else:
-            home = self.client.who_has(self.futures[ci]).get(self.futures[ci].key) or None
-            (fut,) = self.client.scatter([obj], workers=list(home) if home else None, hash=False)
+            (fut,) = self.client.scatter([obj], workers=self._home(ci), hash=False)
         self.bytes_sent += n
+        self._pass_sent += n
         sent[key] = (obj, fut)
         return fut
+
+    def _home(self, ci: int) -> list | None:
+        """The workers holding chunk ``ci`` (one scheduler query per chunk and solution, not
+        per pass; forgotten after a loss)."""
+        if ci not in self._homes:
+            self._homes[ci] = list(self.client.who_has(self.futures[ci]).get(self.futures[ci].key) or ())
+        return self._homes[ci] or None
+
+    def bytes_per_call(self, *names: str) -> tuple[float, float]:
+        """Bytes (sent, received) of the passes of task functions ``names``, summed."""
+        got = [self.bytes_by_task.get(n, [0, 0]) for n in names]
+        return float(sum(g[0] for g in got)), float(sum(g[1] for g in got))
 
     def run(self, fn: Callable, items):
         """``fn(item)`` for items ``(ci, *chunk ci, *rest)``, in item order; only ``rest`` is sent.
@@ -151,6 +182,7 @@ class DaskChunks:
                 counts[id(obj)] = counts.get(id(obj), 0) + 1
         for attempt in range(3):
             sent: dict[int, tuple] = {}
+            self._pass_sent = 0
             try:
                 args = [tuple(self._send(o, None if counts[id(o)] > 1 else item[0], sent)
                               if isinstance(o, np.ndarray) else o for o in rest)
@@ -160,24 +192,32 @@ class DaskChunks:
                                            key=f"{getattr(fn, '__name__', 'task')}-{item[0]}-{tag}", pure=False)
                         for item, a in zip(items, args)]
                 out = self.client.gather(futs)
-            except Exception:
+            except Exception as exc:
                 # A worker lost mid-pass: a scatter to it or a task needing its data fails,
                 # before or after the scheduler marks its data lost. Give the scheduler a moment,
                 # send lost scattered chunks again and repeat the pass (its tasks are pure, so
-                # a repeat gives the same bits). An error of ``fn`` itself repeats too, and is
-                # raised after the last attempt.
-                if attempt == 2:
+                # a repeat gives the same bits). An error of ``fn`` itself is raised at once.
+                lost = self._lost()
+                if attempt == 2 or not (lost or _is_loss(exc)):
                     raise
                 time.sleep(1.0)
-                lost = [ci for ci, f in enumerate(self.futures) if f.status in ("lost", "error", "cancelled")]
+                lost = self._lost()
                 if lost and self.rebuild is None:
                     raise
                 for ci in lost:
                     self.futures[ci] = self.rebuild(ci)
                 self.repeated += 1
                 self._previous = {}  # the kept vectors may have gone with the worker
+                self._homes = {}
                 continue
             self._previous = sent
             self.passes += 1
-            self.bytes_received += sum(_nbytes(r) for r in out)
+            received = sum(_nbytes(r) for r in out)
+            self.bytes_received += received
+            tally = self.bytes_by_task.setdefault(getattr(fn, "__name__", "task"), [0, 0])
+            tally[0] += self._pass_sent
+            tally[1] += received
             return iter(out)
+
+    def _lost(self) -> list[int]:
+        return [ci for ci, f in enumerate(self.futures) if f.status in ("lost", "error", "cancelled")]

@@ -188,9 +188,6 @@ def test_global_rotation_and_spin_of_truth_leave_errors_unchanged(small_problem)
 def test_solution_is_bit_identical_for_any_chunking_and_workers(weak_problem):
     # The promise of mcsweep.solver.reduction: fixed blocks summed in a fixed tree, so the
     # chunk size, the backend and the number of workers cannot change a bit.
-    from mcsweep.sweep.execution import executor
-    from mcsweep.sweep.schema import ExecutionConf
-
     P = weak_problem
     rng = np.random.default_rng(31)
     problem = GlobalProblem(P["obs"], prior_diagonal(1000.0, 10.0), P["ra"], P["dec"], block_stars=128)
@@ -200,9 +197,6 @@ def test_solution_is_bit_identical_for_any_chunking_and_workers(weak_problem):
     kw = dict(rtol=1e-10, update_tol_uas=1e-3, max_iter=12)  # bit identity needs no convergence
     ref = solve_global(problem, h, **kw)
     runs = [solve_global(problem, h, chunk_stars=c, **kw) for c in (128, 512, 100000)]
-    with executor(ExecutionConf(backend="loky", n_jobs=2)) as run:
-        runs.append(solve_global(problem, h, run=run, chunk_stars=256, **kw))
-        runs.append(solve_global(problem, h, run=run, run_iterations=run, chunk_stars=512, **kw))
     runs += [solve_global(problem, h, workers=w, chunk_stars=c, **kw) for w, c in ((2, 128), (3, 256))]  # forked
     for sol in runs:
         assert np.array_equal(sol.x, ref.x) and np.array_equal(sol.attitude, ref.attitude)

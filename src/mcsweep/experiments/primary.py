@@ -435,7 +435,7 @@ def positions_at(x, cov, tau_yr) -> tuple[np.ndarray, np.ndarray]:
     return pos, cov_pos
 
 
-def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=None, *, run=None,
+def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=None, *,
                 chunk_stars=None, workers: int = 1, dask_client=None):
     """One global solution for the prior ``label``: (per-star results, history, attitude errors).
 
@@ -444,9 +444,9 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
     (estimated - true parallax), ``sigma_prior_mas``. ``extra``: iterations, convergence,
     attitude error RMS per axis [uas] over the measurement epochs, fitted frame rotation and
     spin; the last element is the attitude error on a grid (:func:`attitude_error_series`).
-    ``run``, ``chunk_stars``, ``workers``, ``dask_client``: the executor, chunk size, forked
-    workers or Dask cluster (whose workers keep the chunks) for the solver's per-chunk work
-    (:func:`mcsweep.solver.solve_global`); results do not depend on them.
+    ``chunk_stars``, ``workers``, ``dask_client``: the chunk size, forked workers or Dask
+    cluster (whose workers keep the chunks and their star vectors) for the solver's per-chunk
+    work (:func:`mcsweep.solver.solve_global`); results do not depend on them.
     """
     st = data.stars
     s = data.solved
@@ -463,7 +463,7 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
         stars = [slice(data.blocks[lo].first, data.blocks[hi - 1].first + data.blocks[hi - 1].n) for lo, hi in ranges]
         resident = data.resident(dask_client, ranges).with_inverses([problem.src_inv[sl] for sl in stars])
     sol = solve_global(problem, data.h, rtol=settings.rtol, update_tol_uas=settings.update_tol_uas,
-                       max_iter=settings.max_iter, log=log, run=run, chunk_stars=chunk_stars, residuals=False,
+                       max_iter=settings.max_iter, log=log, chunk_stars=chunk_stars, residuals=False,
                        workers=workers, resident_chunks=resident)
     dx = sol.x - data.x_true
     # The frame rotator (Lindegren et al. 2012, Sect. 6.1), weighted by the formal
@@ -507,6 +507,6 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
              "seconds": float(sol.history[-1].seconds) if sol.history else 0.0}
     if resident is not None and sol.history:  # what travelled per iteration (issue 27), measured:
         # the iterations' passes only (the one-off setup and residual passes apart)
-        sent, received = resident.bytes_per_call("_forward_task", "_back_task")
+        sent, received = resident.bytes_per_call("_forward_task", "_back_task", "_direction_task")
         extra["dask_mib_per_iteration"] = [sent / len(sol.history) / 2**20, received / len(sol.history) / 2**20]
     return res, hist, extra, attitude_error_series(data, sol.attitude, eps, omega)

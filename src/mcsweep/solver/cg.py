@@ -42,11 +42,23 @@ one year, 20 % dead time, 1000 mas prior; direct solve for reference):
 
 Each iteration is two passes over the measurements in blocks of stars (the two
 sweeps of the preconditioner; ``N z`` is formed in the second, ``N p`` by recursion,
-``q = N z + beta q``): chunk tasks of :mod:`~mcsweep.solver.blocks` that go through a
-caller-supplied ``run(fn, items)`` (the sweep's executor; by default only the one-off
-passes, see :func:`solve_global`) and are summed in the fixed order of
-:mod:`~mcsweep.solver.reduction`, so the solution is bit-identical for any chunking,
-backend and number of workers.
+``q = N z + beta q``): chunk tasks of :mod:`~mcsweep.solver.blocks` summed in the fixed
+order of :mod:`~mcsweep.solver.reduction`, so the solution is bit-identical for any
+chunking, backend and number of workers.
+
+Where the vectors live. Every star vector of the iteration (right-hand side, solution,
+residual, search direction, ``N p``, the preconditioned residual and the prior-and-frame
+parts kept for the residual RMS) is held chunk by chunk where the chunk's measurements
+are (in-process, a forked worker of :mod:`~mcsweep.solver.resident`, or a Dask worker of
+:mod:`~mcsweep.solver.dask_resident`), and updated there. The driver holds the attitude
+vectors and the banded Schur factor; an iteration exchanges with each chunk the step
+``alpha``, the attitude vector ``z_a``, the six frame sums and ``beta`` one way, and two
+attitude-sized vectors and a few per-block sums (dot products, convergence numbers) the
+other, in three rounds (forward sweep with the step, back sweep, new direction). The star
+vectors reach the driver once, as the solution. Before (issue 27), the driver held them and
+sent each chunk's share of two of them every pass: 64 MiB per iteration at the paper's
+1.5e6 stars. Dot products are now sums of per-block dots in the fixed tree, so the
+rounding differs from a single dot over the whole vector (the same for every backend).
 
 Convergence criterion (stated for users): stop after iteration ``k >= min_iter`` when
 both
@@ -85,18 +97,13 @@ from .source_update import solve_sources, source_normals
 
 __all__ = ["GlobalProblem", "ConvergenceRecord", "GlobalSolution", "solve_global", "make_blocks", "in_block_order",
            "UAS_PER_MAS",
-           "BLOCK_STARS", "sequential_run"]
+           "BLOCK_STARS", "ChunksLost"]
 
 UAS_PER_MAS = 1000.0
 #: Stars per reduction block (module notes of :mod:`~mcsweep.solver.reduction`). Every
 #: block adds one attitude-sized vector per pass, so blocks must hold many more
 #: measurements than there are attitude unknowns to keep that overhead small.
 BLOCK_STARS = 32768
-
-
-def sequential_run(fn: Callable, items: Iterable) -> Iterator:
-    """The in-process executor: ``fn(item)`` for every item, in order."""
-    return (fn(item) for item in items)
 
 
 @dataclasses.dataclass
@@ -294,9 +301,14 @@ class GlobalProblem:
 
     def frame_penalty(self, xs) -> np.ndarray:
         """``F x`` (n, 5): the penalty of the weighted zero-mean rotation and spin constraint
-        (one compiled pass over the stars, summed in star order,
-        :func:`~mcsweep.solver.kernels.frame_penalty`)."""
-        return kernels.frame_penalty(self.K, self.frame_weights, xs, self.w_pos, self.w_pm)
+        (compiled passes over the stars, :func:`~mcsweep.solver.kernels.frame_sums` per
+        block summed in the fixed tree, then :func:`~mcsweep.solver.kernels.frame_apply`,
+        as the solver does)."""
+        K, g = self.K, self.frame_weights
+        sums = pairwise_sum(kernels.frame_sums(K[b.first:b.first + b.n], g[b.first:b.first + b.n],
+                                               xs[b.first:b.first + b.n]) for b in self.blocks)
+        return kernels.frame_apply(K, g, np.zeros(6) if sums is None else sums, self.w_pos, self.w_pm,
+                                   np.zeros((self.n_stars, 5)))
 
     def apply(self, v) -> np.ndarray:
         """``N v`` of the full system (unobserved attitude coefficients: identity rows)."""
@@ -331,35 +343,90 @@ class GlobalProblem:
 
 
 # ---------------------------------------------------------------------- chunk tasks
+# Every task's item starts (chunk index, blocks, measurements, state): what a worker keeps.
+# ``state`` (a dict, filled by the setup task) holds the chunk's share of every star vector
+# of the iteration (right-hand side, solution, residual, search direction, N p, ...), so a
+# pass sends only attitude-sized vectors and a few numbers and gets the same back (module
+# notes, "Where the vectors live"). Per-block numbers (dots, sums) are added in the fixed
+# tree of mcsweep.solver.reduction, so no result depends on the chunking.
+
+def _views(blocks, *vectors):
+    """Per block, the block's rows of each chunk vector (n_chunk, 5)."""
+    first = blocks[0].first
+    return [[v[b.first - first:b.first - first + b.n] for v in vectors] for b in blocks]
+
+
 def _add_setup(a: dict, b: dict) -> dict:
     return {k: a[k] + b[k] for k in a}
 
 
 def _setup_task(item):
-    ci, blocks, hs = item
+    ci, blocks, hs, st, prior, K, g = item
     parts = [B.block_setup(b, h) for b, h in zip(blocks, hs)]
+    for p in parts:
+        p["bb"] = _dot(p["b_s"], p["b_s"])
     b_s = np.concatenate([p.pop("b_s") for p in parts])
-    return ci, pairwise_sum(parts, _add_setup), b_s
+    st.clear()
+    zero = np.zeros_like(b_s)
+    st.update(b=b_s, x=zero.copy(), r=b_s.copy(), e_x=zero.copy(), p=zero.copy(), q=zero.copy(), e_p=zero,
+              prior=np.ascontiguousarray(prior, dtype=float), K=np.ascontiguousarray(K, dtype=float),
+              g=np.ascontiguousarray(g, dtype=float))
+    return ci, pairwise_sum(parts, _add_setup)
 
 
-# Every task's item starts (chunk index, blocks, measurements): what a resident worker keeps.
 def _forward_task(item):
-    ci, blocks, _, r_s = item
-    return ci, pairwise_sum(B.block_precondition_forward(b, r_s[b.first - blocks[0].first:][:b.n])
-                            for b in blocks)
+    """Apply the step ``alpha`` (None: none yet) to x, r and (N_p + F) x; the chunk's shares of
+    the convergence numbers; then the first sweep of the preconditioner on the new r."""
+    ci, blocks, _, st, alpha = item
+    if alpha is None:
+        numbers, largest = np.zeros(4), 0.0
+    else:
+        step = alpha * st["p"]
+        st["x"] += step
+        st["e_x"] += alpha * st["e_p"]
+        st["r"] -= alpha * st["q"]
+        # x'(b + r), x'(N_p + F) x, sum of squared position steps, r'r
+        numbers = pairwise_sum(np.array([_dot(x, b + r), _dot(x, e), _dot(d[:, :2], d[:, :2]), _dot(r, r)])
+                               for x, b, r, e, d in _views(blocks, st["x"], st["b"], st["r"], st["e_x"], step))
+        largest = float(np.max(np.abs(step), initial=0.0))
+    w_a = pairwise_sum(B.block_precondition_forward(b, r) for b, (r,) in zip(blocks, _views(blocks, st["r"])))
+    return ci, w_a, numbers, largest
 
 
 def _back_task(item):
-    ci, blocks, _, r_s, z_a = item
-    parts = [B.block_precondition_back(b, r_s[b.first - blocks[0].first:][:b.n], z_a) for b in blocks]
-    return (ci, np.concatenate([q[0] for q in parts]), np.concatenate([q[1] for q in parts]),
-            pairwise_sum(q[2] for q in parts))
+    """Last sweep of the preconditioner: z_s and the data part of N z kept; returned the
+    attitude part of N z, and the shares of r'z and of the frame sums C z_s."""
+    ci, blocks, _, st, z_a = item
+    parts = [B.block_precondition_back(b, r, z_a) for b, (r,) in zip(blocks, _views(blocks, st["r"]))]
+    st["z"] = np.concatenate([q[0] for q in parts])
+    st["nz"] = np.concatenate([q[1] for q in parts])
+    numbers = pairwise_sum(np.r_[_dot(r, z), kernels.frame_sums(K, g, z)]
+                           for r, z, K, g in _views(blocks, st["r"], st["z"], st["K"], st["g"]))
+    return ci, pairwise_sum(q[2] for q in parts), numbers
+
+
+def _direction_task(item):
+    """N z completed with the prior and the frame penalty (``sums``: C z over all stars), then
+    the new search direction ``p = z + beta p`` (``beta`` None: the first, ``p = z``) and
+    ``q = N p`` by recursion; returned the share of p'q."""
+    ci, blocks, _, st, sums, beta, w = item
+    e_z = st["prior"] * st["z"]
+    kernels.frame_apply(st["K"], st["g"], sums, w[0], w[1], e_z)
+    nz = st.pop("nz") + e_z
+    z = st.pop("z")
+    if beta is None:
+        st["p"], st["q"], st["e_p"] = z, nz, e_z
+    else:
+        st["p"] = z + beta * st["p"]
+        st["q"] = nz + beta * st["q"]
+        st["e_p"] = e_z + beta * st["e_p"]
+    return ci, pairwise_sum(_dot(p, q) for p, q in _views(blocks, st["p"], st["q"]))
 
 
 def _residual_task(item):
-    ci, blocks, hs, x_s, x_a, keep = item
-    res = [B.block_residuals(b, h, x_s[b.first - blocks[0].first:][:b.n], x_a) for b, h in zip(blocks, hs)]
-    return ci, (res if keep else None), pairwise_sum(_dot(r, r) for r in res)
+    ci, blocks, hs, st, x_a, keep = item
+    res = [B.block_residuals(b, h, x, x_a) for b, h, (x,) in zip(blocks, hs, _views(blocks, st["x"]))]
+    return ci, (res if keep else None), pairwise_sum(_dot(r, r) for r in res), st["x"]
 
 
 def _dot(a, b) -> float:
@@ -387,10 +454,19 @@ def _ordered(run, fn, items) -> list:
     return [out[i] for i in range(len(items))]
 
 
+class ChunksLost(RuntimeError):
+    """Raised by a resident executor when a worker and the chunk states it held were lost;
+    its chunks' data are back on the cluster and the solution restarts (deterministic, so
+    with the same bits)."""
+
+
+#: Restarts of a solution after lost chunk states before the loss is raised.
+MAX_RESTARTS = 3
+
+
 # ---------------------------------------------------------------------- solver
 def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_uas: float = 1e-3,
-                 max_iter: int = 500, min_iter: int = 2, log=None, run: Callable | None = None,
-                 chunk_stars: int | None = None, run_iterations: Callable | None = None,
+                 max_iter: int = 500, min_iter: int = 2, log=None, chunk_stars: int | None = None,
                  residuals: bool = True, workers: int = 1, dask_client=None,
                  resident_chunks=None) -> GlobalSolution:
     """Solve ``N x = A' h`` by PCG from ``x = 0`` (module notes).
@@ -404,22 +480,7 @@ def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_u
     rtol, update_tol_uas, max_iter, min_iter : keyword-only
         Convergence criterion (module notes).
     log : callable, optional
-        Called with each :class:`ConvergenceRecord`.
-    run : callable, optional, keyword-only
-        Executor ``run(fn, items) -> iterator of fn(item)`` in any order, e.g. from
-        :func:`mcsweep.sweep.execution.executor`, for the one-off passes (the setup pass
-        that accumulates the right-hand sides and the banded Schur block, and the final
-        residuals); default in-process. On one machine it does not pay: joblib loky with
-        2 workers made a 2-iteration solve of 32000 stars (2.8e5 measurements, 4 blocks)
-        take 10.2 s wall against 1.5 s in-process (shared machine, load ~8); it is meant
-        for a Dask cluster with more cores than data transfer costs.
-    run_iterations : callable, optional, keyword-only
-        Executor for the two passes of every iteration; default in-process. Measured
-        (16000 stars, 1.4e5 measurements, 2 chunks): joblib loky with 2 workers took 5.8x
-        the wall time of in-process, threads 1.2x: a map-like executor re-sends every
-        chunk's measurements each call, which costs more than the pass itself. Pass
-        ``run`` here only for an executor whose workers keep their data (on one machine:
-        ``workers``).
+        Called with each :class:`ConvergenceRecord` (after a restart, from iteration 1 again).
     chunk_stars : int, optional, keyword-only
         Stars per chunk task (rounded down to a power of two of blocks); default one
         block per task. Results do not depend on it.
@@ -427,18 +488,17 @@ def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_u
         Return the residual of every measurement (``GlobalSolution.residuals``, 8 bytes
         per measurement); ``False`` keeps only their RMS.
     workers : int, keyword-only
-        Forked processes that keep their share of the chunks (:mod:`~mcsweep.solver.resident`)
-        for every pass not given to ``run`` / ``run_iterations``; 1 (default) or no ``fork``:
-        in-process. Results do not depend on it.
+        Forked processes that keep their share of the chunks and of the star vectors
+        (:mod:`~mcsweep.solver.resident`); 1 (default) or no ``fork``: in-process. Results
+        do not depend on it. (A map-like executor, one that sends a task's data with every
+        call, cannot keep the star vectors between passes and is not accepted.)
     dask_client : distributed.Client, optional, keyword-only
-        Every pass on a Dask cluster whose workers keep the chunks
-        (:class:`~mcsweep.solver.dask_resident.DaskChunks`: scattered once, then only the
-        per-pass vectors travel); overrides ``run``, ``run_iterations`` and ``workers``.
-        Results do not depend on it.
+        Every pass on a Dask cluster whose workers keep the chunks and their star vectors
+        (:class:`~mcsweep.solver.dask_resident.DaskChunks`: scattered once, then only
+        attitude-sized vectors travel); overrides ``workers``. Results do not depend on it.
     resident_chunks : DaskChunks, optional, keyword-only
-        As ``dask_client``, with the chunks already on the workers (built there); its
-        chunk ``ci`` must be the problem's blocks of ``problem.chunks(chunk_stars)[ci]``
-        with their measurements.
+        As ``dask_client``, with the chunks already on the workers; its chunk ``ci`` must be
+        the problem's blocks of ``problem.chunks(chunk_stars)[ci]`` with their measurements.
     """
     h = np.asarray(h, dtype=float)
     ranges = problem.chunks(chunk_stars)
@@ -448,28 +508,44 @@ def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_u
         from .dask_resident import DaskChunks
 
         resident_chunks = DaskChunks.scatter(dask_client, list(zip(chunks, hs)))
+    kw = dict(rtol=rtol, update_tol_uas=update_tol_uas, max_iter=max_iter, min_iter=min_iter, log=log,
+              residuals=residuals)
     if resident_chunks is not None:
-        return _pcg(problem, h, chunks, hs, resident_chunks.run, resident_chunks.run, rtol=rtol,
-                    update_tol_uas=update_tol_uas, max_iter=max_iter, min_iter=min_iter, log=log,
-                    residuals=residuals)
-    with forked_chunks(list(zip(chunks, hs)), workers if run_iterations is None else 1) as pool:
-        return _pcg(problem, h, chunks, hs, run or pool or sequential_run, run_iterations or pool or sequential_run,
-                    rtol=rtol, update_tol_uas=update_tol_uas, max_iter=max_iter, min_iter=min_iter, log=log,
-                    residuals=residuals)
+        for attempt in range(MAX_RESTARTS + 1):
+            try:
+                return _pcg(problem, h, chunks, resident_chunks.run, **kw)
+            except ChunksLost:
+                if attempt == MAX_RESTARTS:
+                    raise
+    states = [{} for _ in chunks]
+    with forked_chunks(list(zip(chunks, hs, states)), workers) as pool:
+        if pool is None:  # in-process: the chunks and their states are these very objects
+            items = {ci: (chunks[ci], hs[ci], states[ci]) for ci in range(len(chunks))}
+            return _pcg(problem, h, chunks, partial(_in_process, items), **kw)
+        return _pcg(problem, h, chunks, pool, **kw)
 
 
-def _pcg(pb: GlobalProblem, h, chunks, hs, run, run_it, *, rtol, update_tol_uas, max_iter, min_iter, log,
+def _in_process(chunks: dict, fn: Callable, items: Iterable) -> Iterator:
+    """The in-process executor over chunks ``(blocks, measurements, state)`` it holds; items
+    are ``(ci, *rest)`` as for the resident executors."""
+    return (fn((item[0], *chunks[item[0]], *item[1:])) for item in items)
+
+
+def _pcg(pb: GlobalProblem, h, chunks, run, *, rtol, update_tol_uas, max_iter, min_iter, log,
          residuals) -> GlobalSolution:
-    """The PCG iteration of :func:`solve_global` with its executors chosen."""
+    """The PCG iteration of :func:`solve_global`; ``run(fn, items)`` runs chunk tasks whose items
+    are ``(ci, *rest)`` on the executor that holds chunk ``ci`` and its state."""
     stars = [slice(bl[0].first, bl[-1].first + bl[-1].n) for bl in chunks]
+    n_ch = range(len(chunks))
+    w = (pb.w_pos, pb.w_pm)
 
-    # Setup pass: right-hand side and the banded Schur preconditioner of the attitude.
-    res = _ordered(run, _setup_task, [(i, bl, hh) for i, (bl, hh) in enumerate(zip(chunks, hs))])
+    # Setup pass: right-hand side, the stars' vectors on the workers, the banded Schur block.
+    res = _ordered(run, _setup_task, [(i, pb.prior[sl], pb.K[sl], pb.frame_weights[sl])
+                                      for i, sl in zip(n_ch, stars)])
     glob = pairwise_sum((r[0] for r in res), _add_setup)
     free = pb.free
-    b_s = np.concatenate([r[1] for r in res])
     b_a = np.where(free, glob["b_a"], 0.0)
-    b_norm = float(np.sqrt(_dot(b_s, b_s) + _dot(b_a, b_a))) or 1.0
+    b_norm = float(np.sqrt(glob["bb"] + _dot(b_a, b_a))) or 1.0
     band = -glob["absorption"]
     band[-pb.naa_band.shape[0]:] += pb.naa_band
     fixed = ~free.ravel()
@@ -481,55 +557,54 @@ def _pcg(pb: GlobalProblem, h, chunks, hs, run, run_it, *, rtol, update_tol_uas,
         band[-1] += 1e-12 * np.maximum(pb.naa_band[-1], 1.0)
         chol = cholesky_banded(band, lower=False)
 
-    def extra_s(v_s):  # the non-data part of the source rows: prior and frame penalty
-        return pb.prior * v_s + pb.frame_penalty(v_s)
-
-    def precondition(r_s, r_a):
-        """``z = M^-1 r`` (symmetric block Gauss-Seidel with the banded Schur block) and ``N z``."""
-        # the same slice objects in both passes: an executor whose workers keep data
-        # (mcsweep.solver.dask_resident) then sends each chunk's slice once
-        rs = [r_s[sl] for sl in stars]
-        fwd = _ordered(run_it, _forward_task, [(i, bl, hh, rs[i]) for i, (bl, hh) in enumerate(zip(chunks, hs))])
-        w_a = np.where(free, r_a - pairwise_sum(f[0] for f in fwd), 0.0)
+    def precondition(r_a, w_a, beta):
+        """``z = M^-1 r`` (symmetric block Gauss-Seidel with the banded Schur block; the first
+        sweep's attitude part ``w_a`` from the forward task), its ``r'z``, then on the workers
+        ``N z`` and the new direction: returns ``z_a``, ``(N z)_a``, ``r'z`` and the stars'
+        share of ``p'q``."""
+        w_a = np.where(free, r_a - w_a, 0.0)
         z_a = np.where(free, cho_solve_banded((chol, False), w_a.ravel()).reshape(-1, 3), 0.0)
-        back = _ordered(run_it, _back_task, [(i, bl, hh, rs[i], z_a) for i, (bl, hh) in enumerate(zip(chunks, hs))])
-        z_s = np.concatenate([o[0] for o in back])
-        e_s = extra_s(z_s)
-        nz_s = np.concatenate([o[1] for o in back]) + e_s
-        nz_a = pairwise_sum(o[2] for o in back)
+        back = _ordered(run, _back_task, [(i, z_a) for i in n_ch])
+        nz_a = pairwise_sum(o[0] for o in back)
         nz_a[~free] = z_a[~free]
-        return z_s, z_a, nz_s, nz_a, e_s
+        numbers = pairwise_sum(o[1] for o in back)
+        rz = float(numbers[0]) + _dot(r_a, z_a)
+        beta = None if beta is None else beta(rz)
+        pq_s = pairwise_sum(o[0] for o in _ordered(run, _direction_task, [(i, numbers[1:], beta, w) for i in n_ch]))
+        return z_a, nz_a, rz, beta, float(pq_s)
+
+    def forward(alpha):
+        fwd = _ordered(run, _forward_task, [(i, alpha) for i in n_ch])
+        return (pairwise_sum(f[0] for f in fwd), pairwise_sum(f[1] for f in fwd),
+                max(f[2] for f in fwd))
 
     hh = glob["hh"]
-    x_s, x_a = np.zeros_like(b_s), np.zeros_like(b_a)
-    r_s, r_a = b_s.copy(), b_a.copy()
-    p_s, p_a, q_s, q_a, e_p = precondition(r_s, r_a)
-    e_x = np.zeros_like(x_s)  # (N_p + F) x_s and (N_p + F) p_s by the same recursions as x and q
-    rz = float(_dot(r_s, p_s) + _dot(r_a, p_a))
+    x_a = np.zeros_like(b_a)
+    r_a = b_a.copy()
+    w_a, _, _ = forward(None)
+    p_a, q_a, rz, _, pq_s = precondition(r_a, w_a, None)
+    p_a = p_a.copy()
     history, converged = [], False
     t0 = time.perf_counter()
     for it in range(1, max_iter + 1):
-        pq = float(_dot(p_s, q_s) + _dot(p_a, q_a))
+        pq = pq_s + _dot(p_a, q_a)
         if pq <= 0.0:  # exact solution reached (or loss of positive definiteness)
             break
         alpha = rz / pq
-        x_s += alpha * p_s
-        x_a += alpha * p_a
-        e_x += alpha * e_p
-        r_s -= alpha * q_s
+        step_a = alpha * p_a
+        x_a += step_a
         r_a -= alpha * q_a
+        w_a, numbers, largest_s = forward(alpha)
+        xbr, xex, step_pos2, rr_s = (float(v) for v in numbers)
         # |h - A x|^2 = h'h - 2 x'b + x'A'A x with A'A x = b - r - (N_p + F) x_s
-        res2 = (hh - float(_dot(x_s, b_s + r_s) + _dot(x_a, b_a + r_a))
-                - _dot(x_s, e_x))
-        step_s, step_a = alpha * p_s, alpha * p_a
+        res2 = hh - (xbr + _dot(x_a, b_a + r_a)) - xex
         rec = ConvergenceRecord(
             iteration=it,
-            update_max_uas=UAS_PER_MAS * max(float(np.max(np.abs(step_a), initial=0.0)),
-                                             float(np.max(np.abs(step_s), initial=0.0))),
-            update_rms_position_uas=UAS_PER_MAS * float(np.sqrt(np.mean(np.sum(step_s[:, :2] ** 2, axis=1)))),
+            update_max_uas=UAS_PER_MAS * max(float(np.max(np.abs(step_a), initial=0.0)), largest_s),
+            update_rms_position_uas=UAS_PER_MAS * float(np.sqrt(step_pos2 / max(pb.n_stars, 1))),
             update_rms_attitude_uas=UAS_PER_MAS * float(np.sqrt(np.mean(np.sum(step_a ** 2, axis=1)))),
             residual_rms=float(np.sqrt(max(res2, 0.0) / h.size)) if h.size else 0.0,
-            relative_residual=float(np.sqrt(_dot(r_s, r_s) + _dot(r_a, r_a))) / b_norm,
+            relative_residual=float(np.sqrt(rr_s + _dot(r_a, r_a))) / b_norm,
             seconds=time.perf_counter() - t0)
         history.append(rec)
         if log is not None:
@@ -537,21 +612,20 @@ def _pcg(pb: GlobalProblem, h, chunks, hs, run, run_it, *, rtol, update_tol_uas,
         if it >= min_iter and rec.update_max_uas < update_tol_uas and rec.relative_residual < rtol:
             converged = True
             break
-        z_s, z_a, nz_s, nz_a, e_z = precondition(r_s, r_a)
-        rz_new = float(_dot(r_s, z_s) + _dot(r_a, z_a))
-        beta = rz_new / rz
-        p_s, p_a = z_s + beta * p_s, z_a + beta * p_a
-        q_s, q_a = nz_s + beta * q_s, nz_a + beta * q_a   # N p without another pass
-        e_p = e_z + beta * e_p
+        if it == max_iter:
+            break
+        z_a, nz_a, rz_new, beta, pq_s = precondition(r_a, w_a, lambda rz_new: rz_new / rz)
+        p_a = z_a + beta * p_a
+        q_a = nz_a + beta * q_a   # N p without another pass
         rz = rz_new
-    out = _ordered(run, _residual_task, [(i, bl, hh_, x_s[sl], x_a, residuals)
-                                          for i, (bl, hh_, sl) in enumerate(zip(chunks, hs, stars))])
+    out = _ordered(run, _residual_task, [(i, x_a, residuals) for i in n_ch])
     res_all = None
     if residuals:
         res_all = np.empty(h.size)
         for b, rb in zip(pb.blocks, [r for o in out for r in o[0]]):
             res_all[b.rows] = rb
     ss = pairwise_sum(o[1] for o in out)
+    x_s = np.concatenate([o[2] for o in out]) if out else np.zeros((0, 5))
     return GlobalSolution(x=x_s, attitude=x_a, cov=pb.src_inv, residuals=res_all,
                           residual_rms=float(np.sqrt(ss / h.size)) if h.size else float("nan"),
                           history=history, converged=converged)

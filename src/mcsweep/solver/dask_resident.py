@@ -1,27 +1,29 @@
 """Chunks kept on the workers of a Dask cluster: the solver's passes beyond one machine.
 
 The cluster counterpart of :mod:`~mcsweep.solver.resident` (forked local workers). Each
-chunk's data (its blocks and measurements, what a task item carries after its index) is
-one Dask future, made once per solution: scattered from the driver (what the solver and
-the primary experiment do today), or any future of a task that builds it on a worker
-(the interface allows it; blocks built on the workers from their seeds are not written
-yet, issue 27). Every
-pass then submits one task per chunk that names the chunk's future, so the measurements
-never travel again; only the small per-pass arguments (the chunk's slice of the star
-vectors, the attitude vector) are sent and only the chunk results come back.
+chunk (its blocks, its measurements and a dict of its share of the star vectors of the
+iteration) is one Dask future, made once per solution: scattered from the driver (what
+the solver and the primary experiment do today), or any future of a task that builds it
+on a worker (the interface allows it; blocks built on the workers from their seeds are
+not written yet, issue 27). Every pass then submits one task per chunk, pinned to the
+worker that holds it, which reads and updates the chunk's star vectors in place: only
+attitude-sized vectors and a few numbers per chunk are sent and come back
+(:mod:`~mcsweep.solver.cg`, "Where the vectors live").
 
 Results are bit-identical to in-process ones: the chunk tasks are the solver's own
 functions on the same block arrays (the numba kernels sum in stored order whatever the
 memory alignment, :mod:`~mcsweep.solver.kernels`), and the driver adds the chunk results
 in its fixed order (:mod:`~mcsweep.solver.reduction`).
 
-A worker lost in the middle of a pass: its scattered chunks (no task to recompute them
-from) are scattered again from the driver by ``rebuild`` and the pass is repeated; its
-tasks are pure, so the repeat gives the same bits (tested by killing a worker process of
-a LocalCluster mid-solve). Only a loss repeats a pass (a chunk's data lost, or a
-cancelled result, a closed connection, a time-out, a killed worker); an error of the task
-itself is raised at once. Which worker holds a chunk is asked once per chunk (and again
-after a loss), not every pass.
+A worker lost in the middle of a solution takes the star vectors of its chunks with it:
+its scattered chunks (no task to recompute them from) are scattered again from the
+driver by ``rebuild`` and the solution restarts from its first pass
+(:class:`~mcsweep.solver.cg.ChunksLost`); every task is deterministic, so the restarted
+solution has the same bits (tested by killing a worker process of a LocalCluster
+mid-solve). Only a loss restarts (a chunk's data lost, a cancelled result, a closed
+connection, a time-out, a killed worker); an error of the task itself is raised at once.
+Which worker holds a chunk is asked once per chunk (and again after a loss), not every
+pass.
 """
 
 from __future__ import annotations
@@ -42,10 +44,11 @@ def _call(fn: Callable, ci: int, chunk: tuple, rest: tuple):
 
 
 def _attach(chunk: tuple, binv) -> tuple:
-    """A solver chunk ``(blocks, measurements)`` with its stars' inverses ``binv (n, 5, 5)``."""
-    blocks, hs = chunk
+    """A solver chunk ``(blocks, measurements, state)`` with its stars' inverses ``binv (n, 5, 5)``
+    and a state of its own."""
+    blocks, hs = chunk[:2]
     first = blocks[0].first
-    return [dataclasses.replace(b, binv=binv[b.first - first:b.first - first + b.n]) for b in blocks], hs
+    return [dataclasses.replace(b, binv=binv[b.first - first:b.first - first + b.n]) for b in blocks], hs, {}
 
 
 #: Exceptions by which a lost worker shows: its results cancelled, a connection closed,
@@ -56,6 +59,15 @@ _LOSS = (concurrent.futures.CancelledError, OSError, TimeoutError)
 
 def _is_loss(exc: BaseException) -> bool:
     return isinstance(exc, _LOSS) or type(exc).__name__ == "KilledWorker"
+
+
+#: Arrays of at least this size are scattered (once per pass and kept for the next);
+#: smaller ones (a chunk's six frame sums) travel inside the task.
+SCATTER_BYTES = 65536
+
+
+def _scattered(obj) -> bool:
+    return isinstance(obj, np.ndarray) and obj.nbytes >= SCATTER_BYTES
 
 
 def _nbytes(obj) -> int:
@@ -71,19 +83,16 @@ class DaskChunks:
     ----------
     client : distributed.Client
     futures : sequence of Future
-        ``futures[ci]``: a future of chunk ``ci``'s tuple (the solver's: its blocks and
-        measurements).
-    width : int
-        Objects of a task item after its index that the worker holds (``len`` of the tuple).
+        ``futures[ci]``: a future of chunk ``ci``'s tuple (the solver's: its blocks,
+        measurements and a dict of its star vectors, which the tasks change in place).
     rebuild : callable, optional
         ``rebuild(ci) -> Future``: a new future of chunk ``ci`` when its data were lost with
         a worker (for scattered chunks; a chunk built by a task needs none).
     """
 
-    def __init__(self, client, futures: Sequence, width: int, rebuild: Callable | None = None):
+    def __init__(self, client, futures: Sequence, rebuild: Callable | None = None):
         self.client = client
         self.futures = list(futures)
-        self.width = int(width)
         self.rebuild = rebuild
         #: Bytes sent to the workers (arguments) and received from them (results) by the
         #: passes, as counted by ``dask.sizeof`` (the arrays' sizes): measured, not estimated.
@@ -94,14 +103,15 @@ class DaskChunks:
         self.bytes_by_task: dict[str, list] = {}
         self.passes = 0
         self._pass_sent = 0
-        self.repeated = 0  # passes repeated after a failure (a lost worker)
+        self.repeated = 0  # losses met (each restarts the solution)
         self._previous: dict[int, tuple] = {}  # id -> (object, future) sent with the last pass
         self._homes: dict[int, list] = {}  # chunk -> the workers holding it (asked once, again after a loss)
 
     @classmethod
     def scatter(cls, client, chunks: Sequence[tuple]) -> "DaskChunks":
-        """Chunks held by the driver, sent once to the workers (spread over them)."""
-        chunks = list(chunks)
+        """Chunks ``(blocks, measurements)`` held by the driver, sent once to the workers (spread
+        over them), each with an empty state."""
+        chunks = [(*c, {}) for c in chunks]
 
         def put(ci):
             workers = sorted(client.scheduler_info()["workers"])  # the live ones (after a loss too)
@@ -111,15 +121,12 @@ class DaskChunks:
             (fut,) = client.scatter([chunks[ci]], workers=[workers[ci % len(workers)]], hash=False)
             return fut
 
-        return cls(client, [put(ci) for ci in range(len(chunks))], len(chunks[0]) if chunks else 0,
-                   rebuild=put)
+        return cls(client, [put(ci) for ci in range(len(chunks))], rebuild=put)
 
     def with_inverses(self, binv: Sequence) -> "DaskChunks":
         """These chunks (the solver's blocks and measurements, kept on the workers) with the
         per-star inverses of one prior, ``binv[ci]`` the stars of chunk ``ci``: what changes
         from prior to prior is sent (200 bytes per star), not the measurements."""
-        if self.width != 2:
-            raise ValueError("with_inverses needs the solver's chunks (blocks, measurements)")
         client = self.client
 
         def make(ci):
@@ -130,7 +137,7 @@ class DaskChunks:
             out.bytes_sent += _nbytes(binv[ci])
             return client.submit(_attach, self.futures[ci], inv, pure=False)
 
-        out = DaskChunks(client, [], 2, rebuild=make)
+        out = DaskChunks(client, [], rebuild=make)
         out.futures = [make(ci) for ci in range(len(self.futures))]
         return out
 
@@ -167,57 +174,69 @@ class DaskChunks:
         return float(sum(g[0] for g in got)), float(sum(g[1] for g in got))
 
     def run(self, fn: Callable, items):
-        """``fn(item)`` for items ``(ci, *chunk ci, *rest)``, in item order; only ``rest`` is sent.
+        """``fn((ci, *chunk ci, *rest))`` on chunk ``ci``'s worker for items ``(ci, *rest)``, in
+        item order; only ``rest`` is sent.
 
-        Arrays of ``rest`` are sent once each (an object in several items, the attitude
-        vector, once to every worker) and kept for the next pass, which reuses them if it
-        gets the very same objects: the caller must not modify them in between (the solver
-        passes the same slices of the star vector to both sweeps of a preconditioning).
+        Arrays of ``rest`` of at least :data:`SCATTER_BYTES` are sent once each (an object in
+        several items, the attitude vector, once to every worker) and kept for the next pass,
+        which reuses them if it gets the very same objects: the caller must not modify them
+        in between. Smaller ones and other objects travel with the task.
+
+        A lost worker takes the chunk states it held: its chunks are sent again (``rebuild``)
+        and :class:`~mcsweep.solver.cg.ChunksLost` is raised, so the solution restarts.
         """
-        items = list(items)
-        rests = [tuple(item[1 + self.width:]) for item in items]
+        from .cg import ChunksLost
+
+        items = [(item[0], tuple(item[1:])) for item in items]
         counts: dict[int, int] = {}
-        for rest in rests:
+        for _, rest in items:
             for obj in rest:
                 counts[id(obj)] = counts.get(id(obj), 0) + 1
-        for attempt in range(3):
-            sent: dict[int, tuple] = {}
-            self._pass_sent = 0
-            try:
-                args = [tuple(self._send(o, None if counts[id(o)] > 1 else item[0], sent)
-                              if isinstance(o, np.ndarray) else o for o in rest)
-                        for item, rest in zip(items, rests)]
-                tag = uuid.uuid4().hex[:12]
-                futs = [self.client.submit(_call, fn, item[0], self.futures[item[0]], a,
-                                           key=f"{getattr(fn, '__name__', 'task')}-{item[0]}-{tag}", pure=False)
-                        for item, a in zip(items, args)]
-                out = self.client.gather(futs)
-            except Exception as exc:
-                # A worker lost mid-pass: a scatter to it or a task needing its data fails,
-                # before or after the scheduler marks its data lost. Give the scheduler a moment,
-                # send lost scattered chunks again and repeat the pass (its tasks are pure, so
-                # a repeat gives the same bits). An error of ``fn`` itself is raised at once.
-                lost = self._lost()
-                if attempt == 2 or not (lost or _is_loss(exc)):
-                    raise
-                time.sleep(1.0)
-                lost = self._lost()
-                if lost and self.rebuild is None:
-                    raise
-                for ci in lost:
-                    self.futures[ci] = self.rebuild(ci)
-                self.repeated += 1
-                self._previous = {}  # the kept vectors may have gone with the worker
-                self._homes = {}
-                continue
-            self._previous = sent
-            self.passes += 1
-            received = sum(_nbytes(r) for r in out)
-            self.bytes_received += received
-            tally = self.bytes_by_task.setdefault(getattr(fn, "__name__", "task"), [0, 0])
-            tally[0] += self._pass_sent
-            tally[1] += received
-            return iter(out)
+        sent: dict[int, tuple] = {}
+        self._pass_sent = 0
+        try:
+            args = [tuple(self._send(o, None if counts[id(o)] > 1 else ci, sent) if _scattered(o)
+                          else self._inline(o) for o in rest) for ci, rest in items]
+            tag = uuid.uuid4().hex[:12]
+            # pinned to the chunk's worker: the task changes the chunk's state there (a copy of
+            # the chunk moved to another worker would not be the one kept)
+            futs = [self.client.submit(_call, fn, ci, self.futures[ci], a, workers=self._home(ci),
+                                       allow_other_workers=False,
+                                       key=f"{getattr(fn, '__name__', 'task')}-{ci}-{tag}", pure=False)
+                    for (ci, _), a in zip(items, args)]
+            out = self.client.gather(futs)
+        except Exception as exc:
+            # A worker lost mid-pass: a scatter to it or a task needing its data fails, before
+            # or after the scheduler marks its data lost. Give the scheduler a moment, send the
+            # lost chunks again and have the solution restart. An error of ``fn`` itself is
+            # raised at once.
+            if not (self._lost() or _is_loss(exc)):
+                raise
+            time.sleep(1.0)
+            lost = self._lost()
+            if lost and self.rebuild is None:
+                raise
+            for ci in lost:
+                self.futures[ci] = self.rebuild(ci)
+            self.repeated += 1
+            self._previous = {}  # the kept vectors may have gone with the worker
+            self._homes = {}
+            raise ChunksLost(f"{len(lost)} chunk(s) lost with a worker: sent again") from exc
+        self._previous = sent
+        self.passes += 1
+        received = sum(_nbytes(r) for r in out)
+        self.bytes_received += received
+        tally = self.bytes_by_task.setdefault(getattr(fn, "__name__", "task"), [0, 0])
+        tally[0] += self._pass_sent
+        tally[1] += received
+        return iter(out)
+
+    def _inline(self, obj):
+        """An argument sent with the task (counted)."""
+        n = _nbytes(obj) if isinstance(obj, np.ndarray) else 0
+        self._pass_sent += n
+        self.bytes_sent += n
+        return obj
 
     def _lost(self) -> list[int]:
         return [ci for ci, f in enumerate(self.futures) if f.status in ("lost", "error", "cancelled")]

@@ -25,7 +25,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["precondition_forward", "precondition_back", "frame_penalty"]
+__all__ = ["precondition_forward", "precondition_back", "frame_sums", "frame_apply"]
 
 _jit = numba.njit(cache=True, nogil=True, fastmath=False, error_model="numpy", boundscheck=False)
 
@@ -152,28 +152,45 @@ def precondition_back(blk, r_s, z_a) -> tuple[np.ndarray, np.ndarray, np.ndarray
 
 
 @_jit
-def _frame_penalty(K, g, xs, w, out):
-    n = xs.shape[0]
+def _frame_sums(K, g, xs, out):
+    """The weighted mean rotation (out[:3]) and spin (out[3:]) of ``xs``, summed star after star."""
     for col, kk in ((0, 0), (3, 1)):
         c0 = 0.0
         c1 = 0.0
         c2 = 0.0
-        for s in range(n):  # the weighted mean rotation, summed star after star
+        for s in range(xs.shape[0]):
             a = g[s, kk] * xs[s, col]
             d = g[s, kk] * xs[s, col + 1]
             c0 += a * K[s, 0, 0] + d * K[s, 1, 0]
             c1 += a * K[s, 0, 1] + d * K[s, 1, 1]
             c2 += a * K[s, 0, 2] + d * K[s, 1, 2]
-        for s in range(n):
+        out[col] = c0
+        out[col + 1] = c1
+        out[col + 2] = c2
+
+
+@_jit
+def _frame_apply(K, g, c, w, out):
+    """``out += F x`` per star, given the sums ``c`` (6,) of :func:`_frame_sums` over all stars."""
+    for col, kk in ((0, 0), (3, 1)):
+        for s in range(out.shape[0]):
             f = w[kk] * g[s, kk]
-            out[s, col] = f * (K[s, 0, 0] * c0 + K[s, 0, 1] * c1 + K[s, 0, 2] * c2)
-            out[s, col + 1] = f * (K[s, 1, 0] * c0 + K[s, 1, 1] * c1 + K[s, 1, 2] * c2)
+            out[s, col] += f * (K[s, 0, 0] * c[col] + K[s, 0, 1] * c[col + 1] + K[s, 0, 2] * c[col + 2])
+            out[s, col + 1] += f * (K[s, 1, 0] * c[col] + K[s, 1, 1] * c[col + 1] + K[s, 1, 2] * c[col + 2])
 
 
-def frame_penalty(K, g, xs, w_pos: float, w_pm: float) -> np.ndarray:
-    """``F x`` (n, 5) of :meth:`~mcsweep.solver.cg.GlobalProblem.frame_penalty` for rotation
-    matrices ``K (n, 2, 3)``, weights ``g (n, 2)`` (position, proper motion) and ``xs (n, 5)``."""
-    out = np.zeros(xs.shape)
-    _frame_penalty(np.ascontiguousarray(K, dtype=float), np.ascontiguousarray(g, dtype=float),
-                   np.ascontiguousarray(xs, dtype=float), np.array([w_pos, w_pm]), out)
+def frame_sums(K, g, xs) -> np.ndarray:
+    """The six sums ``C x`` of the frame constraint (rotation, spin) over the stars of ``xs (n, 5)``:
+    a block's share; the shares are added in the solver's fixed tree (:mod:`~mcsweep.solver.reduction`)."""
+    out = np.zeros(6)
+    _frame_sums(np.ascontiguousarray(K, dtype=float), np.ascontiguousarray(g, dtype=float),
+                np.ascontiguousarray(xs, dtype=float), out)
+    return out
+
+
+def frame_apply(K, g, sums, w_pos: float, w_pm: float, out) -> np.ndarray:
+    """``out += F x`` (n, 5) for the stars of ``K, g`` from the six sums of :func:`frame_sums` over
+    *all* stars (``out`` C-contiguous float64, changed in place and returned)."""
+    _frame_apply(np.ascontiguousarray(K, dtype=float), np.ascontiguousarray(g, dtype=float),
+                 np.ascontiguousarray(sums, dtype=float), np.array([w_pos, w_pm]), out)
     return out

@@ -6,8 +6,9 @@ every call, which costs more than the pass itself (measured 5.8x the in-process 
 time; :func:`~mcsweep.solver.cg.solve_global`). Here the workers are *forked* once per
 solution, after the problem is built: each inherits the blocks and the measurements
 copy-on-write (nothing is copied or sent; the solver only reads them) and owns a fixed,
-contiguous share of the chunks. A pass then sends each worker only the vectors of its
-chunks (the stars' 5 parameters, the attitude) and receives the chunk results.
+contiguous share of the chunks, and with them the star vectors of the iteration (kept
+in each chunk's state, :mod:`~mcsweep.solver.cg`). A pass then sends each worker only
+attitude-sized vectors and a few numbers, and receives the same.
 
 Results are bit-identical to in-process ones: a child computes on the very arrays (same
 memory addresses, so the same alignment) the parent would, and the solver adds the
@@ -56,7 +57,6 @@ class _Pool:
     def __init__(self, chunks: Sequence, n_workers: int):
         ctx = mp.get_context("fork")
         n = len(chunks)
-        self.width = len(chunks[0])  # objects a task item carries after its index, kept by the worker
         # contiguous, equal shares of the chunks (blocks hold about equal numbers of stars)
         bounds = [round(w * n / n_workers) for w in range(n_workers + 1)]
         self.owner = {}
@@ -79,11 +79,11 @@ class _Pool:
             signal.pthread_sigmask(signal.SIG_SETMASK, mask)
 
     def run(self, fn: Callable, items) -> Iterator:
-        """``fn(item)`` for items ``(ci, *chunks[ci], *rest)``; only ``ci, rest`` are sent (the
-        worker holds ``chunks[ci]``)."""
+        """``fn((ci, *chunks[ci], *rest))`` for items ``(ci, *rest)``: only ``ci, rest`` are sent
+        (the worker holds ``chunks[ci]``, and keeps what ``fn`` changes in it)."""
         per = [[] for _ in self.conns]
         for item in items:
-            per[self.owner[item[0]]].append((item[0], item[1 + self.width:]))
+            per[self.owner[item[0]]].append((item[0], tuple(item[1:])))
         busy = [w for w, tasks in enumerate(per) if tasks]
         for w in busy:  # every worker reads its whole message before it computes: no deadlock
             self.conns[w].send((fn, per[w]))
@@ -114,8 +114,8 @@ def forked_chunks(chunks: Sequence[tuple], n_workers: int):
     """Context of ``n_workers`` forked workers owning ``chunks`` (module notes): yields
     their ``run(fn, items)`` executor, or ``None`` with fewer than 2 workers or chunks, or
     without ``fork``. ``chunks[ci]`` is a tuple of what the worker keeps (the solver's:
-    the chunk's blocks and measurements); an item ``(ci, *chunks[ci], *rest)`` is sent as
-    ``(ci, rest)``."""
+    the chunk's blocks, measurements and a dict of its star vectors, which the tasks
+    change in place); an item ``(ci, *rest)`` runs ``fn((ci, *chunks[ci], *rest))`` there."""
     if n_workers < 2 or len(chunks) < 2 or not fork_available():
         yield None
         return

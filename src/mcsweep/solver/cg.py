@@ -91,7 +91,7 @@ from . import kernels
 from .attitude_update import free_coefficients
 from .frame import precision_weights, rotation_matrices
 from .observations import Observations
-from .reduction import chunk_ranges, pairwise_sum
+from .reduction import chunk_ranges, pairwise_sum, run_level
 from .resident import forked_chunks
 from .source_update import solve_sources, source_normals
 
@@ -335,10 +335,13 @@ class GlobalProblem:
         """Bytes held per measurement by the blocks (partials, indices, per-star inverses)."""
         return sum(b.nbytes for b in self.blocks) / max(self.n_measurements, 1)
 
-    def chunks(self, chunk_stars: int | None) -> list[tuple[int, int]]:
-        """Block ranges of the execution chunks (a power of two of blocks, at most ``chunk_stars``)."""
+    def chunks(self, chunk_stars: int | None, shares: int = 1) -> list[tuple[int, int]]:
+        """Block ranges of the execution chunks: aligned runs of a power of two of blocks, of at
+        most ``chunk_stars`` stars (None: as long as they go) within ``shares`` equal shares of
+        the blocks (:func:`~mcsweep.solver.reduction.chunk_ranges`)."""
         bs = self.blocks[0].n if self.blocks else 1
-        return chunk_ranges(len(self.blocks), 1 if chunk_stars is None else max(1, int(chunk_stars) // bs))
+        return chunk_ranges(len(self.blocks), None if chunk_stars is None else max(1, int(chunk_stars) // bs),
+                            shares=shares)
 
 
 
@@ -482,8 +485,10 @@ def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_u
     log : callable, optional
         Called with each :class:`ConvergenceRecord` (after a restart, from iteration 1 again).
     chunk_stars : int, optional, keyword-only
-        Stars per chunk task (rounded down to a power of two of blocks); default one
-        block per task. Results do not depend on it.
+        Most stars per chunk task (rounded down to a power of two of blocks); default: as
+        many as the workers' equal shares of the blocks allow (a few chunks per worker, so a
+        pass returns a few attitude-sized vectors per worker, not one per block). Results do
+        not depend on it.
     residuals : bool, keyword-only
         Return the residual of every measurement (``GlobalSolution.residuals``, 8 bytes
         per measurement); ``False`` keeps only their RMS.
@@ -501,7 +506,8 @@ def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_u
         the problem's blocks of ``problem.chunks(chunk_stars)[ci]`` with their measurements.
     """
     h = np.asarray(h, dtype=float)
-    ranges = problem.chunks(chunk_stars)
+    shares = max(1, int(workers)) if resident_chunks is None and dask_client is None else 1
+    ranges = problem.chunks(chunk_stars, shares=shares)
     chunks = [problem.blocks[lo:hi] for lo, hi in ranges]
     hs = [[h[b.rows] for b in bl] for bl in chunks]  # views when the rows are slices (in_block_order)
     if resident_chunks is None and dask_client is not None:
@@ -518,7 +524,9 @@ def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_u
                 if attempt == MAX_RESTARTS:
                     raise
     states = [{} for _ in chunks]
-    with forked_chunks(list(zip(chunks, hs, states)), workers) as pool:
+    bounds = [round(w * len(problem.blocks) / shares) for w in range(shares + 1)]
+    owners = [int(np.searchsorted(bounds, lo, side="right")) - 1 for lo, _ in ranges]
+    with forked_chunks(list(zip(chunks, hs, states)), workers, owners=owners) as pool:
         if pool is None:  # in-process: the chunks and their states are these very objects
             items = {ci: (chunks[ci], hs[ci], states[ci]) for ci in range(len(chunks))}
             return _pcg(problem, h, chunks, partial(_in_process, items), **kw)
@@ -538,11 +546,16 @@ def _pcg(pb: GlobalProblem, h, chunks, run, *, rtol, update_tol_uas, max_iter, m
     stars = [slice(bl[0].first, bl[-1].first + bl[-1].n) for bl in chunks]
     n_ch = range(len(chunks))
     w = (pb.w_pos, pb.w_pm)
+    levels = [run_level(0, len(bl)) for bl in chunks]
+
+    def total(values, add=None):
+        """Sum over the chunks (each an aligned run of blocks) in the blocks' fixed tree."""
+        return pairwise_sum(values, add, levels)
 
     # Setup pass: right-hand side, the stars' vectors on the workers, the banded Schur block.
     res = _ordered(run, _setup_task, [(i, pb.prior[sl], pb.K[sl], pb.frame_weights[sl])
                                       for i, sl in zip(n_ch, stars)])
-    glob = pairwise_sum((r[0] for r in res), _add_setup)
+    glob = total((r[0] for r in res), _add_setup)
     free = pb.free
     b_a = np.where(free, glob["b_a"], 0.0)
     b_norm = float(np.sqrt(glob["bb"] + _dot(b_a, b_a))) or 1.0
@@ -565,17 +578,17 @@ def _pcg(pb: GlobalProblem, h, chunks, run, *, rtol, update_tol_uas, max_iter, m
         w_a = np.where(free, r_a - w_a, 0.0)
         z_a = np.where(free, cho_solve_banded((chol, False), w_a.ravel()).reshape(-1, 3), 0.0)
         back = _ordered(run, _back_task, [(i, z_a) for i in n_ch])
-        nz_a = pairwise_sum(o[0] for o in back)
+        nz_a = total(o[0] for o in back)
         nz_a[~free] = z_a[~free]
-        numbers = pairwise_sum(o[1] for o in back)
+        numbers = total(o[1] for o in back)
         rz = float(numbers[0]) + _dot(r_a, z_a)
         beta = None if beta is None else beta(rz)
-        pq_s = pairwise_sum(o[0] for o in _ordered(run, _direction_task, [(i, numbers[1:], beta, w) for i in n_ch]))
+        pq_s = total(o[0] for o in _ordered(run, _direction_task, [(i, numbers[1:], beta, w) for i in n_ch]))
         return z_a, nz_a, rz, beta, float(pq_s)
 
     def forward(alpha):
         fwd = _ordered(run, _forward_task, [(i, alpha) for i in n_ch])
-        return (pairwise_sum(f[0] for f in fwd), pairwise_sum(f[1] for f in fwd),
+        return (total(f[0] for f in fwd), total(f[1] for f in fwd),
                 max(f[2] for f in fwd))
 
     hh = glob["hh"]
@@ -624,7 +637,7 @@ def _pcg(pb: GlobalProblem, h, chunks, run, *, rtol, update_tol_uas, max_iter, m
         res_all = np.empty(h.size)
         for b, rb in zip(pb.blocks, [r for o in out for r in o[0]]):
             res_all[b.rows] = rb
-    ss = pairwise_sum(o[1] for o in out)
+    ss = total(o[1] for o in out)
     x_s = np.concatenate([o[2] for o in out]) if out else np.zeros((0, 5))
     return GlobalSolution(x=x_s, attitude=x_a, cov=pb.src_inv, residuals=res_all,
                           residual_rms=float(np.sqrt(ss / h.size)) if h.size else float("nan"),

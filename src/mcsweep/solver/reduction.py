@@ -15,12 +15,13 @@ Pairwise summation also bounds the rounding error by ``O(eps log n)`` rather tha
 
 from __future__ import annotations
 
+import itertools
 from typing import Callable, Iterable
 
-__all__ = ["pairwise_sum", "chunk_ranges"]
+__all__ = ["pairwise_sum", "chunk_ranges", "run_level"]
 
 
-def pairwise_sum(values: Iterable, add: Callable | None = None):
+def pairwise_sum(values: Iterable, add: Callable | None = None, levels: Iterable[int] | None = None):
     """Sum of ``values`` in the fixed pairwise tree (module notes); streams, keeps O(log n) partials.
 
     Parameters
@@ -29,6 +30,12 @@ def pairwise_sum(values: Iterable, add: Callable | None = None):
         Summands in block order (numbers, arrays, or tuples of them with ``add``).
     add : callable, optional
         ``add(a, b)`` (default ``a + b``); must not modify its arguments in place.
+    levels : iterable of int, optional
+        With ``levels``, each value is the pairwise sum of ``2^level`` consecutive blocks
+        starting at a multiple of ``2^level`` (an aligned run, :func:`chunk_ranges`): a
+        subtree of the tree over the blocks, which enters the sum exactly where its blocks
+        would have (so the result is the same bits as summing the blocks one by one).
+        Default: every value is one block.
 
     Returns
     -------
@@ -36,8 +43,9 @@ def pairwise_sum(values: Iterable, add: Callable | None = None):
     """
     add = add or (lambda a, b: a + b)
     stack: list[tuple[int, object]] = []  # (level, partial sum) with strictly decreasing levels
-    for v in values:
-        level = 0
+    for v, level in zip(values, itertools.repeat(0) if levels is None else levels):
+        if stack and stack[-1][0] < level:
+            raise ValueError(f"a run of 2^{level} blocks that does not start at a multiple of 2^{level}")
         while stack and stack[-1][0] == level:
             v = add(stack.pop()[1], v)
             level += 1
@@ -50,9 +58,32 @@ def pairwise_sum(values: Iterable, add: Callable | None = None):
     return total
 
 
-def chunk_ranges(n_blocks: int, chunk_blocks: int) -> list[tuple[int, int]]:
-    """Block ranges ``[lo, hi)`` of chunks of ``2^k <= chunk_blocks`` blocks (module notes)."""
-    size = 1
-    while 2 * size <= max(1, int(chunk_blocks)):
-        size *= 2
-    return [(lo, min(lo + size, n_blocks)) for lo in range(0, n_blocks, size)]
+def run_level(lo: int, hi: int) -> int:
+    """``k`` of an aligned run ``[lo, hi)`` of ``2^k`` blocks (:func:`chunk_ranges`)."""
+    return (hi - lo).bit_length() - 1
+
+
+def chunk_ranges(n_blocks: int, chunk_blocks: int | None = 1, shares: int = 1) -> list[tuple[int, int]]:
+    """Block ranges ``[lo, hi)`` of the chunks: aligned runs (``2^k`` blocks starting at a
+    multiple of ``2^k``), as long as possible up to ``chunk_blocks`` (rounded down to a power of
+    two; None: no limit), covering ``shares`` contiguous, equal shares of the blocks one after
+    the other (the forked workers' shares: each then sends back a few sums per pass instead
+    of one per block). Every chunk is a subtree of the blocks' tree (module notes)."""
+    cap = None
+    if chunk_blocks is not None:
+        cap = 1
+        while 2 * cap <= max(1, int(chunk_blocks)):
+            cap *= 2
+    bounds = [round(w * n_blocks / max(1, shares)) for w in range(max(1, shares) + 1)]
+    out = []
+    for lo, hi in zip(bounds[:-1], bounds[1:]):
+        k = lo
+        while k < hi:
+            size = 1 << (hi - k).bit_length() - 1  # the largest power of two that fits
+            if k:
+                size = min(size, k & -k)  # and keeps the run aligned
+            if cap is not None:
+                size = min(size, cap)
+            out.append((k, k + size))
+            k += size
+    return out

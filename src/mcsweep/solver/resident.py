@@ -54,11 +54,12 @@ def _serve(conn: Connection, chunks: dict) -> None:
 
 
 class _Pool:
-    def __init__(self, chunks: Sequence, n_workers: int):
+    def __init__(self, chunks: Sequence, n_workers: int, owners: Sequence[int] | None = None):
         ctx = mp.get_context("fork")
         n = len(chunks)
-        # contiguous, equal shares of the chunks (blocks hold about equal numbers of stars)
-        bounds = [round(w * n / n_workers) for w in range(n_workers + 1)]
+        if owners is None:  # contiguous, equal shares of the chunks
+            bounds = [round(w * n / n_workers) for w in range(n_workers + 1)]
+            owners = [w for w in range(n_workers) for _ in range(bounds[w], bounds[w + 1])]
         self.owner = {}
         self.conns, self.procs = [], []
         # Blocked across the forks (children inherit the mask; _serve then ignores it);
@@ -66,7 +67,7 @@ class _Pool:
         mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
         try:
             for w in range(n_workers):
-                own = {ci: chunks[ci] for ci in range(bounds[w], bounds[w + 1])}
+                own = {ci: chunks[ci] for ci in range(n) if owners[ci] == w}
                 for ci in own:
                     self.owner[ci] = w
                 parent, child = ctx.Pipe()
@@ -110,16 +111,21 @@ class _Pool:
 
 
 @contextlib.contextmanager
-def forked_chunks(chunks: Sequence[tuple], n_workers: int):
+def forked_chunks(chunks: Sequence[tuple], n_workers: int, owners: Sequence[int] | None = None):
     """Context of ``n_workers`` forked workers owning ``chunks`` (module notes): yields
     their ``run(fn, items)`` executor, or ``None`` with fewer than 2 workers or chunks, or
     without ``fork``. ``chunks[ci]`` is a tuple of what the worker keeps (the solver's:
     the chunk's blocks, measurements and a dict of its star vectors, which the tasks
-    change in place); an item ``(ci, *rest)`` runs ``fn((ci, *chunks[ci], *rest))`` there."""
+    change in place); an item ``(ci, *rest)`` runs ``fn((ci, *chunks[ci], *rest))`` there.
+    ``owners[ci]``: the worker of chunk ``ci`` (default: contiguous, equal shares of the
+    chunks; ignored if it names more workers than there are chunks)."""
     if n_workers < 2 or len(chunks) < 2 or not fork_available():
         yield None
         return
-    pool = _Pool(chunks, min(int(n_workers), len(chunks)))
+    n_workers = min(int(n_workers), len(chunks))
+    if owners is not None and (max(owners) >= n_workers or len(set(owners)) < n_workers):
+        owners = None
+    pool = _Pool(chunks, n_workers, owners)
     try:
         yield pool.run
     except BaseException:

@@ -36,6 +36,16 @@ def problem_and_h(weak_problem):
     return problem, rng.normal(size=P["obs"].size)
 
 
+def _scattered(client, problem, h, chunk_stars=256):
+    """The problem's chunks of ``chunk_stars`` stars with their measurements, on the cluster:
+    (block ranges, DaskChunks)."""
+    from mcsweep.solver.dask_resident import DaskChunks
+
+    ranges = problem.chunks(chunk_stars)
+    return ranges, DaskChunks.scatter(client, [(problem.blocks[lo:hi], [h[b.rows] for b in problem.blocks[lo:hi]])
+                                               for lo, hi in ranges])
+
+
 def _same(a, b):
     assert np.array_equal(a.x, b.x) and np.array_equal(a.attitude, b.attitude)
     assert np.array_equal(a.residuals, b.residuals) and a.residual_rms == b.residual_rms
@@ -93,11 +103,7 @@ def test_solution_survives_a_killed_worker(problem_and_h, client):
             os.kill(victim, signal.SIGKILL)
             killed.append(rec.iteration)
 
-    from mcsweep.solver.dask_resident import DaskChunks
-
-    ranges = problem.chunks(256)
-    res = DaskChunks.scatter(client, [(problem.blocks[lo:hi], [h[b.rows] for b in problem.blocks[lo:hi]])
-                                      for lo, hi in ranges])
+    ranges, res = _scattered(client, problem, h)
     sol = solve_global(problem, h, resident_chunks=res, chunk_stars=256, log=log, **KW)
     assert killed and res.repeated >= 1  # the loss was met, and the pass repeated
     _same(sol, ref)
@@ -140,13 +146,10 @@ def test_an_error_of_the_task_is_raised_at_once_not_repeated(problem_and_h, clie
     # A task that fails by itself (here the solver's setup task given too few arguments, a
     # function the workers can import) is an error to raise, not a lost worker to recover from.
     from mcsweep.solver.cg import _setup_task
-    from mcsweep.solver.dask_resident import DaskChunks
 
     client.wait_for_workers(2, timeout=60)
     problem, h = problem_and_h
-    ranges = problem.chunks(256)
-    res = DaskChunks.scatter(client, [(problem.blocks[lo:hi], [h[b.rows] for b in problem.blocks[lo:hi]])
-                                      for lo, hi in ranges])
+    ranges, res = _scattered(client, problem, h)
     with pytest.raises(ValueError, match="values to unpack"):
         list(res.run(_setup_task, [(ci,) for ci in range(len(ranges))]))
     assert res.repeated == 0 and res.passes == 0
@@ -155,13 +158,9 @@ def test_an_error_of_the_task_is_raised_at_once_not_repeated(problem_and_h, clie
 def test_bytes_per_iteration_pass_are_tallied_apart_from_the_one_off_passes(problem_and_h, client):
     # The per-iteration figure the primary experiment prints (issue 27) counts the iteration
     # passes only; together with the setup and residual passes it is every byte sent.
-    from mcsweep.solver.dask_resident import DaskChunks
-
     client.wait_for_workers(2, timeout=60)
     problem, h = problem_and_h
-    ranges = problem.chunks(256)
-    res = DaskChunks.scatter(client, [(problem.blocks[lo:hi], [h[b.rows] for b in problem.blocks[lo:hi]])
-                                      for lo, hi in ranges])
+    ranges, res = _scattered(client, problem, h)
     solve_global(problem, h, resident_chunks=res, chunk_stars=256, **KW)
     it = res.bytes_per_call("_forward_task", "_back_task", "_direction_task")
     once = res.bytes_per_call("_setup_task", "_residual_task")

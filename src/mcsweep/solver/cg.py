@@ -91,7 +91,7 @@ from . import kernels
 from .attitude_update import free_coefficients
 from .frame import precision_weights, rotation_matrices
 from .observations import Observations
-from .reduction import chunk_ranges, pairwise_sum, run_level
+from .reduction import chunk_ranges, pairwise_sum, run_level, share_bounds
 from .resident import forked_chunks
 from .source_update import solve_sources, source_normals
 
@@ -524,7 +524,7 @@ def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_u
                 if attempt == MAX_RESTARTS:
                     raise
     states = [{} for _ in chunks]
-    bounds = [round(w * len(problem.blocks) / shares) for w in range(shares + 1)]
+    bounds = share_bounds(len(problem.blocks), shares)
     owners = [int(np.searchsorted(bounds, lo, side="right")) - 1 for lo, _ in ranges]
     with forked_chunks(list(zip(chunks, hs, states)), workers, owners=owners) as pool:
         if pool is None:  # in-process: the chunks and their states are these very objects

@@ -18,7 +18,7 @@ from __future__ import annotations
 import itertools
 from typing import Callable, Iterable
 
-__all__ = ["pairwise_sum", "chunk_ranges", "run_level"]
+__all__ = ["pairwise_sum", "chunk_ranges", "run_level", "share_bounds"]
 
 
 def pairwise_sum(values: Iterable, add: Callable | None = None, levels: Iterable[int] | None = None):
@@ -63,6 +63,13 @@ def run_level(lo: int, hi: int) -> int:
     return (hi - lo).bit_length() - 1
 
 
+def share_bounds(n: int, shares: int) -> list[int]:
+    """Bounds of ``shares`` contiguous, equal shares of ``n`` items: share ``w`` is
+    ``[bounds[w], bounds[w + 1])`` (the workers' shares of the blocks or chunks)."""
+    shares = max(1, int(shares))
+    return [round(w * n / shares) for w in range(shares + 1)]
+
+
 def chunk_ranges(n_blocks: int, chunk_blocks: int | None = 1, shares: int = 1) -> list[tuple[int, int]]:
     """Block ranges ``[lo, hi)`` of the chunks: aligned runs (``2^k`` blocks starting at a
     multiple of ``2^k``), as long as possible up to ``chunk_blocks`` (rounded down to a power of
@@ -74,7 +81,7 @@ def chunk_ranges(n_blocks: int, chunk_blocks: int | None = 1, shares: int = 1) -
         cap = 1
         while 2 * cap <= max(1, int(chunk_blocks)):
             cap *= 2
-    bounds = [round(w * n_blocks / max(1, shares)) for w in range(max(1, shares) + 1)]
+    bounds = share_bounds(n_blocks, shares)
     out = []
     for lo, hi in zip(bounds[:-1], bounds[1:]):
         k = lo

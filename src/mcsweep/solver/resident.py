@@ -27,6 +27,8 @@ import signal
 from multiprocessing.connection import Connection
 from typing import Callable, Iterator, Sequence
 
+from .reduction import share_bounds
+
 __all__ = ["forked_chunks", "fork_available"]
 
 
@@ -58,7 +60,7 @@ class _Pool:
         ctx = mp.get_context("fork")
         n = len(chunks)
         if owners is None:  # contiguous, equal shares of the chunks
-            bounds = [round(w * n / n_workers) for w in range(n_workers + 1)]
+            bounds = share_bounds(n, n_workers)
             owners = [w for w in range(n_workers) for _ in range(bounds[w], bounds[w + 1])]
         self.owner = {}
         self.conns, self.procs = [], []

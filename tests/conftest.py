@@ -34,3 +34,15 @@ def pytest_report_header(config):
             return "not installed"
 
     return "resolved packages: " + ", ".join(f"{name} {v(name)}" for name in KEY_PACKAGES)
+
+
+@pytest.fixture(scope="module")
+def dask_local_client():
+    """A Client of a LocalCluster of 2 single-threaded worker processes (one per module: the
+    worker-loss tests kill and restart its workers)."""
+    distributed = pytest.importorskip("distributed")
+    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
+                                       env={"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"})
+    with distributed.Client(cluster) as c:
+        yield c
+    cluster.close()

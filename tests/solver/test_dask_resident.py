@@ -18,12 +18,8 @@ KW = dict(rtol=1e-10, update_tol_uas=1e-3, max_iter=12)  # bit identity needs no
 
 
 @pytest.fixture(scope="module")
-def client():
-    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
-                                       env={"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"})
-    with distributed.Client(cluster) as c:
-        yield c
-    cluster.close()
+def client(dask_local_client):
+    return dask_local_client
 
 
 @pytest.fixture(scope="module")

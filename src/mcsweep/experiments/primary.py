@@ -78,6 +78,7 @@ from ..errors import UserInputError
 from ..scanning.ephemeris import gaia_position_au
 from ..scanning.timeline import DeadTime
 from ..solver.attitude_spline import DEGREE
+from ..solver.reduction import pairwise_sum, run_level
 from ..solver.blocks import att_rows, spline_values, src_forward
 from ..solver import (BLOCK_STARS, AttitudeSpline, GlobalProblem, build_observations, fit_frame, frame_attitude,
                       frame_offsets, in_block_order, make_blocks, precision_weights, solve_global,
@@ -193,6 +194,9 @@ class PreparedData:
     true_attitude: tuple     # (AttitudeSpline, coefficients (n, 3) [mas]): the true rotation
     t_ref_jd: float
     dead: DeadTime
+    covered: np.ndarray      # (n_coef,) bool: spline coefficients with a measurement in their support
+    n_rows: int | None = None  # measurements (None: h.size)
+    naa_band: np.ndarray | None = None  # the attitude block's band when the blocks live on a cluster
     _problem: GlobalProblem | None = dataclasses.field(default=None, repr=False)
     _resident: tuple | None = dataclasses.field(default=None, repr=False)  # (key, DaskChunks)
 
@@ -208,10 +212,7 @@ class PreparedData:
     def coefficients_with_data(self) -> int:
         """Spline coefficients (per axis) with at least one measurement in their support: all
         of them when the spline is broken at the gaps; the solver holds others at zero."""
-        covered = np.zeros(self.spline.n_coef, dtype=bool)
-        for b in self.blocks:  # the runs of equal first coefficient: a few per knot and block
-            covered[(b.seg_j0[:, None] + np.arange(DEGREE + 1)).ravel()] = True
-        return int(covered.sum())
+        return int(self.covered.sum())
 
     @property
     def n_knot_intervals(self) -> int:
@@ -230,7 +231,7 @@ class PreparedData:
 
     @property
     def n_measurements(self) -> int:
-        return int(self.h.size)
+        return int(self.h.size) if self.n_rows is None else int(self.n_rows)
 
     def block_epochs(self, block) -> np.ndarray:
         """TCB JD of a block's measurements (:func:`_block_epochs`)."""
@@ -253,23 +254,68 @@ class PreparedData:
             st = self.stars
             self._problem = GlobalProblem.from_blocks(
                 self.blocks, self.normals, prior_diagonal, st["ra"].to_numpy()[self.solved],
-                st["dec"].to_numpy()[self.solved], n_coef=self.spline.n_coef, n_measurements=self.n_measurements)
+                st["dec"].to_numpy()[self.solved], n_coef=self.spline.n_coef, n_measurements=self.n_measurements,
+                naa_band=self.naa_band)
         else:
             self._problem = self._problem.with_prior(prior_diagonal)
         return self._problem
 
 
+    @property
+    def on_cluster(self) -> bool:
+        """Whether the blocks and measurements live on a cluster's workers (built there,
+        :func:`~mcsweep.experiments.primary_cluster.prepare_on_cluster`)."""
+        return self.h is None
+
+    def keep_resident(self, client, ranges, chunks: "DaskChunks") -> None:
+        """Hold ``chunks``, the solver's chunks of block ``ranges`` on the workers of ``client``."""
+        self._resident = ((client, tuple(map(tuple, ranges))), chunks)
+
     def resident(self, client, ranges) -> "DaskChunks":
         """The solver's chunks (blocks ``ranges``, their measurements) kept on the workers of a
         Dask ``client``: sent once for every prior's solution (only the per-star inverses of
-        a prior are sent with it, :meth:`~mcsweep.solver.dask_resident.DaskChunks.with_inverses`)."""
+        a prior are sent with it, :meth:`~mcsweep.solver.dask_resident.DaskChunks.with_inverses`);
+        built there already for data made on the cluster."""
         from ..solver.dask_resident import DaskChunks
 
-        key = (client, tuple(ranges))  # the client itself: a closed one's id may be reused
-        if self._resident is None or self._resident[0][0] is not client or self._resident[0][1] != key[1]:
-            self._resident = (key, DaskChunks.scatter(
-                client, [(self.blocks[lo:hi], [self.h[b.rows] for b in self.blocks[lo:hi]]) for lo, hi in ranges]))
+        key = (client, tuple(map(tuple, ranges)))  # the client itself: a closed one's id may be reused
+        if self._resident is not None and self._resident[0][0] is client and self._resident[0][1] == key[1]:
+            return self._resident[1]
+        if self.on_cluster:
+            raise ValueError("these data were built on a cluster for other chunks or another client")
+        self._resident = (key, DaskChunks.scatter(
+            client, [(self.blocks[lo:hi], [self.h[b.rows] for b in self.blocks[lo:hi]]) for lo, hi in ranges]))
         return self._resident[1]
+
+    def attitude_sq(self, coef, eps, omega, resident=None, ranges=None) -> np.ndarray:
+        """Sum over the measurements of the squared attitude error (3,) [mas^2]: block by block
+        (bounded temporaries), on the workers for data built there (``resident``, chunks of
+        block ``ranges``), added in the fixed tree either way (the same bits)."""
+        args = (coef, eps, omega, self.true_attitude, self.t_ref_jd)
+        if self.on_cluster:
+            out = _ordered_results(resident.run(_attitude_sq_task, [(ci, *args) for ci in range(len(ranges))]))
+            total = pairwise_sum(out, None, [run_level(lo, hi) for lo, hi in ranges])
+        else:
+            total = pairwise_sum(_block_attitude_sq(b, *args) for b in self.blocks)
+        return np.zeros(3) if total is None else total
+
+
+def _block_attitude_sq(block, coef, eps, omega, true_attitude, t_ref_jd) -> np.ndarray:
+    """One block's sum of squared attitude errors (3,), from its own spline values."""
+    t = _block_epochs(t_ref_jd, block)
+    err = spline_values(block, coef).T - _rotation(true_attitude, t) - frame_attitude(eps, omega, t, t_ref_jd)
+    return np.sum(err ** 2, axis=0)
+
+
+def _attitude_sq_task(item):
+    ci, blocks, _, _, *args = item
+    return ci, pairwise_sum(_block_attitude_sq(b, *args) for b in blocks)
+
+
+def _ordered_results(results) -> list:
+    """``(ci, value)`` results in chunk order, as fresh arrays (alignment: solver.cg._fresh)."""
+    got = {ci: np.array(v, copy=True) for ci, v in results}
+    return [got[ci] for ci in range(len(got))]
 
 
 def _block_epochs(t_ref_jd: float, block) -> np.ndarray:
@@ -303,6 +349,61 @@ def knot_interval_days(settings: PrimarySettings, n_fov_transits: int, dead: Dea
     return live_days * settings.knot_transits / max(int(n_fov_transits), 1)
 
 
+def dead_time_of(settings: PrimarySettings) -> DeadTime:
+    """The data set's dead time (one draw, its own stream)."""
+    return dead_time(stream_seed(settings.seed, DEAD_STREAM), settings.start_jd, settings.end_jd,
+                     settings.dead_time_fraction, block_days=settings.dead_time_block_days)
+
+
+def transit_summary(star, t, dead: DeadTime, first: int, n: int) -> dict:
+    """Per star ``first .. first + n - 1`` from its transits (``star``, TCB JD ``t``, sorted by
+    star): ``n_fov`` (live FoV transits), ``mean_t`` (mean live epoch), ``span`` (days between
+    the first and last live transit); and ``live`` per transit. Each star's numbers are sums
+    over its own transits in their order, so a chunk's equal the whole set's, bit for bit."""
+    live = ~dead.is_dead(t)
+    local = np.asarray(star, dtype=np.int64) - first
+    n_fov = np.bincount(local, weights=live, minlength=n).astype(np.int64)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean_t = np.bincount(local, weights=np.where(live, t, 0.0), minlength=n) / n_fov
+    t_live = np.where(live, t, np.nan)
+    span = np.full(n, np.nan)
+    if local.size:
+        starts = np.flatnonzero(np.r_[True, local[1:] != local[:-1]])
+        with np.errstate(invalid="ignore"):
+            span[local[starts]] = (np.fmax.reduceat(t_live, starts) - np.fmin.reduceat(t_live, starts))
+    return {"n_fov": n_fov, "mean_t": mean_t, "span": span, "live": live}
+
+
+def with_transit_columns(settings: PrimarySettings, stars: pd.DataFrame, summary: dict) -> pd.DataFrame:
+    """``stars`` with ``n_fov``, ``epoch_offset_yr`` (each star's mean live epoch relative to the
+    reference epoch: evaluation_epoch='star_mean') and ``span_days`` (the time spans of the
+    <= 4 transit subset)."""
+    stars = stars.copy()
+    stars["n_fov"] = summary["n_fov"]
+    stars["epoch_offset_yr"] = (summary["mean_t"] - settings.t_ref_jd) / JULIAN_YEAR_DAYS
+    stars["span_days"] = summary["span"]
+    return stars
+
+
+def solved_stars(settings: PrimarySettings, n_fov: np.ndarray) -> np.ndarray:
+    """Indices of the stars in the solution: >= 1 live transit (AL only: a position needs two)."""
+    return np.flatnonzero(n_fov > (1 if settings.noise.use_ac is False else 0))
+
+
+def star_sigmas(settings: PrimarySettings, stars: pd.DataFrame, solved: np.ndarray):
+    """AL and AC (None: AL only) uncertainties per FoV transit of the solved stars [mas]."""
+    gs = stars["phot_g_mean_mag"].to_numpy()[solved]
+    return settings.noise.sigma_al_mas(gs), (settings.noise.sigma_ac_mas(gs) if settings.noise.use_ac else None)
+
+
+def attitude_spline(settings: PrimarySettings, dead: DeadTime, epochs) -> AttitudeSpline:
+    """The solver's spline: segments between the gaps, as AGIS; with ``knot_transits`` its knots
+    placed by ``epochs``, the solution's live FoV transits (only their number is used otherwise)."""
+    epochs = np.asarray(epochs, dtype=float)
+    return AttitudeSpline(settings.start_jd, settings.end_jd, knot_interval_days(settings, epochs.size, dead),
+                          gaps=(dead.starts, dead.stops), epochs=epochs, transits_per_knot=settings.knot_transits)
+
+
 def prepare(settings: PrimarySettings, stars: pd.DataFrame, transits: dict, *,
             with_noise: bool = True, block_stars: int = BLOCK_STARS) -> PreparedData:
     """Dead time, observations of the stars with >= 1 transit, truth and noisy measurements.
@@ -314,92 +415,130 @@ def prepare(settings: PrimarySettings, stars: pd.DataFrame, transits: dict, *,
     built, the blocks' own (by time within each block).
     ``with_noise=False`` leaves the measurement noise out (tests).
     """
-    n = len(stars)
     star, t, psi = transits["star"], transits["t"], transits["psi"]
     if star.size and np.any(np.diff(star) < 0):
         raise ValueError("transits must be sorted by star")
-    dead = dead_time(stream_seed(settings.seed, DEAD_STREAM), settings.start_jd, settings.end_jd,
-                     settings.dead_time_fraction, block_days=settings.dead_time_block_days)
-    live = ~dead.is_dead(t)
-    n_fov = np.bincount(star, weights=live, minlength=n).astype(np.int64)
-    stars = stars.copy()
-    stars["n_fov"] = n_fov
-    # Each star's mean epoch of its live transits relative to the reference epoch, and their
-    # time span (evaluation_epoch='star_mean'; the time spans of the <= 4 transit subset).
-    with np.errstate(invalid="ignore", divide="ignore"):
-        mean_t = np.bincount(star, weights=np.where(live, t, 0.0), minlength=n) / n_fov
-    stars["epoch_offset_yr"] = (mean_t - settings.t_ref_jd) / JULIAN_YEAR_DAYS
-    t_live = np.where(live, t, np.nan)
-    span = np.full(n, np.nan)
-    if star.size:
-        starts = np.flatnonzero(np.r_[True, star[1:] != star[:-1]])
-        with np.errstate(invalid="ignore"):
-            span[star[starts]] = (np.fmax.reduceat(t_live, starts) - np.fmin.reduceat(t_live, starts))
-    stars["span_days"] = span
-    g = stars["phot_g_mean_mag"].to_numpy()
-    solved = np.flatnonzero(n_fov > 0)
-    if settings.noise.use_ac is False:  # AL only: a position needs two transits
-        solved = np.flatnonzero(n_fov > 1)
-    gs = g[solved]
-    s_al_star = settings.noise.sigma_al_mas(gs)
-    s_ac_star = settings.noise.sigma_ac_mas(gs) if settings.noise.use_ac else None
-    in_solution = np.zeros(n, dtype=bool)
+    dead = dead_time_of(settings)
+    summary = transit_summary(star, t, dead, 0, len(stars))
+    live = summary.pop("live")
+    stars = with_transit_columns(settings, stars, summary)
+    solved = solved_stars(settings, summary["n_fov"])
+    s_al_star, s_ac_star = star_sigmas(settings, stars, solved)
+    in_solution = np.zeros(len(stars), dtype=bool)
     in_solution[solved] = True
-    epochs = t[live & in_solution[star]]  # the solution's FoV transits
-    # Segments between the gaps, as AGIS; with knot_transits, knots placed by the data.
-    spline = AttitudeSpline(settings.start_jd, settings.end_jd, knot_interval_days(settings, epochs.size, dead),
-                            gaps=(dead.starts, dead.stops), epochs=epochs, transits_per_knot=settings.knot_transits)
-    del epochs
+    spline = attitude_spline(settings, dead, t[live & in_solution[star]])  # the solution's FoV transits
+    n_fov = summary["n_fov"]
     t_ref = settings.t_ref_jd
     ra, dec = stars["ra"].to_numpy()[solved], stars["dec"].to_numpy()[solved]
-    # Truth: position zero at the reference epoch (the offsets are what is solved for),
-    # the population's parallax and proper motion.
-    x_true = np.column_stack([np.zeros(solved.size), np.zeros(solved.size),
-                              stars["parallax"].to_numpy()[solved], stars["pmra"].to_numpy()[solved],
-                              stars["pmdec"].to_numpy()[solved]])
+    x_true = true_parameters(stars, solved)
     true_att = _true_attitude(settings)
-    noise_rng = np.random.default_rng(stream_seed(settings.seed, NOISE_STREAM))
-    # One AL measurement per live transit, one AC where its sigma is finite: the sizes are
-    # known, so the measurements and epochs are filled in place (no second copy).
-    per_star = n_fov[solved] * (1 + (np.isfinite(s_ac_star) if s_ac_star is not None else 0))
-    h_all = np.empty(int(per_star.sum()))
+    counts = measurements_per_star(n_fov[solved], s_ac_star)
+    h_all = np.empty(int(counts.sum()))
     blocks, normals = [], []
-    row = 0
-    for first in range(0, solved.size, block_stars):
+    rows = block_rows(counts, block_stars)
+    for k, first in enumerate(range(0, solved.size, block_stars)):
         last = min(first + block_stars, solved.size)
-        # this block's transits: a slice of the star-sorted input, then its live ones
-        lo, hi = np.searchsorted(star, [solved[first], solved[last - 1] + 1])
-        idx = np.searchsorted(solved, star[lo:hi])  # its stars lie in solved[first:last]'s range
-        ok = live[lo:hi] & (solved[np.minimum(idx, solved.size - 1)] == star[lo:hi])  # (AL only: n_fov 1 is not)
-        st = idx[ok] - first  # star within the block
-        tt = t[lo:hi][ok]
-        obs = build_observations(ra[first:last], dec[first:last], st, tt, psi[lo:hi][ok], gaia_position_au(tt),
-                                 t_ref_jd=t_ref, sigma_al_mas=s_al_star[first:last][st],
-                                 sigma_ac_mas=None if s_ac_star is None else s_ac_star[first:last][st],
-                                 spline=spline)
-        # Observation order = block order: each block's measurements are then a contiguous
-        # slice of h, read as a view by the solver (no index array, no per-solution copy).
-        (blk,) = in_block_order(make_blocks(obs, ra[first:last], dec[first:last], block_stars=block_stars,
-                                            first_star=first), row)
-        normals.append(source_normals(obs))
-        del obs
-        # Normalised measurements (the partials are divided by sigma) from the very partials
-        # the solver holds: truth plus the true attitude, plus unit noise in block order.
-        rot = _rotation(true_att, _block_epochs(t_ref, blk))  # (m, 3) [mas]
-        h = src_forward(blk, x_true[first:last])
-        for c, rows in enumerate(att_rows(blk)):
-            h += rows * rot[:, c]
-        if with_noise:
-            h += noise_rng.standard_normal(h.size)
+        blk, nrm, h = build_block(
+            BlockJob(first=first, ra=ra[first:last], dec=dec[first:last], x_true=x_true[first:last],
+                     sigma_al_mas=s_al_star[first:last],
+                     sigma_ac_mas=None if s_ac_star is None else s_ac_star[first:last],
+                     noise_seed=stream_seed(settings.seed, NOISE_STREAM, k) if with_noise else None,
+                     first_row=int(rows[k])),
+            *block_transits(star, t, psi, live, solved[first:last]), spline=spline, true_attitude=true_att,
+            t_ref_jd=t_ref, block_stars=block_stars)
         h_all[blk.rows] = h
         blocks.append(blk)
-        row += h.size
-    if row != h_all.size:  # pragma: no cover - the counting above is the definition of the sizes
-        raise RuntimeError(f"built {row} measurements, expected {h_all.size}")
+        normals.append(nrm)
     return PreparedData(stars=stars, solved=solved, blocks=blocks,
                         normals=np.concatenate(normals) if normals else np.zeros((0, 5, 5)), h=h_all,
                         x_true=x_true, spline=spline, true_attitude=true_att, t_ref_jd=t_ref,
-                        dead=dead)
+                        dead=dead, covered=covered_coefficients(blocks, spline.n_coef))
+
+
+def true_parameters(stars: pd.DataFrame, solved: np.ndarray) -> np.ndarray:
+    """The truth of the solved stars (n, 5): position zero at the reference epoch (the offsets
+    are what is solved for), the population's parallax and proper motion."""
+    return np.column_stack([np.zeros(solved.size), np.zeros(solved.size), stars["parallax"].to_numpy()[solved],
+                            stars["pmra"].to_numpy()[solved], stars["pmdec"].to_numpy()[solved]])
+
+
+def measurements_per_star(n_fov: np.ndarray, sigma_ac_mas) -> np.ndarray:
+    """One AL measurement per live FoV transit, one AC where its sigma is finite."""
+    return np.asarray(n_fov, dtype=np.int64) * (1 + (np.isfinite(sigma_ac_mas) if sigma_ac_mas is not None else 0))
+
+
+def block_rows(counts: np.ndarray, block_stars: int) -> np.ndarray:
+    """First measurement (observation order = block order) of each block of ``block_stars`` stars."""
+    if not counts.size:
+        return np.zeros(0, np.int64)
+    per_block = np.add.reduceat(counts, np.arange(0, counts.size, block_stars))
+    return np.concatenate([[0], np.cumsum(per_block)[:-1]]).astype(np.int64)
+
+
+def block_transits(star, t, psi, live, solved_block: np.ndarray):
+    """The live transits of one block's stars ``solved_block`` (sorted star indices) among
+    transits sorted by star that include all of theirs: (star within the block, t, psi)."""
+    lo, hi = np.searchsorted(star, [solved_block[0], solved_block[-1] + 1])
+    idx = np.searchsorted(solved_block, star[lo:hi])
+    # (AL only: a star of one transit lies in the range without being solved)
+    ok = live[lo:hi] & (solved_block[np.minimum(idx, solved_block.size - 1)] == star[lo:hi])
+    return idx[ok], t[lo:hi][ok], psi[lo:hi][ok]
+
+
+def covered_coefficients(blocks, n_coef: int) -> np.ndarray:
+    """Which spline coefficients (per axis) have a measurement in their support."""
+    covered = np.zeros(n_coef, dtype=bool)
+    for b in blocks:  # the runs of equal first coefficient: a few per knot and block
+        covered[(b.seg_j0[:, None] + np.arange(DEGREE + 1)).ravel()] = True
+    return covered
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class BlockJob:
+    """What one block of solved stars needs besides its transits and the shared spline and truth:
+    its first star (in the solution), the stars' directions [deg], true parameters (n, 5),
+    uncertainties [mas] (AC None: AL only), the seed of its noise (None: none) and its first
+    measurement in the problem's observation order."""
+
+    first: int
+    ra: np.ndarray
+    dec: np.ndarray
+    x_true: np.ndarray
+    sigma_al_mas: np.ndarray
+    sigma_ac_mas: np.ndarray | None
+    noise_seed: np.random.SeedSequence | None
+    first_row: int
+
+
+def build_block(job: BlockJob, star, t, psi, *, spline: AttitudeSpline, true_attitude: tuple, t_ref_jd: float,
+                block_stars: int):
+    """One solver block from its stars' live transits (``star`` within the block, TCB JD ``t``,
+    scan angle ``psi`` [deg]): (StarBlock, data normal matrices (n, 5, 5), normalised measurements).
+
+    The same function wherever the block is built (in the driver, :func:`prepare`, or on a Dask
+    worker, :mod:`~mcsweep.experiments.primary_cluster`), so the data are the same bits. The
+    measurements are truth plus the true attitude (module notes, step 3) through the very
+    partials the solver holds, plus unit noise from the block's own seed (the block's
+    identity, so neither the chunking nor where it is built changes it) in the block's order
+    (by time).
+    """
+    obs = build_observations(job.ra, job.dec, star, t, psi, gaia_position_au(t), t_ref_jd=t_ref_jd,
+                             sigma_al_mas=job.sigma_al_mas[star],
+                             sigma_ac_mas=None if job.sigma_ac_mas is None else job.sigma_ac_mas[star],
+                             spline=spline)
+    # Observation order = block order: each block's measurements are then a contiguous
+    # slice of h, read as a view by the solver (no index array, no per-solution copy).
+    (blk,) = in_block_order(make_blocks(obs, job.ra, job.dec, block_stars=block_stars, first_star=job.first),
+                            job.first_row)
+    normals = source_normals(obs)
+    del obs
+    rot = _rotation(true_attitude, _block_epochs(t_ref_jd, blk))  # (m, 3) [mas]
+    h = src_forward(blk, job.x_true)
+    for c, rows in enumerate(att_rows(blk)):
+        h += rows * rot[:, c]
+    if job.noise_seed is not None:
+        h += np.random.default_rng(job.noise_seed).standard_normal(h.size)
+    return blk, normals, h
 
 
 def attitude_error(data: PreparedData, coef, eps, omega, tcb_jd, estimated=None) -> np.ndarray:
@@ -457,7 +596,9 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
     # measurements, so it cannot be under a positive prior.
     problem = data.problem(prior)
     ra, dec = st["ra"].to_numpy()[s], st["dec"].to_numpy()[s]
-    resident = None
+    resident = ranges = None
+    if data.on_cluster and dask_client is None:
+        raise ValueError("these data live on a cluster's workers: solve them with its dask_client")
     if dask_client is not None:  # the measurements stay on the workers from prior to prior
         ranges = problem.chunks(chunk_stars)
         stars = [slice(data.blocks[lo].first, data.blocks[hi - 1].first + data.blocks[hi - 1].n) for lo, hi in ranges]
@@ -493,10 +634,7 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
                         "err_mas": err.astype(np.float32),
                         "err_parallax_mas": err_plx.astype(np.float32), "sigma_prior_mas": sigma_prior.astype(np.float32),
                         "span_days": st["span_days"].to_numpy().astype(np.float32)})
-    sq = np.zeros(3)
-    for b in data.blocks:  # block by block: bounded temporaries at any number of measurements
-        est = spline_values(b, sol.attitude).T  # from the block's own spline values
-        sq += np.sum(attitude_error(data, sol.attitude, eps, omega, data.block_epochs(b), est) ** 2, axis=0)
+    sq = data.attitude_sq(sol.attitude, eps, omega, resident, ranges)
     m = data.n_measurements
     hist = pd.DataFrame([dataclasses.asdict(r) for r in sol.history])
     hist.insert(0, "prior", label)

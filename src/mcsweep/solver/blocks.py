@@ -33,7 +33,7 @@ import numpy as np
 from . import kernels
 from .attitude_update import band_of_rows
 
-__all__ = ["StarBlock", "gather", "spline_values", "att_rows", "src_rows", "att_forward", "att_adjoint", "att_band", "src_forward",
+__all__ = ["StarBlock", "BlockSpan", "gather", "spline_values", "att_rows", "src_rows", "att_forward", "att_adjoint", "att_band", "src_forward",
            "src_adjoint", "block_setup", "block_precondition_forward", "block_precondition_back", "block_residuals",
            "block_normal_apply"]
 
@@ -102,6 +102,20 @@ class StarBlock:
 # einsum/matmul: numpy's SIMD reductions may round differently with the memory
 # alignment of their operands, which differs between processes (pickled copies), and
 # the results must be bit-identical on any worker (:mod:`~mcsweep.solver.reduction`).
+
+@dataclasses.dataclass
+class BlockSpan:
+    """Where a :class:`StarBlock` that lives elsewhere (on a Dask worker, built there) sits in
+    the problem: its stars ``first .. first + n - 1``, its measurements ``rows`` (a slice of
+    the observation order), and the per-star inverses the driver sets for a prior. What the
+    driver's side of the solver reads of a block (:mod:`~mcsweep.solver.cg`)."""
+
+    first: int
+    n: int
+    rows: slice
+    binv: np.ndarray | None = None
+
+
 def _rowdot(a, b) -> np.ndarray:
     """``sum_k a[..., k] * b[..., k]`` over the last axis, accumulated left to right."""
     out = a[..., 0] * b[..., 0]

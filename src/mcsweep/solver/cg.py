@@ -222,13 +222,16 @@ class GlobalProblem:
 
     @classmethod
     def from_blocks(cls, blocks, normals, prior_diagonal, ra_deg, dec_deg, *, n_coef: int,
-                    n_measurements: int) -> "GlobalProblem":
+                    n_measurements: int, naa_band=None) -> "GlobalProblem":
         """The problem from blocks made part by part (:func:`make_blocks`).
 
         ``blocks`` cover stars ``0 .. n - 1`` in order with one block size, their rows
         ``0 .. n_measurements - 1`` (the observation order); ``normals`` (n, 5, 5) the
         stars' data normal matrices (:func:`~mcsweep.solver.source_update.source_normals`
-        of the parts, concatenated).
+        of the parts, concatenated). Blocks kept on a cluster's workers are given as
+        :class:`~mcsweep.solver.blocks.BlockSpan` s with ``naa_band``, the sum of their
+        :func:`~mcsweep.solver.blocks.att_band` in the fixed tree; the problem then solves
+        with their resident chunks only (:func:`solve_global`'s ``resident_chunks``).
         """
         blocks = list(blocks)
         firsts = [b.first for b in blocks]
@@ -237,11 +240,14 @@ class GlobalProblem:
                 sum(b.n for b in blocks) != len(normals):
             raise ValueError("blocks must cover the stars in order with one block size")
         self = cls.__new__(cls)
+        if naa_band is None and any(isinstance(b, B.BlockSpan) for b in blocks):
+            raise ValueError("blocks kept elsewhere (BlockSpan) need their naa_band")
         self._assemble(blocks, np.asarray(normals, dtype=float), prior_diagonal, ra_deg, dec_deg,
-                       n_coef=int(n_coef), n_measurements=int(n_measurements))
+                       n_coef=int(n_coef), n_measurements=int(n_measurements), naa_band=naa_band)
         return self
 
-    def _assemble(self, blocks, normals, prior_diagonal, ra_deg, dec_deg, *, n_coef, n_measurements):
+    def _assemble(self, blocks, normals, prior_diagonal, ra_deg, dec_deg, *, n_coef, n_measurements,
+                  naa_band=None):
         self.n_stars = n = len(normals)
         self.n_coef = n_coef
         self.n_measurements = n_measurements
@@ -254,7 +260,7 @@ class GlobalProblem:
         self.size = self.n_src + self.n_att
         # Coefficients whose support holds no measurement (inside dead time) are held at
         # zero (identity rows), as AGIS breaks the attitude into segments at data gaps.
-        self.naa_band = pairwise_sum(B.att_band(b) for b in self.blocks)
+        self.naa_band = pairwise_sum(B.att_band(b) for b in self.blocks) if naa_band is None else naa_band
         self.free = free_coefficients(self.naa_band)
 
     def _set_prior(self, prior_diagonal):
@@ -477,9 +483,10 @@ def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_u
     Parameters
     ----------
     problem : GlobalProblem
-    h : array_like (m,)
+    h : array_like (m,) or None
         Normalised measurements (observed minus computed from the starting values:
-        the scanning-law attitude and zero corrections), in observation order.
+        the scanning-law attitude and zero corrections), in observation order; None when
+        they are kept with ``resident_chunks`` (built on the workers).
     rtol, update_tol_uas, max_iter, min_iter : keyword-only
         Convergence criterion (module notes).
     log : callable, optional
@@ -505,11 +512,17 @@ def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_u
         As ``dask_client``, with the chunks already on the workers; its chunk ``ci`` must be
         the problem's blocks of ``problem.chunks(chunk_stars)[ci]`` with their measurements.
     """
-    h = np.asarray(h, dtype=float)
+    if h is None and resident_chunks is None:
+        raise ValueError("the measurements h are needed unless they are on the workers (resident_chunks)")
+    if h is not None:
+        h = np.asarray(h, dtype=float)
+        if h.size != problem.n_measurements:
+            raise ValueError(f"h has {h.size} measurements, the problem {problem.n_measurements}")
     shares = max(1, int(workers)) if resident_chunks is None and dask_client is None else 1
     ranges = problem.chunks(chunk_stars, shares=shares)
     chunks = [problem.blocks[lo:hi] for lo, hi in ranges]
-    hs = [[h[b.rows] for b in bl] for bl in chunks]  # views when the rows are slices (in_block_order)
+    # views when the rows are slices (in_block_order); None: kept with the resident chunks
+    hs = None if h is None else [[h[b.rows] for b in bl] for bl in chunks]
     if resident_chunks is None and dask_client is not None:
         from .dask_resident import DaskChunks
 
@@ -519,7 +532,7 @@ def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_u
     if resident_chunks is not None:
         for attempt in range(MAX_RESTARTS + 1):
             try:
-                return _pcg(problem, h, chunks, resident_chunks.run, **kw)
+                return _pcg(problem, chunks, resident_chunks.run, **kw)
             except ChunksLost:
                 if attempt == MAX_RESTARTS:
                     raise
@@ -529,8 +542,8 @@ def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_u
     with forked_chunks(list(zip(chunks, hs, states)), workers, owners=owners) as pool:
         if pool is None:  # in-process: the chunks and their states are these very objects
             items = {ci: (chunks[ci], hs[ci], states[ci]) for ci in range(len(chunks))}
-            return _pcg(problem, h, chunks, partial(_in_process, items), **kw)
-        return _pcg(problem, h, chunks, pool, **kw)
+            return _pcg(problem, chunks, partial(_in_process, items), **kw)
+        return _pcg(problem, chunks, pool, **kw)
 
 
 def _in_process(chunks: dict, fn: Callable, items: Iterable) -> Iterator:
@@ -539,10 +552,11 @@ def _in_process(chunks: dict, fn: Callable, items: Iterable) -> Iterator:
     return (fn((item[0], *chunks[item[0]], *item[1:])) for item in items)
 
 
-def _pcg(pb: GlobalProblem, h, chunks, run, *, rtol, update_tol_uas, max_iter, min_iter, log,
+def _pcg(pb: GlobalProblem, chunks, run, *, rtol, update_tol_uas, max_iter, min_iter, log,
          residuals) -> GlobalSolution:
     """The PCG iteration of :func:`solve_global`; ``run(fn, items)`` runs chunk tasks whose items
     are ``(ci, *rest)`` on the executor that holds chunk ``ci`` and its state."""
+    m = pb.n_measurements
     stars = [slice(bl[0].first, bl[-1].first + bl[-1].n) for bl in chunks]
     n_ch = range(len(chunks))
     w = (pb.w_pos, pb.w_pm)
@@ -616,7 +630,7 @@ def _pcg(pb: GlobalProblem, h, chunks, run, *, rtol, update_tol_uas, max_iter, m
             update_max_uas=UAS_PER_MAS * max(float(np.max(np.abs(step_a), initial=0.0)), largest_s),
             update_rms_position_uas=UAS_PER_MAS * float(np.sqrt(step_pos2 / max(pb.n_stars, 1))),
             update_rms_attitude_uas=UAS_PER_MAS * float(np.sqrt(np.mean(np.sum(step_a ** 2, axis=1)))),
-            residual_rms=float(np.sqrt(max(res2, 0.0) / h.size)) if h.size else 0.0,
+            residual_rms=float(np.sqrt(max(res2, 0.0) / m)) if m else 0.0,
             relative_residual=float(np.sqrt(rr_s + _dot(r_a, r_a))) / b_norm,
             seconds=time.perf_counter() - t0)
         history.append(rec)
@@ -634,11 +648,11 @@ def _pcg(pb: GlobalProblem, h, chunks, run, *, rtol, update_tol_uas, max_iter, m
     out = _ordered(run, _residual_task, [(i, x_a, residuals) for i in n_ch])
     res_all = None
     if residuals:
-        res_all = np.empty(h.size)
+        res_all = np.empty(m)
         for b, rb in zip(pb.blocks, [r for o in out for r in o[0]]):
             res_all[b.rows] = rb
     ss = total(o[1] for o in out)
     x_s = np.concatenate([o[2] for o in out]) if out else np.zeros((0, 5))
     return GlobalSolution(x=x_s, attitude=x_a, cov=pb.src_inv, residuals=res_all,
-                          residual_rms=float(np.sqrt(ss / h.size)) if h.size else float("nan"),
+                          residual_rms=float(np.sqrt(ss / m)) if m else float("nan"),
                           history=history, converged=converged)

@@ -26,6 +26,7 @@ from ..errors import NotConvergedError
 from ..experiments.global_classes import STAR_COLUMNS, class_key
 from ..experiments.primary import (CHUNKS_DIR, FACTOR_STREAM, PRIMARY_KEY, TAG, build_settings, prepare, solve_prior,
                                    stream_seed, transits_of)
+from ..experiments.primary_cluster import prepare_on_cluster
 from ..experiments.primary_factor import factor_curves, factor_label, factor_rows, overall_factor
 from ..experiments.primary_table import table3_markdown, table3_rows
 from .execution import dask_client, release_free_memory
@@ -155,24 +156,41 @@ def _compute(run: GlobalRun) -> _Computed:
         df["class_key"] = key
         parts.append(df)
     stars = pd.concat(parts, ignore_index=True)
-    transits = _transits(run, stars)
-    print(f"mcsweep: primary: {len(stars)} stars, {transits['t'].size} FoV transits found", flush=True)
-    with run.prov.stage("observations"):
-        data = prepare(run.settings, stars, transits)
-        del transits  # 16 bytes per transit, 2.6e7 transits at the paper's scale
-        run.prov.derived.setdefault("primary", {}).update(
-            {"attitude_segments": data.spline.n_segments, "knot_interval_hours": data.knot_interval_hours,
-             "fov_transits_per_knot": data.transits_per_knot, "attitude_coefficients": 3 * data.spline.n_coef,
-             "attitude_coefficients_without_data": 3 * (data.spline.n_coef - data.coefficients_with_data())})
-        release_free_memory()  # the blocks' build leaves free holes in the heap (1/3 of it at 3e5 stars)
-    # The factor search (experiment.primary.factor_grid) shares solutions with Table 3's priors.
     factors = {float(k): factor_label(k) for k in run.section.factor_grid}
     with contextlib.ExitStack() as cluster:
         client = functools.cache(lambda: cluster.enter_context(dask_client(run.config.execution)))
+        data = _observations(run, stars, client)
+        # The factor search (experiment.primary.factor_grid) shares solutions with Table 3's priors.
         for label in dict.fromkeys([*run.settings.priors, *factors.values()]):
             with run.prov.stage(f"solve {label}"):
                 _solve(run, data, label, client)
     return _Computed(data=data, stars=stars, factors=factors)
+
+
+def _observations(run: GlobalRun, stars: pd.DataFrame, client: Callable):
+    """The data of every prior's solution: made in this process, or with ``execution=dask`` made
+    and kept on the cluster's workers (:mod:`mcsweep.experiments.primary_cluster`: only
+    per-star and per-coefficient arrays come back to the driver)."""
+    if run.config.execution.backend == "dask":
+        with run.prov.stage("observations"):
+            data = prepare_on_cluster(run.settings, stars, client(),
+                                      chunk_stars=int(run.config.execution.chunk_stars),
+                                      transit_stars=int(run.config.execution.chunk_stars))
+        print(f"mcsweep: primary: {len(stars)} stars, {int(data.stars['n_fov'].sum())} live FoV transits, "
+              f"built on the Dask workers", flush=True)
+    else:
+        transits = _transits(run, stars)
+        print(f"mcsweep: primary: {len(stars)} stars, {transits['t'].size} FoV transits found", flush=True)
+        with run.prov.stage("observations"):
+            data = prepare(run.settings, stars, transits)
+            del transits  # 16 bytes per transit, 2.6e7 transits at the paper's scale
+            release_free_memory()  # the blocks' build leaves free holes in the heap (1/3 of it at 3e5 stars)
+    with run.prov.stage("observations"):
+        run.prov.derived.setdefault("primary", {}).update(
+            {"attitude_segments": data.spline.n_segments, "knot_interval_hours": data.knot_interval_hours,
+             "fov_transits_per_knot": data.transits_per_knot, "attitude_coefficients": 3 * data.spline.n_coef,
+             "attitude_coefficients_without_data": 3 * (data.spline.n_coef - data.coefficients_with_data())})
+    return data
 
 
 def _read_solutions(run: GlobalRun, factors: dict) -> tuple[dict, list, dict, list]:

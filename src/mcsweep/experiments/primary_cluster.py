@@ -1,0 +1,206 @@
+"""The primary experiment's measurements built and kept on the workers of a Dask cluster (issue 27).
+
+With ``execution=dask`` the driver does not search the transits, build the solver's blocks
+or hold the measurements: each of those is a task on the cluster, and the solver's chunks
+(:mod:`mcsweep.solver.dask_resident`) are the futures of the tasks that built them. What
+the driver sends and keeps is per star (directions, magnitudes, truth; the data normal
+matrices and, per prior, their inverses) and per attitude coefficient; what stays on the
+workers is per measurement (the transits, the partials, the measurements), about 20 times
+more at the paper's sizes.
+
+Steps (``prepare_on_cluster``), each a set of tasks whose results stay on the workers
+unless said otherwise:
+
+1. Transits of each chunk of ``transit_stars`` stars (:func:`~.primary.transits_of`'s
+   search); back to the driver only each star's number of live transits, mean live epoch
+   and time span (:func:`~.primary.transit_summary`) and, with ``knot_transits``, the
+   solution's live epochs (the knots are placed by the data: 8 bytes per transit, once).
+2. The driver picks the solved stars, the spline, the first measurement of each block.
+3. Each solver chunk (aligned runs of blocks of ``BLOCK_STARS`` stars,
+   :func:`~mcsweep.solver.reduction.chunk_ranges`) is built by one task from the transit
+   results it overlaps (worker to worker), block by block with
+   :func:`~.primary.build_block`, the function the driver uses without a cluster, and each
+   block's noise from its own seed: the same bits as :func:`~.primary.prepare`. Back to the
+   driver: the chunk's data normal matrices, its part of the attitude block's band
+   (summed in the solver's fixed tree) and which coefficients it touches.
+
+A lost worker takes its chunks and the inputs scattered to it: its chunks are built again
+from the driver's per-star arrays (transit search included) and the solution restarts from
+its first pass (:class:`~mcsweep.solver.cg.ChunksLost`), with the same bits (tested by
+killing a worker mid-solve).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from ..solver import BLOCK_STARS
+from ..solver.blocks import BlockSpan, att_band
+from ..solver.dask_resident import DaskChunks
+from ..solver.reduction import chunk_ranges, pairwise_sum, run_level
+from .global_classes import star_transits
+from .primary import (NOISE_STREAM, BlockJob, PreparedData, PrimarySettings, _true_attitude, attitude_spline,
+                      block_rows, block_transits, build_block, covered_coefficients, dead_time_of,
+                      measurements_per_star, solved_stars, star_sigmas, stream_seed, transit_summary,
+                      true_parameters, with_transit_columns)
+
+__all__ = ["prepare_on_cluster"]
+
+
+def _search(radec: tuple, first: int, start_jd: float, end_jd: float, law) -> dict:
+    return star_transits(radec[0], radec[1], start_jd, end_jd, law, first=first)
+
+
+def _summary(transits: dict, dead, first: int, n: int, knots_by_data: bool, al_only: bool) -> dict:
+    """Per star of the chunk its live transits' count, mean epoch and span; with
+    ``knots_by_data`` also the live epochs of the stars the solution will hold."""
+    out = transit_summary(transits["star"], transits["t"], dead, first, n)
+    live = out.pop("live")
+    if knots_by_data:
+        solvable = out["n_fov"] > (1 if al_only else 0)
+        out["epochs"] = transits["t"][live & solvable[transits["star"] - first]]
+    return out
+
+
+def _build_chunk(spec: dict, spline, true_attitude, dead, *parts) -> tuple:
+    """A solver chunk ``(blocks, measurements)`` and what the driver needs of it: its stars'
+    data normal matrices, its blocks' attitude band summed in the fixed tree, and which spline
+    coefficients its measurements touch. ``parts``: the transit results it overlaps, in star order."""
+    star = np.concatenate([p["star"] for p in parts])
+    t = np.concatenate([p["t"] for p in parts])
+    psi = np.concatenate([p["psi"] for p in parts])
+    live = ~dead.is_dead(t)
+    blocks, hs, normals = [], [], []
+    for job, solved_block in zip(spec["jobs"], spec["solved"]):
+        blk, nrm, h = build_block(job, *block_transits(star, t, psi, live, solved_block), spline=spline,
+                                  true_attitude=true_attitude, t_ref_jd=spec["t_ref_jd"],
+                                  block_stars=spec["block_stars"])
+        blocks.append(blk)
+        hs.append(h)
+        normals.append(nrm)
+    info = {"normals": np.concatenate(normals), "band": pairwise_sum(att_band(b) for b in blocks),
+            "covered": np.flatnonzero(covered_coefficients(blocks, spline.n_coef)),
+            "rows": [(b.rows.start, b.rows.stop) for b in blocks]}
+    return (blocks, hs), info
+
+
+def _first(pair):
+    return pair[0]
+
+
+def _second(pair):
+    return pair[1]
+
+
+class _Shared:
+    """Objects every task may need (dead time, scanning law, spline, true attitude), scattered
+    once, and again if a lost worker took them (the scheduler keeps one copy of scattered
+    data: its memory manager drops the replicas of a broadcast)."""
+
+    def __init__(self, client):
+        self.client = client
+        self.futures: dict = {}
+
+    def __call__(self, name: str, obj):
+        fut = self.futures.get(name)
+        if fut is None or fut.status != "finished":
+            (fut,) = self.client.scatter([obj], hash=False)
+            self.futures[name] = fut
+        return fut
+
+
+def prepare_on_cluster(settings: PrimarySettings, stars: pd.DataFrame, client, *, chunk_stars: int | None,
+                       transit_stars: int = 50000, block_stars: int = BLOCK_STARS,
+                       with_noise: bool = True) -> PreparedData:
+    """:func:`~.primary.prepare` with the transits, blocks and measurements made and kept on the
+    workers of the Dask ``client`` (module notes): the same data, bit for bit, whose
+    ``resident(client, ranges)`` for the solver's chunks of ``chunk_stars`` stars are the
+    chunks already there. ``transit_stars``: stars per transit-search task."""
+    n = len(stars)
+    dead = dead_time_of(settings)
+    ra_all, dec_all = stars["ra"].to_numpy(), stars["dec"].to_numpy()
+    shared = _Shared(client)
+
+    def search(i: int):
+        """The transit search of stars ``[i, i + 1) x transit_stars``, on one worker."""
+        lo, hi = i * transit_stars, min((i + 1) * transit_stars, n)
+        live_workers = sorted(client.scheduler_info()["workers"])
+        (radec,) = client.scatter([(ra_all[lo:hi], dec_all[lo:hi])], workers=[live_workers[i % len(live_workers)]],
+                                  hash=False)
+        return client.submit(_search, radec, lo, settings.start_jd, settings.end_jd, shared("law", settings.law),
+                             pure=False)
+
+    found = [search(i) for i in range(-(-n // transit_stars))]
+    summaries = [client.submit(_summary, f, shared("dead", dead), i * transit_stars, min(transit_stars, n - i * transit_stars),
+                               settings.knot_transits is not None, settings.noise.use_ac is False, pure=False)
+                 for i, f in enumerate(found)]
+    got = client.gather(summaries)
+    del summaries
+    summary = {k: np.concatenate([g[k] for g in got]) if got else np.zeros(0) for k in ("n_fov", "mean_t", "span")}
+    epochs = (np.concatenate([g["epochs"] for g in got]) if settings.knot_transits is not None
+              else int(sum(int(g["n_fov"][g["n_fov"] > (1 if settings.noise.use_ac is False else 0)].sum())
+                           for g in got)))
+    del got
+    summary["n_fov"] = summary["n_fov"].astype(np.int64)
+    stars = with_transit_columns(settings, stars, summary)
+    solved = solved_stars(settings, summary["n_fov"])
+    s_al, s_ac = star_sigmas(settings, stars, solved)
+    spline = attitude_spline(settings, dead, epochs)
+    del epochs
+    true_att = _true_attitude(settings)
+    ra, dec = ra_all[solved], dec_all[solved]
+    x_true = true_parameters(stars, solved)
+    counts = measurements_per_star(summary["n_fov"][solved], s_ac)
+    rows = block_rows(counts, block_stars)
+    n_blocks = len(rows)
+    ranges = chunk_ranges(n_blocks, None if chunk_stars is None else max(1, int(chunk_stars) // block_stars))
+
+    def submit(ci: int, parts: list | None = None):
+        """The task building chunk ``ci`` (from the transit results ``parts``; None: searched
+        again, for a chunk lost with a worker: its scattered inputs went with it)."""
+        blo, bhi = ranges[ci]
+        live_workers = sorted(client.scheduler_info()["workers"])
+        jobs, solved_blocks = [], []
+        for k in range(blo, bhi):
+            first, last = k * block_stars, min((k + 1) * block_stars, solved.size)
+            jobs.append(BlockJob(first=first, ra=ra[first:last], dec=dec[first:last], x_true=x_true[first:last],
+                                 sigma_al_mas=s_al[first:last], sigma_ac_mas=None if s_ac is None else s_ac[first:last],
+                                 noise_seed=stream_seed(settings.seed, NOISE_STREAM, k) if with_noise else None,
+                                 first_row=int(rows[k])))
+            solved_blocks.append(solved[first:last])
+        star_lo, star_hi = solved[blo * block_stars], solved[min(bhi * block_stars, solved.size) - 1]
+        span = range(star_lo // transit_stars, star_hi // transit_stars + 1)
+        parts = [search(i) for i in span] if parts is None else parts[span.start:span.stop]
+        home = [live_workers[ci % len(live_workers)]]
+        (spec,) = client.scatter([{"jobs": jobs, "solved": solved_blocks, "t_ref_jd": settings.t_ref_jd,
+                                   "block_stars": block_stars}], workers=home, hash=False)
+        # spread over the workers as the scattered chunks are (memory), not where the transits are
+        return client.submit(_build_chunk, spec, shared("spline", spline), shared("truth", true_att),
+                             shared("dead", dead), *parts, pure=False,
+                             workers=home, allow_other_workers=True)
+
+    def rebuild(ci: int):
+        return client.submit(_first, submit(ci), pure=False)
+
+    built = [submit(ci, found) for ci in range(len(ranges))]
+    chunk_futures = [client.submit(_first, b, pure=False) for b in built]
+    infos = client.gather([client.submit(_second, b, pure=False) for b in built])
+    del built, found  # the scheduler keeps what a lost chunk needs to be built again
+    levels = [run_level(lo, hi) for lo, hi in ranges]
+    naa_band = pairwise_sum((i["band"] for i in infos), None, levels)
+    covered = np.zeros(spline.n_coef, dtype=bool)
+    spans = []
+    for (blo, bhi), info in zip(ranges, infos):
+        covered[info["covered"]] = True
+        for k, (r0, r1) in zip(range(blo, bhi), info["rows"]):
+            spans.append(BlockSpan(first=k * block_stars, n=min(block_stars, solved.size - k * block_stars),
+                                   rows=slice(r0, r1)))
+    normals = np.concatenate([i["normals"] for i in infos]) if infos else np.zeros((0, 5, 5))
+    del infos
+    data = PreparedData(stars=stars, solved=solved, blocks=spans, normals=normals, h=None, x_true=x_true,
+                        spline=spline, true_attitude=true_att, t_ref_jd=settings.t_ref_jd, dead=dead,
+                        covered=covered, n_rows=int(counts.sum()),
+                        naa_band=np.zeros((0, 0)) if naa_band is None else naa_band)
+    data.keep_resident(client, ranges, DaskChunks(client, chunk_futures, rebuild=rebuild))
+    return data

@@ -1,0 +1,108 @@
+"""The primary experiment's data built on the workers of a Dask cluster (issue 27): the same bits
+as the data built in the driver, and the same solution, while the driver never holds a
+measurement."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+from mcsweep.experiments import primary as P
+
+from .test_primary import _config, _synthetic_stars
+
+distributed = pytest.importorskip("distributed")
+
+BLOCK = 256  # stars per block: several blocks and chunks on a small problem
+
+
+@pytest.fixture(scope="module")
+def client(dask_local_client):
+    return dask_local_client
+
+
+@pytest.fixture(scope="module")
+def both(client):
+    """(settings, data built in the driver, data built on the cluster) with noise, knots placed
+    by the data and AL-only measurements off (AL + AC, the default)."""
+    from mcsweep.experiments.primary_cluster import prepare_on_cluster
+
+    config, _ = _config(["experiment.primary.knot_transits=25", "experiment.primary.solver_max_iter=15",
+                         "experiment.primary.allow_unconverged=true"])
+    settings = P.build_settings(config)
+    stars = _synthetic_stars(2500, 11)
+    _, tr = P.transits_of((0, 0, stars["ra"].to_numpy(), stars["dec"].to_numpy(), settings.start_jd,
+                           settings.end_jd, settings.law))
+    local = P.prepare(settings, stars, tr, block_stars=BLOCK)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        remote = prepare_on_cluster(settings, stars, client, chunk_stars=2 * BLOCK, transit_stars=700,
+                                    block_stars=BLOCK)
+    assert not [w for w in caught if "large graph" in str(w.message).lower()]
+    return settings, local, remote
+
+
+def test_cluster_built_data_are_the_driver_built_bits(both, client):
+    settings, local, remote = both
+    assert remote.on_cluster and remote.h is None and not local.on_cluster
+    assert len(local.blocks) > 6  # several blocks, chunks of two, transit chunks across them
+    for col in ("n_fov", "epoch_offset_yr", "span_days"):
+        np.testing.assert_array_equal(remote.stars[col].to_numpy(), local.stars[col].to_numpy())
+    np.testing.assert_array_equal(remote.solved, local.solved)
+    np.testing.assert_array_equal(remote.normals, local.normals)
+    np.testing.assert_array_equal(remote.x_true, local.x_true)
+    for a, b in zip(remote.spline.segment_knots, local.spline.segment_knots, strict=True):
+        np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(remote.covered, local.covered)
+    assert remote.n_measurements == local.n_measurements
+    assert [(s.first, s.n, s.rows) for s in remote.blocks] == [(b.first, b.n, b.rows) for b in local.blocks]
+    # the band the driver got from the chunks' sums is the one of the blocks, bit for bit
+    prior = np.array([0.0, 0.0, 1.0, 1.0, 1.0])
+    np.testing.assert_array_equal(remote.problem(prior).naa_band, local.problem(prior).naa_band)
+    # each block and its measurements, as kept on the workers
+    ranges = [tuple(r) for r in remote._resident[0][1]]
+    chunks = client.gather(remote._resident[1].futures)
+    for (lo, hi), (blocks, hs) in zip(ranges, chunks, strict=True):
+        for blk, h, ref in zip(blocks, hs, local.blocks[lo:hi], strict=True):
+            np.testing.assert_array_equal(h, local.h[ref.rows])
+            for f in ("star", "src", "t", "pq", "j0", "bval", "seg", "seg_j0"):
+                np.testing.assert_array_equal(getattr(blk, f), getattr(ref, f))
+
+
+def test_cluster_built_solution_is_the_forked_one(both, client):
+    settings, local, remote = both
+    ref = P.solve_prior(settings, local, "F90", workers=2)
+    got = P.solve_prior(settings, remote, "F90", dask_client=client, chunk_stars=2 * BLOCK)
+    assert ref[2]["iterations"] == got[2]["iterations"] > 5
+    assert ref[2]["attitude_rms_uas"] == got[2]["attitude_rms_uas"]
+    np.testing.assert_array_equal(ref[0].to_numpy(), got[0].to_numpy())
+    np.testing.assert_array_equal(ref[3].to_numpy(), got[3].to_numpy())
+    with pytest.raises(ValueError, match="dask_client"):
+        P.solve_prior(settings, remote, "F90")
+
+
+def test_cluster_built_solution_survives_a_killed_worker(both, client):
+    # A worker killed mid-solve takes its chunks and the inputs scattered to it: the chunks
+    # are built again from the driver's per-star arrays and the solution restarts, same bits.
+    import os
+    import signal
+
+    settings, local, remote = both
+    ref = P.solve_prior(settings, local, "10F90")
+    client.wait_for_workers(2, timeout=60)
+    victim = sorted(client.run(os.getpid).values())[0]
+    killed = []
+
+    def log(rec):
+        if rec.iteration == 3 and not killed:
+            os.kill(victim, signal.SIGKILL)
+            killed.append(rec.iteration)
+
+    got = P.solve_prior(settings, remote, "10F90", dask_client=client, chunk_stars=2 * BLOCK, log=log)
+    client.wait_for_workers(2, timeout=60)  # the nanny restarts it for the next test
+    assert killed
+    assert ref[2]["iterations"] == got[2]["iterations"]
+    np.testing.assert_array_equal(ref[0].to_numpy(), got[0].to_numpy())
+    np.testing.assert_array_equal(ref[3].to_numpy(), got[3].to_numpy())

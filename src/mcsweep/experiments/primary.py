@@ -57,9 +57,11 @@ interval), the attitude error the prior's bias causes does not (docs/table3.md).
 
 Reproducibility: SeedSequence(seed, spawn_key=(42, stream, ...)): population of a class
 (stream 0, class key round(100 G0); primaries key 0), dead time (1), true attitude (2),
-measurement noise (3). All are drawn in-process in a fixed order, so results do not
-depend on n_jobs or chunking (the transit search is chunked over stars and re-assembled
-in star order).
+measurement noise (3, key: the block of ``BLOCK_STARS`` solved stars, drawn in the block's
+order). So results do not depend on n_jobs, chunking or where a block is built (the driver,
+or a Dask worker: :mod:`~mcsweep.experiments.primary_cluster`); the transit search is
+chunked over stars and re-assembled in star order. (Until issue 27 the noise was one stream
+over all blocks: the same statistics, other draws.)
 """
 
 from __future__ import annotations
@@ -80,9 +82,9 @@ from ..scanning.timeline import DeadTime
 from ..solver.attitude_spline import DEGREE
 from ..solver.reduction import pairwise_sum, run_level
 from ..solver.blocks import att_rows, spline_values, src_forward
-from ..solver import (BLOCK_STARS, AttitudeSpline, GlobalProblem, build_observations, fit_frame, frame_attitude,
-                      frame_offsets, in_block_order, make_blocks, precision_weights, solve_global,
-                      source_normals)
+from ..solver import (BLOCK_STARS, AttitudeSpline, GlobalProblem, build_observations, frame_attitude,
+                      in_block_order, make_blocks, precision_weights, solve_global, source_normals)
+from ..solver.frame import frame_fit_sums, frame_from_sums, offsets_of
 from .global_classes import dead_time, star_transits
 from .global_priors import parse_prior, prior_sigma_mas
 from .global_settings import GlobalSettings, global_fields, spawn
@@ -574,6 +576,28 @@ def positions_at(x, cov, tau_yr) -> tuple[np.ndarray, np.ndarray]:
     return pos, cov_pos
 
 
+def block_frame_sums(K, binv, dx, equal: bool) -> np.ndarray:
+    """One block's part of the frame rotator's fit (Lindegren et al. 2012, Sect. 6.1): weighted
+    by the formal precisions (``equal``: every star alike); unweighted, the arcsec errors of
+    1-2-transit stars under 1000 mas set it. The same function wherever the block is."""
+    return frame_fit_sums(K, np.ones((len(dx), 2)) if equal else precision_weights(binv), dx)
+
+
+def block_outcome(K, binv, dx, eps, omega, tau, confidence: float):
+    """Per star of one block, after removing the fitted rotation ``eps`` and spin ``omega``:
+    inside the P ellipse (1/0; -1 without a confidence region: the project's one inside rule),
+    the position error [mas] (at ``tau`` Julian years from the reference epoch if given) and
+    the parallax error [mas]."""
+    dx = dx - offsets_of(K, eps, omega)
+    pos, cov_pos = dx[:, :2], binv[:, :2, :2]
+    if tau is not None:
+        pos, cov_pos = positions_at(dx, binv, tau)
+    good = np.isfinite(mahalanobis_sq(pos, cov_pos))
+    inside = np.full(len(dx), -1, dtype=np.int8)
+    inside[good] = inside_ellipse(pos[good], cov_pos[good], confidence)
+    return inside, np.hypot(pos[:, 0], pos[:, 1]), dx[:, 2].copy()
+
+
 def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=None, *,
                 chunk_stars=None, workers: int = 1, dask_client=None):
     """One global solution for the prior ``label``: (per-star results, history, attitude errors).
@@ -591,42 +615,46 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
     s = data.solved
     sig = prior_sigma_mas(label, settings.sigma_f90_mas(
         st["l"].to_numpy()[s], st["b"].to_numpy()[s], st["phot_g_mean_mag"].to_numpy()[s]))
-    prior = prior_diagonal(sig, settings.ratio_R)
-    # Raises if a star's block is singular: every solved star has >= 1 AL+AC or 2 AL
-    # measurements, so it cannot be under a positive prior.
-    problem = data.problem(prior)
-    ra, dec = st["ra"].to_numpy()[s], st["dec"].to_numpy()[s]
-    resident = ranges = None
-    if data.on_cluster and dask_client is None:
-        raise ValueError("these data live on a cluster's workers: solve them with its dask_client")
-    if dask_client is not None:  # the measurements stay on the workers from prior to prior
-        ranges = problem.chunks(chunk_stars)
-        stars = [slice(data.blocks[lo].first, data.blocks[hi - 1].first + data.blocks[hi - 1].n) for lo, hi in ranges]
-        resident = data.resident(dask_client, ranges).with_inverses([problem.src_inv[sl] for sl in stars])
-    sol = solve_global(problem, data.h, rtol=settings.rtol, update_tol_uas=settings.update_tol_uas,
-                       max_iter=settings.max_iter, log=log, chunk_stars=chunk_stars, residuals=False,
-                       workers=workers, resident_chunks=resident)
-    dx = sol.x - data.x_true
-    # The frame rotator (Lindegren et al. 2012, Sect. 6.1), weighted by the formal
-    # precisions: unweighted, the arcsec errors of 1-2-transit stars under 1000 mas set it.
-    weights = precision_weights(sol.cov)
+    tau = st["epoch_offset_yr"].to_numpy()[s] if settings.evaluation_epoch == "star_mean" else None
     # frame_fit='equal' weights every star alike: then the faint stars' prior-biased
     # astrometry sets the removed rotation (docs/table3.md, the candidate for the paper's
     # collapse); not the default.
-    eps, omega = fit_frame(dx, ra, dec, weights=weights if settings.frame_fit == "precision" else None)
-    dx = dx - frame_offsets(ra, dec, eps, omega)
-    pos, cov_pos = dx[:, :2], sol.cov[:, :2, :2]
-    if settings.evaluation_epoch == "star_mean":
-        pos, cov_pos = positions_at(dx, sol.cov, st["epoch_offset_yr"].to_numpy()[s])
-    # The project's one inside rule; -1 marks a star without a confidence region.
-    good = np.isfinite(mahalanobis_sq(pos, cov_pos))
+    equal = settings.frame_fit != "precision"
+    if data.on_cluster:  # everything per star stays on the workers (issue 27)
+        if dask_client is None:
+            raise ValueError("these data live on a cluster's workers: solve them with its dask_client")
+        from .primary_cluster import solve_on_cluster
+
+        sol, resident, ranges, eps, omega, (inside_s, err_s, plx_s) = solve_on_cluster(
+            settings, data, sig, dask_client, chunk_stars=chunk_stars, log=log, tau=tau, equal=equal)
+    else:
+        prior = prior_diagonal(sig, settings.ratio_R)
+        # Raises if a star's block is singular: every solved star has >= 1 AL+AC or 2 AL
+        # measurements, so it cannot be under a positive prior.
+        problem = data.problem(prior)
+        resident = ranges = None
+        if dask_client is not None:  # the measurements stay on the workers from prior to prior
+            ranges = problem.chunks(chunk_stars)
+            stars = [slice(data.blocks[lo].first, data.blocks[hi - 1].first + data.blocks[hi - 1].n)
+                     for lo, hi in ranges]
+            resident = data.resident(dask_client, ranges).with_inverses([problem.src_inv[sl] for sl in stars])
+        sol = solve_global(problem, data.h, rtol=settings.rtol, update_tol_uas=settings.update_tol_uas,
+                           max_iter=settings.max_iter, log=log, chunk_stars=chunk_stars, residuals=False,
+                           workers=workers, resident_chunks=resident)
+        views = [slice(b.first, b.first + b.n) for b in data.blocks]
+        dx = sol.x - data.x_true
+        eps, omega = frame_from_sums(pairwise_sum(
+            block_frame_sums(problem.K[v], sol.cov[v], dx[v], equal) for v in views) if views else np.zeros(24))
+        parts = [block_outcome(problem.K[v], sol.cov[v], dx[v], eps, omega, None if tau is None else tau[v],
+                               settings.confidence) for v in views]
+        inside_s, err_s, plx_s = (np.concatenate([p[i] for p in parts]) if parts else np.zeros(0) for i in range(3))
     n = len(st)
     inside = np.full(n, -1, dtype=np.int8)
-    inside[s[good]] = inside_ellipse(pos[good], cov_pos[good], settings.confidence)
+    inside[s] = inside_s
     err = np.full(n, np.nan)
-    err[s] = np.hypot(pos[:, 0], pos[:, 1])
+    err[s] = err_s
     err_plx = np.full(n, np.nan)
-    err_plx[s] = dx[:, 2]
+    err_plx[s] = plx_s
     sigma_prior = np.full(n, np.nan)
     sigma_prior[s] = sig
     res = pd.DataFrame({"star": np.arange(n, dtype=np.int32), "class_key": st["class_key"].to_numpy(),

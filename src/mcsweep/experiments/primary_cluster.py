@@ -32,20 +32,26 @@ killing a worker mid-solve).
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pandas as pd
 
-from ..solver import BLOCK_STARS
+from ..astrometry.solve import prior_diagonal
+from ..solver import BLOCK_STARS, solve_global
 from ..solver.blocks import BlockSpan, att_band
+from ..solver.cg import ResidentProblem, _fresh, penalty_weights, star_arrays, typical_weights, weight_sums
+from ..solver.frame import frame_from_sums
 from ..solver.dask_resident import DaskChunks
 from ..solver.reduction import chunk_ranges, pairwise_sum, run_level
 from .global_classes import star_transits
 from .primary import (NOISE_STREAM, BlockJob, PreparedData, PrimarySettings, _true_attitude, attitude_spline,
-                      block_rows, block_transits, build_block, covered_coefficients, dead_time_of,
+                      block_frame_sums, block_outcome, block_rows, block_transits, build_block,
+                      covered_coefficients, dead_time_of,
                       measurements_per_star, solved_stars, star_sigmas, stream_seed, transit_summary,
                       true_parameters, with_transit_columns)
 
-__all__ = ["prepare_on_cluster"]
+__all__ = ["prepare_on_cluster", "solve_on_cluster"]
 
 
 def _search(radec: tuple, first: int, start_jd: float, end_jd: float, law) -> dict:
@@ -79,10 +85,95 @@ def _build_chunk(spec: dict, spline, true_attitude, dead, *parts) -> tuple:
         blocks.append(blk)
         hs.append(h)
         normals.append(nrm)
-    info = {"normals": np.concatenate(normals), "band": pairwise_sum(att_band(b) for b in blocks),
+    info = {"band": pairwise_sum(att_band(b) for b in blocks),
             "covered": np.flatnonzero(covered_coefficients(blocks, spline.n_coef)),
             "rows": [(b.rows.start, b.rows.stop) for b in blocks]}
-    return (blocks, hs), info
+    kept = {"normals": np.concatenate(normals), "x_true": np.concatenate([j.x_true for j in spec["jobs"]])}
+    return (blocks, hs, kept), info
+
+
+def _attach_prior(chunk: tuple, arg: tuple) -> tuple:
+    """The solver's chunk ``(blocks, measurements, state)`` for one prior, made on its worker:
+    the stars' arrays of that prior (:func:`~mcsweep.solver.cg.star_arrays`) in the state,
+    from the prior sigma per star [mas] and R (``arg``), which is all that is sent per prior."""
+    blocks, hs, kept = chunk
+    sig, ratio_r = arg
+    stars = star_arrays(blocks, kept["normals"], prior_diagonal(sig, ratio_r))
+    stars.update(kept)
+    first, binv = blocks[0].first, stars["binv"]
+    return ([dataclasses.replace(b, binv=binv[b.first - first:b.first - first + b.n]) for b in blocks], hs,
+            {"stars": stars})
+
+
+def _slices(blocks) -> list:
+    first = blocks[0].first
+    return [slice(b.first - first, b.first - first + b.n) for b in blocks]
+
+
+def _prior_task(item):
+    """What the driver needs of a chunk's stars under a prior: singular blocks, the frame
+    weights' sums (fixed tree) and the per-star weights whose medians set the frame penalty."""
+    ci, blocks, _, st = item
+    S = st["stars"]
+    pos, pm = typical_weights(S["normals"], S["prior"])
+    return ci, (int(np.count_nonzero(~S["ok"])), pairwise_sum(weight_sums(S["g_raw"][v]) for v in _slices(blocks)),
+                pos, pm)
+
+
+def _fit_task(item):
+    ci, blocks, _, st, equal = item
+    S = st["stars"]
+    dx = st["x"] - S["x_true"]
+    return ci, pairwise_sum(block_frame_sums(S["K"][v], S["binv"][v], dx[v], equal) for v in _slices(blocks))
+
+
+def _outcome_task(item):
+    ci, blocks, _, st, eps, omega, tau, confidence = item
+    S = st["stars"]
+    dx = st["x"] - S["x_true"]
+    parts = [block_outcome(S["K"][v], S["binv"][v], dx[v], eps, omega, None if tau is None else tau[v], confidence)
+             for v in _slices(blocks)]
+    return ci, tuple(np.concatenate([p[i] for p in parts]) for i in range(3))
+
+
+def solve_on_cluster(settings: PrimarySettings, data: PreparedData, sig, client, *, chunk_stars, log, tau,
+                     equal: bool):
+    """One prior's solution of data built on the cluster (:func:`prepare_on_cluster`), every
+    per-star array on the workers: the prior sigmas ``sig`` [mas] of the solved stars are
+    sent, the inverses, frame weights, solution and its evaluation are made there, and the
+    driver gets the frame's sums, the attitude and per star only the outcome (inside flag,
+    position and parallax errors; ``tau``: the epochs of ``evaluation_epoch='star_mean'``).
+    Returns (solution, resident chunks, block ranges, eps, omega, outcome)."""
+    spans = data.blocks
+    ranges = chunk_ranges(len(spans), None if chunk_stars is None else max(1, int(chunk_stars) // spans[0].n))
+    views = [slice(spans[lo].first, spans[hi - 1].first + spans[hi - 1].n) for lo, hi in ranges]
+    resident = data.resident(client, ranges).attached(_attach_prior, [(sig[v], settings.ratio_R) for v in views])
+    levels = [run_level(lo, hi) for lo, hi in ranges]
+    got = _in_order(resident.run(_prior_task, [(ci,) for ci in range(len(ranges))]))
+    bad = sum(g[0] for g in got)
+    if bad:
+        raise ValueError(f"{bad} stars have singular source blocks; remove them first")
+    n = data.solved.size
+    w_pos, w_pm = penalty_weights(np.concatenate([g[2] for g in got]), np.concatenate([g[3] for g in got]), n)
+    problem = ResidentProblem(spans, n_coef=data.spline.n_coef, n_measurements=data.n_measurements,
+                              naa_band=data.naa_band, frame_means=pairwise_sum((g[1] for g in got), None, levels) / n,
+                              w_pos=w_pos, w_pm=w_pm)
+    del got
+    sol = solve_global(problem, None, rtol=settings.rtol, update_tol_uas=settings.update_tol_uas,
+                       max_iter=settings.max_iter, log=log, chunk_stars=chunk_stars, residuals=False,
+                       resident_chunks=resident)
+    eps, omega = frame_from_sums(pairwise_sum(
+        _in_order(resident.run(_fit_task, [(ci, equal) for ci in range(len(ranges))])), None, levels))
+    out = _in_order(resident.run(_outcome_task, [(ci, eps, omega, None if tau is None else tau[v],
+                                                  settings.confidence) for ci, v in enumerate(views)]))
+    outcome = tuple(np.concatenate([o[i] for o in out]) for i in range(3))
+    return sol, resident, ranges, eps, omega, outcome
+
+
+def _in_order(results) -> list:
+    """``(ci, value)`` results in chunk order, arrays copied fresh (solver.cg._fresh)."""
+    got = dict((ci, _fresh(v)) for ci, v in results)
+    return [got[ci] for ci in range(len(got))]
 
 
 def _first(pair):
@@ -145,12 +236,10 @@ def prepare_on_cluster(settings: PrimarySettings, stars: pd.DataFrame, client, *
     summary["n_fov"] = summary["n_fov"].astype(np.int64)
     stars = with_transit_columns(settings, stars, summary)
     solved = solved_stars(settings, summary["n_fov"])
-    s_al, s_ac = star_sigmas(settings, stars, solved)
+    s_ac = star_sigmas(settings, stars, solved)[1]
     spline = attitude_spline(settings, dead, epochs)
     del epochs
     true_att = _true_attitude(settings)
-    ra, dec = ra_all[solved], dec_all[solved]
-    x_true = true_parameters(stars, solved)
     counts = measurements_per_star(summary["n_fov"][solved], s_ac)
     rows = block_rows(counts, block_stars)
     n_blocks = len(rows)
@@ -163,12 +252,15 @@ def prepare_on_cluster(settings: PrimarySettings, stars: pd.DataFrame, client, *
         live_workers = sorted(client.scheduler_info()["workers"])
         jobs, solved_blocks = [], []
         for k in range(blo, bhi):
+            # the block's stars from the driver's table, element by element as prepare() has them
             first, last = k * block_stars, min((k + 1) * block_stars, solved.size)
-            jobs.append(BlockJob(first=first, ra=ra[first:last], dec=dec[first:last], x_true=x_true[first:last],
-                                 sigma_al_mas=s_al[first:last], sigma_ac_mas=None if s_ac is None else s_ac[first:last],
+            idx = solved[first:last]
+            sa, sc = star_sigmas(settings, stars, idx)
+            jobs.append(BlockJob(first=first, ra=ra_all[idx], dec=dec_all[idx], x_true=true_parameters(stars, idx),
+                                 sigma_al_mas=sa, sigma_ac_mas=sc,
                                  noise_seed=stream_seed(settings.seed, NOISE_STREAM, k) if with_noise else None,
                                  first_row=int(rows[k])))
-            solved_blocks.append(solved[first:last])
+            solved_blocks.append(idx)
         star_lo, star_hi = solved[blo * block_stars], solved[min(bhi * block_stars, solved.size) - 1]
         span = range(star_lo // transit_stars, star_hi // transit_stars + 1)
         parts = [search(i) for i in span] if parts is None else parts[span.start:span.stop]
@@ -196,9 +288,8 @@ def prepare_on_cluster(settings: PrimarySettings, stars: pd.DataFrame, client, *
         for k, (r0, r1) in zip(range(blo, bhi), info["rows"]):
             spans.append(BlockSpan(first=k * block_stars, n=min(block_stars, solved.size - k * block_stars),
                                    rows=slice(r0, r1)))
-    normals = np.concatenate([i["normals"] for i in infos]) if infos else np.zeros((0, 5, 5))
-    del infos
-    data = PreparedData(stars=stars, solved=solved, blocks=spans, normals=normals, h=None, x_true=x_true,
+    del infos  # the stars' truth and data normal matrices are with the chunks
+    data = PreparedData(stars=stars, solved=solved, blocks=spans, normals=None, h=None, x_true=None,
                         spline=spline, true_attitude=true_att, t_ref_jd=settings.t_ref_jd, dead=dead,
                         covered=covered, n_rows=int(counts.sum()),
                         naa_band=np.zeros((0, 0)) if naa_band is None else naa_band)

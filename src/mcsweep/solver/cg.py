@@ -95,7 +95,7 @@ from .reduction import chunk_ranges, pairwise_sum, run_level, share_bounds
 from .resident import forked_chunks
 from .source_update import solve_sources, source_normals
 
-__all__ = ["GlobalProblem", "ConvergenceRecord", "GlobalSolution", "solve_global", "make_blocks", "in_block_order",
+__all__ = ["GlobalProblem", "ResidentProblem", "ConvergenceRecord", "GlobalSolution", "solve_global", "make_blocks", "in_block_order",
            "UAS_PER_MAS",
            "BLOCK_STARS", "ChunksLost"]
 
@@ -273,12 +273,14 @@ class GlobalProblem:
         # Frame constraint weights (module notes, "Frame"): each star's formal precision of
         # position and proper motion (attitude as known), normalised to mean 1.
         g = precision_weights(self.src_inv)
-        self.frame_weights = np.column_stack([g[:, 0] / g[:, 0].mean(), g[:, 1] / g[:, 1].mean()])
-        # Frame penalty weights: one typical star's position (proper-motion) weight per
-        # unit of mean rotation, so the constrained directions are as well conditioned
-        # as a star (any positive weight gives the same stars for the orientation).
-        self.w_pos = float(np.median(N_src[:, 0, 0] + N_src[:, 1, 1])) / (2.0 * n)
-        self.w_pm = float(np.median(N_src[:, 3, 3] + N_src[:, 4, 4] + 2 * self.prior[:, 3])) / (2.0 * n)
+        self.frame_means = pairwise_sum(weight_sums(g[b.first:b.first + b.n]) for b in self.blocks) / max(n, 1)
+        self.frame_weights = normalised_weights(g, self.frame_means)
+        self.w_pos, self.w_pm = penalty_weights(*typical_weights(N_src, self.prior), n)
+
+    @property
+    def stars_with_chunks(self) -> bool:
+        """Whether the per-star arrays live with the chunks (:class:`ResidentProblem`)."""
+        return False
 
     def with_prior(self, prior_diagonal) -> "GlobalProblem":
         """The same measurements under another prior, sharing the stored partials (the
@@ -351,6 +353,66 @@ class GlobalProblem:
 
 
 
+def weight_sums(g) -> np.ndarray:
+    """Column sums (2,) of one block's frame weights ``g (n, 2)`` (summed over blocks in the
+    fixed tree, so the means are the same bits wherever the blocks are)."""
+    return np.array([np.sum(g[:, 0]), np.sum(g[:, 1])])
+
+
+def normalised_weights(g, means) -> np.ndarray:
+    """Frame constraint weights (module notes, "Frame"): each star's formal precision of
+    position and proper motion (attitude as known), normalised to mean 1."""
+    return np.column_stack([g[:, 0] / means[0], g[:, 1] / means[1]])
+
+
+def typical_weights(N_src, prior) -> tuple[np.ndarray, np.ndarray]:
+    """Per star, its position and proper-motion weights (data and prior) whose medians set the
+    frame penalty (:func:`penalty_weights`)."""
+    return N_src[:, 0, 0] + N_src[:, 1, 1], N_src[:, 3, 3] + N_src[:, 4, 4] + 2 * prior[:, 3]
+
+
+def penalty_weights(pos, pm, n: int) -> tuple[float, float]:
+    """Frame penalty weights: one typical star's position (proper-motion) weight per unit of
+    mean rotation, so the constrained directions are as well conditioned as a star (any
+    positive weight gives the same stars for the orientation)."""
+    return float(np.median(pos)) / (2.0 * n), float(np.median(pm)) / (2.0 * n)
+
+
+def star_arrays(blocks, normals, prior) -> dict:
+    """What a chunk's stars need for one prior, made where the chunk is: the prior diagonal,
+    the inverses ``(N_ss + N_p)^-1`` (``ok`` False where singular), the rotation matrices of
+    the frame (from the blocks' tangent directions) and the unnormalised frame weights."""
+    _, binv, ok = solve_sources(normals, np.zeros((len(normals), 5)), prior)
+    pq = np.concatenate([b.pq for b in blocks]) if blocks else np.zeros((0, 6))
+    K = np.stack([pq[:, 3:6], -pq[:, 0:3]], axis=-2)  # frame.rotation_matrices from p, q
+    return {"prior": np.ascontiguousarray(prior, dtype=float), "binv": binv, "ok": ok, "K": K,
+            "g_raw": precision_weights(binv)}
+
+
+class ResidentProblem:
+    """The driver's side of a problem whose blocks, measurements and per-star arrays (data
+    normal matrices, prior, inverses, frame weights, solution) all stay with their chunks on
+    a cluster's workers (:mod:`mcsweep.experiments.primary_cluster`): the block spans, the
+    attitude band, the frame's means and penalty weights. :func:`solve_global` solves it
+    with its ``resident_chunks`` only, and the stars' solution stays there too
+    (``GlobalSolution.x`` and ``cov`` are None)."""
+
+    prior = K = frame_weights = src_inv = None
+    stars_with_chunks = True
+
+    def __init__(self, spans, *, n_coef: int, n_measurements: int, naa_band, frame_means, w_pos: float,
+                 w_pm: float):
+        self.blocks = list(spans)
+        self.n_stars = sum(b.n for b in self.blocks)
+        self.n_coef, self.n_measurements = int(n_coef), int(n_measurements)
+        self.naa_band = naa_band
+        self.free = free_coefficients(naa_band)
+        self.frame_means = np.asarray(frame_means, dtype=float)
+        self.w_pos, self.w_pm = float(w_pos), float(w_pm)
+
+    chunks = GlobalProblem.chunks
+
+
 # ---------------------------------------------------------------------- chunk tasks
 # Every task's item starts (chunk index, blocks, measurements, state): what a worker keeps.
 # ``state`` (a dict, filled by the setup task) holds the chunk's share of every star vector
@@ -370,12 +432,20 @@ def _add_setup(a: dict, b: dict) -> dict:
 
 
 def _setup_task(item):
+    """Right-hand side and the chunk's star vectors. ``prior, K, g``: the chunk's arrays, or
+    (stars kept with the chunk, ``st["stars"]``: :func:`star_arrays`) None, None and the
+    frame weights' means."""
     ci, blocks, hs, st, prior, K, g = item
     parts = [B.block_setup(b, h) for b, h in zip(blocks, hs)]
     for p in parts:
         p["bb"] = _dot(p["b_s"], p["b_s"])
     b_s = np.concatenate([p.pop("b_s") for p in parts])
+    stars = st.get("stars")
+    if prior is None:
+        prior, K, g = stars["prior"], stars["K"], normalised_weights(stars["g_raw"], g)
     st.clear()
+    if stars is not None:
+        st["stars"] = stars
     zero = np.zeros_like(b_s)
     st.update(b=b_s, x=zero.copy(), r=b_s.copy(), e_x=zero.copy(), p=zero.copy(), q=zero.copy(), e_p=zero,
               prior=np.ascontiguousarray(prior, dtype=float), K=np.ascontiguousarray(K, dtype=float),
@@ -433,9 +503,11 @@ def _direction_task(item):
 
 
 def _residual_task(item):
-    ci, blocks, hs, st, x_a, keep = item
+    """Residuals of the solution; returned the chunk's share of the stars' solution unless it
+    stays with the chunk (``send_x`` False: :class:`ResidentProblem`)."""
+    ci, blocks, hs, st, x_a, keep, send_x = item
     res = [B.block_residuals(b, h, x, x_a) for b, h, (x,) in zip(blocks, hs, _views(blocks, st["x"]))]
-    return ci, (res if keep else None), pairwise_sum(_dot(r, r) for r in res), st["x"]
+    return ci, (res if keep else None), pairwise_sum(_dot(r, r) for r in res), (st["x"] if send_x else None)
 
 
 def _dot(a, b) -> float:
@@ -567,7 +639,8 @@ def _pcg(pb: GlobalProblem, chunks, run, *, rtol, update_tol_uas, max_iter, min_
         return pairwise_sum(values, add, levels)
 
     # Setup pass: right-hand side, the stars' vectors on the workers, the banded Schur block.
-    res = _ordered(run, _setup_task, [(i, pb.prior[sl], pb.K[sl], pb.frame_weights[sl])
+    res = _ordered(run, _setup_task, [(i, None, None, pb.frame_means) if pb.stars_with_chunks
+                                      else (i, pb.prior[sl], pb.K[sl], pb.frame_weights[sl])
                                       for i, sl in zip(n_ch, stars)])
     glob = total((r[0] for r in res), _add_setup)
     free = pb.free
@@ -645,14 +718,14 @@ def _pcg(pb: GlobalProblem, chunks, run, *, rtol, update_tol_uas, max_iter, min_
         p_a = z_a + beta * p_a
         q_a = nz_a + beta * q_a   # N p without another pass
         rz = rz_new
-    out = _ordered(run, _residual_task, [(i, x_a, residuals) for i in n_ch])
+    out = _ordered(run, _residual_task, [(i, x_a, residuals, not pb.stars_with_chunks) for i in n_ch])
     res_all = None
     if residuals:
         res_all = np.empty(m)
         for b, rb in zip(pb.blocks, [r for o in out for r in o[0]]):
             res_all[b.rows] = rb
     ss = total(o[1] for o in out)
-    x_s = np.concatenate([o[2] for o in out]) if out else np.zeros((0, 5))
+    x_s = None if pb.stars_with_chunks else np.concatenate([o[2] for o in out]) if out else np.zeros((0, 5))
     return GlobalSolution(x=x_s, attitude=x_a, cov=pb.src_inv, residuals=res_all,
                           residual_rms=float(np.sqrt(ss / m)) if m else float("nan"),
                           history=history, converged=converged)

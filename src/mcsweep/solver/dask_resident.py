@@ -127,15 +127,23 @@ class DaskChunks:
         """These chunks (the solver's blocks and measurements, kept on the workers) with the
         per-star inverses of one prior, ``binv[ci]`` the stars of chunk ``ci``: what changes
         from prior to prior is sent (200 bytes per star), not the measurements."""
+        return self.attached(_attach, binv)
+
+    def attached(self, fn: Callable, args: Sequence) -> "DaskChunks":
+        """New chunks ``fn(chunk ci, args[ci])``, made on the workers holding these (pinned
+        there, so nothing of the chunk moves); ``args[ci]`` is sent (scattered to that worker).
+        A lost one is made again (these chunks' own rebuilt first if they were lost too)."""
         client = self.client
 
         def make(ci):
             if self.futures[ci].status in ("lost", "error", "cancelled") and self.rebuild is not None:
                 self.futures[ci] = self.rebuild(ci)
             self._homes.pop(ci, None)
-            (inv,) = client.scatter([binv[ci]], workers=self._home(ci), hash=False)
-            out.bytes_sent += _nbytes(binv[ci])
-            return client.submit(_attach, self.futures[ci], inv, pure=False)
+            home = self._home(ci)
+            (arg,) = client.scatter([args[ci]], workers=home, hash=False)
+            out.bytes_sent += _nbytes(args[ci])
+            pin = dict(workers=home, allow_other_workers=True) if home else {}
+            return client.submit(fn, self.futures[ci], arg, pure=False, **pin)
 
         out = DaskChunks(client, [], rebuild=make)
         out.futures = [make(ci) for ci in range(len(self.futures))]

@@ -26,7 +26,8 @@ import numpy as np
 
 from ..astrometry.design import tangent_triad
 
-__all__ = ["rotation_matrices", "frame_offsets", "fit_frame", "frame_attitude", "precision_weights"]
+__all__ = ["rotation_matrices", "frame_offsets", "fit_frame", "frame_attitude", "precision_weights",
+           "frame_fit_sums", "frame_from_sums", "offsets_of"]
 
 
 def rotation_matrices(ra_deg, dec_deg) -> np.ndarray:
@@ -84,6 +85,35 @@ def fit_frame(dx, ra_deg, dec_deg, select=None, weights=None) -> tuple[np.ndarra
         M = np.einsum("n,nij,nik->jk", wk, Ks, Ks)
         out.append(np.linalg.solve(M, np.einsum("n,nij,ni->j", wk, Ks, dx[sel, col:col + 2])))
     return out[0], out[1]
+
+
+def frame_fit_sums(K, w, dx) -> np.ndarray:
+    """The normal equations of :func:`fit_frame` over one block of stars, (24,): ``M`` (3 x 3)
+    and right-hand side (3,) of the rotation, then of the spin, from the rotation matrices
+    ``K (n, 2, 3)``, weights ``w (n, 2)`` and differences ``dx (n, 5)``. Sums of blocks
+    (in a fixed order) give the fit over all stars wherever the blocks are
+    (:func:`frame_from_sums`)."""
+    out = []
+    for col, wk in ((0, w[:, 0]), (3, w[:, 1])):
+        WK = wk[:, None, None] * K
+        out += [np.sum(WK[:, :, :, None] * K[:, :, None, :], axis=(0, 1)).ravel(),
+                np.sum(WK * dx[:, col:col + 2, None], axis=(0, 1))]
+    return np.concatenate(out)
+
+
+def frame_from_sums(sums) -> tuple[np.ndarray, np.ndarray]:
+    """Rotation ``eps`` [mas] and spin ``omega`` [mas/yr] from summed :func:`frame_fit_sums`."""
+    s = np.asarray(sums, dtype=float)
+    return (np.linalg.solve(s[0:9].reshape(3, 3), s[9:12]), np.linalg.solve(s[12:21].reshape(3, 3), s[21:24]))
+
+
+def offsets_of(K, eps_mas, omega_mas_yr) -> np.ndarray:
+    """:func:`frame_offsets` from rotation matrices ``K (n, 2, 3)`` (element by element)."""
+    out = np.zeros(K.shape[:1] + (5,))
+    for i in range(3):
+        out[:, 0:2] += K[:, :, i] * eps_mas[i]
+        out[:, 3:5] += K[:, :, i] * omega_mas_yr[i]
+    return out
 
 
 def frame_attitude(eps_mas, omega_mas_yr, tcb_jd, t_ref_jd: float) -> np.ndarray:

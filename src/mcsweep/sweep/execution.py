@@ -68,9 +68,24 @@ def dask_client(conf: ExecutionConf):
     try:
         yield client
     finally:
+        if cluster is not None:
+            try:  # our own cluster's workers: their shutdown messages are not the user's business
+                client.run(_quiet_worker_shutdown)
+            except Exception:  # noqa: BLE001 - closing anyway (a worker may be gone, Ctrl-C)
+                pass
         client.close()
         if cluster is not None:
             cluster.close()
+
+
+def _quiet_worker_shutdown() -> None:
+    """Run on each worker of a LocalCluster about to close. A worker still freeing gigabytes
+    (the primary solution's blocks) may send its heartbeat to a scheduler that has just
+    closed, and logs that as an ERROR with a traceback on the terminal (seen at the paper's
+    sizes, after a complete run); its work is done by then."""
+    logging.getLogger("distributed.worker").setLevel(logging.CRITICAL)
+    for name in ("distributed.core", "distributed.comm"):
+        logging.getLogger(name).setLevel(logging.CRITICAL)
 
 
 def ignore_sigint() -> None:

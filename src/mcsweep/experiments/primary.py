@@ -182,16 +182,19 @@ class PreparedData:
 
     The measurements' partials live only in the solver's blocks (built block by block
     of stars, :func:`prepare`), not in a full :class:`~mcsweep.solver.Observations`:
-    at the paper's 1.5e6 stars that would double the largest arrays of the run.
+    at the paper's 1.5e6 stars that would double the largest arrays of the run. Data built
+    on a cluster (:func:`~mcsweep.experiments.primary_cluster.prepare_on_cluster`) keep the
+    blocks, measurements, data normal matrices and truth on its workers: here ``blocks``
+    are :class:`~mcsweep.solver.blocks.BlockSpan` s and ``h``, ``normals``, ``x_true`` None.
     """
 
     stars: pd.DataFrame      # STAR_COLUMNS + 'class_key' (round(100 G0), 0 = primary) + 'n_fov',
     #                          'epoch_offset_yr' (mean live epoch - reference), 'span_days' (live transits)
     solved: np.ndarray       # indices into ``stars`` of the stars in the solution (>= 1 transit)
     blocks: list             # solver StarBlocks of the solved stars (mcsweep.solver.make_blocks)
-    normals: np.ndarray      # (n_solved, 5, 5) data normal matrices of the solved stars
-    h: np.ndarray            # normalised measurements (observed minus computed from the law), problem order
-    x_true: np.ndarray       # (n_solved, 5)
+    normals: np.ndarray | None  # (n_solved, 5, 5) data normal matrices of the solved stars
+    h: np.ndarray | None     # normalised measurements (observed minus computed from the law), problem order
+    x_true: np.ndarray | None  # (n_solved, 5)
     spline: AttitudeSpline
     true_attitude: tuple     # (AttitudeSpline, coefficients (n, 3) [mas]): the true rotation
     t_ref_jd: float

@@ -1,12 +1,11 @@
-"""The primary experiment's measurements built and kept on the workers of a Dask cluster (issue 27).
+"""The primary experiment built, kept and solved on the workers of a Dask cluster (issue 27).
 
-With ``execution=dask`` the driver does not search the transits, build the solver's blocks
-or hold the measurements: each of those is a task on the cluster, and the solver's chunks
-(:mod:`mcsweep.solver.dask_resident`) are the futures of the tasks that built them. What
-the driver sends and keeps is per star (directions, magnitudes, truth; the data normal
-matrices and, per prior, their inverses) and per attitude coefficient; what stays on the
-workers is per measurement (the transits, the partials, the measurements), about 20 times
-more at the paper's sizes.
+With ``execution=dask`` the driver does not search the transits, build the solver's blocks,
+hold the measurements or hold any per-star array of the solution: each of those is a task
+on the cluster, and the solver's chunks (:mod:`mcsweep.solver.dask_resident`) are the
+futures of the tasks that built them. The driver keeps the input table of the stars
+(population draw, its columns), the attitude (spline, band, Schur factor, CG vectors), the
+frame, and per star the outcome it writes (inside flag, position and parallax errors).
 
 Steps (``prepare_on_cluster``), each a set of tasks whose results stay on the workers
 unless said otherwise:
@@ -20,12 +19,19 @@ unless said otherwise:
    :func:`~mcsweep.solver.reduction.chunk_ranges`) is built by one task from the transit
    results it overlaps (worker to worker), block by block with
    :func:`~.primary.build_block`, the function the driver uses without a cluster, and each
-   block's noise from its own seed: the same bits as :func:`~.primary.prepare`. Back to the
-   driver: the chunk's data normal matrices, its part of the attitude block's band
-   (summed in the solver's fixed tree) and which coefficients it touches.
+   block's noise from its own seed: the same bits as :func:`~.primary.prepare`. The chunk
+   keeps its stars' data normal matrices and truth; back to the driver come its part of
+   the attitude block's band (summed in the solver's fixed tree) and which coefficients
+   it touches.
+
+Per prior (``solve_on_cluster``): the prior sigma of each star is sent (8 bytes per star);
+the inverses, frame weights, solution, the frame rotator's sums and each star's outcome are
+made on the workers (:func:`~mcsweep.solver.cg.star_arrays`, :func:`~.primary.block_frame_sums`,
+:func:`~.primary.block_outcome`: the functions of the local path, summed in the same tree,
+so the same bits as a forked or in-process run).
 
 A lost worker takes its chunks and the inputs scattered to it: its chunks are built again
-from the driver's per-star arrays (transit search included) and the solution restarts from
+from the driver's table of stars (transit search included) and the solution restarts from
 its first pass (:class:`~mcsweep.solver.cg.ChunksLost`), with the same bits (tested by
 killing a worker mid-solve).
 """

@@ -57,7 +57,9 @@ attitude-sized vectors and a few per-block sums (dot products, convergence numbe
 other, in three rounds (forward sweep with the step, back sweep, new direction). The star
 vectors reach the driver once, as the solution. Before (issue 27), the driver held them and
 sent each chunk's share of two of them every pass: 64 MiB per iteration at the paper's
-1.5e6 stars. Dot products are now sums of per-block dots in the fixed tree, so the
+1.5e6 stars. A :class:`ResidentProblem` goes further: the per-star arrays of the problem
+itself (prior, inverses, frame weights) are made where the chunk is (:func:`star_arrays`)
+and the solution stays there, so the driver holds nothing per star. Dot products are now sums of per-block dots in the fixed tree, so the
 rounding differs from a single dot over the whole vector (the same for every backend).
 
 Convergence criterion (stated for users): stop after iteration ``k >= min_iter`` when

@@ -142,7 +142,8 @@ class DaskChunks:
             home = self._home(ci)
             (arg,) = client.scatter([args[ci]], workers=home, hash=False)
             out.bytes_sent += _nbytes(args[ci])
-            pin = dict(workers=home, allow_other_workers=True) if home else {}
+            # pinned: made elsewhere, the chunk (gigabytes) would be copied there
+            pin = dict(workers=home, allow_other_workers=False) if home else {}
             return client.submit(fn, self.futures[ci], arg, pure=False, **pin)
 
         out = DaskChunks(client, [], rebuild=make)
@@ -170,11 +171,22 @@ class DaskChunks:
         return fut
 
     def _home(self, ci: int) -> list | None:
-        """The workers holding chunk ``ci`` (one scheduler query per chunk and solution, not
-        per pass; forgotten after a loss)."""
+        """The one worker holding chunk ``ci`` whose copy the tasks use (one scheduler query per
+        chunk and solution, not per pass; forgotten after a loss). The chunk is waited for
+        first: a task of a chunk still being made, sent unpinned, may run on another worker,
+        which then holds a copy of the chunk with a state of its own, so two passes could
+        change two copies (met at the paper's sizes: a KeyError on a vector the previous
+        pass had made). None while no worker holds it (not kept)."""
         if ci not in self._homes:
-            self._homes[ci] = list(self.client.who_has(self.futures[ci]).get(self.futures[ci].key) or ())
-        return self._homes[ci] or None
+            from distributed import wait
+
+            fut = self.futures[ci]
+            wait([fut])
+            holders = sorted(self.client.who_has(fut).get(fut.key) or ())
+            if not holders:
+                return None
+            self._homes[ci] = holders[:1]
+        return self._homes[ci]
 
     def bytes_per_call(self, *names: str) -> tuple[float, float]:
         """Bytes (sent, received) of the passes of task functions ``names``, summed."""

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import signal
+import time
 import warnings
 
 import numpy as np
@@ -166,13 +167,6 @@ def test_bytes_per_iteration_pass_are_tallied_apart_from_the_one_off_passes(prob
     assert it[0] > 0 and once[0] > 0
 
 
-def _slow_chunk(seconds):
-    import time
-
-    time.sleep(seconds)
-    return [], [], {}
-
-
 def test_tasks_of_a_chunk_still_being_made_are_pinned_to_its_one_worker(client):
     # A chunk made by a task (the primary's blocks built on the workers) may still be running
     # when the first pass is sent: its tasks must wait and go to the one worker that holds it,
@@ -180,7 +174,8 @@ def test_tasks_of_a_chunk_still_being_made_are_pinned_to_its_one_worker(client):
     from mcsweep.solver.dask_resident import DaskChunks
 
     client.wait_for_workers(2, timeout=60)
-    res = DaskChunks(client, [client.submit(_slow_chunk, 1.0, pure=False)])
+    # (a function the workers can import: one of this module they could not unpickle)
+    res = DaskChunks(client, [client.submit(time.sleep, 1.0, pure=False)])
     assert res.futures[0].status == "pending"
     home = res._home(0)
     assert home is not None and len(home) == 1

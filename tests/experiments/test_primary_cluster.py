@@ -108,3 +108,33 @@ def test_cluster_built_solution_survives_a_killed_worker(both, client):
     assert ref[2]["iterations"] == got[2]["iterations"]
     np.testing.assert_array_equal(ref[0].to_numpy(), got[0].to_numpy())
     np.testing.assert_array_equal(ref[3].to_numpy(), got[3].to_numpy())
+
+
+def test_worker_lost_after_the_solution_restarts_it(both, client, monkeypatch):
+    # Killed after the PCG loop, before the frame fit and the evaluation: the stars' solution
+    # went with the worker, so the whole sequence restarts on rebuilt chunks; same bits.
+    import os
+    import signal
+
+    from mcsweep.experiments import primary_cluster as PC
+
+    settings, local, remote = both
+    ref = P.solve_prior(settings, local, "F90")
+    client.wait_for_workers(2, timeout=60)
+    victim = sorted(client.run(os.getpid).values())[0]
+    real, calls = PC.solve_global, []
+
+    def solve_then_kill(*args, **kwargs):
+        sol = real(*args, **kwargs)
+        if not calls:
+            os.kill(victim, signal.SIGKILL)
+        calls.append(1)
+        return sol
+
+    monkeypatch.setattr(PC, "solve_global", solve_then_kill)
+    got = P.solve_prior(settings, remote, "F90", dask_client=client, chunk_stars=2 * BLOCK)
+    client.wait_for_workers(2, timeout=60)
+    assert len(calls) == 2  # solved again after the loss
+    np.testing.assert_array_equal(ref[0].to_numpy(), got[0].to_numpy())
+    np.testing.assert_array_equal(ref[3].to_numpy(), got[3].to_numpy())
+    assert ref[2]["attitude_rms_uas"] == got[2]["attitude_rms_uas"]

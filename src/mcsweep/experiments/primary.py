@@ -628,14 +628,14 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
             raise ValueError("these data live on a cluster's workers: solve them with its dask_client")
         from .primary_cluster import solve_on_cluster
 
-        sol, resident, ranges, eps, omega, (inside_s, err_s, plx_s) = solve_on_cluster(
+        sol, resident, eps, omega, (inside_s, err_s, plx_s), sq = solve_on_cluster(
             settings, data, sig, dask_client, chunk_stars=chunk_stars, log=log, tau=tau, equal=equal)
     else:
         prior = prior_diagonal(sig, settings.ratio_R)
         # Raises if a star's block is singular: every solved star has >= 1 AL+AC or 2 AL
         # measurements, so it cannot be under a positive prior.
         problem = data.problem(prior)
-        resident = ranges = None
+        resident = None
         if dask_client is not None:  # the measurements stay on the workers from prior to prior
             ranges = problem.chunks(chunk_stars)
             stars = [slice(data.blocks[lo].first, data.blocks[hi - 1].first + data.blocks[hi - 1].n)
@@ -651,6 +651,7 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
         parts = [block_outcome(problem.K[v], sol.cov[v], dx[v], eps, omega, None if tau is None else tau[v],
                                settings.confidence) for v in views]
         inside_s, err_s, plx_s = (np.concatenate([p[i] for p in parts]) if parts else np.zeros(0) for i in range(3))
+        sq = data.attitude_sq(sol.attitude, eps, omega)
     n = len(st)
     inside = np.full(n, -1, dtype=np.int8)
     inside[s] = inside_s
@@ -665,7 +666,6 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
                         "err_mas": err.astype(np.float32),
                         "err_parallax_mas": err_plx.astype(np.float32), "sigma_prior_mas": sigma_prior.astype(np.float32),
                         "span_days": st["span_days"].to_numpy().astype(np.float32)})
-    sq = data.attitude_sq(sol.attitude, eps, omega, resident, ranges)
     m = data.n_measurements
     hist = pd.DataFrame([dataclasses.asdict(r) for r in sol.history])
     hist.insert(0, "prior", label)

@@ -46,9 +46,9 @@ import pandas as pd
 from ..astrometry.solve import prior_diagonal
 from ..solver import BLOCK_STARS, solve_global
 from ..solver.blocks import BlockSpan, att_band
-from ..solver.cg import ResidentProblem, _fresh, penalty_weights, star_arrays, typical_weights, weight_sums
+from ..solver.cg import MAX_RESTARTS, ChunksLost, ResidentProblem, _fresh, penalty_weights, star_arrays, typical_weights, weight_sums
 from ..solver.frame import frame_from_sums
-from ..solver.dask_resident import DaskChunks
+from ..solver.dask_resident import DaskChunks, _is_loss
 from ..solver.reduction import chunk_ranges, pairwise_sum, run_level
 from .global_classes import star_transits
 from .primary import (NOISE_STREAM, BlockJob, PreparedData, PrimarySettings, _true_attitude, attitude_spline,
@@ -149,11 +149,25 @@ def solve_on_cluster(settings: PrimarySettings, data: PreparedData, sig, client,
     sent, the inverses, frame weights, solution and its evaluation are made there, and the
     driver gets the frame's sums, the attitude and per star only the outcome (inside flag,
     position and parallax errors; ``tau``: the epochs of ``evaluation_epoch='star_mean'``).
-    Returns (solution, resident chunks, block ranges, eps, omega, outcome)."""
+    A worker lost at any pass (the solution's or the evaluation's, whose stars' solution went
+    with it) restarts the whole sequence on the rebuilt chunks: the same bits.
+    Returns (solution, resident chunks, eps, omega, outcome, summed squared attitude error)."""
     spans = data.blocks
+    if not spans:
+        raise ValueError("no star with a transit to solve")
     ranges = chunk_ranges(len(spans), None if chunk_stars is None else max(1, int(chunk_stars) // spans[0].n))
     views = [slice(spans[lo].first, spans[hi - 1].first + spans[hi - 1].n) for lo, hi in ranges]
     resident = data.resident(client, ranges).attached(_attach_prior, [(sig[v], settings.ratio_R) for v in views])
+    for attempt in range(MAX_RESTARTS + 1):
+        try:
+            return (*_solve_once(settings, data, resident, ranges, views, chunk_stars=chunk_stars, log=log, tau=tau,
+                                 equal=equal), )
+        except ChunksLost:
+            if attempt == MAX_RESTARTS:
+                raise
+
+
+def _solve_once(settings, data, resident, ranges, views, *, chunk_stars, log, tau, equal):
     levels = [run_level(lo, hi) for lo, hi in ranges]
     got = _in_order(resident.run(_prior_task, [(ci,) for ci in range(len(ranges))]))
     bad = sum(g[0] for g in got)
@@ -161,7 +175,7 @@ def solve_on_cluster(settings: PrimarySettings, data: PreparedData, sig, client,
         raise ValueError(f"{bad} stars have singular source blocks; remove them first")
     n = data.solved.size
     w_pos, w_pm = penalty_weights(np.concatenate([g[2] for g in got]), np.concatenate([g[3] for g in got]), n)
-    problem = ResidentProblem(spans, n_coef=data.spline.n_coef, n_measurements=data.n_measurements,
+    problem = ResidentProblem(data.blocks, n_coef=data.spline.n_coef, n_measurements=data.n_measurements,
                               naa_band=data.naa_band, frame_means=pairwise_sum((g[1] for g in got), None, levels) / n,
                               w_pos=w_pos, w_pm=w_pm)
     del got
@@ -173,7 +187,8 @@ def solve_on_cluster(settings: PrimarySettings, data: PreparedData, sig, client,
     out = _in_order(resident.run(_outcome_task, [(ci, eps, omega, None if tau is None else tau[v],
                                                   settings.confidence) for ci, v in enumerate(views)]))
     outcome = tuple(np.concatenate([o[i] for o in out]) for i in range(3))
-    return sol, resident, ranges, eps, omega, outcome
+    sq = data.attitude_sq(sol.attitude, eps, omega, resident, ranges)
+    return sol, resident, eps, omega, outcome, sq
 
 
 def _in_order(results) -> list:
@@ -213,7 +228,18 @@ def prepare_on_cluster(settings: PrimarySettings, stars: pd.DataFrame, client, *
     """:func:`~.primary.prepare` with the transits, blocks and measurements made and kept on the
     workers of the Dask ``client`` (module notes): the same data, bit for bit, whose
     ``resident(client, ranges)`` for the solver's chunks of ``chunk_stars`` stars are the
-    chunks already there. ``transit_stars``: stars per transit-search task."""
+    chunks already there. ``transit_stars``: stars per transit-search task. A worker lost
+    while they are made (its scattered inputs with it) makes them again from the start."""
+    for attempt in range(MAX_RESTARTS + 1):
+        try:
+            return _prepare_once(settings, stars, client, chunk_stars=chunk_stars, transit_stars=transit_stars,
+                                 block_stars=block_stars, with_noise=with_noise)
+        except Exception as exc:  # noqa: BLE001 - only a loss is repeated
+            if attempt == MAX_RESTARTS or not _is_loss(exc):
+                raise
+
+
+def _prepare_once(settings, stars, client, *, chunk_stars, transit_stars, block_stars, with_noise) -> PreparedData:
     n = len(stars)
     dead = dead_time_of(settings)
     ra_all, dec_all = stars["ra"].to_numpy(), stars["dec"].to_numpy()
@@ -284,7 +310,7 @@ def prepare_on_cluster(settings: PrimarySettings, stars: pd.DataFrame, client, *
     built = [submit(ci, found) for ci in range(len(ranges))]
     chunk_futures = [client.submit(_first, b, pure=False) for b in built]
     infos = client.gather([client.submit(_second, b, pure=False) for b in built])
-    del built, found  # the scheduler keeps what a lost chunk needs to be built again
+    del built, found  # a lost chunk is built again from the table of stars (rebuild)
     levels = [run_level(lo, hi) for lo, hi in ranges]
     naa_band = pairwise_sum((i["band"] for i in infos), None, levels)
     covered = np.zeros(spline.n_coef, dtype=bool)

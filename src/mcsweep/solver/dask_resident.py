@@ -134,20 +134,28 @@ class DaskChunks:
         there, so nothing of the chunk moves); ``args[ci]`` is sent (scattered to that worker).
         A lost one is made again (these chunks' own rebuilt first if they were lost too)."""
         client = self.client
+        sent = [0]
 
         def make(ci):
+            home = None
             if self.futures[ci].status in ("lost", "error", "cancelled") and self.rebuild is not None:
+                # Being built again: not waited for here, so every lost chunk is rebuilt at
+                # once; the task goes where the scheduler puts it, next to its only large input.
                 self.futures[ci] = self.rebuild(ci)
-            self._homes.pop(ci, None)
-            home = self._home(ci)
+                self._homes.pop(ci, None)
+            else:
+                self._homes.pop(ci, None)
+                home = self._home(ci)
             (arg,) = client.scatter([args[ci]], workers=home, hash=False)
-            out.bytes_sent += _nbytes(args[ci])
+            sent[0] += _nbytes(args[ci])
             # pinned: made elsewhere, the chunk (gigabytes) would be copied there
             pin = dict(workers=home, allow_other_workers=False) if home else {}
             return client.submit(fn, self.futures[ci], arg, pure=False, **pin)
 
-        out = DaskChunks(client, [], rebuild=make)
-        out.futures = [make(ci) for ci in range(len(self.futures))]
+        # (``make`` does not refer to the new object: a cycle would keep a finished prior's
+        # chunks, and their state on the workers, until a full garbage collection)
+        out = DaskChunks(client, [make(ci) for ci in range(len(self.futures))], rebuild=make)
+        out.bytes_sent = sent[0]
         return out
 
     def _send(self, obj, ci: int | None, sent: dict):

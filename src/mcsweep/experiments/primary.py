@@ -84,6 +84,7 @@ from ..solver.reduction import pairwise_sum, run_level
 from ..solver.blocks import att_rows, spline_values, src_forward
 from ..solver import (BLOCK_STARS, AttitudeSpline, GlobalProblem, build_observations, frame_attitude,
                       in_block_order, make_blocks, precision_weights, solve_global, source_normals)
+from ..solver.cg import chunk_values
 from ..solver.frame import frame_fit_sums, frame_from_sums, offsets_of
 from .global_classes import dead_time, star_transits
 from .global_priors import parse_prior, prior_sigma_mas
@@ -298,7 +299,7 @@ class PreparedData:
         block ``ranges``), added in the fixed tree either way (the same bits)."""
         args = (coef, eps, omega, self.true_attitude, self.t_ref_jd)
         if self.on_cluster:
-            out = _ordered_results(resident.run(_attitude_sq_task, [(ci, *args) for ci in range(len(ranges))]))
+            out = chunk_values(resident.run, _attitude_sq_task, [(ci, *args) for ci in range(len(ranges))])
             total = pairwise_sum(out, None, [run_level(lo, hi) for lo, hi in ranges])
         else:
             total = pairwise_sum(_block_attitude_sq(b, *args) for b in self.blocks)
@@ -315,12 +316,6 @@ def _block_attitude_sq(block, coef, eps, omega, true_attitude, t_ref_jd) -> np.n
 def _attitude_sq_task(item):
     ci, blocks, _, _, *args = item
     return ci, pairwise_sum(_block_attitude_sq(b, *args) for b in blocks)
-
-
-def _ordered_results(results) -> list:
-    """``(ci, value)`` results in chunk order, as fresh arrays (alignment: solver.cg._fresh)."""
-    got = {ci: np.array(v, copy=True) for ci, v in results}
-    return [got[ci] for ci in range(len(got))]
 
 
 def _block_epochs(t_ref_jd: float, block) -> np.ndarray:
@@ -390,9 +385,14 @@ def with_transit_columns(settings: PrimarySettings, stars: pd.DataFrame, summary
     return stars
 
 
+def min_transits(settings: PrimarySettings) -> int:
+    """Live FoV transits a star needs to be in the solution: 1 (AL only: a position needs two)."""
+    return 2 if settings.noise.use_ac is False else 1
+
+
 def solved_stars(settings: PrimarySettings, n_fov: np.ndarray) -> np.ndarray:
-    """Indices of the stars in the solution: >= 1 live transit (AL only: a position needs two)."""
-    return np.flatnonzero(n_fov > (1 if settings.noise.use_ac is False else 0))
+    """Indices of the stars in the solution (:func:`min_transits`)."""
+    return np.flatnonzero(n_fov >= min_transits(settings))
 
 
 def star_sigmas(settings: PrimarySettings, stars: pd.DataFrame, solved: np.ndarray):
@@ -401,12 +401,15 @@ def star_sigmas(settings: PrimarySettings, stars: pd.DataFrame, solved: np.ndarr
     return settings.noise.sigma_al_mas(gs), (settings.noise.sigma_ac_mas(gs) if settings.noise.use_ac else None)
 
 
-def attitude_spline(settings: PrimarySettings, dead: DeadTime, epochs) -> AttitudeSpline:
+def attitude_spline(settings: PrimarySettings, dead: DeadTime, epochs=None) -> AttitudeSpline:
     """The solver's spline: segments between the gaps, as AGIS; with ``knot_transits`` its knots
-    placed by ``epochs``, the solution's live FoV transits (only their number is used otherwise)."""
+    placed by ``epochs``, the solution's live FoV transits (not needed otherwise)."""
+    gaps = (dead.starts, dead.stops)
+    if settings.knot_transits is None:
+        return AttitudeSpline(settings.start_jd, settings.end_jd, settings.knot_interval_days, gaps=gaps)
     epochs = np.asarray(epochs, dtype=float)
     return AttitudeSpline(settings.start_jd, settings.end_jd, knot_interval_days(settings, epochs.size, dead),
-                          gaps=(dead.starts, dead.stops), epochs=epochs, transits_per_knot=settings.knot_transits)
+                          gaps=gaps, epochs=epochs, transits_per_knot=settings.knot_transits)
 
 
 def prepare(settings: PrimarySettings, stars: pd.DataFrame, transits: dict, *,
@@ -431,7 +434,8 @@ def prepare(settings: PrimarySettings, stars: pd.DataFrame, transits: dict, *,
     s_al_star, s_ac_star = star_sigmas(settings, stars, solved)
     in_solution = np.zeros(len(stars), dtype=bool)
     in_solution[solved] = True
-    spline = attitude_spline(settings, dead, t[live & in_solution[star]])  # the solution's FoV transits
+    # knots placed by the solution's FoV transits (knot_transits)
+    spline = attitude_spline(settings, dead, t[live & in_solution[star]] if settings.knot_transits is not None else None)
     n_fov = summary["n_fov"]
     t_ref = settings.t_ref_jd
     ra, dec = stars["ra"].to_numpy()[solved], stars["dec"].to_numpy()[solved]

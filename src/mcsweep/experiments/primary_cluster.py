@@ -46,14 +46,15 @@ import pandas as pd
 from ..astrometry.solve import prior_diagonal
 from ..solver import BLOCK_STARS, solve_global
 from ..solver.blocks import BlockSpan, att_band
-from ..solver.cg import MAX_RESTARTS, ChunksLost, ResidentProblem, _fresh, penalty_weights, star_arrays, typical_weights, weight_sums
+from ..solver.cg import (MAX_RESTARTS, ChunksLost, ResidentProblem, chunk_values, penalty_weights, star_arrays,
+                         typical_weights, weight_sums)
 from ..solver.frame import frame_from_sums
 from ..solver.dask_resident import DaskChunks, _is_loss
 from ..solver.reduction import chunk_ranges, pairwise_sum, run_level
 from .global_classes import star_transits
 from .primary import (NOISE_STREAM, BlockJob, PreparedData, PrimarySettings, _true_attitude, attitude_spline,
                       block_frame_sums, block_outcome, block_rows, block_transits, build_block,
-                      covered_coefficients, dead_time_of,
+                      covered_coefficients, dead_time_of, min_transits,
                       measurements_per_star, solved_stars, star_sigmas, stream_seed, transit_summary,
                       true_parameters, with_transit_columns)
 
@@ -64,13 +65,13 @@ def _search(radec: tuple, first: int, start_jd: float, end_jd: float, law) -> di
     return star_transits(radec[0], radec[1], start_jd, end_jd, law, first=first)
 
 
-def _summary(transits: dict, dead, first: int, n: int, knots_by_data: bool, al_only: bool) -> dict:
+def _summary(transits: dict, dead, first: int, n: int, knots_by_data: bool, min_fov: int) -> dict:
     """Per star of the chunk its live transits' count, mean epoch and span; with
     ``knots_by_data`` also the live epochs of the stars the solution will hold."""
     out = transit_summary(transits["star"], transits["t"], dead, first, n)
     live = out.pop("live")
     if knots_by_data:
-        solvable = out["n_fov"] > (1 if al_only else 0)
+        solvable = out["n_fov"] >= min_fov
         out["epochs"] = transits["t"][live & solvable[transits["star"] - first]]
     return out
 
@@ -169,7 +170,7 @@ def solve_on_cluster(settings: PrimarySettings, data: PreparedData, sig, client,
 
 def _solve_once(settings, data, resident, ranges, views, *, chunk_stars, log, tau, equal):
     levels = [run_level(lo, hi) for lo, hi in ranges]
-    got = _in_order(resident.run(_prior_task, [(ci,) for ci in range(len(ranges))]))
+    got = chunk_values(resident.run, _prior_task, [(ci,) for ci in range(len(ranges))])
     bad = sum(g[0] for g in got)
     if bad:
         raise ValueError(f"{bad} stars have singular source blocks; remove them first")
@@ -183,18 +184,12 @@ def _solve_once(settings, data, resident, ranges, views, *, chunk_stars, log, ta
                        max_iter=settings.max_iter, log=log, chunk_stars=chunk_stars, residuals=False,
                        resident_chunks=resident)
     eps, omega = frame_from_sums(pairwise_sum(
-        _in_order(resident.run(_fit_task, [(ci, equal) for ci in range(len(ranges))])), None, levels))
-    out = _in_order(resident.run(_outcome_task, [(ci, eps, omega, None if tau is None else tau[v],
-                                                  settings.confidence) for ci, v in enumerate(views)]))
+        chunk_values(resident.run, _fit_task, [(ci, equal) for ci in range(len(ranges))]), None, levels))
+    out = chunk_values(resident.run, _outcome_task, [(ci, eps, omega, None if tau is None else tau[v],
+                                                    settings.confidence) for ci, v in enumerate(views)])
     outcome = tuple(np.concatenate([o[i] for o in out]) for i in range(3))
     sq = data.attitude_sq(sol.attitude, eps, omega, resident, ranges)
     return sol, resident, eps, omega, outcome, sq
-
-
-def _in_order(results) -> list:
-    """``(ci, value)`` results in chunk order, arrays copied fresh (solver.cg._fresh)."""
-    got = dict((ci, _fresh(v)) for ci, v in results)
-    return [got[ci] for ci in range(len(got))]
 
 
 def _first(pair):
@@ -256,18 +251,16 @@ def _prepare_once(settings, stars, client, *, chunk_stars, transit_stars, block_
 
     found = [search(i) for i in range(-(-n // transit_stars))]
     summaries = [client.submit(_summary, f, shared("dead", dead), i * transit_stars, min(transit_stars, n - i * transit_stars),
-                               settings.knot_transits is not None, settings.noise.use_ac is False, pure=False)
+                               settings.knot_transits is not None, min_transits(settings), pure=False)
                  for i, f in enumerate(found)]
     got = client.gather(summaries)
     del summaries
     summary = {k: np.concatenate([g[k] for g in got]) if got else np.zeros(0) for k in ("n_fov", "mean_t", "span")}
-    epochs = (np.concatenate([g["epochs"] for g in got]) if settings.knot_transits is not None
-              else int(sum(int(g["n_fov"][g["n_fov"] > (1 if settings.noise.use_ac is False else 0)].sum())
-                           for g in got)))
-    del got
     summary["n_fov"] = summary["n_fov"].astype(np.int64)
     stars = with_transit_columns(settings, stars, summary)
     solved = solved_stars(settings, summary["n_fov"])
+    epochs = np.concatenate([g["epochs"] for g in got]) if settings.knot_transits is not None else None
+    del got
     s_ac = star_sigmas(settings, stars, solved)[1]
     spline = attitude_spline(settings, dead, epochs)
     del epochs

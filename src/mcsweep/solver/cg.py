@@ -537,6 +537,12 @@ def _ordered(run, fn, items) -> list:
     return [out[i] for i in range(len(items))]
 
 
+def chunk_values(run, fn, items) -> list:
+    """The one value of each chunk task ``fn`` returning ``(ci, value)``, run by ``run`` (any
+    completion order), in chunk order and as fresh arrays (:func:`_fresh`)."""
+    return [r[0] for r in _ordered(run, fn, items)]
+
+
 class ChunksLost(RuntimeError):
     """Raised by a resident executor when a worker and the chunk states it held were lost;
     its chunks' data are back on the cluster and the solution restarts (deterministic, so

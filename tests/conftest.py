@@ -46,3 +46,23 @@ def dask_local_client():
     with distributed.Client(cluster) as c:
         yield c
     cluster.close()
+
+
+@pytest.fixture
+def kill_worker_at(dask_local_client):
+    """``log = kill_worker_at(k)``: a PCG log callback that kills one worker process of the
+    module's LocalCluster at iteration ``k`` (once); ``log.killed`` says whether it did."""
+    import signal
+
+    def make(iteration: int):
+        victim = sorted(dask_local_client.run(os.getpid).values())[0]
+
+        def log(rec):
+            if rec.iteration == iteration and not log.killed:
+                os.kill(victim, signal.SIGKILL)
+                log.killed = True
+
+        log.killed = False
+        return log
+
+    return make

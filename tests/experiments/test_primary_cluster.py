@@ -85,26 +85,16 @@ def test_cluster_built_solution_is_the_forked_one(both, client):
         P.solve_prior(settings, remote, "F90")
 
 
-def test_cluster_built_solution_survives_a_killed_worker(both, client):
+def test_cluster_built_solution_survives_a_killed_worker(both, client, kill_worker_at):
     # A worker killed mid-solve takes its chunks and the inputs scattered to it: the chunks
     # are built again from the driver's per-star arrays and the solution restarts, same bits.
-    import os
-    import signal
-
     settings, local, remote = both
     ref = P.solve_prior(settings, local, "10F90")
     client.wait_for_workers(2, timeout=60)
-    victim = sorted(client.run(os.getpid).values())[0]
-    killed = []
-
-    def log(rec):
-        if rec.iteration == 3 and not killed:
-            os.kill(victim, signal.SIGKILL)
-            killed.append(rec.iteration)
-
+    log = kill_worker_at(3)
     got = P.solve_prior(settings, remote, "10F90", dask_client=client, chunk_stars=2 * BLOCK, log=log)
     client.wait_for_workers(2, timeout=60)  # the nanny restarts it for the next test
-    assert killed
+    assert log.killed
     assert ref[2]["iterations"] == got[2]["iterations"]
     np.testing.assert_array_equal(ref[0].to_numpy(), got[0].to_numpy())
     np.testing.assert_array_equal(ref[3].to_numpy(), got[3].to_numpy())

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import os
-import signal
 import time
 import warnings
 
@@ -88,26 +86,19 @@ def test_dask_passes_send_attitude_vectors_only(problem_and_h, client):
     assert res.passes == 3 + 3 * k
 
 
-def test_solution_survives_a_killed_worker(problem_and_h, client):
+def test_solution_survives_a_killed_worker(problem_and_h, client, kill_worker_at):
     problem, h = problem_and_h
     ref = solve_global(problem, h, **KW)
-    pids = client.run(os.getpid)
-    victim = sorted(pids.values())[0]
-    killed = []
-
-    def log(rec):
-        if rec.iteration == 3 and not killed:
-            os.kill(victim, signal.SIGKILL)
-            killed.append(rec.iteration)
+    log = kill_worker_at(3)
 
     ranges, res = _scattered(client, problem, h)
     sol = solve_global(problem, h, resident_chunks=res, chunk_stars=256, log=log, **KW)
-    assert killed and res.repeated >= 1  # the loss was met, and the pass repeated
+    assert log.killed and res.repeated >= 1  # the loss was met, and the pass repeated
     _same(sol, ref)
     client.wait_for_workers(2, timeout=60)  # the nanny restarts it for the next test
 
 
-def test_chunks_kept_for_another_prior_give_that_priors_solution(problem_and_h, client):
+def test_chunks_kept_for_another_prior_give_that_priors_solution(problem_and_h, client, kill_worker_at):
     # The measurements sent once, the per-star inverses of each prior sent with its solution
     # (DaskChunks.with_inverses): the solution of the new prior, bit for bit.
     from mcsweep.solver.dask_resident import DaskChunks
@@ -124,18 +115,12 @@ def test_chunks_kept_for_another_prior_give_that_priors_solution(problem_and_h, 
     _same(solve_global(other, h, resident_chunks=res, chunk_stars=256, **KW), ref)
     # and with a worker killed mid-solve: chunks and inverses sent again
     client.wait_for_workers(2, timeout=60)
-    victim = sorted(client.run(os.getpid).values())[0]
-    killed = []
-
-    def log(rec):
-        if rec.iteration == 3 and not killed:
-            os.kill(victim, signal.SIGKILL)
-            killed.append(rec.iteration)
+    log = kill_worker_at(3)
 
     res = base.with_inverses([other.src_inv[sl] for sl in stars])
     _same(solve_global(other, h, resident_chunks=res, chunk_stars=256, log=log, **KW), ref)
     client.wait_for_workers(2, timeout=60)  # the nanny restarts it for the next test
-    assert killed and res.repeated >= 1
+    assert log.killed and res.repeated >= 1
     client.wait_for_workers(2, timeout=60)
 
 

@@ -15,7 +15,8 @@ from .test_primary import _config, _synthetic_stars
 
 distributed = pytest.importorskip("distributed")
 
-BLOCK = 256  # stars per block: several blocks and chunks on a small problem
+BLOCK = 64  # stars per block: many blocks and chunks on a small problem, with fewer measurements
+# than attitude unknowns each, so the solver sums them in leaves of several blocks (reduction)
 
 
 @pytest.fixture(scope="module")
@@ -60,6 +61,7 @@ def test_cluster_built_data_are_the_driver_built_bits(both, client):
     # the band the driver got from the chunks' sums is the one of the blocks, bit for bit
     prior = np.array([0.0, 0.0, 1.0, 1.0, 1.0])
     np.testing.assert_array_equal(remote.naa_band, local.problem(prior).naa_band)
+    assert local.problem(prior).leaf > 1
     # each block, its measurements, its stars' data normal matrices and truth, as kept on the workers
     ranges = [tuple(r) for r in remote._resident[0][1]]
     chunks = client.gather(remote._resident[1].futures)

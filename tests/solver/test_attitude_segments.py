@@ -160,3 +160,50 @@ def test_a_segment_with_fewer_transits_than_a_knot_is_joined_across_the_shorter_
     # coefficients per axis had no data at all).
     sp2 = AttitudeSpline(START_JD, START_JD + 8.0, 0.25, gaps=gaps, epochs=np.r_[t[:200], t[205:]], transits_per_knot=20)
     assert sp2.n_segments == 2 and sp2.segments[0, 1] == t[199]
+
+
+def test_leaves_of_blocks_solve_the_same_equations_with_the_same_bits_everywhere(gapped_problem):
+    # At AGIS's attitude freedom a block holds fewer measurements than there are attitude
+    # unknowns; its attitude vectors are then summed per leaf of blocks (mcsweep.solver.reduction,
+    # "Leaves"). Small blocks give this problem several blocks per leaf: the solution must still
+    # be the direct one, and the same bits for every chunking and number of forked workers.
+    P = gapped_problem
+    obs, rng = P["obs"], np.random.default_rng(7)
+    n = obs.n_stars
+    problem = GlobalProblem(obs, prior_diagonal(1.0, 10.0), P["ra"], P["dec"], block_stars=16)
+    assert problem.leaf >= 4 and len(problem.blocks) >= 8 * problem.leaf // 2
+    x_true = np.column_stack([rng.normal(0, 5, n), rng.normal(0, 5, n), rng.uniform(0.2, 3.0, n),
+                              rng.normal(0, 5, n), rng.normal(0, 5, n)])
+    h = problem.forward(problem.join(x_true, rng.normal(0, 10.0, (obs.n_coef, 3)))) + rng.normal(size=obs.size)
+    sol = solve_global(problem, h, rtol=1e-10, update_tol_uas=1e-3, max_iter=500)
+    direct, free, _ = solve_direct(problem, h)
+    rel = np.linalg.norm(problem.join(sol.x, sol.attitude)[free] - direct) / np.linalg.norm(direct)
+    assert sol.converged and rel < RTOL_ITER_DIRECT
+    kw = dict(rtol=1e-10, update_tol_uas=1e-3, max_iter=12)  # bit identity needs no convergence
+    ref = solve_global(problem, h, **kw)
+    runs = [solve_global(problem, h, chunk_stars=c, **kw) for c in (16, 64, 10**6)]
+    runs += [solve_global(problem, h, workers=w, chunk_stars=c, **kw) for w, c in ((2, 16), (3, 128))]  # forked
+    for other in runs:
+        assert np.array_equal(other.x, ref.x) and np.array_equal(other.attitude, ref.attitude)
+        assert np.array_equal(other.residuals, ref.residuals)
+
+
+def test_an_undetermined_attitude_is_named_not_a_linear_algebra_traceback(gapped_problem, monkeypatch):
+    # When the banded attitude block is not positive definite even with the rounding ridge, the
+    # data leave an attitude unknown free (knots closer than the transits can fix): the solver
+    # names the coefficient and axis (the runner turns it into one line naming the knot setting).
+    import mcsweep.solver.cg as cg
+    from scipy.linalg import LinAlgError
+
+    from mcsweep.solver import AttitudeNotDetermined
+
+    def singular(band, lower=False):
+        raise LinAlgError("41468-th leading minor not positive definite")  # scipy's wording
+
+    P = gapped_problem
+    problem = GlobalProblem(P["obs"], prior_diagonal(1.0, 10.0), P["ra"], P["dec"])
+    monkeypatch.setattr(cg, "cholesky_banded", singular)
+    with pytest.raises(AttitudeNotDetermined) as info:
+        solve_global(problem, np.zeros(P["obs"].size), max_iter=5)
+    assert (info.value.coefficient, info.value.axis) == (41467 // 3, 41467 % 3)
+    assert isinstance(info.value, LinAlgError)  # callers that caught LinAlgError still do

@@ -50,7 +50,7 @@ from ..solver.cg import (MAX_RESTARTS, ChunksLost, ResidentProblem, chunk_values
                          typical_weights, weight_sums)
 from ..solver.frame import frame_from_sums
 from ..solver.dask_resident import DaskChunks, _is_loss
-from ..solver.reduction import chunk_ranges, pairwise_sum, run_level
+from ..solver.reduction import chunk_ranges, leaf_blocks, pairwise_sum, run_level
 from .global_classes import star_transits
 from .primary import (NOISE_STREAM, BlockJob, PreparedData, PrimarySettings, _true_attitude, attitude_spline,
                       block_frame_sums, block_outcome, block_rows, block_transits, build_block,
@@ -156,7 +156,9 @@ def solve_on_cluster(settings: PrimarySettings, data: PreparedData, sig, client,
     spans = data.blocks
     if not spans:
         raise ValueError("no star with a transit to solve")
-    ranges = chunk_ranges(len(spans), None if chunk_stars is None else max(1, int(chunk_stars) // spans[0].n))
+    leaf = leaf_blocks(len(spans), data.n_measurements, 3 * data.spline.n_coef)  # as ResidentProblem.chunks
+    ranges = chunk_ranges(len(spans), None if chunk_stars is None else max(1, int(chunk_stars) // spans[0].n),
+                          leaf=leaf)
     views = [slice(spans[lo].first, spans[hi - 1].first + spans[hi - 1].n) for lo, hi in ranges]
     resident = data.resident(client, ranges).attached(_attach_prior, [(sig[v], settings.ratio_R) for v in views])
     for attempt in range(MAX_RESTARTS + 1):
@@ -268,7 +270,9 @@ def _prepare_once(settings, stars, client, *, chunk_stars, transit_stars, block_
     counts = measurements_per_star(summary["n_fov"][solved], s_ac)
     rows = block_rows(counts, block_stars)
     n_blocks = len(rows)
-    ranges = chunk_ranges(n_blocks, None if chunk_stars is None else max(1, int(chunk_stars) // block_stars))
+    leaf = leaf_blocks(n_blocks, int(counts.sum()), 3 * spline.n_coef)  # the solver's leaves (reduction)
+    ranges = chunk_ranges(n_blocks, None if chunk_stars is None else max(1, int(chunk_stars) // block_stars),
+                          leaf=leaf)
 
     def submit(ci: int, parts: list | None = None):
         """The task building chunk ``ci`` (from the transit results ``parts``; None: searched

@@ -35,7 +35,7 @@ Only :mod:`mcsweep.astrometry` (and :mod:`mcsweep.scanning` through it) is impor
 
 from .attitude_spline import AttitudeSpline
 from .attitude_update import attitude_band, band_to_dense
-from .cg import BLOCK_STARS, ConvergenceRecord, GlobalProblem, in_block_order, make_blocks, solve_global
+from .cg import BLOCK_STARS, AttitudeNotDetermined, ConvergenceRecord, GlobalProblem, in_block_order, make_blocks, solve_global
 from .frame import fit_frame, frame_attitude, frame_offsets, precision_weights
 from .observations import Observations, attitude_partials, build_observations
 from .source_update import solve_sources, source_normals
@@ -59,4 +59,5 @@ __all__ = [
     "in_block_order",
     "ConvergenceRecord",
     "solve_global",
+    "AttitudeNotDetermined",
 ]

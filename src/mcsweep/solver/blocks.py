@@ -293,21 +293,22 @@ def block_setup(blk: StarBlock, h) -> dict:
 
 
 # ------------------------------------------------------------------ iteration
-def block_precondition_forward(blk: StarBlock, r_s) -> np.ndarray:
+def block_precondition_forward(blk: StarBlock, r_s, out=None) -> np.ndarray:
     """The block's part of ``N_as B^-1 r_s`` (n_coef, 3): first sweep of the preconditioner
-    (one compiled pass, :func:`~mcsweep.solver.kernels.precondition_forward`)."""
-    return kernels.precondition_forward(blk, _binv(blk, r_s))
+    (one compiled pass, :func:`~mcsweep.solver.kernels.precondition_forward`), added into
+    ``out`` if given (a leaf's sum, :mod:`~mcsweep.solver.reduction`)."""
+    return kernels.precondition_forward(blk, _binv(blk, r_s), out)
 
 
-def block_precondition_back(blk: StarBlock, r_s, z_a) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def block_precondition_back(blk: StarBlock, r_s, z_a, ya=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Last sweep of the preconditioner and the data part of ``N z`` for the result.
 
     Returns ``z_s = B^-1 (r_s - N_sa z_a)`` (n, 5), and ``A' A z`` as (stars (n, 5),
     attitude (n_coef, 3)) (compiled passes, :func:`~mcsweep.solver.kernels.precondition_back`;
     the same products as :func:`att_forward`, :func:`src_adjoint`, :func:`src_forward` and
-    :func:`att_adjoint` in sequence).
+    :func:`att_adjoint` in sequence); the attitude part added into ``ya`` if given.
     """
-    return kernels.precondition_back(blk, r_s, z_a)
+    return kernels.precondition_back(blk, r_s, z_a, ya)
 
 
 def block_residuals(blk: StarBlock, h, x_s, x_a) -> np.ndarray:

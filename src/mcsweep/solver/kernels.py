@@ -135,17 +135,19 @@ def _back(src, t, star, seg, seg_j0, bval, pq, binv, r_s, z_a, z_s, ys, ya, u):
         _flush(ya, seg_j0[r], acc)
 
 
-def precondition_forward(blk, y) -> np.ndarray:
-    """``A_a' A_s y`` (n_coef, 3) of the block for per-star ``y (n, 5)`` (``B^-1 r_s``)."""
-    out = np.zeros((blk.n_coef, 3))
+def precondition_forward(blk, y, out=None) -> np.ndarray:
+    """``A_a' A_s y`` (n_coef, 3) of the block for per-star ``y (n, 5)`` (``B^-1 r_s``), added
+    into ``out`` (C-contiguous float64, changed in place; default: zeros) and returned."""
+    out = np.zeros((blk.n_coef, 3)) if out is None else out
     _forward(blk.src, blk.t, blk.star, blk.seg, blk.seg_j0, blk.bval, blk.pq, np.ascontiguousarray(y, dtype=float), out)
     return out
 
 
-def precondition_back(blk, r_s, z_a) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``z_s = B^-1 (r_s - A_s' A_a z_a)`` (n, 5) and ``A' A z`` as (stars (n, 5), attitude (n_coef, 3))."""
+def precondition_back(blk, r_s, z_a, ya=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``z_s = B^-1 (r_s - A_s' A_a z_a)`` (n, 5) and ``A' A z`` as (stars (n, 5), attitude (n_coef, 3));
+    the attitude part added into ``ya`` (as ``out`` of :func:`precondition_forward`)."""
     z_s, ys = np.empty((blk.n, 5)), np.zeros((blk.n, 5))
-    ya = np.zeros((blk.n_coef, 3))
+    ya = np.zeros((blk.n_coef, 3)) if ya is None else ya
     _back(blk.src, blk.t, blk.star, blk.seg, blk.seg_j0, blk.bval, blk.pq, blk.binv, np.ascontiguousarray(r_s, dtype=float),
           np.ascontiguousarray(z_a, dtype=float), z_s, ys, ya, np.empty(blk.t.shape[0]))
     return z_s, ys, ya

@@ -22,13 +22,14 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 
-from ..errors import NotConvergedError
+from ..errors import NotConvergedError, UserInputError
 from ..experiments.global_classes import STAR_COLUMNS, class_key
 from ..experiments.primary import (CHUNKS_DIR, FACTOR_STREAM, PRIMARY_KEY, TAG, build_settings, prepare, solve_prior,
                                    stream_seed, transits_of)
 from ..experiments.primary_cluster import prepare_on_cluster
 from ..experiments.primary_factor import factor_curves, factor_label, factor_rows, overall_factor
 from ..experiments.primary_table import table3_markdown, table3_rows
+from ..solver import AttitudeNotDetermined
 from .execution import dask_client, release_free_memory
 from .global_runner import GlobalExperiment, GlobalRun, run_global
 from .store import atomic_write_bytes
@@ -124,12 +125,22 @@ def _solve(run: GlobalRun, data, label: str, client: Callable) -> None:
         # their share of the blocks (mcsweep.solver.resident). A map-like executor would
         # re-send every chunk's measurements per pass, which costs more than the work
         # (mcsweep.solver.cg.solve_global). Results are the same bits either way.
-        if config.execution.backend == "dask":
-            res, hist, extra, series = solve_prior(settings, data, label, dask_client=client(),
-                                                   chunk_stars=int(config.execution.chunk_stars))
-        else:
-            workers = int(config.execution.n_jobs) if config.execution.backend in ("loky", "threading") else 1
-            res, hist, extra, series = solve_prior(settings, data, label, workers=workers)
+        try:
+            if config.execution.backend == "dask":
+                res, hist, extra, series = solve_prior(settings, data, label, dask_client=client(),
+                                                       chunk_stars=int(config.execution.chunk_stars))
+            else:
+                workers = int(config.execution.n_jobs) if config.execution.backend in ("loky", "threading") else 1
+                res, hist, extra, series = solve_prior(settings, data, label, workers=workers)
+        except AttitudeNotDetermined as exc:
+            # The knots are closer than these stars' transits can fix: a setting to change, not a bug.
+            raise UserInputError(
+                f"the {label} solution cannot start: the attitude near TCB JD "
+                f"{data.spline.greville()[exc.coefficient]:.4f} (spline coefficient {exc.coefficient}, axis "
+                f"{exc.axis}) is not determined by the data, {knot_rule(run.section)} "
+                f"({data.transits_per_knot:.3g} FoV transits per knot on average) leaves too few; accepted: a longer "
+                "experiment.primary.knot_interval_hours, or experiment.primary.knot_transits (the paper's "
+                "attitude freedom: 25)") from None
         atomic_write_bytes(run.chunks / f"{cid}_history.csv", hist.to_csv(index=False).encode())
         if not extra["converged"] and not settings.allow_unconverged:
             # Not a result (Table 3 would tabulate a solution PCG did not reach): only its

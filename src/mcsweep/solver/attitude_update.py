@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import cho_solve_banded, cholesky_banded
 
+from . import kernels
 from .observations import Observations
 
 __all__ = ["BANDWIDTH", "band_of_rows", "attitude_band", "attitude_rhs", "band_to_dense", "free_coefficients",
@@ -32,16 +33,14 @@ def band_of_rows(j0, rows, n_coef: int) -> np.ndarray:
     """Upper band storage ``(BANDWIDTH + 1, 3 n_coef)`` of ``sum g' g`` over attitude rows.
 
     ``rows`` (m, 12): each measurement's partials w.r.t. unknowns ``3 j0 .. 3 j0 + 11``
-    (B-spline value times axis partial). One :func:`numpy.bincount` per band element over
-    all rows at once: pass many rows per call (each call zero-fills the band's length).
+    (B-spline value times axis partial). Each band element sums its rows in row order (the
+    bits of one :func:`numpy.bincount` per element, compiled so that it touches only the
+    rows' unknowns: :func:`~mcsweep.solver.kernels.band_scatter`).
     """
     n = _AX * int(n_coef)
-    g = np.asarray(rows, dtype=float)
-    base = _AX * np.asarray(j0, dtype=np.int64)
+    g = np.asarray(rows, dtype=float).T[None]  # (1, 12, m)
     ab = np.zeros((BANDWIDTH + 1, n))
-    for r in range(_AX * _NB):
-        for s in range(r, _AX * _NB):
-            ab[BANDWIDTH + r - s] += np.bincount(base + s, g[:, r] * g[:, s], minlength=n)[:n]
+    kernels.band_scatter(ab, g, g, _AX * np.asarray(j0, dtype=np.int64))
     return ab
 
 

@@ -269,13 +269,9 @@ def _schur_absorption(blk: StarBlock, batch_stars: int = 4096, window: int = SCH
             BH[i] = Bc[i, 0] * H[0]
             for k in range(1, _NP):
                 BH[i] += Bc[i, k] * H[k]
-        base = _AX * (uniq % blk.n_coef)
-        for r in range(L):  # H' B^-1 H, upper band only, straight into the band storage
-            for c in range(r, L):
-                w = H[0, r] * BH[0, c]
-                for i in range(1, _NP):
-                    w += H[i, r] * BH[i, c]
-                ab[L - 1 + r - c] += np.bincount(base + c, w, minlength=n_att)[:n_att]  # zero beyond the end
+        # H' B^-1 H, upper band only, straight into the band storage (compiled: a bincount over
+        # all n_att unknowns per element of the band cost ~3 s per block with AGIS's 30 s knots)
+        kernels.band_scatter(ab, H, BH, _AX * (uniq % blk.n_coef))
     return ab
 
 

@@ -25,7 +25,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["precondition_forward", "precondition_back", "frame_sums", "frame_apply"]
+__all__ = ["precondition_forward", "precondition_back", "frame_sums", "frame_apply", "band_scatter"]
 
 _jit = numba.njit(cache=True, nogil=True, fastmath=False, error_model="numpy", boundscheck=False)
 
@@ -196,3 +196,36 @@ def frame_apply(K, g, sums, w_pos: float, w_pm: float, out) -> np.ndarray:
     _frame_apply(np.ascontiguousarray(K, dtype=float), np.ascontiguousarray(g, dtype=float),
                  np.ascontiguousarray(sums, dtype=float), np.array([w_pos, w_pm]), out)
     return out
+
+
+@_jit
+def _band_scatter(ab, H, BH, base, tmp):
+    n_att = ab.shape[1]
+    L = ab.shape[0]
+    nc = base.shape[0]
+    for r in range(L):
+        for c in range(r, L):
+            for k in range(nc):  # the clusters' sums per unknown, in cluster order (np.bincount's)
+                idx = base[k] + c
+                if idx < n_att:
+                    w = H[0, r, k] * BH[0, c, k]
+                    for i in range(1, H.shape[0]):
+                        w += H[i, r, k] * BH[i, c, k]
+                    tmp[idx] += w
+            row = L - 1 + r - c
+            for k in range(nc):  # then each into the band once (the later repeats add 0.0)
+                idx = base[k] + c
+                if idx < n_att:
+                    ab[row, idx] += tmp[idx]
+                    tmp[idx] = 0.0
+
+
+def band_scatter(ab, H, BH, base) -> None:
+    """``ab[L - 1 + r - c, base + c] += sum_i H[i, r] * BH[i, c]`` for ``c >= r`` (``ab (L, n_att)``
+    upper band storage, ``H, BH (5, L, clusters)``, ``base (clusters,)``; indices past the end
+    dropped): the Schur absorption's scatter of :func:`~mcsweep.solver.blocks._schur_absorption`,
+    touching only the clusters' unknowns. The same bits as ``ab[row] += np.bincount(base + c, w,
+    minlength=n_att)`` per ``(r, c)``: each unknown's sum in cluster order from zero, then added
+    once (a bin is never -0.0, so adding a zero bin or the later repeats' zeros changes nothing)."""
+    _band_scatter(ab, np.ascontiguousarray(H, dtype=float), np.ascontiguousarray(BH, dtype=float),
+                  np.ascontiguousarray(base, dtype=np.int64), np.zeros(ab.shape[1]))

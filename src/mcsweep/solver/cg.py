@@ -81,8 +81,8 @@ residual).
 from __future__ import annotations
 
 import copy
-import re
 import dataclasses
+import re
 import time
 from functools import partial
 from typing import Callable, Iterable, Iterator

@@ -15,7 +15,7 @@ from .test_primary import _config, _synthetic_stars
 
 distributed = pytest.importorskip("distributed")
 
-BLOCK = 64  # stars per block: many blocks and chunks on a small problem, with fewer measurements
+BLOCK = 128  # stars per block: many blocks and chunks on a small problem, with fewer measurements
 # than attitude unknowns each, so the solver sums them in leaves of several blocks (reduction)
 
 

@@ -15,8 +15,8 @@ unless said otherwise:
    and time span (:func:`~.primary.transit_summary`) and, with ``knot_transits``, the
    solution's live epochs (the knots are placed by the data: 8 bytes per transit, once).
 2. The driver picks the solved stars, the spline, the first measurement of each block.
-3. Each solver chunk (aligned runs of blocks of ``BLOCK_STARS`` stars,
-   :func:`~mcsweep.solver.reduction.chunk_ranges`) is built by one task from the transit
+3. Each solver chunk (aligned runs of leaves of blocks of ``BLOCK_STARS`` stars,
+   :func:`~mcsweep.solver.cg.solver_chunks`) is built by one task from the transit
    results it overlaps (worker to worker), block by block with
    :func:`~.primary.build_block`, the function the driver uses without a cluster, and each
    block's noise from its own seed: the same bits as :func:`~.primary.prepare`. The chunk
@@ -46,11 +46,11 @@ import pandas as pd
 from ..astrometry.solve import prior_diagonal
 from ..solver import BLOCK_STARS, solve_global
 from ..solver.blocks import BlockSpan, att_band
-from ..solver.cg import (MAX_RESTARTS, ChunksLost, ResidentProblem, chunk_values, penalty_weights, star_arrays,
-                         typical_weights, weight_sums)
+from ..solver.cg import (MAX_RESTARTS, ChunksLost, ResidentProblem, chunk_values, penalty_weights, solver_chunks,
+                         star_arrays, typical_weights, weight_sums)
 from ..solver.frame import frame_from_sums
 from ..solver.dask_resident import DaskChunks, _is_loss
-from ..solver.reduction import chunk_ranges, leaf_blocks, pairwise_sum, run_level
+from ..solver.reduction import pairwise_sum, run_level
 from .global_classes import star_transits
 from .primary import (NOISE_STREAM, BlockJob, PreparedData, PrimarySettings, _true_attitude, attitude_spline,
                       block_frame_sums, block_outcome, block_rows, block_transits, build_block,
@@ -156,9 +156,7 @@ def solve_on_cluster(settings: PrimarySettings, data: PreparedData, sig, client,
     spans = data.blocks
     if not spans:
         raise ValueError("no star with a transit to solve")
-    leaf = leaf_blocks(len(spans), data.n_measurements, 3 * data.spline.n_coef)  # as ResidentProblem.chunks
-    ranges = chunk_ranges(len(spans), None if chunk_stars is None else max(1, int(chunk_stars) // spans[0].n),
-                          leaf=leaf)
+    ranges = solver_chunks(len(spans), spans[0].n, data.n_measurements, data.spline.n_coef, chunk_stars)
     views = [slice(spans[lo].first, spans[hi - 1].first + spans[hi - 1].n) for lo, hi in ranges]
     resident = data.resident(client, ranges).attached(_attach_prior, [(sig[v], settings.ratio_R) for v in views])
     for attempt in range(MAX_RESTARTS + 1):
@@ -270,9 +268,7 @@ def _prepare_once(settings, stars, client, *, chunk_stars, transit_stars, block_
     counts = measurements_per_star(summary["n_fov"][solved], s_ac)
     rows = block_rows(counts, block_stars)
     n_blocks = len(rows)
-    leaf = leaf_blocks(n_blocks, int(counts.sum()), 3 * spline.n_coef)  # the solver's leaves (reduction)
-    ranges = chunk_ranges(n_blocks, None if chunk_stars is None else max(1, int(chunk_stars) // block_stars),
-                          leaf=leaf)
+    ranges = solver_chunks(n_blocks, block_stars, int(counts.sum()), spline.n_coef, chunk_stars)
 
     def submit(ci: int, parts: list | None = None):
         """The task building chunk ``ci`` (from the transit results ``parts``; None: searched

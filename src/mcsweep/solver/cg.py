@@ -82,13 +82,13 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-import re
 import time
 from functools import partial
 from typing import Callable, Iterable, Iterator
 
 import numpy as np
-from scipy.linalg import LinAlgError, cho_solve_banded, cholesky_banded
+from scipy.linalg import LinAlgError, cho_solve_banded
+from scipy.linalg.lapack import dpbtrf
 
 from ..astrometry.design import tangent_triad
 from . import blocks as B
@@ -102,7 +102,7 @@ from .source_update import solve_sources, source_normals
 
 __all__ = ["GlobalProblem", "ResidentProblem", "ConvergenceRecord", "GlobalSolution", "solve_global", "make_blocks", "in_block_order",
            "UAS_PER_MAS",
-           "BLOCK_STARS", "ChunksLost", "AttitudeNotDetermined"]
+           "BLOCK_STARS", "ChunksLost", "AttitudeNotDetermined", "solver_chunks"]
 
 UAS_PER_MAS = 1000.0
 #: Stars per reduction block (module notes of :mod:`~mcsweep.solver.reduction`). Every
@@ -268,7 +268,6 @@ class GlobalProblem:
         # zero (identity rows), as AGIS breaks the attitude into segments at data gaps.
         self.naa_band = pairwise_sum(B.att_band(b) for b in self.blocks) if naa_band is None else naa_band
         self.free = free_coefficients(self.naa_band)
-        self.leaf = leaf_blocks(len(blocks), n_measurements, self.n_att)
 
     def _set_prior(self, prior_diagonal):
         n, N_src = self.n_stars, self.N_src
@@ -351,12 +350,25 @@ class GlobalProblem:
         return sum(b.nbytes for b in self.blocks) / max(self.n_measurements, 1)
 
     def chunks(self, chunk_stars: int | None, shares: int = 1) -> list[tuple[int, int]]:
-        """Block ranges of the execution chunks: aligned runs of a power of two of blocks, of at
-        most ``chunk_stars`` stars (None: as long as they go) within ``shares`` equal shares of
-        the blocks (:func:`~mcsweep.solver.reduction.chunk_ranges`)."""
-        bs = self.blocks[0].n if self.blocks else 1
-        return chunk_ranges(len(self.blocks), None if chunk_stars is None else max(1, int(chunk_stars) // bs),
-                            shares=shares, leaf=self.leaf)
+        """Block ranges of the execution chunks (:func:`solver_chunks`)."""
+        return solver_chunks(len(self.blocks), self.blocks[0].n if self.blocks else 1, self.n_measurements,
+                             self.n_coef, chunk_stars, shares)
+
+    @property
+    def leaf(self) -> int:
+        """Blocks per leaf (:func:`~mcsweep.solver.reduction.leaf_blocks`)."""
+        return leaf_blocks(len(self.blocks), self.n_measurements, 3 * self.n_coef)
+
+
+def solver_chunks(n_blocks: int, block_stars: int, n_measurements: int, n_coef: int, chunk_stars: int | None,
+                  shares: int = 1) -> list[tuple[int, int]]:
+    """Block ranges of the execution chunks of a problem of ``n_blocks`` blocks of ``block_stars``
+    stars, ``n_measurements`` measurements and ``n_coef`` spline coefficients per axis: aligned
+    runs of whole leaves of at most ``chunk_stars`` stars (None: as long as they go) within
+    ``shares`` equal shares (:func:`~mcsweep.solver.reduction.chunk_ranges`). Chunks kept on a
+    cluster must be these (:meth:`GlobalProblem.chunks`, whose rule this is)."""
+    return chunk_ranges(n_blocks, None if chunk_stars is None else max(1, int(chunk_stars) // block_stars),
+                        shares=shares, leaf=leaf_blocks(n_blocks, n_measurements, 3 * n_coef))
 
 
 
@@ -414,11 +426,11 @@ class ResidentProblem:
         self.n_coef, self.n_measurements = int(n_coef), int(n_measurements)
         self.naa_band = naa_band
         self.free = free_coefficients(naa_band)
-        self.leaf = leaf_blocks(len(self.blocks), self.n_measurements, 3 * self.n_coef)
         self.frame_means = np.asarray(frame_means, dtype=float)
         self.w_pos, self.w_pm = float(w_pos), float(w_pm)
 
     chunks = GlobalProblem.chunks
+    leaf = GlobalProblem.leaf
 
 
 # ---------------------------------------------------------------------- chunk tasks
@@ -436,10 +448,11 @@ def _views(blocks, *vectors):
 
 
 def _leaf_runs(blocks, leaves):
-    """The chunk's blocks and rows of a star vector per leaf (``leaves``: local block ranges)."""
+    """Per leaf (``leaves``: local block ranges), its blocks as (index in the chunk, block, rows of
+    a chunk star vector)."""
     first = blocks[0].first
     for lo, hi in leaves:
-        yield [(b, slice(b.first - first, b.first - first + b.n)) for b in blocks[lo:hi]]
+        yield [(k, b, slice(b.first - first, b.first - first + b.n)) for k, b in enumerate(blocks[lo:hi], lo)]
 
 
 def _add_setup(a: dict, b: dict) -> dict:
@@ -452,14 +465,13 @@ def _setup_task(item):
     frame weights' means."""
     ci, blocks, hs, st, prior, K, g, leaves = item
     b_s = np.empty((sum(b.n for b in blocks), 5))
-    hs = dict(zip((b.first for b in blocks), hs))
 
     def leaf_setup(run):
         """The leaf's sums, its blocks' added in block order (streamed: with AGIS's knots each
         block's Schur absorption alone is 12 x 2.3e6 doubles)."""
         acc = None
-        for b, v in run:
-            part = B.block_setup(b, hs[b.first])
+        for k, b, v in run:
+            part = B.block_setup(b, hs[k])
             b_s[v] = part.pop("b_s")
             part["bb"] = _dot(b_s[v], b_s[v])
             if acc is None:
@@ -507,8 +519,8 @@ def _forward_task(item):
 def _leaf_sum(add_block, run) -> np.ndarray:
     """A leaf's attitude vector: its blocks added into one vector in block order
     (:mod:`~mcsweep.solver.reduction`, "Leaves"); ``add_block(block, rows, out)``."""
-    out = np.zeros((run[0][0].n_coef, 3))
-    for b, v in run:
+    out = np.zeros((run[0][1].n_coef, 3))
+    for _, b, v in run:
         add_block(b, v, out)
     return out
 
@@ -724,16 +736,16 @@ def _pcg(pb: GlobalProblem, chunks, run, *, rtol, update_tol_uas, max_iter, min_
     fixed = ~free.ravel()
     band[:, fixed] = 0.0
     band[-1, fixed] = 1.0
-    try:
-        chol = cholesky_banded(band, lower=False)
-    except LinAlgError:  # rounding in an attitude window no well-observed star constrains: a tiny ridge
+    # LAPACK's banded Cholesky (what scipy's cholesky_banded calls), whose info is the first
+    # non-positive leading minor: the unknown to name if the attitude is not determined
+    chol, info = dpbtrf(np.asarray_chkfinite(band), lower=0)
+    if info > 0:  # rounding in an attitude window no well-observed star constrains: a tiny ridge
         band[-1] += 1e-12 * np.maximum(pb.naa_band[-1], 1.0)
-        try:
-            chol = cholesky_banded(band, lower=False)
-        except LinAlgError as exc:  # not rounding: the data leave attitude unknowns free
-            found = re.search(r"(\d+)-th leading minor", str(exc))
-            k = int(found.group(1)) - 1 if found else 0
-            raise AttitudeNotDetermined(k // 3, k % 3) from None
+        chol, info = dpbtrf(band, lower=0)
+        if info > 0:  # not rounding: the data leave attitude unknowns free
+            raise AttitudeNotDetermined((info - 1) // 3, (info - 1) % 3)
+    if info < 0:
+        raise ValueError(f"illegal value in argument {-info} of the banded Cholesky factorisation")
 
     def precondition(r_a, w_a, beta):
         """``z = M^-1 r`` (symmetric block Gauss-Seidel with the banded Schur block; the first

@@ -67,6 +67,7 @@ over all blocks: the same statistics, other draws.)
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 import pandas as pd
@@ -137,9 +138,30 @@ class PrimarySettings(GlobalSettings):
     rtol: float
     update_tol_uas: float
     max_iter: int
+    error_tol: float | None = None
     allow_unconverged: bool = False
     frame_fit: str = "precision"
     evaluation_epoch: str = "reference"
+
+    @property
+    def criterion(self) -> dict:
+        """The PCG stopping rule as :func:`~mcsweep.solver.solve_global`'s keywords."""
+        return dict(rtol=self.rtol, update_tol_uas=self.update_tol_uas, error_tol=self.error_tol,
+                    max_iter=self.max_iter)
+
+    def describe_criterion(self) -> str:
+        """The stopping rule in words, for messages."""
+        if self.error_tol is not None:
+            return f"experiment.primary.solver_error_tol {self.error_tol:g}"
+        return f"rtol {self.rtol:g} and {self.update_tol_uas:g} uas"
+
+    def describe_state(self, last) -> str:
+        """Where a solution stood after its last iteration (a history row), in the rule's terms."""
+        if self.error_tol is not None:
+            e = float(last["error_estimate"])
+            return ("error not yet estimated (too few iterations)" if math.isnan(e) else
+                    f"estimated error {e:.3g} of the formal uncertainties")
+        return f"relative residual {last['relative_residual']:.2e}, last update {last['update_max_uas']:.3g} uas"
 
 
 def build_settings(config) -> PrimarySettings:
@@ -166,6 +188,7 @@ def build_settings(config) -> PrimarySettings:
         attitude_amplitude_mas=float(pri.attitude_amplitude_mas),
         attitude_timescale_days=float(pri.attitude_timescale_hours) / 24.0,
         rtol=float(pri.solver_rtol), update_tol_uas=float(pri.solver_update_tol_uas),
+        error_tol=None if pri.solver_error_tol is None else float(pri.solver_error_tol),
         max_iter=int(pri.solver_max_iter), allow_unconverged=bool(pri.allow_unconverged),
         frame_fit=str(pri.frame_fit), evaluation_epoch=str(pri.evaluation_epoch))
 
@@ -645,8 +668,7 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
             stars = [slice(data.blocks[lo].first, data.blocks[hi - 1].first + data.blocks[hi - 1].n)
                      for lo, hi in ranges]
             resident = data.resident(dask_client, ranges).with_inverses([problem.src_inv[sl] for sl in stars])
-        sol = solve_global(problem, data.h, rtol=settings.rtol, update_tol_uas=settings.update_tol_uas,
-                           max_iter=settings.max_iter, log=log, chunk_stars=chunk_stars, residuals=False,
+        sol = solve_global(problem, data.h, **settings.criterion, log=log, chunk_stars=chunk_stars, residuals=False,
                            workers=workers, resident_chunks=resident)
         views = [slice(b.first, b.first + b.n) for b in data.blocks]
         dx = sol.x - data.x_true

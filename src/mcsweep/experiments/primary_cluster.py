@@ -180,8 +180,7 @@ def _solve_once(settings, data, resident, ranges, views, *, chunk_stars, log, ta
                               naa_band=data.naa_band, frame_means=pairwise_sum((g[1] for g in got), None, levels) / n,
                               w_pos=w_pos, w_pm=w_pm)
     del got
-    sol = solve_global(problem, None, rtol=settings.rtol, update_tol_uas=settings.update_tol_uas,
-                       max_iter=settings.max_iter, log=log, chunk_stars=chunk_stars, residuals=False,
+    sol = solve_global(problem, None, **settings.criterion, log=log, chunk_stars=chunk_stars, residuals=False,
                        resident_chunks=resident)
     eps, omega = frame_from_sums(pairwise_sum(
         chunk_values(resident.run, _fit_task, [(ci, equal) for ci in range(len(ranges))]), None, levels))

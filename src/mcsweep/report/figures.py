@@ -324,15 +324,18 @@ def plot_primary_attitude_error(series: pd.DataFrame, path: Path) -> Path:
 
 
 def plot_primary_convergence(history: pd.DataFrame, path: Path) -> Path:
-    """PCG convergence per prior: relative residual of the normal equations and the largest
-    update [uas] against the iteration (logarithmic)."""
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=(9.0, 3.6))
+    """PCG convergence per prior: relative residual of the normal equations, the largest
+    update [uas] and, where logged, the estimated error of the energy criterion (in units of
+    the formal uncertainties) against the iteration (logarithmic)."""
+    energy = "error_estimate" in history and bool(np.isfinite(history["error_estimate"]).any())
+    fig, axes = plt.subplots(1, 3 if energy else 2, figsize=(13.0 if energy else 9.0, 3.6))
     for prior, df in history.groupby("prior", sort=False):
-        a1.semilogy(df["iteration"], df["relative_residual"], label=str(prior))
-        a2.semilogy(df["iteration"], df["update_max_uas"], label=str(prior))
-    a1.set_xlabel("iteration")
-    a1.set_ylabel("|b - N x| / |b|")
-    a2.set_xlabel("iteration")
-    a2.set_ylabel("largest update [uas]")
-    a1.legend(fontsize=7)
+        axes[0].semilogy(df["iteration"], df["relative_residual"], label=str(prior))
+        axes[1].semilogy(df["iteration"], df["update_max_uas"], label=str(prior))
+        if energy:
+            axes[2].semilogy(df["iteration"], df["error_estimate"].replace(np.inf, np.nan), label=str(prior))
+    for ax, label in zip(axes, ("|b - N x| / |b|", "largest update [uas]", "|x - x*|_N (estimate)")):
+        ax.set_xlabel("iteration")
+        ax.set_ylabel(label)
+    axes[0].legend(fontsize=7)
     return _save(fig, path)

@@ -97,10 +97,14 @@ def primary_section(doc: Document, run_dir: Path, prov: dict) -> None:
         figdir = run_dir / FIG_DIR
         figdir.mkdir(exist_ok=True)
         plot_primary_convergence(pd.read_csv(run_dir / "primary_convergence.csv"), figdir / "primary_convergence.png")
+        rule = (f"the error in the norm of the normal matrix estimated below `solver_error_tol` = "
+                f"{plain(pri.get('solver_error_tol'))}, i.e. no estimated quantity off the exact solution by more "
+                "than that fraction of its formal uncertainty" if pri.get("solver_error_tol") is not None else
+                f"both below `solver_rtol` = {plain(pri.get('solver_rtol'))} and "
+                f"`solver_update_tol_uas` = {plain(pri.get('solver_update_tol_uas'))}")
         row = [(f"{FIG_DIR}/primary_convergence.png", "PCG convergence of each global solution: relative "
-                "residual of the normal equations and the largest update of any unknown per iteration "
-                f"(stopping rule: both below `solver_rtol` = {plain(pri.get('solver_rtol'))} and "
-                f"`solver_update_tol_uas` = {plain(pri.get('solver_update_tol_uas'))})")]
+                "residual of the normal equations, the largest update of any unknown per iteration and the "
+                f"estimated error of the solution (stopping rule: {rule})")]
         att_file = run_dir / "primary_attitude_error.csv"
         if att_file.exists():
             plot_primary_attitude_error(pd.read_csv(att_file), figdir / "primary_attitude_error.png")

@@ -15,7 +15,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
-__all__ = ["sparse_design", "solve_direct"]
+__all__ = ["sparse_design", "solve_direct", "normal_norm"]
 
 #: Iterative-refinement steps after the LU solve (each costs one product and one solve).
 REFINEMENT_STEPS = 2
@@ -57,12 +57,7 @@ def solve_direct(problem, h) -> tuple[np.ndarray, np.ndarray, sp.csr_matrix]:
     A = sparse_design(*problem.design(), n, n_coef)[:, free]
     nf = int(free.sum())
     N = (A.T @ A).tocsc() + sp.diags(np.concatenate([problem.prior.ravel(), np.zeros(nf - 5 * n)]))
-    K, g = problem.K, problem.frame_weights
-    C = np.zeros((6, nf))
-    for c in range(3):  # the six constraint rows (a loop over the 3 axes only)
-        C[c, 0:5 * n:5], C[c, 1:5 * n:5] = g[:, 0] * K[:, 0, c], g[:, 0] * K[:, 1, c]
-        C[3 + c, 3:5 * n:5], C[3 + c, 4:5 * n:5] = g[:, 1] * K[:, 0, c], g[:, 1] * K[:, 1, c]
-    W = sp.diags(np.r_[np.full(3, 1 / problem.w_pos), np.full(3, 1 / problem.w_pm)])
+    C, W = _frame_rows(problem, nf)
     kkt = sp.bmat([[N, sp.csr_matrix(C).T], [sp.csr_matrix(C), -W]]).tocsc()
     rhs = np.concatenate([A.T @ h, np.zeros(6)])
     d = 1.0 / np.sqrt(np.abs(kkt.diagonal()))
@@ -77,3 +72,30 @@ def solve_direct(problem, h) -> tuple[np.ndarray, np.ndarray, sp.csr_matrix]:
     for _ in range(REFINEMENT_STEPS):
         y = y + d * lu.solve(d * (rhs - kkt @ y))
     return y[:nf], free, A
+
+
+def _frame_rows(problem, nf: int) -> tuple[np.ndarray, sp.dia_matrix]:
+    """The six frame constraint rows ``C`` (6, nf) over the free unknowns and the diagonal
+    ``W`` whose inverse weights them: the penalty ``F = C' W^-1 C`` of the solver."""
+    n = problem.n_stars
+    K, g = problem.K, problem.frame_weights
+    C = np.zeros((6, nf))
+    for c in range(3):  # the six constraint rows (a loop over the 3 axes only)
+        C[c, 0:5 * n:5], C[c, 1:5 * n:5] = g[:, 0] * K[:, 0, c], g[:, 0] * K[:, 1, c]
+        C[3 + c, 3:5 * n:5], C[3 + c, 4:5 * n:5] = g[:, 1] * K[:, 0, c], g[:, 1] * K[:, 1, c]
+    return C, sp.diags(np.r_[np.full(3, 1 / problem.w_pos), np.full(3, 1 / problem.w_pm)])
+
+
+def normal_norm(problem, dx) -> float:
+    """``sqrt(dx' (N + F) dx)`` for a vector ``dx`` of the free unknowns (order of
+    :func:`solve_direct`'s ``x``): the norm in which the solver's energy criterion measures
+    the error, from the design matrix, prior and constraint rows (``N`` never formed)."""
+    n = problem.n_stars
+    free = np.concatenate([np.ones(5 * n, bool), problem.free.ravel()])
+    A = sparse_design(*problem.design(), n, problem.n_coef)[:, free]
+    dx = np.asarray(dx, dtype=float)
+    C, W = _frame_rows(problem, dx.size)
+    c = C @ dx
+    return float(np.sqrt(np.sum((A @ dx) ** 2) + np.sum(problem.prior.ravel() * dx[:5 * n] ** 2)
+                         + c @ (c / W.diagonal())))
+

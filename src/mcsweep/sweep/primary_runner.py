@@ -148,8 +148,7 @@ def _solve(run: GlobalRun, data, label: str, client: Callable) -> None:
             last = hist.iloc[-1] if len(hist) else None
             raise NotConvergedError(
                 f"the {label} solution did not converge in {extra['iterations']} PCG iterations "
-                f"(relative residual {last['relative_residual']:.2e}, last update {last['update_max_uas']:.3g} uas"
-                f" against rtol {settings.rtol:g} and {settings.update_tol_uas:g} uas); no table3 written, the "
+                f"({settings.describe_state(last)} against {settings.describe_criterion()}); no table3 written, the "
                 f"history is in {run.chunks / f'{cid}_history.csv'}; raise experiment.primary.solver_max_iter or set "
                 "experiment.primary.allow_unconverged=true to tabulate it marked" if last is not None else
                 f"the {label} solution did not start (no PCG iteration); no table3 written")

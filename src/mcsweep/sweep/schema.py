@@ -379,6 +379,7 @@ class PrimaryConf:
     knot_transits: Optional[float] = None
     attitude_amplitude_mas: float = 10.0
     attitude_timescale_hours: float = 24.0
+    solver_error_tol: Optional[float] = 0.01
     solver_rtol: float = 1e-8
     solver_update_tol_uas: float = 1e-2
     solver_max_iter: int = 2000
@@ -404,6 +405,10 @@ class PrimaryConf:
                  "'precision' (the frame rotator weighted by formal precision) or 'equal'")
         _require(self.factor_resamples >= 0, "experiment.primary.factor_resamples", self.factor_resamples,
                  "a number of bootstrap resamples >= 0")
+        _require(self.solver_error_tol is None or (math.isfinite(self.solver_error_tol) and self.solver_error_tol > 0),
+                 "experiment.primary.solver_error_tol", self.solver_error_tol,
+                 "a positive fraction of the formal uncertainties, or null (stop on solver_rtol and "
+                 "solver_update_tol_uas)")
         for key in ("class_size", "solver_max_iter"):
             _require(getattr(self, key) > 0, f"experiment.primary.{key}", getattr(self, key), "a positive number")
         _require(self.primary_sources >= 0, "experiment.primary.primary_sources", self.primary_sources,

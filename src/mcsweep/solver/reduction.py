@@ -50,7 +50,8 @@ def pairwise_sum(values: Iterable, add: Callable | None = None, levels: Iterable
     values : iterable
         Summands in block order (numbers, arrays, or tuples of them with ``add``).
     add : callable, optional
-        ``add(a, b)`` (default ``a + b``); must not modify its arguments in place.
+        ``add(a, b)`` (default ``a + b``); may modify ``a`` in place only if the caller holds
+        none of the values (every ``a`` is a value or a partial sum, used once).
     levels : iterable of int, optional
         With ``levels``, each value is the pairwise sum of ``2^level`` consecutive blocks
         starting at a multiple of ``2^level`` (an aligned run, :func:`chunk_ranges`): a

@@ -14,6 +14,13 @@ Results are bit-identical to in-process ones: a child computes on the very array
 memory addresses, so the same alignment) the parent would, and the solver adds the
 chunk results in its fixed order (:mod:`~mcsweep.solver.reduction`).
 
+Messages carry their arrays out of band (pickle protocol 5: each array's buffer is written
+to the pipe as it lies, not copied into one pickled string first), and each task's result
+goes back as soon as it is made, the parent reading whichever worker is ready. A worker then
+holds one result at a time, once: at the paper's sizes with AGIS's knots a chunk's setup
+result is an attitude band of 12 x 2.3e6 doubles, and two of them plus the pickled copy of
+both were the run's peak memory (measured, docs/table3.md).
+
 Only where the ``fork`` start method exists (Linux, macOS); elsewhere :func:`forked_chunks`
 yields ``None`` and the caller runs in-process. On a Dask cluster
 :mod:`~mcsweep.solver.dask_resident` keeps the chunks on the workers in the same way.
@@ -22,9 +29,13 @@ yields ``None`` and the caller runs in-process. On a Dask cluster
 from __future__ import annotations
 
 import contextlib
+import io
 import multiprocessing as mp
+import pickle
 import signal
-from multiprocessing.connection import Connection
+import struct
+from multiprocessing.connection import Connection, wait
+from multiprocessing.reduction import ForkingPickler
 from typing import Callable, Iterator, Sequence
 
 from .reduction import share_bounds
@@ -36,23 +47,45 @@ def fork_available() -> bool:
     return "fork" in mp.get_all_start_methods()
 
 
+def _send(conn: Connection, obj) -> None:
+    """``obj`` pickled with its buffers out of band: the count, the pickle, then each buffer
+    written from where it lies (module notes)."""
+    buffers, head = [], io.BytesIO()
+    ForkingPickler(head, pickle.HIGHEST_PROTOCOL, True, buffers.append).dump(obj)  # (file, protocol, fix_imports, buffer_callback)
+    conn.send_bytes(struct.pack("<q", len(buffers)))
+    conn.send_bytes(head.getbuffer())
+    for b in buffers:
+        conn.send_bytes(b.raw())
+
+
+def _recv(conn: Connection):
+    """What :func:`_send` sent (its arrays read-only views of the received buffers)."""
+    n = struct.unpack("<q", conn.recv_bytes())[0]
+    head = conn.recv_bytes()
+    return pickle.loads(head, buffers=[conn.recv_bytes() for _ in range(n)])
+
+
 def _serve(conn: Connection, chunks: dict) -> None:
-    """Worker loop: run ``fn((ci, *chunks[ci], *rest))`` for every task of a message."""
+    """Worker loop: run ``fn((ci, *chunks[ci], *rest))`` for every task of a message, each
+    result sent when made; after an error, the error and nothing more for that message."""
     # Ctrl-C reaches the terminal's whole process group; only the parent acts on it (it
     # ends the pool). SIGINT stayed blocked since the fork, so none can slip in before this.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
     while True:
-        msg = conn.recv()
+        msg = _recv(conn)
         if msg is None:
             return
         fn, tasks = msg
-        try:
-            out = [fn((ci, *chunks[ci], *rest)) for ci, rest in tasks]
-        except BaseException as exc:  # noqa: BLE001 - handed to the parent, which re-raises
-            conn.send(("error", exc))
-        else:
-            conn.send(("ok", out))
+        del msg
+        for ci, rest in tasks:
+            try:
+                out = fn((ci, *chunks[ci], *rest))
+            except BaseException as exc:  # noqa: BLE001 - handed to the parent, which re-raises
+                _send(conn, ("error", exc))
+                break
+            _send(conn, ("ok", out))
+            del out
 
 
 class _Pool:
@@ -89,19 +122,33 @@ class _Pool:
             per[self.owner[item[0]]].append((item[0], tuple(item[1:])))
         busy = [w for w, tasks in enumerate(per) if tasks]
         for w in busy:  # every worker reads its whole message before it computes: no deadlock
-            self.conns[w].send((fn, per[w]))
-        replies = [self.conns[w].recv() for w in busy]  # all of them, so no reply is left behind
-        for status, out in replies:
-            if status == "error":
-                raise out
-        return (r for _, out in replies for r in out)
+            _send(self.conns[w], (fn, per[w]))
+        # every reply is read, from whichever worker is ready (none waits on a full pipe while
+        # another is read), so none is left behind for the next pass
+        got, left, error = {w: [] for w in busy}, {w: len(per[w]) for w in busy}, None
+        worker = {id(self.conns[w]): w for w in busy}
+        while left:
+            for conn in wait([self.conns[w] for w in left]):
+                w = worker[id(conn)]
+                status, out = _recv(conn)
+                if status == "error":
+                    error = error or out
+                    del left[w]  # it stops at its error
+                    continue
+                got[w].append(out)
+                left[w] -= 1
+                if not left[w]:
+                    del left[w]
+        if error is not None:
+            raise error
+        return (r for w in busy for r in got[w])
 
     def close(self, *, kill: bool = False) -> None:
         """End the workers: after their current task, or at once with ``kill`` (the parent
         was interrupted or failed, their results are not wanted)."""
         for c in self.conns if not kill else ():
             with contextlib.suppress(OSError):
-                c.send(None)
+                _send(c, None)
         for p in self.procs:
             if kill:
                 p.terminate()

@@ -159,8 +159,9 @@ class PrimarySettings(GlobalSettings):
         """Where a solution stood after its last iteration (a history row), in the rule's terms."""
         if self.error_tol is not None:
             e = float(last["error_estimate"])
-            return ("error not yet estimated (too few iterations)" if math.isnan(e) else
-                    f"estimated error {e:.3g} of the formal uncertainties")
+            return (f"relative residual {last['relative_residual']:.2e}, "
+                    + ("error not yet estimated (too few iterations)" if math.isnan(e) else
+                       f"estimated error {e:.3g} of the formal uncertainties"))
         return f"relative residual {last['relative_residual']:.2e}, last update {last['update_max_uas']:.3g} uas"
 
 

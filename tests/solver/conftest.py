@@ -88,3 +88,25 @@ def gapped_problem():
     return make_problem(n_stars=800, days=365.0, seed=11, min_transits=1, keep_fraction=0.6, dead_fraction=0.2,
                         dead_block_days=2.0,
                         transits_per_knot=12.0)
+
+
+@pytest.fixture(scope="session")
+def gapped_system(gapped_problem):
+    """``system(sigma_mas)``: the gapped problem under a prior of ``sigma_mas`` (parallax; proper
+    motion R = 10 /yr) and noisy measurements of a random truth and attitude (unit noise):
+    ``(problem, h)``."""
+    from mcsweep.astrometry.solve import prior_diagonal
+    from mcsweep.solver import GlobalProblem
+
+    def system(sigma_mas):
+        P = gapped_problem
+        obs, rng = P["obs"], np.random.default_rng(3)
+        n = obs.n_stars
+        x_true = np.column_stack([rng.normal(0, 5, n), rng.normal(0, 5, n), rng.uniform(0.2, 3.0, n),
+                                  rng.normal(0, 5, n), rng.normal(0, 5, n)])
+        problem = GlobalProblem(obs, prior_diagonal(sigma_mas, 10.0), P["ra"], P["dec"])
+        a_true = rng.normal(0, 10.0, (obs.n_coef, 3))
+        return problem, problem.forward(problem.join(x_true, a_true)) + rng.normal(size=obs.size)
+
+    return system
+

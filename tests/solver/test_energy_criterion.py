@@ -1,33 +1,21 @@
 """The energy criterion of the global solver (module notes of :mod:`mcsweep.solver.cg`):
 PCG stops when the error in the norm of the normal matrix is estimated below a fraction of
 the formal uncertainties. Checked against a direct sparse solve of the same normal
-equations, on the few-transits-per-knot problem with data gaps (conftest ``gapped_problem``)."""
+equations, on the few-transits-per-knot problem with data gaps (conftest ``gapped_system``)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from mcsweep.astrometry.solve import prior_diagonal
-from mcsweep.solver import GlobalProblem, solve_global
+from mcsweep.solver import solve_global
 from mcsweep.solver.cg import ERROR_SAFETY, ERROR_WINDOW, remaining_error
 from mcsweep.solver.direct import normal_norm, solve_direct
 
 
-def _problem(P, sigma_mas):
-    obs, rng = P["obs"], np.random.default_rng(3)
-    n = obs.n_stars
-    x_true = np.column_stack([rng.normal(0, 5, n), rng.normal(0, 5, n), rng.uniform(0.2, 3.0, n),
-                              rng.normal(0, 5, n), rng.normal(0, 5, n)])
-    problem = GlobalProblem(obs, prior_diagonal(sigma_mas, 10.0), P["ra"], P["dec"])
-    a_true = rng.normal(0, 10.0, (obs.n_coef, 3))
-    h = problem.forward(problem.join(x_true, a_true)) + rng.normal(size=obs.size)
-    return problem, h
-
-
 @pytest.mark.parametrize("sigma_mas", [0.01, 1.0, 1000.0])
-def test_the_solution_is_within_the_asked_fraction_of_its_uncertainties(gapped_problem, sigma_mas):
-    problem, h = _problem(gapped_problem, sigma_mas)
+def test_the_solution_is_within_the_asked_fraction_of_its_uncertainties(gapped_system, sigma_mas):
+    problem, h = gapped_system(sigma_mas)
     direct, free, _ = solve_direct(problem, h)
     scale = normal_norm(problem, direct)  # |x*|_N: the error of the starting point x = 0
     for tol in (1.0, 0.01):
@@ -40,10 +28,10 @@ def test_the_solution_is_within_the_asked_fraction_of_its_uncertainties(gapped_p
         assert np.isnan(sol.history[ERROR_WINDOW - 1].error_estimate)
 
 
-def test_the_steps_add_up_to_the_error_they_remove(gapped_problem):
+def test_the_steps_add_up_to_the_error_they_remove(gapped_system):
     # The steps are N-orthogonal: the squared N-norms logged for steps k+1..k+d add up to
     # |x_{k+d} - x_k|_N^2, a lower bound of |x* - x_k|_N^2 (what the estimate extrapolates).
-    problem, h = _problem(gapped_problem, 1.0)
+    problem, h = gapped_system(1.0)
     direct, free, _ = solve_direct(problem, h)
     k, d = 30, 20
     early = solve_global(problem, h, error_tol=1e-300, max_iter=k)
@@ -68,8 +56,8 @@ def test_the_extrapolation_of_a_geometric_series():
     assert remaining_error(steps[:-1] + [steps[-ERROR_WINDOW - 1]]) == np.inf  # no decrease: no stop
 
 
-def test_the_residual_criterion_is_kept_when_asked(gapped_problem):
-    problem, h = _problem(gapped_problem, 1.0)
+def test_the_residual_criterion_is_kept_when_asked(gapped_system):
+    problem, h = gapped_system(1.0)
     sol = solve_global(problem, h, rtol=1e-10, update_tol_uas=1e-3, max_iter=500)
     assert sol.converged
     last = sol.history[-1]

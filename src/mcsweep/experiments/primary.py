@@ -157,12 +157,11 @@ class PrimarySettings(GlobalSettings):
 
     def describe_state(self, last) -> str:
         """Where a solution stood after its last iteration (a history row), in the rule's terms."""
-        if self.error_tol is not None:
-            e = float(last["error_estimate"])
-            return (f"relative residual {last['relative_residual']:.2e}, "
-                    + ("error not yet estimated (too few iterations)" if math.isnan(e) else
-                       f"estimated error {e:.3g} of the formal uncertainties"))
-        return f"relative residual {last['relative_residual']:.2e}, last update {last['update_max_uas']:.3g} uas"
+        e = float(last["error_estimate"])
+        rule = (f"last update {last['update_max_uas']:.3g} uas" if self.error_tol is None else
+                "error not yet estimated (too few iterations)" if math.isnan(e) else
+                f"estimated error {e:.3g} of the formal uncertainties")
+        return f"relative residual {last['relative_residual']:.2e}, {rule}"
 
 
 def build_settings(config) -> PrimarySettings:

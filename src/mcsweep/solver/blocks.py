@@ -240,6 +240,7 @@ def _schur_absorption(blk: StarBlock, batch_stars: int = 4096, window: int = SCH
     n_att = _AX * blk.n_coef
     L = schur_bandwidth(window) + 1
     ab = np.zeros((L, n_att))
+    scratch = np.zeros(n_att)  # band_scatter's, zero between calls
     order = np.argsort(blk.star, kind="stable")
     star_sorted = blk.star[order]
     for lo in range(0, blk.n, batch_stars):  # bounds temporary memory; fixed order
@@ -271,7 +272,7 @@ def _schur_absorption(blk: StarBlock, batch_stars: int = 4096, window: int = SCH
                 BH[i] += Bc[i, k] * H[k]
         # H' B^-1 H, upper band only, straight into the band storage (compiled: a bincount over
         # all n_att unknowns per element of the band cost ~3 s per block with AGIS's 30 s knots)
-        kernels.band_scatter(ab, H, BH, _AX * (uniq % blk.n_coef))
+        kernels.band_scatter(ab, H, BH, _AX * (uniq % blk.n_coef), scratch)
     return ab
 
 

@@ -52,9 +52,8 @@ def solve_direct(problem, h) -> tuple[np.ndarray, np.ndarray, sp.csr_matrix]:
     A : scipy.sparse.csr_matrix
         The design matrix restricted to ``free`` (for other reference solvers, e.g. lsqr).
     """
-    n, n_coef = problem.n_stars, problem.n_coef
-    free = np.concatenate([np.ones(5 * n, bool), problem.free.ravel()])
-    A = sparse_design(*problem.design(), n, n_coef)[:, free]
+    n = problem.n_stars
+    A, free = _free_design(problem)
     nf = int(free.sum())
     N = (A.T @ A).tocsc() + sp.diags(np.concatenate([problem.prior.ravel(), np.zeros(nf - 5 * n)]))
     C, W = _frame_rows(problem, nf)
@@ -74,6 +73,14 @@ def solve_direct(problem, h) -> tuple[np.ndarray, np.ndarray, sp.csr_matrix]:
     return y[:nf], free, A
 
 
+def _free_design(problem) -> tuple[sp.csr_matrix, np.ndarray]:
+    """The design matrix over the unknowns not held at zero, and which those are (every star
+    parameter, the attitude coefficients with data)."""
+    n = problem.n_stars
+    free = np.concatenate([np.ones(5 * n, bool), problem.free.ravel()])
+    return sparse_design(*problem.design(), n, problem.n_coef)[:, free], free
+
+
 def _frame_rows(problem, nf: int) -> tuple[np.ndarray, sp.dia_matrix]:
     """The six frame constraint rows ``C`` (6, nf) over the free unknowns and the diagonal
     ``W`` whose inverse weights them: the penalty ``F = C' W^-1 C`` of the solver."""
@@ -91,8 +98,7 @@ def normal_norm(problem, dx) -> float:
     :func:`solve_direct`'s ``x``): the norm in which the solver's energy criterion measures
     the error, from the design matrix, prior and constraint rows (``N`` never formed)."""
     n = problem.n_stars
-    free = np.concatenate([np.ones(5 * n, bool), problem.free.ravel()])
-    A = sparse_design(*problem.design(), n, problem.n_coef)[:, free]
+    A, _ = _free_design(problem)
     dx = np.asarray(dx, dtype=float)
     C, W = _frame_rows(problem, dx.size)
     c = C @ dx

@@ -220,12 +220,16 @@ def _band_scatter(ab, H, BH, base, tmp):
                     tmp[idx] = 0.0
 
 
-def band_scatter(ab, H, BH, base) -> None:
+def band_scatter(ab, H, BH, base, scratch=None) -> None:
     """``ab[L - 1 + r - c, base + c] += sum_i H[i, r] * BH[i, c]`` for ``c >= r`` (``ab (L, n_att)``
     upper band storage, ``H, BH (5, L, clusters)``, ``base (clusters,)``; indices past the end
     dropped): the Schur absorption's scatter of :func:`~mcsweep.solver.blocks._schur_absorption`,
     touching only the clusters' unknowns. The same bits as ``ab[row] += np.bincount(base + c, w,
     minlength=n_att)`` per ``(r, c)``: each unknown's sum in cluster order from zero, then added
-    once (a bin is never -0.0, so adding a zero bin or the later repeats' zeros changes nothing)."""
+    once (a bin is never -0.0, so adding a zero bin or the later repeats' zeros changes nothing).
+    ``scratch``: zeros of ``ab``'s length, left zero (reuse it across calls: at AGIS's knots one
+    is 2.3e6 doubles, and a block's absorption makes one call per batch of stars)."""
+    if scratch is None:
+        scratch = np.zeros(ab.shape[1])
     _band_scatter(ab, np.ascontiguousarray(H, dtype=float), np.ascontiguousarray(BH, dtype=float),
-                  np.ascontiguousarray(base, dtype=np.int64), np.zeros(ab.shape[1]))
+                  np.ascontiguousarray(base, dtype=np.int64), scratch)

@@ -126,10 +126,10 @@ class _Pool:
         # every reply is read, from whichever worker is ready (none waits on a full pipe while
         # another is read), so none is left behind for the next pass
         got, left, error = {w: [] for w in busy}, {w: len(per[w]) for w in busy}, None
-        worker = {id(self.conns[w]): w for w in busy}
+        worker = {self.conns[w]: w for w in busy}
         while left:
             for conn in wait([self.conns[w] for w in left]):
-                w = worker[id(conn)]
+                w = worker[conn]
                 status, out = _recv(conn)
                 if status == "error":
                     error = error or out

@@ -826,7 +826,10 @@ def _pcg(pb: GlobalProblem, chunks, run, *, rtol, update_tol_uas, error_tol, max
         ``N z`` and the new direction: returns ``z_a``, ``(N z)_a``, ``r'z`` and the stars'
         share of ``p'q``."""
         w_a = np.where(free, r_a - w_a, 0.0)
-        z_a = np.where(free, cho_solve_banded((chol, False), w_a.ravel()).reshape(-1, 3), 0.0)
+        # chol is finite (dpbtrf succeeded on a checked band) and w_a is a sum of the passes: no
+        # finiteness scan of the 12 x 2.3e6 factor every iteration (7 % of the driver's time at
+        # AGIS's knots, py-spy)
+        z_a = np.where(free, cho_solve_banded((chol, False), w_a.ravel(), check_finite=False).reshape(-1, 3), 0.0)
         back = _ordered(run, _back_task, [(i, z_a, leaves[i]) for i in n_ch])
         nz_a = total_att(o[0] for o in back)
         nz_a[~free] = z_a[~free]
@@ -851,7 +854,7 @@ def _pcg(pb: GlobalProblem, chunks, run, *, rtol, update_tol_uas, error_tol, max
     t0 = time.perf_counter()
     for it in range(1, max_iter + 1):
         pq = pq_s + _dot(p_a, q_a)
-        if pq <= 0.0:  # exact solution reached (or loss of positive definiteness)
+        if not pq > 0.0:  # exact solution reached, loss of positive definiteness, or not finite
             break
         alpha = rz / pq
         step_a = alpha * p_a

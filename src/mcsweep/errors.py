@@ -35,7 +35,8 @@ def report_user_error(exc: UserInputError, prog: str = "mcsweep") -> int:
 
 
 class NotConvergedError(RuntimeError):
-    """An iterative solution stopped at its iteration limit without meeting its criterion.
+    """An iterative solution stopped at its iteration limit without meeting its criterion,
+    or could not start (its attitude not determined by the data under that prior).
 
     Not a bug and not a bad value as such (the same settings converge on other data), so
     neither a traceback nor exit status 2: one line naming the solution, its iterations

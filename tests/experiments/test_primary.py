@@ -396,3 +396,51 @@ def test_positions_at_a_stars_own_epoch_equal_a_solution_referred_to_it():
 #: Two solutions of the same equations in other parameters (rounding of 5 x 5 solves whose
 #: condition reaches ~1e8 with a 1000 mas prior and three transits).
 PROPAGATION_RTOL = 1e-7
+
+
+
+#: Runs the CLI with the 10F90 solution failing as an attitude the data leave free does
+#: (found at the paper's sizes with knot_transits=25 for the 1000 mas prior, 90 min in: too
+#: costly to provoke in a test), the F90 solution before it solved as usual.
+_FREE_ATTITUDE = """
+import sys
+import mcsweep.sweep.primary_runner as R
+from mcsweep.solver import AttitudeNotDetermined
+solve = R.solve_prior
+def failing(settings, data, label, **kw):
+    if label == "10F90":
+        raise AttitudeNotDetermined(5, 1)
+    return solve(settings, data, label, **kw)
+R.solve_prior = failing
+from mcsweep.cli import main
+sys.argv = ["mcsweep", *sys.argv[1:]]
+main()
+"""
+
+
+def test_an_attitude_the_data_leave_free_ends_the_run_in_one_line_and_keeps_what_was_solved(tmp_path):
+    # A prior whose Schur block the data leave singular ends the run as a solution that did not
+    # converge does: one line naming the setting in use and what to set, exit status 3, no
+    # table3; the solutions finished before it stay, so the same command resumes from them.
+    out = tmp_path / "run"
+    cat = _catalogue(tmp_path / "stars.csv", n=3000)
+    args = [f"hydra.run.dir={out}", *TINY, "population=catalogue", f"population.path={cat}"]
+    r = subprocess.run([sys.executable, "-c", _FREE_ATTITUDE, *args], capture_output=True, text=True, timeout=600)
+    assert r.returncode == 3, r.stderr[-3000:]
+    lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "Traceback" not in r.stderr, lines
+    assert re.fullmatch(r"mcsweep: error: the 10F90 solution cannot start: the attitude near TCB JD \d+\.\d{4} "
+                        r"\(spline coefficient 5, axis 1\) is not determined by the data under this prior, at most "
+                        r"knot_interval_hours = 24 h \(\S+ FoV transits per knot on average\); no table3 written, "
+                        r"the solutions finished before it are kept; accepted: a longer "
+                        r"experiment.primary.knot_interval_hours than 24, or experiment.primary.knot_transits \(the "
+                        r"paper's attitude freedom: 25\)", lines[0]), lines[0]
+    assert not (out / "table3.csv").exists() and not (out / "table3.md").exists()
+    assert "prior F90:" in r.stdout
+    kept = out / "primary_chunks" / "prior_F90.parquet"
+    assert kept.exists() and not (out / "primary_chunks" / "prior_10F90.parquet").exists()
+    before = kept.read_bytes()
+    r = subprocess.run([str(BIN / "mcsweep"), *args], capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert (out / "table3.csv").exists() and kept.read_bytes() == before
+    assert "prior 10F90:" in r.stdout and "prior F90:" not in r.stdout  # resumed, not solved again

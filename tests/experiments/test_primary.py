@@ -398,7 +398,6 @@ def test_positions_at_a_stars_own_epoch_equal_a_solution_referred_to_it():
 PROPAGATION_RTOL = 1e-7
 
 
-
 #: Runs the CLI with the 10F90 solution failing as an attitude the data leave free does
 #: (found at the paper's sizes with knot_transits=25 for the 1000 mas prior, 90 min in: too
 #: costly to provoke in a test), the F90 solution before it solved as usual.

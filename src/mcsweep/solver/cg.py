@@ -519,11 +519,7 @@ def _setup_task(item):
             part = B.block_setup(b, hs[k])
             b_s[v] = part.pop("b_s")
             part["bb"] = _dot(b_s[v], b_s[v])
-            if acc is None:
-                acc = part
-            else:
-                for k, val in part.items():
-                    acc[k] = np.add(acc[k], val, out=acc[k]) if isinstance(val, np.ndarray) else acc[k] + val
+            acc = part if acc is None else _add_setup(acc, part)
         return acc
 
     sums = pairwise_sum((leaf_setup(run) for run in _leaf_runs(blocks, leaves)), _add_setup)

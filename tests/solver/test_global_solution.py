@@ -251,7 +251,7 @@ def test_banded_schur_preconditioner_equals_its_dense_definition(weak_problem, w
     P = weak_problem
     obs = P["obs"]
     problem = GlobalProblem(obs, prior_diagonal(1.0, 10.0), P["ra"], P["dec"])
-    band = -sum(_schur_absorption(b, window=window) for b in problem.blocks)
+    band = -sum(_schur_absorption(b, problem.prior[b.first:b.first + b.n], window=window) for b in problem.blocks)
     band[-problem.naa_band.shape[0]:] += problem.naa_band  # N_aa: once per problem
     A = _sparse_design(P).toarray()
     As, G = A[:, :5 * obs.n_stars], A[:, 5 * obs.n_stars:]
@@ -264,6 +264,76 @@ def test_banded_schur_preconditioner_equals_its_dense_definition(weak_problem, w
         dense -= G[rows].T @ Pi @ G[rows]
     np.testing.assert_allclose(band_to_dense(band), dense, rtol=0, atol=RTOL_SUMS * np.abs(dense).max())
     assert np.linalg.eigvalsh(dense).min() > -RTOL_SUMS * np.abs(dense).max()
+
+
+def _decimal_schur_band(problem, prior, digits: int = 60) -> np.ndarray:
+    """Dense ``sum_i sum_c G_ic' (I - P_i,cc) G_ic`` (window 1) of the problem's stored partials,
+    in ``digits``-digit decimal arithmetic (star by star, Gauss-Jordan inverse): a reference
+    whose rounding (1e-60 x condition ~1e12) is far below double precision's."""
+    from decimal import Decimal, localcontext
+
+    star, src, att, j0, bval = problem.design()
+    n_att = 3 * problem.n_coef
+    out = np.zeros((n_att, n_att))
+    with localcontext() as ctx:
+        ctx.prec = digits
+        D = np.vectorize(Decimal, otypes=[object])
+        for i in range(problem.n_stars):  # a test may loop over stars
+            rows = np.flatnonzero(star == i)
+            A = D(src[rows])  # (m, 5)
+            G = np.array([[Decimal(bval[r, k]) * Decimal(att[r, c]) for k in range(4) for c in range(3)]
+                          for r in rows], dtype=object)  # (m, 12), unknowns 3 j0 .. 3 j0 + 11
+            Bm = A.T @ A + np.diag(D(prior[i]))
+            inv = np.array([[Decimal(int(a == b)) for b in range(5)] for a in range(5)], dtype=object)
+            M = Bm.copy()
+            for k in range(5):  # Gauss-Jordan (B is symmetric positive definite: no pivoting)
+                piv = M[k, k]
+                M[k], inv[k] = M[k] / piv, inv[k] / piv
+                for r in range(5):
+                    if r != k:
+                        f = M[r, k]
+                        M[r], inv[r] = M[r] - f * M[k], inv[r] - f * inv[k]
+            for jc in np.unique(j0[rows]):
+                c = j0[rows] == jc
+                H = A[c].T @ G[c]  # (5, 12)
+                S = G[c].T @ G[c] - H.T @ inv @ H
+                lo = 3 * int(jc)
+                hi = min(lo + 12, n_att)
+                out[lo:hi, lo:hi] += S.astype(float)[:hi - lo, :hi - lo]
+    return out
+
+
+def test_banded_schur_block_stays_exact_and_positive_under_a_1000_mas_prior(monkeypatch):
+    # Stars seen once or twice under 1000 mas: B_i has condition ~1e10-1e12 and the
+    # normal-equation form G'G - H'B^-1H loses ~1e-6 of a star's G'G, which at the paper's sizes
+    # with AGIS's knots made the band indefinite (docs/table3.md). The orthogonal form must
+    # match a 60-digit reference to double precision, where the other form does not.
+    from tests.solver.conftest import make_problem
+    from mcsweep.solver import blocks as B
+
+    P = make_problem(n_stars=40, days=365.0, knot_days=8.0, seed=21, min_transits=1, keep_fraction=0.15)
+    obs = P["obs"]
+    prior = np.broadcast_to(prior_diagonal(1000.0, 10.0), (obs.n_stars, 5))
+    problem = GlobalProblem(obs, prior, P["ra"], P["dec"])
+    assert np.bincount(obs.star).min() <= 4  # stars with <= 2 FoV transits (AL + AC each)
+
+    def band(kappa):
+        monkeypatch.setattr(B, "STABLE_ABSORPTION_KAPPA", kappa)
+        ab = -sum(B._schur_absorption(b, prior[b.first:b.first + b.n]) for b in problem.blocks)
+        ab[-problem.naa_band.shape[0]:] += problem.naa_band
+        return band_to_dense(ab)
+
+    ref = _decimal_schur_band(problem, prior)
+    scale = np.abs(problem.naa_band).max()
+    orthogonal, normal = band(B.STABLE_ABSORPTION_KAPPA), band(np.inf)
+    err_orthogonal = np.abs(orthogonal - ref).max() / scale
+    err_normal = np.abs(normal - ref).max() / scale
+    print(f"max error / max |N_aa|: orthogonal {err_orthogonal:.1e}, normal equations {err_normal:.1e}; "
+          f"smallest eigenvalue / max |N_aa|: {np.linalg.eigvalsh(orthogonal).min() / scale:.1e}, "
+          f"{np.linalg.eigvalsh(normal).min() / scale:.1e}, reference {np.linalg.eigvalsh(ref).min() / scale:.1e}")
+    assert err_orthogonal < RTOL_SUMS
+    assert err_normal > 1e3 * err_orthogonal  # the reason for the orthogonal form
+    assert np.linalg.eigvalsh(orthogonal).min() > -RTOL_SUMS * scale
 
 
 @pytest.mark.parametrize("compact", [False, True])

@@ -223,9 +223,23 @@ def schur_bandwidth(window: int = SCHUR_WINDOW) -> int:
     return _AX * (window + _NB - 1) - 1
 
 
-def _schur_absorption(blk: StarBlock, batch_stars: int = 4096, window: int = SCHUR_WINDOW) -> np.ndarray:
+#: Stars whose ``kappa = tr(N_i) tr(B_i^-1)`` (data information times prior-limited variance,
+#: a bound on the condition of ``B_i`` that matters here) exceeds this get the orthogonal form
+#: of :func:`_schur_absorption`: the normal-equation form ``G'G - H' B^-1 H`` loses about
+#: ``kappa x 2e-16`` of the star's information to rounding. Under a 1000 mas prior a star
+#: seen once or twice has kappa ~ 1e10-1e12 (its parallax and proper motion are known only
+#: from the prior), so the loss, ~1e-6 of its ``G'G``, swamps what the knot keeps: at the
+#: paper's sizes with 25 FoV transits per knot (771117 knots) the band was not positive
+#: definite at coefficient 452453, where the exact pivots fall to 1.5e-6-1.1e-4 of the
+#: diagonal, and elsewhere to 1e-9 (docs/table3.md). Below 1e6 the loss is < 2e-10 and the
+#: faster form is kept (sigma_F90 and 10 sigma_F90 stars: the same bits as before).
+STABLE_ABSORPTION_KAPPA = 1e6
+
+
+def _schur_absorption(blk: StarBlock, prior, batch_stars: int = 4096, window: int = SCHUR_WINDOW) -> np.ndarray:
     """The in-band part of ``N_as B^-1 N_sa`` (upper band storage, ``L = schur_bandwidth + 1``
     rows): the banded Schur block is ``N_aa`` (:func:`att_band`, prior-independent) minus this.
+    ``prior (n, 5)``: the diagonal of the block's stars' ``N_p``.
 
     Exact form: ``S_B = sum_i G_i' (I - P_i) G_i`` with ``P_i = A_i B_i^-1 A_i'`` per star
     (``G_i`` its attitude rows). Group each star's measurements into clusters whose first
@@ -236,6 +250,14 @@ def _schur_absorption(blk: StarBlock, batch_stars: int = 4096, window: int = SCH
     too, and it is banded. It keeps exactly what makes the plain block preconditioner
     fail with loose priors: a star seen at one or two epochs absorbs the attitude
     signal at those epochs.
+
+    Two forms of a cluster's absorption ``G_c' P_cc G_c``: ``H' B^-1 H`` with ``H = A_c' G_c``
+    (most stars), and, for stars above :data:`STABLE_ABSORPTION_KAPPA`, ``G_c'G_c - R22'R22``
+    with ``R22`` from the QR factorisation of ``[[A_c, G_c], [E_c^1/2, 0]]``, ``E_c = B_i -
+    A_c'A_c`` (the star's other measurements and its prior), so that ``G_c'(I - P_cc)G_c =
+    R22'R22`` is formed without squaring ``B_i``'s condition and is positive semi-definite
+    whatever the rounding (Golub & Van Loan 2013, Matrix Computations, Sect. 5.3: QR against
+    the normal equations).
     """
     n_att = _AX * blk.n_coef
     L = schur_bandwidth(window) + 1
@@ -243,6 +265,7 @@ def _schur_absorption(blk: StarBlock, batch_stars: int = 4096, window: int = SCH
     scratch = np.zeros(n_att)  # band_scatter's, zero between calls
     order = np.argsort(blk.star, kind="stable")
     star_sorted = blk.star[order]
+    prior = np.broadcast_to(np.asarray(prior, dtype=float), (blk.n, _NP))
     for lo in range(0, blk.n, batch_stars):  # bounds temporary memory; fixed order
         hi = min(lo + batch_stars, blk.n)
         sel = order[np.searchsorted(star_sorted, lo):np.searchsorted(star_sorted, hi)]
@@ -254,12 +277,19 @@ def _schur_absorption(blk: StarBlock, batch_stars: int = 4096, window: int = SCH
         starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
         uniq, nc = key[starts], starts.size
         cl = np.cumsum(np.r_[False, key[1:] != key[:-1]])  # cluster of each row, non-decreasing
+        binv = blk.binv[lo:hi]
+        info = np.bincount(star - lo, np.sum(a_all * a_all, axis=0), minlength=hi - lo)  # tr(N_i)
+        ill = info * np.trace(binv, axis1=1, axis2=2) > STABLE_ABSORPTION_KAPPA  # per star of the batch
+        ill_row = ill[star - lo]
+        any_ill = bool(ill_row.any())
         # H[i, c, k] = sum of a_i G_r over cluster k's rows, c = 3 (j0 - jb) + r; structure
         # of arrays (one contiguous vector over clusters per element), as in
-        # mcsweep.astrometry.linalg, so every step below is a vector operation.
+        # mcsweep.astrometry.linalg, so every step below is a vector operation. The orthogonal
+        # form's clusters get zero here (adding their zeros leaves the others' bits as they were).
         H = np.zeros((_NP, L, nc))
         for o in range(window):  # rows by offset of their j0 within the window
-            rows = slice(None) if window == 1 else np.flatnonzero(j0 - jb == o)
+            rows = (slice(None) if not any_ill else np.flatnonzero(~ill_row)) if window == 1 else \
+                np.flatnonzero((j0 - jb == o) & ~ill_row)
             for i in range(_NP):
                 a = a_all[i][rows]
                 for r in range(_AX * _NB):
@@ -273,11 +303,51 @@ def _schur_absorption(blk: StarBlock, batch_stars: int = 4096, window: int = SCH
         # H' B^-1 H, upper band only, straight into the band storage (compiled: a bincount over
         # all n_att unknowns per element of the band cost ~3 s per block with AGIS's 30 s knots)
         kernels.band_scatter(ab, H, BH, _AX * (uniq % blk.n_coef), scratch)
+        if any_ill:
+            _orthogonal_absorption(ab, scratch, a_all, G, j0 - jb, star - lo, cl, uniq % blk.n_coef,
+                                   ill_row, prior[lo:hi], L)
     return ab
 
 
-def block_setup(blk: StarBlock, h) -> dict:
-    """Everything the solver needs once per prior from a block, for the measurements ``h (m,)``.
+def _orthogonal_absorption(ab, scratch, a_all, G, offset, star, cl, jb, ill_row, prior, L) -> None:
+    """Add the absorption ``G_c'G_c - R22'R22`` of the clusters of rows ``ill_row`` (all of a
+    star's rows or none) into ``ab`` (:func:`_schur_absorption`, the orthogonal form).
+    ``offset``: each row's ``j0`` within its window; ``star``: within the batch; ``cl``: each
+    row's cluster; ``jb``: each cluster's first coefficient."""
+    rows = np.flatnonzero(ill_row)
+    Gt = np.zeros((rows.size, L))  # each row's attitude partials placed in its cluster's window
+    for o in np.unique(offset[rows]):
+        at = offset[rows] == o
+        Gt[at, _AX * o:_AX * o + _AX * _NB] = G[:, rows[at]].T
+    A = a_all[:, rows].T  # (m, 5)
+    outer = A[:, :, None] * A[:, None, :]  # (m, 5, 5)
+    # N_i of each star and N_c of each cluster, summed in row order (both are runs of rows)
+    s_first = np.flatnonzero(np.r_[True, np.diff(star[rows]) != 0])
+    c_first = np.flatnonzero(np.r_[True, np.diff(cl[rows]) != 0])
+    N_star = np.add.reduceat(outer, s_first, axis=0)
+    N_cl = np.add.reduceat(outer, c_first, axis=0)
+    c_star = np.searchsorted(s_first, c_first, side="right") - 1  # star (run) of each cluster
+    clusters = cl[rows][c_first]
+    E = N_star[c_star] - N_cl + prior[star[rows][s_first][c_star]][:, :, None] * np.eye(_NP)
+    lam, V = np.linalg.eigh(E)  # E_c >= 0; a root that stays real when rounding makes it just indefinite
+    root = np.sqrt(np.clip(lam, 0.0, None))[:, :, None] * np.swapaxes(V, 1, 2)  # root' root = E_c
+    first = c_first  # each cluster's first row within ``rows``
+    size = np.diff(np.r_[first, rows.size])
+    for k in np.unique(size):
+        pick = np.flatnonzero(size == k)
+        idx = first[pick][:, None] + np.arange(k)  # (clusters, k) into ``rows``
+        Z = np.zeros((pick.size, k + _NP, _NP + L))
+        Z[:, :k, :_NP], Z[:, :k, _NP:], Z[:, k:, :_NP] = A[idx], Gt[idx], root[pick]
+        R22 = np.linalg.qr(Z, mode="r")[:, _NP:, _NP:]  # (clusters, min(k, L), L)
+        Gc = Gt[idx]
+        X = np.concatenate([Gc, R22], axis=1).transpose(1, 2, 0)
+        Y = np.concatenate([Gc, -R22], axis=1).transpose(1, 2, 0)
+        kernels.band_scatter(ab, X, Y, _AX * jb[clusters[pick]], scratch)
+
+
+def block_setup(blk: StarBlock, h, prior) -> dict:
+    """Everything the solver needs once per prior from a block, for the measurements ``h (m,)``
+    and the stars' prior diagonal ``prior (n, 5)``.
 
     Returns a dict of global contributions, ``absorption`` (:func:`_schur_absorption`),
     ``b_a = A_a' h``, ``hh = h' h``, and per star ``b_s = A_s' h`` (n, 5). ``hh`` by numpy's
@@ -285,7 +355,7 @@ def block_setup(blk: StarBlock, h) -> dict:
     of ``h``, which differs on a Dask worker (unpickled) from the driver.
     """
     g = gather(blk)
-    return {"absorption": _schur_absorption(blk), "b_a": att_adjoint(blk, h, g), "hh": float(np.sum(np.multiply(h, h))),
+    return {"absorption": _schur_absorption(blk, prior), "b_a": att_adjoint(blk, h, g), "hh": float(np.sum(np.multiply(h, h))),
             "b_s": src_adjoint(blk, h, g)}
 
 

@@ -510,22 +510,22 @@ def _setup_task(item):
     frame weights' means."""
     ci, blocks, hs, st, prior, K, g, leaves = item
     b_s = np.empty((sum(b.n for b in blocks), 5))
+    stars = st.get("stars")
+    if prior is None:
+        prior, K, g = stars["prior"], stars["K"], normalised_weights(stars["g_raw"], g)
 
     def leaf_setup(run):
         """The leaf's sums, its blocks' added in block order (streamed: with AGIS's knots each
         block's Schur absorption alone is 12 x 2.3e6 doubles)."""
         acc = None
         for k, b, v in run:
-            part = B.block_setup(b, hs[k])
+            part = B.block_setup(b, hs[k], prior[v])
             b_s[v] = part.pop("b_s")
             part["bb"] = _dot(b_s[v], b_s[v])
             acc = part if acc is None else _add_setup(acc, part)
         return acc
 
     sums = pairwise_sum((leaf_setup(run) for run in _leaf_runs(blocks, leaves)), _add_setup)
-    stars = st.get("stars")
-    if prior is None:
-        prior, K, g = stars["prior"], stars["K"], normalised_weights(stars["g_raw"], g)
     st.clear()
     if stars is not None:
         st["stars"] = stars

@@ -143,10 +143,11 @@ def _solve(run: GlobalRun, data, label: str, client: Callable) -> None:
         except AttitudeNotDetermined as exc:
             # The knots are closer than these stars' transits can fix under this prior: found
             # only when the prior's Schur block is factorised, after the solutions before it
-            # (at the paper's sizes with knot_transits = 25 the 1000 mas solution, 90 min in:
-            # docs/table3.md). Not a bad value as such (the same setting works for the other
-            # priors and on other data), so like a solution that did not converge: one line,
-            # exit status 3, no table3, and the finished solutions kept for a rerun to resume.
+            # (the 1000 mas solution at the paper's sizes with knot_transits = 25 ended here,
+            # 90 min in, until the Schur absorption of ill-conditioned stars took its orthogonal
+            # form: docs/table3.md). Not a bad value as such (the same setting works for the
+            # other priors and on other data), so like a solution that did not converge: one
+            # line, exit status 3, no table3, and the finished solutions kept for a rerun.
             raise NotConvergedError(
                 f"the {label} solution cannot start: the attitude near TCB JD "
                 f"{data.spline.greville()[exc.coefficient]:.4f} (spline coefficient {exc.coefficient}, axis "

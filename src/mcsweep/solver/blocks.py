@@ -232,7 +232,8 @@ def schur_bandwidth(window: int = SCHUR_WINDOW) -> int:
 #: paper's sizes with 25 FoV transits per knot (771117 knots) the band was not positive
 #: definite at coefficient 452453, where the exact pivots fall to 1.5e-6-1.1e-4 of the
 #: diagonal, and elsewhere to 1e-9 (docs/table3.md). Below 1e6 the loss is < 2e-10 and the
-#: faster form is kept (sigma_F90 and 10 sigma_F90 stars: the same bits as before).
+#: faster form is kept (at 3 x 30000 stars with 25 FoV transits per knot: for all but 50
+#: stars under sigma_F90, 632 under 10 sigma_F90, 1825 under 1000 mas).
 STABLE_ABSORPTION_KAPPA = 1e6
 
 
@@ -253,11 +254,11 @@ def _schur_absorption(blk: StarBlock, prior, batch_stars: int = 4096, window: in
 
     Two forms of a cluster's absorption ``G_c' P_cc G_c``: ``H' B^-1 H`` with ``H = A_c' G_c``
     (most stars), and, for stars above :data:`STABLE_ABSORPTION_KAPPA`, ``G_c'G_c - R22'R22``
-    with ``R22`` from the QR factorisation of ``[[A_c, G_c], [E_c^1/2, 0]]``, ``E_c = B_i -
-    A_c'A_c`` (the star's other measurements and its prior), so that ``G_c'(I - P_cc)G_c =
-    R22'R22`` is formed without squaring ``B_i``'s condition and is positive semi-definite
-    whatever the rounding (Golub & Van Loan 2013, Matrix Computations, Sect. 5.3: QR against
-    the normal equations).
+    with ``R22`` what Householder reflections of the five source columns leave of
+    ``[[A_c, G_c], [A_other, 0], [N_p^1/2, 0]]`` (the cluster's rows, the star's other rows and
+    its prior), so that ``G_c'(I - P_cc)G_c = R22'R22`` is formed without squaring ``B_i``'s
+    condition and is positive semi-definite whatever the rounding (Golub & Van Loan 2013,
+    Matrix Computations, Sect. 5.3: QR against the normal equations).
     """
     n_att = _AX * blk.n_coef
     L = schur_bandwidth(window) + 1
@@ -304,45 +305,27 @@ def _schur_absorption(blk: StarBlock, prior, batch_stars: int = 4096, window: in
         # all n_att unknowns per element of the band cost ~3 s per block with AGIS's 30 s knots)
         kernels.band_scatter(ab, H, BH, _AX * (uniq % blk.n_coef), scratch)
         if any_ill:
-            _orthogonal_absorption(ab, scratch, a_all, G, j0 - jb, star - lo, cl, uniq % blk.n_coef,
+            _orthogonal_absorption(ab, a_all, G, j0 - jb, star - lo, cl, uniq % blk.n_coef,
                                    ill_row, prior[lo:hi], L)
     return ab
 
 
-def _orthogonal_absorption(ab, scratch, a_all, G, offset, star, cl, jb, ill_row, prior, L) -> None:
+def _orthogonal_absorption(ab, a_all, G, offset, star, cl, jb, ill_row, prior, L) -> None:
     """Add the absorption ``G_c'G_c - R22'R22`` of the clusters of rows ``ill_row`` (all of a
-    star's rows or none) into ``ab`` (:func:`_schur_absorption`, the orthogonal form).
-    ``offset``: each row's ``j0`` within its window; ``star``: within the batch; ``cl``: each
-    row's cluster; ``jb``: each cluster's first coefficient."""
+    star's rows or none) into ``ab`` (:func:`_schur_absorption`, the orthogonal form; compiled:
+    :func:`~mcsweep.solver.kernels.orthogonal_absorption`). ``offset``: each row's ``j0``
+    within its window; ``star``: within the batch; ``cl``: each row's cluster; ``jb``: each
+    cluster's first coefficient."""
     rows = np.flatnonzero(ill_row)
     Gt = np.zeros((rows.size, L))  # each row's attitude partials placed in its cluster's window
     for o in np.unique(offset[rows]):
         at = offset[rows] == o
         Gt[at, _AX * o:_AX * o + _AX * _NB] = G[:, rows[at]].T
-    A = a_all[:, rows].T  # (m, 5)
-    outer = A[:, :, None] * A[:, None, :]  # (m, 5, 5)
-    # N_i of each star and N_c of each cluster, summed in row order (both are runs of rows)
-    s_first = np.flatnonzero(np.r_[True, np.diff(star[rows]) != 0])
+    s_first = np.flatnonzero(np.r_[True, np.diff(star[rows]) != 0])  # runs of rows: stars, clusters
     c_first = np.flatnonzero(np.r_[True, np.diff(cl[rows]) != 0])
-    N_star = np.add.reduceat(outer, s_first, axis=0)
-    N_cl = np.add.reduceat(outer, c_first, axis=0)
-    c_star = np.searchsorted(s_first, c_first, side="right") - 1  # star (run) of each cluster
-    clusters = cl[rows][c_first]
-    E = N_star[c_star] - N_cl + prior[star[rows][s_first][c_star]][:, :, None] * np.eye(_NP)
-    lam, V = np.linalg.eigh(E)  # E_c >= 0; a root that stays real when rounding makes it just indefinite
-    root = np.sqrt(np.clip(lam, 0.0, None))[:, :, None] * np.swapaxes(V, 1, 2)  # root' root = E_c
-    first = c_first  # each cluster's first row within ``rows``
-    size = np.diff(np.r_[first, rows.size])
-    for k in np.unique(size):
-        pick = np.flatnonzero(size == k)
-        idx = first[pick][:, None] + np.arange(k)  # (clusters, k) into ``rows``
-        Z = np.zeros((pick.size, k + _NP, _NP + L))
-        Z[:, :k, :_NP], Z[:, :k, _NP:], Z[:, k:, :_NP] = A[idx], Gt[idx], root[pick]
-        R22 = np.linalg.qr(Z, mode="r")[:, _NP:, _NP:]  # (clusters, min(k, L), L)
-        Gc = Gt[idx]
-        X = np.concatenate([Gc, R22], axis=1).transpose(1, 2, 0)
-        Y = np.concatenate([Gc, -R22], axis=1).transpose(1, 2, 0)
-        kernels.band_scatter(ab, X, Y, _AX * jb[clusters[pick]], scratch)
+    kernels.orthogonal_absorption(ab, a_all[:, rows].T, Gt, prior[star[rows][s_first]], s_first,
+                                  np.r_[s_first[1:], rows.size], c_first, np.diff(np.r_[c_first, rows.size]),
+                                  np.searchsorted(s_first, c_first, side="right") - 1, _AX * jb[cl[rows][c_first]])
 
 
 def block_setup(blk: StarBlock, h, prior) -> dict:

@@ -444,7 +444,8 @@ def star_arrays(blocks, normals, prior) -> dict:
     _, binv, ok = solve_sources(normals, np.zeros((len(normals), 5)), prior)
     pq = np.concatenate([b.pq for b in blocks]) if blocks else np.zeros((0, 6))
     K = np.stack([pq[:, 3:6], -pq[:, 0:3]], axis=-2)  # frame.rotation_matrices from p, q
-    return {"prior": np.ascontiguousarray(prior, dtype=float), "binv": binv, "ok": ok, "K": K,
+    prior = np.ascontiguousarray(np.broadcast_to(np.asarray(prior, dtype=float), (len(normals), 5)))
+    return {"prior": prior, "binv": binv, "ok": ok, "K": K,
             "g_raw": precision_weights(binv)}
 
 

@@ -25,7 +25,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["precondition_forward", "precondition_back", "frame_sums", "frame_apply", "band_scatter"]
+__all__ = ["precondition_forward", "precondition_back", "frame_sums", "frame_apply", "band_scatter",
+           "orthogonal_absorption"]
 
 _jit = numba.njit(cache=True, nogil=True, fastmath=False, error_model="numpy", boundscheck=False)
 
@@ -233,3 +234,90 @@ def band_scatter(ab, H, BH, base, scratch=None) -> None:
         scratch = np.zeros(ab.shape[1])
     _band_scatter(ab, np.ascontiguousarray(H, dtype=float), np.ascontiguousarray(BH, dtype=float),
                   np.ascontiguousarray(base, dtype=np.int64), scratch)
+
+
+@_jit
+def _orthogonal_absorption(ab, A, Gt, prior, s_first, s_end, c_first, c_size, c_star, base):
+    n_att, L = ab.shape[1], Gt.shape[1]
+    width = A.shape[1] + L
+    most = 0
+    for s in range(s_first.shape[0]):
+        most = max(most, s_end[s] - s_first[s])
+    Z = np.empty((most + 5, width))
+    v = np.empty(most + 5)
+    for c in range(c_first.shape[0]):
+        s, c0, k = c_star[c], c_first[c], c_size[c]
+        # Z = [[A_c, G_c], [A_other, 0], [N_p^1/2, 0]]: the star's rows, this cluster's first
+        nr = 0
+        for r in range(c0, c0 + k):
+            for j in range(5):
+                Z[nr, j] = A[r, j]
+            for j in range(L):
+                Z[nr, 5 + j] = Gt[r, j]
+            nr += 1
+        for r in range(s_first[s], s_end[s]):
+            if r < c0 or r >= c0 + k:
+                for j in range(5):
+                    Z[nr, j] = A[r, j]
+                for j in range(L):
+                    Z[nr, 5 + j] = 0.0
+                nr += 1
+        for p in range(5):
+            for j in range(width):
+                Z[nr, j] = 0.0
+            Z[nr, p] = np.sqrt(prior[s, p])
+            nr += 1
+        # Householder reflections of the five source columns, applied to all columns: what
+        # is left below them, T, has T'T = G_c'G_c - H'B^-1 H, the cluster's Schur block
+        for j in range(5):
+            norm2 = 0.0
+            for i in range(j, nr):
+                norm2 += Z[i, j] * Z[i, j]
+            if norm2 == 0.0:
+                continue
+            alpha = -np.sqrt(norm2) if Z[j, j] >= 0.0 else np.sqrt(norm2)
+            vv = 0.0
+            for i in range(j, nr):
+                v[i] = Z[i, j]
+            v[j] -= alpha
+            for i in range(j, nr):
+                vv += v[i] * v[i]
+            if vv == 0.0:
+                continue
+            for col in range(j, width):
+                d = 0.0
+                for i in range(j, nr):
+                    d += v[i] * Z[i, col]
+                f = 2.0 * d / vv
+                for i in range(j, nr):
+                    Z[i, col] -= f * v[i]
+        for r in range(L):
+            for cc in range(r, L):
+                idx = base[c] + cc
+                if idx >= n_att:
+                    continue
+                g = 0.0
+                for i in range(c0, c0 + k):
+                    g += Gt[i, r] * Gt[i, cc]
+                t = 0.0
+                for i in range(5, nr):
+                    t += Z[i, 5 + r] * Z[i, 5 + cc]
+                ab[L - 1 + r - cc, idx] += g - t
+
+
+def orthogonal_absorption(ab, A, Gt, prior, s_first, s_end, c_first, c_size, c_star, base) -> None:
+    """Add clusters' Schur absorption ``G_c'G_c - T'T`` into the upper band storage ``ab (L,
+    n_att)`` (``ab[L - 1 + r - c, base + c]``, ``c >= r``; unknowns past the end dropped), ``T``
+    what Householder reflections of the five source columns leave of ``[[A_c, G_c], [A_other, 0],
+    [N_p^1/2, 0]]`` (:func:`~mcsweep.solver.blocks._schur_absorption`, its orthogonal form).
+
+    ``A (m, 5)``, ``Gt (m, L)``: source partials and attitude partials (placed in the cluster's
+    window) of the rows, star by star and cluster by cluster; per star ``s``: rows ``s_first[s]
+    .. s_end[s] - 1`` and the prior diagonal ``prior[s] (5,)``; per cluster ``c``: rows
+    ``c_first[c] .. c_first[c] + c_size[c] - 1`` of star ``c_star[c]``, first unknown ``base[c]``.
+    Plain loops in a fixed order (no LAPACK, whose kernels differ between CPU models), so the
+    bits are the same on every worker."""
+    _orthogonal_absorption(ab, np.ascontiguousarray(A, dtype=float), np.ascontiguousarray(Gt, dtype=float),
+                           np.ascontiguousarray(prior, dtype=float), *(np.ascontiguousarray(a, dtype=np.int64)
+                                                                        for a in (s_first, s_end, c_first, c_size,
+                                                                                  c_star, base)))

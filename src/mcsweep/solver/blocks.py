@@ -278,9 +278,8 @@ def _schur_absorption(blk: StarBlock, prior, batch_stars: int = 4096, window: in
         starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
         uniq, nc = key[starts], starts.size
         cl = np.cumsum(np.r_[False, key[1:] != key[:-1]])  # cluster of each row, non-decreasing
-        binv = blk.binv[lo:hi]
         info = np.bincount(star - lo, np.sum(a_all * a_all, axis=0), minlength=hi - lo)  # tr(N_i)
-        ill = info * np.trace(binv, axis1=1, axis2=2) > STABLE_ABSORPTION_KAPPA  # per star of the batch
+        ill = info * np.trace(blk.binv[lo:hi], axis1=1, axis2=2) > STABLE_ABSORPTION_KAPPA  # per star
         ill_row = ill[star - lo]
         any_ill = bool(ill_row.any())
         # H[i, c, k] = sum of a_i G_r over cluster k's rows, c = 3 (j0 - jb) + r; structure
@@ -289,8 +288,7 @@ def _schur_absorption(blk: StarBlock, prior, batch_stars: int = 4096, window: in
         # form's clusters get zero here (adding their zeros leaves the others' bits as they were).
         H = np.zeros((_NP, L, nc))
         for o in range(window):  # rows by offset of their j0 within the window
-            rows = (slice(None) if not any_ill else np.flatnonzero(~ill_row)) if window == 1 else \
-                np.flatnonzero((j0 - jb == o) & ~ill_row)
+            rows = slice(None) if window == 1 and not any_ill else np.flatnonzero((j0 - jb == o) & ~ill_row)
             for i in range(_NP):
                 a = a_all[i][rows]
                 for r in range(_AX * _NB):
@@ -321,11 +319,9 @@ def _orthogonal_absorption(ab, a_all, G, offset, star, cl, jb, ill_row, prior, L
     for o in np.unique(offset[rows]):
         at = offset[rows] == o
         Gt[at, _AX * o:_AX * o + _AX * _NB] = G[:, rows[at]].T
-    s_first = np.flatnonzero(np.r_[True, np.diff(star[rows]) != 0])  # runs of rows: stars, clusters
-    c_first = np.flatnonzero(np.r_[True, np.diff(cl[rows]) != 0])
-    kernels.orthogonal_absorption(ab, a_all[:, rows].T, Gt, prior[star[rows][s_first]], s_first,
-                                  np.r_[s_first[1:], rows.size], c_first, np.diff(np.r_[c_first, rows.size]),
-                                  np.searchsorted(s_first, c_first, side="right") - 1, _AX * jb[cl[rows][c_first]])
+    s_first, c_first = (np.flatnonzero(np.r_[True, np.diff(x[rows]) != 0]) for x in (star, cl))  # runs of rows
+    kernels.orthogonal_absorption(ab, a_all[:, rows].T, Gt, prior[star[rows][s_first]], np.r_[s_first, rows.size],
+                                  np.r_[c_first, rows.size], _AX * jb[cl[rows][c_first]])
 
 
 def block_setup(blk: StarBlock, h, prior) -> dict:

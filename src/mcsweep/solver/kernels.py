@@ -237,16 +237,19 @@ def band_scatter(ab, H, BH, base, scratch=None) -> None:
 
 
 @_jit
-def _orthogonal_absorption(ab, A, Gt, prior, s_first, s_end, c_first, c_size, c_star, base):
+def _orthogonal_absorption(ab, A, Gt, prior, s_bounds, c_bounds, base):
     n_att, L = ab.shape[1], Gt.shape[1]
     width = A.shape[1] + L
     most = 0
-    for s in range(s_first.shape[0]):
-        most = max(most, s_end[s] - s_first[s])
+    for s in range(s_bounds.shape[0] - 1):
+        most = max(most, s_bounds[s + 1] - s_bounds[s])
     Z = np.empty((most + 5, width))
     v = np.empty(most + 5)
-    for c in range(c_first.shape[0]):
-        s, c0, k = c_star[c], c_first[c], c_size[c]
+    s = 0
+    for c in range(c_bounds.shape[0] - 1):
+        c0, k = c_bounds[c], c_bounds[c + 1] - c_bounds[c]
+        while s_bounds[s + 1] <= c0:  # the clusters come star by star
+            s += 1
         # Z = [[A_c, G_c], [A_other, 0], [N_p^1/2, 0]]: the star's rows, this cluster's first
         nr = 0
         for r in range(c0, c0 + k):
@@ -255,7 +258,7 @@ def _orthogonal_absorption(ab, A, Gt, prior, s_first, s_end, c_first, c_size, c_
             for j in range(L):
                 Z[nr, 5 + j] = Gt[r, j]
             nr += 1
-        for r in range(s_first[s], s_end[s]):
+        for r in range(s_bounds[s], s_bounds[s + 1]):
             if r < c0 or r >= c0 + k:
                 for j in range(5):
                     Z[nr, j] = A[r, j]
@@ -305,19 +308,18 @@ def _orthogonal_absorption(ab, A, Gt, prior, s_first, s_end, c_first, c_size, c_
                 ab[L - 1 + r - cc, idx] += g - t
 
 
-def orthogonal_absorption(ab, A, Gt, prior, s_first, s_end, c_first, c_size, c_star, base) -> None:
+def orthogonal_absorption(ab, A, Gt, prior, s_bounds, c_bounds, base) -> None:
     """Add clusters' Schur absorption ``G_c'G_c - T'T`` into the upper band storage ``ab (L,
     n_att)`` (``ab[L - 1 + r - c, base + c]``, ``c >= r``; unknowns past the end dropped), ``T``
     what Householder reflections of the five source columns leave of ``[[A_c, G_c], [A_other, 0],
     [N_p^1/2, 0]]`` (:func:`~mcsweep.solver.blocks._schur_absorption`, its orthogonal form).
 
     ``A (m, 5)``, ``Gt (m, L)``: source partials and attitude partials (placed in the cluster's
-    window) of the rows, star by star and cluster by cluster; per star ``s``: rows ``s_first[s]
-    .. s_end[s] - 1`` and the prior diagonal ``prior[s] (5,)``; per cluster ``c``: rows
-    ``c_first[c] .. c_first[c] + c_size[c] - 1`` of star ``c_star[c]``, first unknown ``base[c]``.
-    Plain loops in a fixed order (no LAPACK, whose kernels differ between CPU models), so the
-    bits are the same on every worker."""
+    window) of the rows, star by star and cluster by cluster; star ``s`` holds rows
+    ``s_bounds[s] .. s_bounds[s + 1] - 1`` and has the prior diagonal ``prior[s] (5,)``; cluster
+    ``c`` holds rows ``c_bounds[c] .. c_bounds[c + 1] - 1`` (within one star) and its first unknown
+    is ``base[c]``. Plain loops in a fixed order (no LAPACK, whose kernels differ between CPU
+    models), so the bits are the same on every worker."""
     _orthogonal_absorption(ab, np.ascontiguousarray(A, dtype=float), np.ascontiguousarray(Gt, dtype=float),
-                           np.ascontiguousarray(prior, dtype=float), *(np.ascontiguousarray(a, dtype=np.int64)
-                                                                        for a in (s_first, s_end, c_first, c_size,
-                                                                                  c_star, base)))
+                           np.ascontiguousarray(prior, dtype=float),
+                           *(np.ascontiguousarray(a, dtype=np.int64) for a in (s_bounds, c_bounds, base)))

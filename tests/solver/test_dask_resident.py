@@ -81,9 +81,10 @@ def test_dask_passes_send_attitude_vectors_only(problem_and_h, client):
     assert sent / k <= max(workers, len(chunks)) * att_vector + 1024 * len(chunks)
     assert received / k <= 2 * len(chunks) * (att_vector + 1024)
     assert sent / k < 5 * 8 * problem.n_stars  # less than one star vector
-    # setup, then forward, back and direction passes: one each before the first iteration,
-    # and after every iteration but the last, which has its forward pass only; residuals
-    assert res.passes == 3 + 3 * k
+    # setup (its sums, then the Schur absorption: one slab at this size), then forward, back
+    # and direction passes: one each before the first iteration, and after every iteration
+    # but the last, which has its forward pass only; residuals
+    assert res.passes == 4 + 3 * k
 
 
 def test_solution_survives_a_killed_worker(problem_and_h, client, kill_worker_at):
@@ -145,9 +146,9 @@ def test_bytes_per_iteration_pass_are_tallied_apart_from_the_one_off_passes(prob
     ranges, res = _scattered(client, problem, h)
     solve_global(problem, h, resident_chunks=res, chunk_stars=256, **KW)
     it = res.bytes_per_call("_forward_task", "_back_task", "_direction_task")
-    once = res.bytes_per_call("_setup_task", "_residual_task")
-    assert set(res.bytes_by_task) == {"_setup_task", "_forward_task", "_back_task", "_direction_task",
-                                      "_residual_task"}
+    once = res.bytes_per_call("_setup_task", "_absorption_task", "_residual_task")
+    assert set(res.bytes_by_task) == {"_setup_task", "_absorption_task", "_forward_task", "_back_task",
+                                      "_direction_task", "_residual_task"}
     assert it[0] + once[0] == res.bytes_sent and it[1] + once[1] == res.bytes_received
     assert it[0] > 0 and once[0] > 0
 

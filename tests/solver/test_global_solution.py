@@ -11,6 +11,7 @@ from mcsweep.astrometry.solve import normal_equations, prior_diagonal, solve_wit
 from mcsweep.solver import (GlobalProblem, attitude_band, band_to_dense, fit_frame, frame_attitude,
                             frame_offsets, solve_global)
 from mcsweep.solver.direct import solve_direct, sparse_design
+from mcsweep.solver.blocks import schur_bandwidth
 from mcsweep.solver.source_update import solve_sources, source_normals, source_rhs
 from mcsweep.solver.attitude_update import attitude_rhs
 from mcsweep.scanning.ephemeris import gaia_position_au
@@ -185,9 +186,11 @@ def test_global_rotation_and_spin_of_truth_leave_errors_unchanged(small_problem)
     np.testing.assert_allclose(errors[1], errors[0], rtol=0, atol=RTOL_ITER_DIRECT * scale)
 
 
-def test_solution_is_bit_identical_for_any_chunking_and_workers(weak_problem):
+def test_solution_is_bit_identical_for_any_chunking_and_workers(weak_problem, monkeypatch):
     # The promise of mcsweep.solver.reduction: fixed blocks summed in a fixed tree, so the
-    # chunk size, the backend and the number of workers cannot change a bit.
+    # chunk size, the backend, the number of workers and the slabs in which the setup sums
+    # the banded Schur block cannot change a bit.
+    from mcsweep.solver import cg
     P = weak_problem
     rng = np.random.default_rng(31)
     problem = GlobalProblem(P["obs"], prior_diagonal(1000.0, 10.0), P["ra"], P["dec"], block_stars=128)
@@ -198,6 +201,9 @@ def test_solution_is_bit_identical_for_any_chunking_and_workers(weak_problem):
     ref = solve_global(problem, h, **kw)
     runs = [solve_global(problem, h, chunk_stars=c, **kw) for c in (128, 512, 100000)]
     runs += [solve_global(problem, h, workers=w, chunk_stars=c, **kw) for w, c in ((2, 128), (3, 256))]  # forked
+    band_bytes = 8 * (schur_bandwidth() + 1) * 3 * problem.n_coef
+    monkeypatch.setattr(cg, "SETUP_SLAB_BYTES", band_bytes // 7)  # the band in 8 slabs
+    runs += [solve_global(problem, h, chunk_stars=128, **kw), solve_global(problem, h, workers=2, chunk_stars=256, **kw)]
     for sol in runs:
         assert np.array_equal(sol.x, ref.x) and np.array_equal(sol.attitude, ref.attitude)
         assert np.array_equal(sol.residuals, ref.residuals) and len(sol.history) == len(ref.history)
@@ -345,6 +351,29 @@ def test_banded_schur_block_stays_exact_and_positive_under_a_1000_mas_prior(monk
     assert err_orthogonal < RTOL_SUMS
     assert err_normal > 1e3 * err_orthogonal  # the reason for the orthogonal form
     assert np.linalg.eigvalsh(orthogonal).min() > -RTOL_SUMS * scale
+
+
+@pytest.mark.parametrize("window", [1, 2])
+def test_slabs_of_the_schur_absorption_side_by_side_are_the_whole_band_bit_for_bit(window):
+    # The setup sums the absorption slab by slab of the band's columns (memory at AGIS's
+    # knots); each slab must hold exactly the whole band's elements, for stars of either form
+    # (1 and 1000 mas priors mixed), cuts anywhere (inside a cluster's window too) and batches
+    # of stars that split the blocks.
+    from tests.solver.conftest import make_problem
+    from mcsweep.solver import blocks as B
+
+    P = make_problem(n_stars=40, days=365.0, knot_days=8.0, seed=21, min_transits=1, keep_fraction=0.15)
+    obs = P["obs"]
+    prior = prior_diagonal(np.where(np.arange(obs.n_stars) % 3 == 0, 1.0, 1000.0), 10.0)
+    problem = GlobalProblem(obs, prior, P["ra"], P["dec"])
+    n_att = 3 * problem.n_coef
+    for b in problem.blocks:
+        pr = prior[b.first:b.first + b.n]
+        assert 0 < B._ill_conditioned(b).sum() < b.n  # both forms present
+        whole = B._schur_absorption(b, pr, batch_stars=7, window=window)
+        for cuts in ([0, n_att], [0, 1, 5, 17, n_att // 2 + 1, n_att], list(range(0, n_att, 7)) + [n_att]):
+            slabs = [B._schur_absorption(b, pr, batch_stars=7, window=window, columns=c) for c in zip(cuts[:-1], cuts[1:])]
+            assert np.concatenate(slabs, axis=1).tobytes() == whole.tobytes()
 
 
 @pytest.mark.parametrize("compact", [False, True])

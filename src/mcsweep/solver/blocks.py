@@ -237,7 +237,8 @@ def schur_bandwidth(window: int = SCHUR_WINDOW) -> int:
 STABLE_ABSORPTION_KAPPA = 1e6
 
 
-def _schur_absorption(blk: StarBlock, prior, batch_stars: int = 4096, window: int = SCHUR_WINDOW) -> np.ndarray:
+def _schur_absorption(blk: StarBlock, prior, batch_stars: int = 4096, window: int = SCHUR_WINDOW,
+                      columns: tuple[int, int] | None = None) -> np.ndarray:
     """The in-band part of ``N_as B^-1 N_sa`` (upper band storage, ``L = schur_bandwidth + 1``
     rows): the banded Schur block is ``N_aa`` (:func:`att_band`, prior-independent) minus this.
     ``prior (n, 5)``: the diagonal of the block's stars' ``N_p``.
@@ -259,83 +260,112 @@ def _schur_absorption(blk: StarBlock, prior, batch_stars: int = 4096, window: in
     its prior), so that ``G_c'(I - P_cc)G_c = R22'R22`` is formed without squaring ``B_i``'s
     condition and is positive semi-definite whatever the rounding (Golub & Van Loan 2013,
     Matrix Computations, Sect. 5.3: QR against the normal equations).
+
+    ``columns=(lo, hi)``: only the band's columns ``lo .. hi - 1`` (unknowns), as an ``(L, hi -
+    lo)`` slab, from the clusters that touch them; each element is the same sum, in the same
+    order, as in the whole band (the stars' batches and their clusters' order are kept), so
+    slabs put side by side are the whole band bit for bit, and the solver can sum the blocks'
+    absorption slab by slab (:mod:`~mcsweep.solver.cg`, the setup) without ever holding more
+    than one band.
     """
     n_att = _AX * blk.n_coef
     L = schur_bandwidth(window) + 1
-    ab = np.zeros((L, n_att))
-    scratch = np.zeros(n_att)  # band_scatter's, zero between calls
-    order = np.argsort(blk.star, kind="stable")
-    star_sorted = blk.star[order]
+    c_lo, c_hi = (0, n_att) if columns is None else (int(columns[0]), int(columns[1]))
+    ab = np.zeros((L, c_hi - c_lo))
+    scratch = np.zeros(c_hi - c_lo)  # band_scatter's, zero between calls
     prior = np.broadcast_to(np.asarray(prior, dtype=float), (blk.n, _NP))
+    ill = _ill_conditioned(blk)
+    # the rows to visit: those of clusters touching the columns, and every row of an
+    # ill-conditioned star with such a cluster (its other rows enter the orthogonal form)
+    base_row = _AX * (blk.j0.astype(np.int64) // window) * window
+    touch = (base_row + L > c_lo) & (base_row < c_hi)
+    ill_star = ill[blk.star]
+    take = touch & ~ill_star
+    if ill.any():
+        ill_touching = np.zeros(blk.n, dtype=bool)
+        ill_touching[blk.star[touch & ill_star]] = True
+        take |= ill_touching[blk.star]
+    visit = np.flatnonzero(take)
+    order = visit[np.argsort(blk.star[visit], kind="stable")]  # star by star, each in time order
+    star_sorted = blk.star[order]
     for lo in range(0, blk.n, batch_stars):  # bounds temporary memory; fixed order
         hi = min(lo + batch_stars, blk.n)
         sel = order[np.searchsorted(star_sorted, lo):np.searchsorted(star_sorted, hi)]
+        if sel.size == 0:
+            continue
         star, j0 = blk.star[sel].astype(np.int64), blk.j0[sel].astype(np.int64)
         G = (blk.bval[:, None, sel].astype(float) * att_rows(blk, sel)[None, :, :]).reshape(_AX * _NB, -1)  # (12, m)
         a_all = src_rows(blk, sel)
         jb = (j0 // window) * window
-        key = star * blk.n_coef + jb  # non-decreasing: sel is in star order, each star's rows in time order
-        starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
-        uniq, nc = key[starts], starts.size
-        cl = np.cumsum(np.r_[False, key[1:] != key[:-1]])  # cluster of each row, non-decreasing
-        info = np.bincount(star - lo, np.sum(a_all * a_all, axis=0), minlength=hi - lo)  # tr(N_i)
-        ill = info * np.trace(blk.binv[lo:hi], axis1=1, axis2=2) > STABLE_ABSORPTION_KAPPA  # per star
-        ill_row = ill[star - lo]
-        any_ill = bool(ill_row.any())
+        ill_row = ill[star]
         # H[i, c, k] = sum of a_i G_r over cluster k's rows, c = 3 (j0 - jb) + r; structure
         # of arrays (one contiguous vector over clusters per element), as in
-        # mcsweep.astrometry.linalg, so every step below is a vector operation. The orthogonal
-        # form's clusters get zero here (adding their zeros leaves the others' bits as they were).
-        H = np.zeros((_NP, L, nc))
-        for o in range(window):  # rows by offset of their j0 within the window
-            rows = slice(None) if window == 1 and not any_ill else np.flatnonzero((j0 - jb == o) & ~ill_row)
+        # mcsweep.astrometry.linalg, so every step below is a vector operation. Clusters are
+        # runs of equal (star, jb) (``sel`` is in star order, each star's rows in time order).
+        rows = np.flatnonzero(~ill_row)
+        if rows.size:
+            key = star[rows] * blk.n_coef + jb[rows]
+            new_cluster = np.r_[True, key[1:] != key[:-1]]
+            uniq, cl = key[new_cluster], np.cumsum(new_cluster) - 1
+            nc = uniq.size
+            H = np.zeros((_NP, L, nc))
+            for o in range(window):  # rows by offset of their j0 within the window
+                at = slice(None) if window == 1 else np.flatnonzero(j0[rows] - jb[rows] == o)
+                for i in range(_NP):
+                    a = a_all[i][rows][at]
+                    for r in range(_AX * _NB):
+                        H[i, _AX * o + r] += np.bincount(cl[at], a * G[r][rows][at], minlength=nc)
+            Bc = np.ascontiguousarray(blk.binv[uniq // blk.n_coef].transpose(1, 2, 0))  # (5, 5, clusters)
+            BH = np.empty_like(H)  # B^-1 H
             for i in range(_NP):
-                a = a_all[i][rows]
-                for r in range(_AX * _NB):
-                    H[i, _AX * o + r] += np.bincount(cl[rows], a * G[r][rows], minlength=nc)
-        Bc = np.ascontiguousarray(blk.binv[uniq // blk.n_coef].transpose(1, 2, 0))  # (5, 5, clusters)
-        BH = np.empty_like(H)  # B^-1 H
-        for i in range(_NP):
-            BH[i] = Bc[i, 0] * H[0]
-            for k in range(1, _NP):
-                BH[i] += Bc[i, k] * H[k]
-        # H' B^-1 H, upper band only, straight into the band storage (compiled: a bincount over
-        # all n_att unknowns per element of the band cost ~3 s per block with AGIS's 30 s knots)
-        kernels.band_scatter(ab, H, BH, _AX * (uniq % blk.n_coef), scratch)
-        if any_ill:
-            _orthogonal_absorption(ab, a_all, G, j0 - jb, star - lo, cl, uniq % blk.n_coef,
-                                   ill_row, prior[lo:hi], L)
+                BH[i] = Bc[i, 0] * H[0]
+                for k in range(1, _NP):
+                    BH[i] += Bc[i, k] * H[k]
+            # H' B^-1 H, upper band only, straight into the band storage (compiled: a bincount over
+            # all n_att unknowns per element of the band cost ~3 s per block with AGIS's 30 s knots)
+            kernels.band_scatter(ab, H, BH, _AX * (uniq % blk.n_coef) - c_lo, scratch)
+        if ill_row.any():
+            _orthogonal_absorption(ab, a_all, G, j0 - jb, star - lo, star * blk.n_coef + jb, jb, ill_row,
+                                   prior[lo:hi], L, c_lo)
     return ab
 
 
-def _orthogonal_absorption(ab, a_all, G, offset, star, cl, jb, ill_row, prior, L) -> None:
+def _ill_conditioned(blk: StarBlock) -> np.ndarray:
+    """Per star, whether ``kappa = tr(N_i) tr(B_i^-1)`` exceeds :data:`STABLE_ABSORPTION_KAPPA`
+    (then :func:`_schur_absorption` takes its orthogonal form)."""
+    a = src_rows(blk)
+    info = np.bincount(blk.star, np.sum(a * a, axis=0), minlength=blk.n)  # tr(N_i), each star's rows in time order
+    return info * np.trace(blk.binv, axis1=1, axis2=2) > STABLE_ABSORPTION_KAPPA
+
+
+def _orthogonal_absorption(ab, a_all, G, offset, star, key, jb, ill_row, prior, L, c_lo) -> None:
     """Add the absorption ``G_c'G_c - R22'R22`` of the clusters of rows ``ill_row`` (all of a
     star's rows or none) into ``ab`` (:func:`_schur_absorption`, the orthogonal form; compiled:
     :func:`~mcsweep.solver.kernels.orthogonal_absorption`). ``offset``: each row's ``j0``
-    within its window; ``star``: within the batch; ``cl``: each row's cluster; ``jb``: each
-    cluster's first coefficient."""
+    within its window; ``star``: within the batch; ``key``: each row's cluster (star x
+    n_coef + ``jb``, the first coefficient of its window); ``c_lo``: the unknown of ``ab``'s
+    first column."""
     rows = np.flatnonzero(ill_row)
     Gt = np.zeros((rows.size, L))  # each row's attitude partials placed in its cluster's window
     for o in np.unique(offset[rows]):
         at = offset[rows] == o
         Gt[at, _AX * o:_AX * o + _AX * _NB] = G[:, rows[at]].T
-    s_first, c_first = (np.flatnonzero(np.r_[True, np.diff(x[rows]) != 0]) for x in (star, cl))  # runs of rows
+    s_first, c_first = (np.flatnonzero(np.r_[True, np.diff(x[rows]) != 0]) for x in (star, key))  # runs of rows
     kernels.orthogonal_absorption(ab, a_all[:, rows].T, Gt, prior[star[rows][s_first]], np.r_[s_first, rows.size],
-                                  np.r_[c_first, rows.size], _AX * jb[cl[rows][c_first]])
+                                  np.r_[c_first, rows.size], _AX * jb[rows][c_first] - c_lo)
 
 
-def block_setup(blk: StarBlock, h, prior) -> dict:
-    """Everything the solver needs once per prior from a block, for the measurements ``h (m,)``
-    and the stars' prior diagonal ``prior (n, 5)``.
+def block_setup(blk: StarBlock, h) -> dict:
+    """What the solver needs once per prior from a block, for the measurements ``h (m,)``,
+    besides its Schur absorption (:func:`_schur_absorption`, summed slab by slab).
 
-    Returns a dict of global contributions, ``absorption`` (:func:`_schur_absorption`),
-    ``b_a = A_a' h``, ``hh = h' h``, and per star ``b_s = A_s' h`` (n, 5). ``hh`` by numpy's
-    pairwise add-reduce, not ``h @ h``: BLAS ``ddot`` rounds differently with the alignment
-    of ``h``, which differs on a Dask worker (unpickled) from the driver.
+    Returns a dict of global contributions, ``b_a = A_a' h``, ``hh = h' h``, and per star
+    ``b_s = A_s' h`` (n, 5). ``hh`` by numpy's pairwise add-reduce, not ``h @ h``: BLAS
+    ``ddot`` rounds differently with the alignment of ``h``, which differs on a Dask worker
+    (unpickled) from the driver.
     """
     g = gather(blk)
-    return {"absorption": _schur_absorption(blk, prior), "b_a": att_adjoint(blk, h, g), "hh": float(np.sum(np.multiply(h, h))),
-            "b_s": src_adjoint(blk, h, g)}
+    return {"b_a": att_adjoint(blk, h, g), "hh": float(np.sum(np.multiply(h, h))), "b_s": src_adjoint(blk, h, g)}
 
 
 # ------------------------------------------------------------------ iteration

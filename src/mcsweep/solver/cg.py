@@ -520,7 +520,7 @@ def _setup_task(item):
         block's Schur absorption alone is 12 x 2.3e6 doubles)."""
         acc = None
         for k, b, v in run:
-            part = B.block_setup(b, hs[k], prior[v])
+            part = B.block_setup(b, hs[k])
             b_s[v] = part.pop("b_s")
             part["bb"] = _dot(b_s[v], b_s[v])
             acc = part if acc is None else _add_setup(acc, part)
@@ -535,6 +535,29 @@ def _setup_task(item):
               prior=np.ascontiguousarray(prior, dtype=float), K=np.ascontiguousarray(K, dtype=float),
               g=np.ascontiguousarray(g, dtype=float))
     return ci, sums
+
+
+def _absorption_task(item):
+    """The chunk's part of the banded Schur block's absorption in the band's unknowns
+    ``columns = (lo, hi)`` (one slab, :data:`SETUP_SLAB_BYTES`): its blocks' added per leaf in
+    block order and the leaves in the fixed tree, as :func:`_setup_task` adds its sums.
+    Needs the stars' prior that :func:`_setup_task` kept."""
+    ci, blocks, _, st, columns, leaves = item
+    prior = st["prior"]
+
+    def leaf_absorption(run):
+        acc = None
+        for _, b, v in run:
+            part = B._schur_absorption(b, prior[v], columns=columns)
+            acc = part if acc is None else np.add(acc, part, out=acc)
+        return acc
+
+    return ci, pairwise_sum((leaf_absorption(run) for run in _leaf_runs(blocks, leaves)), _add_in_place)
+
+
+def _add_in_place(a, b):
+    """``a + b`` into ``a`` where it is writable (a partial sum of the tree's own)."""
+    return np.add(a, b, out=a) if a.flags.writeable else a + b
 
 
 def _forward_task(item):
@@ -657,6 +680,12 @@ class ChunksLost(RuntimeError):
     its chunks' data are back on the cluster and the solution restarts (deterministic, so
     with the same bits)."""
 
+
+#: Bytes of the banded Schur block summed at once in the setup pass (:func:`_absorption_task`):
+#: the band is summed in that many slabs of its columns, so no process holds more than the
+#: driver's one band beyond slabs of this size (one slab below 32 MiB: every problem with
+#: fewer than ~3.5e5 attitude unknowns, e.g. 3 h knots at the paper's sizes).
+SETUP_SLAB_BYTES = 1 << 25
 
 #: Restarts of a solution after lost chunk states before the loss is raised.
 MAX_RESTARTS = 3
@@ -787,9 +816,7 @@ def _pcg(pb: GlobalProblem, chunks, run, *, rtol, update_tol_uas, error_tol, max
     # The setup's numbers are only added element by element (no SIMD reduction whose rounding
     # could depend on where an unpickled array sits), so they are summed as received, without
     # _fresh's copies, each chunk's dropped once in the tree; and only the factor is kept
-    # through the iterations. Each chunk's absorption, their partial sums and the band are
-    # attitude-band sized: 12 x 2.3e6 doubles at AGIS's knots and the paper's sizes, where this
-    # frame held seven of them to the end (1.4 GB less PSS while iterating, measured).
+    # through the iterations.
     got = {r[0]: r[1] for r in run(_setup_task, [(i, None, None, pb.frame_means, leaves[i]) if pb.stars_with_chunks
                                               else (i, pb.prior[sl], pb.K[sl], pb.frame_weights[sl], leaves[i])
                                               for i, sl in zip(n_ch, stars)])}
@@ -798,9 +825,22 @@ def _pcg(pb: GlobalProblem, chunks, run, *, rtol, update_tol_uas, error_tol, max
     b_a = np.where(free, glob["b_a"], 0.0)
     b_norm = float(np.sqrt(glob["bb"] + _dot(b_a, b_a))) or 1.0
     hh = glob["hh"]
-    band = glob.pop("absorption")
-    band = np.negative(band, out=band if band.flags.writeable else None)  # one chunk: maybe a received buffer
     del glob
+    # The absorption, slab by slab of the band's columns: each slab's sum over the chunks goes
+    # straight into the band. A whole band is 12 x 2.3e6 doubles at AGIS's knots and the
+    # paper's sizes, and summed whole each worker held up to five of them at once (a block's,
+    # its leaf's and the tree's partial sums): the peak of the run (docs/table3.md, "Memory").
+    # Every element is the same sum in the same order either way (blocks._schur_absorption).
+    n_att = 3 * pb.n_coef
+    cuts = share_bounds(n_att, -(-8 * (B.schur_bandwidth() + 1) * n_att // SETUP_SLAB_BYTES))
+    band = None
+    for lo, hi in zip(cuts[:-1], cuts[1:]):
+        got = {r[0]: r[1] for r in run(_absorption_task, [(i, (lo, hi), leaves[i]) for i in n_ch])}
+        part = total_att((got.pop(i) for i in n_ch), _add_in_place)
+        if band is None:
+            band = np.empty((part.shape[0], n_att))
+        np.negative(part, out=band[:, lo:hi])
+        del part
     band[-pb.naa_band.shape[0]:] += pb.naa_band
     fixed = ~free.ravel()
     band[:, fixed] = 0.0

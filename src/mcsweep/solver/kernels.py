@@ -201,14 +201,14 @@ def frame_apply(K, g, sums, w_pos: float, w_pm: float, out) -> np.ndarray:
 
 @_jit
 def _band_scatter(ab, H, BH, base, tmp):
-    n_att = ab.shape[1]
+    width = ab.shape[1]
     L = ab.shape[0]
     nc = base.shape[0]
     for r in range(L):
         for c in range(r, L):
             for k in range(nc):  # the clusters' sums per unknown, in cluster order (np.bincount's)
                 idx = base[k] + c
-                if idx < n_att:
+                if 0 <= idx < width:
                     w = H[0, r, k] * BH[0, c, k]
                     for i in range(1, H.shape[0]):
                         w += H[i, r, k] * BH[i, c, k]
@@ -216,20 +216,22 @@ def _band_scatter(ab, H, BH, base, tmp):
             row = L - 1 + r - c
             for k in range(nc):  # then each into the band once (the later repeats add 0.0)
                 idx = base[k] + c
-                if idx < n_att:
+                if 0 <= idx < width:
                     ab[row, idx] += tmp[idx]
                     tmp[idx] = 0.0
 
 
 def band_scatter(ab, H, BH, base, scratch=None) -> None:
-    """``ab[L - 1 + r - c, base + c] += sum_i H[i, r] * BH[i, c]`` for ``c >= r`` (``ab (L, n_att)``
-    upper band storage, ``H, BH (5, L, clusters)``, ``base (clusters,)``; indices past the end
-    dropped): the Schur absorption's scatter of :func:`~mcsweep.solver.blocks._schur_absorption`,
-    touching only the clusters' unknowns. The same bits as ``ab[row] += np.bincount(base + c, w,
-    minlength=n_att)`` per ``(r, c)``: each unknown's sum in cluster order from zero, then added
-    once (a bin is never -0.0, so adding a zero bin or the later repeats' zeros changes nothing).
-    ``scratch``: zeros of ``ab``'s length, left zero (reuse it across calls: at AGIS's knots one
-    is 2.3e6 doubles, and a block's absorption makes one call per batch of stars)."""
+    """``ab[L - 1 + r - c, base + c] += sum_i H[i, r] * BH[i, c]`` for ``c >= r`` (``ab (L, width)``
+    upper band storage, ``H, BH (5, L, clusters)``, ``base (clusters,)``; columns outside
+    ``0 .. width - 1`` dropped, so ``ab`` may be a slab of a longer band with ``base`` counted
+    from its first column): the Schur absorption's scatter of
+    :func:`~mcsweep.solver.blocks._schur_absorption`, touching only the clusters' unknowns.
+    The same bits as ``ab[row] += np.bincount(base + c, w, minlength=width)`` per ``(r, c)``:
+    each unknown's sum in cluster order from zero, then added once (a bin is never -0.0, so
+    adding a zero bin or the later repeats' zeros changes nothing). ``scratch``: zeros of
+    ``ab``'s width, left zero (reuse it across calls: at AGIS's knots one is 2.3e6 doubles,
+    and a block's absorption makes one call per batch of stars)."""
     if scratch is None:
         scratch = np.zeros(ab.shape[1])
     _band_scatter(ab, np.ascontiguousarray(H, dtype=float), np.ascontiguousarray(BH, dtype=float),
@@ -250,6 +252,8 @@ def _orthogonal_absorption(ab, A, Gt, prior, s_bounds, c_bounds, base):
         c0, k = c_bounds[c], c_bounds[c + 1] - c_bounds[c]
         while s_bounds[s + 1] <= c0:  # the clusters come star by star
             s += 1
+        if base[c] + L <= 0 or base[c] >= n_att:  # no column of this slab (ab)
+            continue
         # Z = [[A_c, G_c], [A_other, 0], [N_p^1/2, 0]]: the star's rows, this cluster's first
         nr = 0
         for r in range(c0, c0 + k):
@@ -297,7 +301,7 @@ def _orthogonal_absorption(ab, A, Gt, prior, s_bounds, c_bounds, base):
         for r in range(L):
             for cc in range(r, L):
                 idx = base[c] + cc
-                if idx >= n_att:
+                if idx < 0 or idx >= n_att:
                     continue
                 g = 0.0
                 for i in range(c0, c0 + k):
@@ -318,7 +322,8 @@ def orthogonal_absorption(ab, A, Gt, prior, s_bounds, c_bounds, base) -> None:
     window) of the rows, star by star and cluster by cluster; star ``s`` holds rows
     ``s_bounds[s] .. s_bounds[s + 1] - 1`` and has the prior diagonal ``prior[s] (5,)``; cluster
     ``c`` holds rows ``c_bounds[c] .. c_bounds[c + 1] - 1`` (within one star) and its first unknown
-    is ``base[c]``. Plain loops in a fixed order (no LAPACK, whose kernels differ between CPU
+    is ``base[c]``, counted from ``ab``'s first column (``ab`` may be a slab of a longer band:
+    clusters with no column in it are skipped, columns outside it dropped). Plain loops in a fixed order (no LAPACK, whose kernels differ between CPU
     models), so the bits are the same on every worker."""
     _orthogonal_absorption(ab, np.ascontiguousarray(A, dtype=float), np.ascontiguousarray(Gt, dtype=float),
                            np.ascontiguousarray(prior, dtype=float),

@@ -12,9 +12,9 @@ only 1-4 transits), AL + AC, noisy measurements, the prior of Eq. 18 (R = 10 /yr
 2. the direct solution of the same normal equations (:func:`mcsweep.solver.direct.solve_direct`: ``splu`` of the
    equilibrated bordered system plus two refinement steps): CPU ratio and agreement;
 3. ``scipy.sparse.linalg.lsqr`` on the same weighted design plus prior rows: CPU ratio;
-4. executor overhead: the same solve in-process and with the one-off passes through joblib
-   (loky, 2 workers; the iteration passes stay in-process), and with every pass in 2 forked
-   workers that keep their blocks (``workers=2``);
+4. executor overhead: the same solve in-process and with every pass in 2 forked workers that
+   keep their blocks (``workers=2``; a map-like executor that re-sends the blocks every pass is
+   no longer offered: it cost more than the work, :func:`mcsweep.solver.solve_global`);
 5. scaling with the number of stars (3 sizes, then the largest with every transit kept, the
    experiment's density of measurements per star): ms per iteration (the iterations alone,
    and with the one-off setup and final passes), ns per measurement and iteration, bytes per
@@ -189,19 +189,8 @@ def main():
             t_lsqr = time.process_time() - c0
             print(f"  lsqr (same design + prior rows, no frame rows), F90: {t_lsqr:.2f} s, {out[2]} iterations; "
                   f"lsqr/PCG = {t_lsqr / t_pcg:.2f}")
-            f90 = (problem, h, t_pcg, len(sol.history))
 
-    print("\n4. executor overhead (F90, wall seconds): in-process vs joblib loky 2 workers vs 2 forked workers")
-    from mcsweep.sweep.execution import executor
-    from mcsweep.sweep.schema import ExecutionConf
-    problem, h, _, _ = f90
-    s_seq, w_seq = wall(solve_global, problem, h, **kw)
-    chunk = max(1, problem.n_stars // 2)
-    with executor(ExecutionConf(backend="loky", n_jobs=2)) as run:
-        s_par, w_par = wall(solve_global, problem, h, run=run, chunk_stars=chunk, **kw)
-    same = np.array_equal(s_seq.x, s_par.x) and np.array_equal(s_seq.attitude, s_par.attitude)
-    print(f"  in-process {w_seq:.2f} s, loky {w_par:.2f} s ({len(problem.blocks)} block(s) of {problem.blocks[0].n} "
-          f"stars), ratio {w_par / w_seq:.2f}; bit-identical: {same}")
+    print("\n4. executor overhead (F90, wall seconds): in-process vs 2 forked workers that keep their blocks")
     # the forked workers pay per pass, not per measurement: a larger problem (all transits kept)
     o, r_, d_, xx, aa, rr = make_obs(args.workers_stars, args.days, args.knot_days, 1.0, seed=11)
     big = GlobalProblem(o, prior_diagonal(1.0, 10.0), r_, d_, block_stars=max(1, o.n_stars // 8))

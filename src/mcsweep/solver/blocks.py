@@ -333,8 +333,12 @@ def _schur_absorption(blk: StarBlock, prior, batch_stars: int = 4096, window: in
 def _ill_conditioned(blk: StarBlock) -> np.ndarray:
     """Per star, whether ``kappa = tr(N_i) tr(B_i^-1)`` exceeds :data:`STABLE_ABSORPTION_KAPPA`
     (then :func:`_schur_absorption` takes its orthogonal form)."""
-    a = src_rows(blk)
-    info = np.bincount(blk.star, np.sum(a * a, axis=0), minlength=blk.n)  # tr(N_i), each star's rows in time order
+    m = blk.t.shape[0]
+    w = np.empty(m)  # each row's squared partials, in runs of rows (bounded temporaries)
+    for lo in range(0, m, 1 << 16):
+        a = src_rows(blk, slice(lo, lo + (1 << 16)))
+        w[lo:lo + a.shape[1]] = np.sum(a * a, axis=0)
+    info = np.bincount(blk.star, w, minlength=blk.n)  # tr(N_i), each star's rows in time order
     return info * np.trace(blk.binv, axis1=1, axis2=2) > STABLE_ABSORPTION_KAPPA
 
 

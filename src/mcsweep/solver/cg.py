@@ -498,9 +498,9 @@ def _leaf_runs(blocks, leaves):
 
 def _add_setup(a: dict, b: dict) -> dict:
     """Two partial sums of the setup pass, added into ``a``'s arrays where they are writable:
-    the partials are the tree's own (nobody else holds them), and at AGIS's knots each is an
-    attitude band of 12 x 2.3e6 doubles, one fewer alive per level. Element by element, so
-    the same bits as ``a + b``."""
+    the partials are the tree's own (nobody else holds them), and at AGIS's knots each holds
+    attitude vectors of 2.3e6 unknowns, one fewer alive per level. Element by element, so the
+    same bits as ``a + b``."""
     return {k: np.add(a[k], b[k], out=a[k]) if isinstance(a[k], np.ndarray) and a[k].flags.writeable
             else a[k] + b[k] for k in a}
 
@@ -516,8 +516,8 @@ def _setup_task(item):
         prior, K, g = stars["prior"], stars["K"], normalised_weights(stars["g_raw"], g)
 
     def leaf_setup(run):
-        """The leaf's sums, its blocks' added in block order (streamed: with AGIS's knots each
-        block's Schur absorption alone is 12 x 2.3e6 doubles)."""
+        """The leaf's sums, its blocks' added in block order (streamed, one block's alive at a
+        time)."""
         acc = None
         for k, b, v in run:
             part = B.block_setup(b, hs[k])
@@ -831,6 +831,8 @@ def _pcg(pb: GlobalProblem, chunks, run, *, rtol, update_tol_uas, error_tol, max
     # paper's sizes, and summed whole each worker held up to five of them at once (a block's,
     # its leaf's and the tree's partial sums): the peak of the run (docs/table3.md, "Memory").
     # Every element is the same sum in the same order either way (blocks._schur_absorption).
+    # The driver receives one slab per chunk before summing them in the fixed order (a few per
+    # worker with forked workers; with many small Dask chunks, many).
     n_att = 3 * pb.n_coef
     cuts = share_bounds(n_att, -(-8 * (B.schur_bandwidth() + 1) * n_att // SETUP_SLAB_BYTES))
     band = None

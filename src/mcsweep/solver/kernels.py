@@ -314,7 +314,7 @@ def _orthogonal_absorption(ab, A, Gt, prior, s_bounds, c_bounds, base):
 
 def orthogonal_absorption(ab, A, Gt, prior, s_bounds, c_bounds, base) -> None:
     """Add clusters' Schur absorption ``G_c'G_c - T'T`` into the upper band storage ``ab (L,
-    n_att)`` (``ab[L - 1 + r - c, base + c]``, ``c >= r``; unknowns past the end dropped), ``T``
+    width)`` (``ab[L - 1 + r - c, base + c]``, ``c >= r``; columns outside ``ab`` dropped), ``T``
     what Householder reflections of the five source columns leave of ``[[A_c, G_c], [A_other, 0],
     [N_p^1/2, 0]]`` (:func:`~mcsweep.solver.blocks._schur_absorption`, its orthogonal form).
 

@@ -18,8 +18,8 @@ Messages carry their arrays out of band (pickle protocol 5: each array's buffer 
 to the pipe as it lies, not copied into one pickled string first), and each task's result
 goes back as soon as it is made, the parent reading whichever worker is ready. A worker then
 holds one result at a time, once: at the paper's sizes with AGIS's knots a chunk's setup
-result is an attitude band of 12 x 2.3e6 doubles, and two of them plus the pickled copy of
-both were the run's peak memory (measured, docs/table3.md).
+result was an attitude band of 12 x 2.3e6 doubles, and two of them plus the pickled copy of
+both were the run's peak memory (measured, docs/table3.md; the band now comes in slabs).
 
 Only where the ``fork`` start method exists (Linux, macOS); elsewhere :func:`forked_chunks`
 yields ``None`` and the caller runs in-process. On a Dask cluster

@@ -501,8 +501,7 @@ def _add_setup(a: dict, b: dict) -> dict:
     the partials are the tree's own (nobody else holds them), and at AGIS's knots each holds
     attitude vectors of 2.3e6 unknowns, one fewer alive per level. Element by element, so the
     same bits as ``a + b``."""
-    return {k: np.add(a[k], b[k], out=a[k]) if isinstance(a[k], np.ndarray) and a[k].flags.writeable
-            else a[k] + b[k] for k in a}
+    return {k: _add_in_place(a[k], b[k]) if isinstance(a[k], np.ndarray) else a[k] + b[k] for k in a}
 
 
 def _setup_task(item):
@@ -549,7 +548,7 @@ def _absorption_task(item):
         acc = None
         for _, b, v in run:
             part = B._schur_absorption(b, prior[v], columns=columns)
-            acc = part if acc is None else np.add(acc, part, out=acc)
+            acc = part if acc is None else _add_in_place(acc, part)
         return acc
 
     return ci, pairwise_sum((leaf_absorption(run) for run in _leaf_runs(blocks, leaves)), _add_in_place)

@@ -240,7 +240,7 @@ def band_scatter(ab, H, BH, base, scratch=None) -> None:
 
 @_jit
 def _orthogonal_absorption(ab, A, Gt, prior, s_bounds, c_bounds, base):
-    n_att, L = ab.shape[1], Gt.shape[1]
+    cols, L = ab.shape[1], Gt.shape[1]  # ab may be a slab of the band
     width = A.shape[1] + L
     most = 0
     for s in range(s_bounds.shape[0] - 1):
@@ -252,7 +252,7 @@ def _orthogonal_absorption(ab, A, Gt, prior, s_bounds, c_bounds, base):
         c0, k = c_bounds[c], c_bounds[c + 1] - c_bounds[c]
         while s_bounds[s + 1] <= c0:  # the clusters come star by star
             s += 1
-        if base[c] + L <= 0 or base[c] >= n_att:  # no column of this slab (ab)
+        if base[c] + L <= 0 or base[c] >= cols:  # no column of this slab
             continue
         # Z = [[A_c, G_c], [A_other, 0], [N_p^1/2, 0]]: the star's rows, this cluster's first
         nr = 0
@@ -301,7 +301,7 @@ def _orthogonal_absorption(ab, A, Gt, prior, s_bounds, c_bounds, base):
         for r in range(L):
             for cc in range(r, L):
                 idx = base[c] + cc
-                if idx < 0 or idx >= n_att:
+                if idx < 0 or idx >= cols:
                     continue
                 g = 0.0
                 for i in range(c0, c0 + k):
@@ -323,8 +323,9 @@ def orthogonal_absorption(ab, A, Gt, prior, s_bounds, c_bounds, base) -> None:
     ``s_bounds[s] .. s_bounds[s + 1] - 1`` and has the prior diagonal ``prior[s] (5,)``; cluster
     ``c`` holds rows ``c_bounds[c] .. c_bounds[c + 1] - 1`` (within one star) and its first unknown
     is ``base[c]``, counted from ``ab``'s first column (``ab`` may be a slab of a longer band:
-    clusters with no column in it are skipped, columns outside it dropped). Plain loops in a fixed order (no LAPACK, whose kernels differ between CPU
-    models), so the bits are the same on every worker."""
+    clusters with no column in it are skipped, columns outside it dropped). Plain loops in a
+    fixed order (no LAPACK, whose kernels differ between CPU models), so the bits are the same
+    on every worker."""
     _orthogonal_absorption(ab, np.ascontiguousarray(A, dtype=float), np.ascontiguousarray(Gt, dtype=float),
                            np.ascontiguousarray(prior, dtype=float),
                            *(np.ascontiguousarray(a, dtype=np.int64) for a in (s_bounds, c_bounds, base)))

@@ -137,10 +137,54 @@ def test_bad_prior_through_cli_exits_2_in_one_line_and_leaves_no_output(tmp_path
     ("experiment.primary.frame_fit=median", "frame_fit"),
     ("experiment.primary.knot_transits=0.5", "knot_transits"),
     ("experiment.primary.evaluation_epoch=star", "evaluation_epoch"),
+    ("experiment.primary.basic_angle_harmonics=-1", "basic_angle_harmonics"),
+    ("experiment.primary.basic_angle_harmonics=9", "basic_angle_harmonics"),
 ])
 def test_bad_settings_are_user_errors(override, key):
     with pytest.raises(UserInputError, match=key):
         P.build_settings(_config([override])[0])
+
+
+def test_basic_angle_calibration_is_not_offered_on_a_dask_cluster():
+    with pytest.raises(UserInputError, match="basic_angle_harmonics=1 .*execution=dask"):
+        P.build_settings(_config(["experiment.primary.basic_angle_harmonics=1", "execution=dask"])[0])
+
+
+def test_the_basic_angle_design_of_the_blocks_takes_a_shift_of_every_parallax():
+    # The calibration design made block by block (each transit's field of view carried from
+    # the transit search to its AL row, AC rows zero) against the geometry of Butkevich et al.
+    # (2017): with 30 min knots a shift of every parallax is the attitude plus the variation's
+    # cos Omega term (tests/solver/test_calibration.py has the closed form); a field of view
+    # mixed up between rows would leave most of it.
+    import scipy.sparse as sp
+    from scipy.sparse.linalg import spsolve
+
+    from mcsweep.astrometry.solve import prior_diagonal
+    from mcsweep.solver.direct import sparse_design
+
+    config, _ = _config(["experiment.primary.knot_interval_hours=0.5", "experiment.primary.basic_angle_harmonics=1",
+                         "experiment.primary.mission_years=0.08"])
+    settings = P.build_settings(config)
+    stars = _synthetic_stars(1500, 9)
+    _, tr = P.transits_of((0, 0, stars["ra"].to_numpy(), stars["dec"].to_numpy(), settings.start_jd,
+                           settings.end_jd, settings.law))
+    data = P.prepare(settings, stars, tr, with_noise=False, block_stars=256)
+    problem = data.problem(prior_diagonal(1.0, 10.0))
+    design = problem.design()
+    A = sparse_design(*design, problem.n_stars, problem.n_coef)
+    att = A[:, 5 * problem.n_stars:]
+    att = att[:, np.asarray(abs(att).sum(axis=0)).ravel() > 0]
+    cal = data.calibration
+    assert cal.n_cal == 2 and cal.omega.size == data.h.size
+    is_al = np.hypot(design[1][:, 0], design[1][:, 1]) * settings.noise.sigma_al_mas(
+        stars["phot_g_mean_mag"].to_numpy()[data.solved])[design[0]]
+    assert np.all((cal.weight == 0) == ~np.isclose(is_al, 1.0, rtol=1e-9))  # AL rows only
+    g = design[1][:, 2]
+    left = []
+    for M in (att, sp.hstack([att, sp.csr_matrix(np.column_stack([cal.column(0), cal.column(1)]))]).tocsr()):
+        theta = spsolve((M.T @ M).tocsc() + 1e-12 * sp.identity(M.shape[1], format="csc"), M.T @ g)
+        left.append(np.linalg.norm(g - M @ theta) / np.linalg.norm(g))
+    assert left[0] > 0.1 and left[1] < 3e-3, left
 
 
 def test_default_is_the_papers_three_classes_only():
@@ -254,6 +298,41 @@ def test_noiseless_data_recover_the_truth_and_the_attitude():
     assert 1e3 * np.nanmax(res["err_mas"].to_numpy()[solved]) < RECOVERY_UAS
     assert 1e3 * np.nanmax(np.abs(res["err_parallax_mas"].to_numpy()[solved])) < RECOVERY_UAS
     assert max(extra["attitude_rms_uas"]) < RECOVERY_UAS
+
+
+def test_noiseless_data_with_a_basic_angle_variation_recover_it_and_the_truth():
+    # As above, with a basic-angle variation of 0.5 cos Omega - 0.3 sin Omega mas added to
+    # the measurements through the blocks' own calibration design: solved with it
+    # (basic_angle_harmonics=1) the stars, the attitude and the variation come back; without
+    # it the variation stays in the stars (its size checks that the test can fail). 12 h
+    # knots do not follow the 6 h spin period, so the data fix the cos Omega term (module
+    # notes of mcsweep.solver.calibration).
+    overrides = ["experiment.primary.solver_error_tol=null", "experiment.primary.solver_rtol=1e-10",
+                 "experiment.primary.solver_update_tol_uas=1e-3", "experiment.primary.solver_max_iter=3000",
+                 "experiment.primary.attitude_timescale_hours=384"]
+    stars = _synthetic_stars(2000, 7)
+    stars[["parallax", "pmra", "pmdec"]] = 0.0
+    worst = {}
+    for harmonics in (1, 0):
+        settings = P.build_settings(_config([*overrides, f"experiment.primary.basic_angle_harmonics={harmonics}"])[0])
+        _, tr = P.transits_of((0, 0, stars["ra"].to_numpy(), stars["dec"].to_numpy(), settings.start_jd,
+                               settings.end_jd, settings.law))
+        data = P.prepare(settings, stars, tr, with_noise=False)
+        if harmonics:
+            true = np.array([0.5, -0.3])
+            signal = true[0] * data.calibration.column(0) + true[1] * data.calibration.column(1)
+        data.h += signal
+        res, _, extra, _ = P.solve_prior(settings, data, "F90")
+        assert extra["converged"]
+        solved = res["inside"].to_numpy() >= 0
+        worst[harmonics] = 1e3 * np.nanmax(res["err_mas"].to_numpy()[solved])
+        if harmonics:
+            fitted = np.array(list(extra["basic_angle_mas"].values()))
+            assert len(extra["solutions_iterations"]) == 3
+            np.testing.assert_allclose(fitted, true, rtol=0, atol=RECOVERY_UAS / 1e3)
+            assert max(extra["attitude_rms_uas"]) < RECOVERY_UAS
+    print(f"largest position error [uas]: with the calibration {worst[1]:.3g}, without {worst[0]:.3g}")
+    assert worst[1] < RECOVERY_UAS < 100 * RECOVERY_UAS < worst[0], worst
 
 
 #: Measurements of the same problem summed in other blocks (rounding only), relative to the largest.

@@ -85,6 +85,7 @@ from ..solver.reduction import pairwise_sum, run_level
 from ..solver.blocks import att_rows, spline_values, src_forward
 from ..solver import (BLOCK_STARS, AttitudeSpline, GlobalProblem, build_observations, frame_attitude,
                       in_block_order, make_blocks, precision_weights, solve_global, source_normals)
+from ..solver.calibration import BasicAngleColumns, basic_angle_columns, solve_with_calibration
 from ..solver.cg import chunk_values
 from ..solver.frame import frame_fit_sums, frame_from_sums, offsets_of
 from .global_classes import dead_time, star_transits
@@ -142,12 +143,22 @@ class PrimarySettings(GlobalSettings):
     allow_unconverged: bool = False
     frame_fit: str = "precision"
     evaluation_epoch: str = "reference"
+    basic_angle_harmonics: int = 0
 
     @property
     def criterion(self) -> dict:
         """The PCG stopping rule as :func:`~mcsweep.solver.solve_global`'s keywords."""
         return dict(rtol=self.rtol, update_tol_uas=self.update_tol_uas, error_tol=self.error_tol,
                     max_iter=self.max_iter)
+
+    def scaled_criterion(self, scale: float) -> dict:
+        """:attr:`criterion` with the energy rule's tolerance times ``scale`` (the absolute rule
+        unchanged): a solution the calibration's bordered system amplifies the error of
+        (:mod:`mcsweep.solver.calibration`, "Accuracy")."""
+        out = self.criterion
+        if self.error_tol is not None:
+            out["error_tol"] = self.error_tol * scale
+        return out
 
     def describe_criterion(self) -> str:
         """The stopping rule in words, for messages."""
@@ -177,6 +188,10 @@ def build_settings(config) -> PrimarySettings:
     if len(set(priors)) != len(priors) or not priors:
         raise UserInputError(f"experiment.primary.priors={list(priors)} is not accepted; expected a "
                              "non-empty list of distinct priors")
+    if pri.basic_angle_harmonics and config.execution.backend == "dask":
+        raise UserInputError(f"experiment.primary.basic_angle_harmonics={pri.basic_angle_harmonics} is not accepted "
+                             "with execution=dask (the calibration's design is made on this machine); expected 0, "
+                             "or execution.backend loky, threading or sequential")
     if max(list(pri.g_classes) + [pri.primary_g_min]) >= G_MAX:
         raise UserInputError(f"experiment.primary.g_classes={list(pri.g_classes)} / primary_g_min="
                              f"{pri.primary_g_min:g} is not accepted; expected magnitudes below {G_MAX:g}")
@@ -190,14 +205,16 @@ def build_settings(config) -> PrimarySettings:
         rtol=float(pri.solver_rtol), update_tol_uas=float(pri.solver_update_tol_uas),
         error_tol=None if pri.solver_error_tol is None else float(pri.solver_error_tol),
         max_iter=int(pri.solver_max_iter), allow_unconverged=bool(pri.allow_unconverged),
-        frame_fit=str(pri.frame_fit), evaluation_epoch=str(pri.evaluation_epoch))
+        frame_fit=str(pri.frame_fit), evaluation_epoch=str(pri.evaluation_epoch),
+        basic_angle_harmonics=int(pri.basic_angle_harmonics))
 
 
 # --------------------------------------------------------------------------- data
 def transits_of(job) -> tuple[int, dict]:
     """FoV transits of one chunk of stars (executor task): (chunk index, arrays)."""
     index, first, ra, dec, start_jd, end_jd, law = job
-    return index, star_transits(ra, dec, start_jd, end_jd, law, first=first)
+    # the field of view (1 byte per transit) for the basic-angle calibration (issue 24)
+    return index, star_transits(ra, dec, start_jd, end_jd, law, first=first, with_fov=True)
 
 
 @dataclasses.dataclass
@@ -226,6 +243,7 @@ class PreparedData:
     covered: np.ndarray      # (n_coef,) bool: spline coefficients with a measurement in their support
     n_rows: int | None = None  # measurements (None: h.size)
     naa_band: np.ndarray | None = None  # the attitude block's band when the blocks live on a cluster
+    calibration: BasicAngleColumns | None = None  # the basic-angle variation's design, problem order
     _problem: GlobalProblem | None = dataclasses.field(default=None, repr=False)
     _resident: tuple | None = dataclasses.field(default=None, repr=False)  # (key, DaskChunks)
 
@@ -447,6 +465,8 @@ def prepare(settings: PrimarySettings, stars: pd.DataFrame, transits: dict, *,
     ``with_noise=False`` leaves the measurement noise out (tests).
     """
     star, t, psi = transits["star"], transits["t"], transits["psi"]
+    harmonics = settings.basic_angle_harmonics
+    following = transits.get("following") if harmonics else None
     if star.size and np.any(np.diff(star) < 0):
         raise ValueError("transits must be sorted by star")
     dead = dead_time_of(settings)
@@ -466,25 +486,30 @@ def prepare(settings: PrimarySettings, stars: pd.DataFrame, transits: dict, *,
     true_att = _true_attitude(settings)
     counts = measurements_per_star(n_fov[solved], s_ac_star)
     h_all = np.empty(int(counts.sum()))
+    cal_omega, cal_weight = (np.zeros(h_all.size), np.zeros(h_all.size)) if harmonics else (None, None)
     blocks, normals = [], []
     rows = block_rows(counts, block_stars)
     for k, first in enumerate(range(0, solved.size, block_stars)):
         last = min(first + block_stars, solved.size)
-        blk, nrm, h = build_block(
+        blk, nrm, h, cal = build_block(
             BlockJob(first=first, ra=ra[first:last], dec=dec[first:last], x_true=x_true[first:last],
                      sigma_al_mas=s_al_star[first:last],
                      sigma_ac_mas=None if s_ac_star is None else s_ac_star[first:last],
                      noise_seed=stream_seed(settings.seed, NOISE_STREAM, k) if with_noise else None,
                      first_row=int(rows[k])),
-            *block_transits(star, t, psi, live, solved[first:last]), spline=spline, true_attitude=true_att,
-            t_ref_jd=t_ref, block_stars=block_stars)
+            *block_transits(star, t, psi, live, solved[first:last], following), spline=spline,
+            true_attitude=true_att, t_ref_jd=t_ref, block_stars=block_stars, law=settings.law, harmonics=harmonics)
         h_all[blk.rows] = h
+        if cal is not None:
+            cal_omega[blk.rows], cal_weight[blk.rows] = cal.omega, cal.weight
         blocks.append(blk)
         normals.append(nrm)
     return PreparedData(stars=stars, solved=solved, blocks=blocks,
                         normals=np.concatenate(normals) if normals else np.zeros((0, 5, 5)), h=h_all,
                         x_true=x_true, spline=spline, true_attitude=true_att, t_ref_jd=t_ref,
-                        dead=dead, covered=covered_coefficients(blocks, spline.n_coef))
+                        dead=dead, covered=covered_coefficients(blocks, spline.n_coef),
+                        calibration=None if not harmonics else
+                        BasicAngleColumns(omega=cal_omega, weight=cal_weight, harmonics=harmonics))
 
 
 def true_parameters(stars: pd.DataFrame, solved: np.ndarray) -> np.ndarray:
@@ -507,14 +532,15 @@ def block_rows(counts: np.ndarray, block_stars: int) -> np.ndarray:
     return np.concatenate([[0], np.cumsum(per_block)[:-1]]).astype(np.int64)
 
 
-def block_transits(star, t, psi, live, solved_block: np.ndarray):
+def block_transits(star, t, psi, live, solved_block: np.ndarray, following=None):
     """The live transits of one block's stars ``solved_block`` (sorted star indices) among
-    transits sorted by star that include all of theirs: (star within the block, t, psi)."""
+    transits sorted by star that include all of theirs: (star within the block, t, psi,
+    ``following`` of those transits or None)."""
     lo, hi = np.searchsorted(star, [solved_block[0], solved_block[-1] + 1])
     idx = np.searchsorted(solved_block, star[lo:hi])
     # (AL only: a star of one transit lies in the range without being solved)
     ok = live[lo:hi] & (solved_block[np.minimum(idx, solved_block.size - 1)] == star[lo:hi])
-    return idx[ok], t[lo:hi][ok], psi[lo:hi][ok]
+    return idx[ok], t[lo:hi][ok], psi[lo:hi][ok], None if following is None else following[lo:hi][ok]
 
 
 def covered_coefficients(blocks, n_coef: int) -> np.ndarray:
@@ -542,10 +568,14 @@ class BlockJob:
     first_row: int
 
 
-def build_block(job: BlockJob, star, t, psi, *, spline: AttitudeSpline, true_attitude: tuple, t_ref_jd: float,
-                block_stars: int):
+def build_block(job: BlockJob, star, t, psi, following=None, *, spline: AttitudeSpline, true_attitude: tuple,
+                t_ref_jd: float, block_stars: int, law=None, harmonics: int = 0):
     """One solver block from its stars' live transits (``star`` within the block, TCB JD ``t``,
-    scan angle ``psi`` [deg]): (StarBlock, data normal matrices (n, 5, 5), normalised measurements).
+    scan angle ``psi`` [deg]): (StarBlock, data normal matrices (n, 5, 5), normalised
+    measurements, calibration design). The last is None, or with ``harmonics > 0`` the
+    block's part of a basic-angle variation of the scanning ``law``
+    (:func:`~mcsweep.solver.calibration.basic_angle_columns`, from each transit's field of
+    view ``following``), in the block's order.
 
     The same function wherever the block is built (in the driver, :func:`prepare`, or on a Dask
     worker, :mod:`~mcsweep.experiments.primary_cluster`), so the data are the same bits. The
@@ -560,8 +590,16 @@ def build_block(job: BlockJob, star, t, psi, *, spline: AttitudeSpline, true_att
                              spline=spline)
     # Observation order = block order: each block's measurements are then a contiguous
     # slice of h, read as a view by the solver (no index array, no per-solution copy).
-    (blk,) = in_block_order(make_blocks(obs, job.ra, job.dec, block_stars=block_stars, first_star=job.first),
-                            job.first_row)
+    (blk,) = make_blocks(obs, job.ra, job.dec, block_stars=block_stars, first_star=job.first)
+    cal = None
+    if harmonics:
+        # obs holds the AL measurements in transit order, then the AC ones (build_observations),
+        # which get weight zero (any transit index in range serves them)
+        order = blk.rows
+        transit = np.where(order < t.size, order, order - t.size)
+        cal = basic_angle_columns(obs.tcb_jd[order], np.asarray(following)[transit],
+                                  job.sigma_al_mas[star[transit]], obs.is_ac[order], law, harmonics)
+    (blk,) = in_block_order([blk], job.first_row)
     normals = source_normals(obs)
     del obs
     rot = _rotation(true_attitude, _block_epochs(t_ref_jd, blk))  # (m, 3) [mas]
@@ -570,7 +608,7 @@ def build_block(job: BlockJob, star, t, psi, *, spline: AttitudeSpline, true_att
         h += rows * rot[:, c]
     if job.noise_seed is not None:
         h += np.random.default_rng(job.noise_seed).standard_normal(h.size)
-    return blk, normals, h
+    return blk, normals, h, cal
 
 
 def attitude_error(data: PreparedData, coef, eps, omega, tcb_jd, estimated=None) -> np.ndarray:
@@ -668,8 +706,17 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
             stars = [slice(data.blocks[lo].first, data.blocks[hi - 1].first + data.blocks[hi - 1].n)
                      for lo, hi in ranges]
             resident = data.resident(dask_client, ranges).with_inverses([problem.src_inv[sl] for sl in stars])
-        sol = solve_global(problem, data.h, **settings.criterion, log=log, chunk_stars=chunk_stars, residuals=False,
-                           workers=workers, resident_chunks=resident)
+        calibrated = None
+        if data.calibration is not None:  # issue 24, candidate 3 (mcsweep.solver.calibration)
+            calibrated = solve_with_calibration(
+                lambda h, log, scale: solve_global(problem, h, **settings.scaled_criterion(scale), log=log,
+                                                   chunk_stars=chunk_stars, residuals=True, workers=workers,
+                                                   resident_chunks=resident),
+                data.h, data.calibration, log=log)
+            sol = calibrated.solution
+        else:
+            sol = solve_global(problem, data.h, **settings.criterion, log=log, chunk_stars=chunk_stars,
+                               residuals=False, workers=workers, resident_chunks=resident)
         views = [slice(b.first, b.first + b.n) for b in data.blocks]
         dx = sol.x - data.x_true
         eps, omega = frame_from_sums(pairwise_sum(
@@ -700,6 +747,11 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
              "frame_rotation_mas": eps.tolist(), "frame_spin_mas_yr": omega.tolist(),
              "residual_rms": sol.residual_rms,
              "seconds": float(sol.history[-1].seconds) if sol.history else 0.0}
+    if not data.on_cluster and calibrated is not None:
+        extra["basic_angle_mas"] = dict(zip(data.calibration.names(), calibrated.c.tolist()))
+        extra["solutions_iterations"] = calibrated.iterations
+        extra["calibration_condition"] = calibrated.condition
+        extra["calibration_amplification"] = calibrated.amplification
     if resident is not None and sol.history:  # what travelled per iteration (issue 27), measured:
         # the iterations' passes only (the one-off setup and residual passes apart)
         sent, received = resident.bytes_per_call("_forward_task", "_back_task", "_direction_task")

@@ -86,7 +86,7 @@ def _build_chunk(spec: dict, spline, true_attitude, dead, *parts) -> tuple:
     live = ~dead.is_dead(t)
     blocks, hs, normals = [], [], []
     for job, solved_block in zip(spec["jobs"], spec["solved"]):
-        blk, nrm, h = build_block(job, *block_transits(star, t, psi, live, solved_block), spline=spline,
+        blk, nrm, h, _ = build_block(job, *block_transits(star, t, psi, live, solved_block), spline=spline,
                                   true_attitude=true_attitude, t_ref_jd=spec["t_ref_jd"],
                                   block_stars=spec["block_stars"])
         blocks.append(blk)

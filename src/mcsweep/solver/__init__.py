@@ -29,8 +29,10 @@ resident
     Forked chunk workers that keep their blocks (the passes on one machine's cores).
 direct
     The same normal equations by sparse LU (tests' and benchmarks' reference).
+calibration
+    A basic-angle variation solved with the stars and the attitude (its Schur complement).
 
-Only :mod:`mcsweep.astrometry` (and :mod:`mcsweep.scanning` through it) is imported.
+Only :mod:`mcsweep.astrometry` and :mod:`mcsweep.scanning` are imported.
 """
 
 from .attitude_spline import AttitudeSpline

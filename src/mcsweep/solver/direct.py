@@ -39,8 +39,12 @@ def sparse_design(star, src, att, j0, bval, n_stars: int, n_coef: int) -> sp.csr
     return sp.csr_matrix((vals, (rows, cols)), shape=(m, 5 * n_stars + 3 * n_coef))
 
 
-def solve_direct(problem, h) -> tuple[np.ndarray, np.ndarray, sp.csr_matrix]:
+def solve_direct(problem, h, extra_columns=None) -> tuple[np.ndarray, np.ndarray, sp.csr_matrix]:
     """Direct solution of ``problem`` (a :class:`~.cg.GlobalProblem`) for measurements ``h``.
+
+    ``extra_columns`` (m, k): further unknowns without prior or frame constraint, their
+    normalised partials (the calibration of :mod:`.calibration`), solved with the rest and
+    returned after them in ``x`` (and ``A``).
 
     Returns
     -------
@@ -53,8 +57,8 @@ def solve_direct(problem, h) -> tuple[np.ndarray, np.ndarray, sp.csr_matrix]:
         The design matrix restricted to ``free`` (for other reference solvers, e.g. lsqr).
     """
     n = problem.n_stars
-    A, free = _free_design(problem)
-    nf = int(free.sum())
+    A, free = _free_design(problem, extra_columns)
+    nf = A.shape[1]
     N = (A.T @ A).tocsc() + sp.diags(np.concatenate([problem.prior.ravel(), np.zeros(nf - 5 * n)]))
     C, W = _frame_rows(problem, nf)
     kkt = sp.bmat([[N, sp.csr_matrix(C).T], [sp.csr_matrix(C), -W]]).tocsc()
@@ -73,12 +77,15 @@ def solve_direct(problem, h) -> tuple[np.ndarray, np.ndarray, sp.csr_matrix]:
     return y[:nf], free, A
 
 
-def _free_design(problem) -> tuple[sp.csr_matrix, np.ndarray]:
+def _free_design(problem, extra_columns=None) -> tuple[sp.csr_matrix, np.ndarray]:
     """The design matrix over the unknowns not held at zero, and which those are (every star
-    parameter, the attitude coefficients with data)."""
+    parameter, the attitude coefficients with data), with ``extra_columns`` appended."""
     n = problem.n_stars
     free = np.concatenate([np.ones(5 * n, bool), problem.free.ravel()])
-    return sparse_design(*problem.design(), n, problem.n_coef)[:, free], free
+    A = sparse_design(*problem.design(), n, problem.n_coef)[:, free]
+    if extra_columns is not None:
+        A = sp.hstack([A, sp.csr_matrix(np.asarray(extra_columns, dtype=float))]).tocsr()
+    return A, free
 
 
 def _frame_rows(problem, nf: int) -> tuple[np.ndarray, sp.dia_matrix]:
@@ -93,12 +100,13 @@ def _frame_rows(problem, nf: int) -> tuple[np.ndarray, sp.dia_matrix]:
     return C, sp.diags(np.r_[np.full(3, 1 / problem.w_pos), np.full(3, 1 / problem.w_pm)])
 
 
-def normal_norm(problem, dx) -> float:
+def normal_norm(problem, dx, extra_columns=None) -> float:
     """``sqrt(dx' (N + F) dx)`` for a vector ``dx`` of the free unknowns (order of
-    :func:`solve_direct`'s ``x``): the norm in which the solver's energy criterion measures
-    the error, from the design matrix, prior and constraint rows (``N`` never formed)."""
+    :func:`solve_direct`'s ``x``, with ``extra_columns`` as there): the norm in which the
+    solver's energy criterion measures the error, from the design matrix, prior and
+    constraint rows (``N`` never formed)."""
     n = problem.n_stars
-    A, _ = _free_design(problem)
+    A, _ = _free_design(problem, extra_columns)
     dx = np.asarray(dx, dtype=float)
     C, W = _frame_rows(problem, dx.size)
     c = C @ dx

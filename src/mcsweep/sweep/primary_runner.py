@@ -108,7 +108,7 @@ def _transits(run: GlobalRun, stars: pd.DataFrame) -> dict:
     # release_workers: the transit search's processes would idle, holding their memory,
     # through the solutions, which fork workers of their own.
     found = dict(run.map("transits", transits_of, jobs, release_workers=True))
-    return {k: np.concatenate([found[i][k] for i in range(len(jobs))]) for k in ("star", "t", "psi")}
+    return {k: np.concatenate([found[i][k] for i in range(len(jobs))]) for k in ("star", "t", "psi", "following")}
 
 
 @dataclasses.dataclass
@@ -267,7 +267,7 @@ def _aggregate(run: GlobalRun, computed: _Computed) -> dict[str, str]:
              f"random spline rotation on a {pri.attitude_timescale_hours:g} h time scale."
              + (" Positions evaluated at each star's own mean epoch of its live transits "
                 "(experiment.primary.evaluation_epoch=star_mean)." if settings.evaluation_epoch == "star_mean" else ""),
-             *filter(None, [few_transit_spans(data.stars, pri.g_classes)]),
+             *filter(None, [few_transit_spans(data.stars, pri.g_classes), calibration_note(pri, extras)]),
              "PCG iterations / attitude error RMS (x, y, z) [uas] after the frame correction: "
              + "; ".join(f"{k}: {e['iterations']} ({'converged' if e['converged'] else 'NOT converged'}), "
                          + ", ".join(f"{v:.2f}" for v in e["attitude_rms_uas"]) for k, e in extras.items())
@@ -280,6 +280,20 @@ def _aggregate(run: GlobalRun, computed: _Computed) -> dict[str, str]:
     if attitude:
         outputs["primary_attitude_error.csv"] = pd.concat(attitude, ignore_index=True).to_csv(index=False)
     return outputs
+
+
+def calibration_note(pri, extras: dict) -> str | None:
+    """The calibration solved with the stars and attitude (issue 24, candidate 3), per prior."""
+    if not pri.basic_angle_harmonics:
+        return None
+    per = "; ".join(f"{k}: " + ", ".join(f"{n} {1e3 * v:.2f}" for n, v in e.get("basic_angle_mas", {}).items())
+                    + f" (PCG iterations {' + '.join(str(i) for i in e.get('solutions_iterations', []))}: the "
+                    f"calibration columns', then the measurements'; condition of S "
+                    f"{e.get('calibration_condition', float('nan')):.3g}, error amplification "
+                    f"{e.get('calibration_amplification', float('nan')):.3g})" for k, e in extras.items())
+    return (f"Calibration: a basic-angle variation with {pri.basic_angle_harmonics} harmonic(s) of the spin phase "
+            f"solved with the stars and the attitude (experiment.primary.basic_angle_harmonics; its cos Omega "
+            f"term is degenerate with a shift of every parallax, Butkevich et al. 2017). Fitted [uas]: {per}.")
 
 
 #: The primary experiment on the global path (:func:`~mcsweep.sweep.global_runner.run_global`).

@@ -359,6 +359,11 @@ class RealSkyConf:
                  "a positive, finite multiplier")
 
 
+#: Most harmonics of the spin phase in a basic-angle variation solved with the primary
+#: solution: each costs two more solutions of the normal equations (mcsweep.solver.calibration).
+MAX_BASIC_ANGLE_HARMONICS = 8
+
+
 @dataclass
 class PrimaryConf:
     """One-year global solution with the attitude of Sect. 4.2 (Table 3); documented in
@@ -388,9 +393,13 @@ class PrimaryConf:
     factor_resamples: int = 200
     frame_fit: str = "precision"
     evaluation_epoch: str = "reference"
+    basic_angle_harmonics: int = 0
 
     def __post_init__(self):
         _check_reference_epoch("experiment.primary.reference_epoch", self.reference_epoch)
+        _require(isinstance(self.basic_angle_harmonics, int) and 0 <= self.basic_angle_harmonics <= MAX_BASIC_ANGLE_HARMONICS,
+                 "experiment.primary.basic_angle_harmonics", self.basic_angle_harmonics,
+                 f"an integer 0 (no calibration unknowns) to {MAX_BASIC_ANGLE_HARMONICS} (harmonics of the spin phase)")
         _require(self.evaluation_epoch in ("reference", "star_mean"), "experiment.primary.evaluation_epoch",
                  self.evaluation_epoch, "'reference' (the solution's epoch) or 'star_mean' (each star's mean "
                  "epoch of its transits)")

@@ -1,0 +1,166 @@
+"""A basic-angle variation solved with the stars and the attitude (issue 24, candidate 3).
+
+AGIS solves calibration unknowns together with the sources and the attitude (its C block:
+Lindegren et al. 2012, A&A 538, A78); the paper's global solutions came from AGISLab, the
+same group's simulator of AGIS. One calibration matters here above the others: a variation of the basic
+angle Gamma between the two fields of view with the heliotropic spin phase Omega,
+
+    delta Gamma(t) = sum_{j = 1..K} (c_j cos j Omega + s_j sin j Omega),
+
+which shifts every AL measurement of the preceding field by +delta Gamma / 2 and of the
+following field by -delta Gamma / 2 (AC measurements do not see it). Its ``cos Omega`` term
+cannot be told apart from a shift of every parallax (Butkevich et al. 2017, A&A 603, A45):
+at a transit the AL effect of a parallax ``d plx`` is ``-d plx sin xi sin(Omega' +- Gamma/2)``
+(xi the solar aspect angle, Omega' the spin phase from the Sun's direction), whose part
+common to both fields is a rotation of the attitude about the spin axis and whose
+difference is ``delta Gamma = -2 d plx sin xi sin(Gamma/2) cos Omega'``; the AC effect,
+``d plx cos xi``, is the same in both fields, a rotation about the SRS y axis. So with these
+unknowns the data no longer fix the parallax zero point: the priors do (in the paper's
+solution every star has one, centred on zero while every true parallax is positive), and
+whatever else the near-degenerate mode holds takes the bias with it. The test
+``test_a_shift_of_every_parallax_is_a_basic_angle_variation`` checks the degeneracy on the
+scanning law's own geometry.
+
+How it is solved. The ``n_cal = 2 K`` calibration unknowns ``c`` couple to every
+measurement, so they are not put into the banded blocks of :mod:`.cg`: with ``A`` the
+design of the stars and the attitude, ``A_c`` that of the calibration (normalised like the
+measurements) and ``N`` the normal matrix of :mod:`.cg` (prior and frame included), the
+bordered system
+
+    [[N, A' A_c], [A_c' A, A_c' A_c]] [x; c] = [A' h; A_c' h]
+
+is solved through the calibration's Schur complement: ``x_0 = N^-1 A' h`` and
+``X_l = N^-1 A' a_l`` for every column ``a_l`` of ``A_c`` (each one :func:`.cg.solve_global`
+with the column as its measurements), then with the residuals ``r_0 = h - A x_0`` and
+``r_l = a_l - A X_l``
+
+    S c = A_c' r_0,   S_kl = a_k' r_l   (= A_c' A_c - A_c' A N^-1 A' A_c),
+
+and ``x = x_0 - X c``; the residuals of the whole solution are ``r_0 - sum_l c_l r_l``. The
+extra cost is ``n_cal`` more solutions of the same normal equations, and the residual of
+each (8 bytes per measurement) held until the end. The per-star covariances stay those of
+:mod:`.cg` (attitude and calibration as known), as the paper's Table 3 evaluates them.
+
+Accuracy. Each solution stops on the energy rule of :mod:`.cg` (error below a fraction of
+the formal uncertainties in the norm of ``N``). The error ``e`` of ``x_0 - X c`` reaches the
+calibration through ``A_c' A e``, and in the norm of the bordered system it grows by at most
+``1 + cot theta``, ``theta`` the smallest principal angle between the calibration columns and
+the span of the stars' and attitude's design (in the metric of ``N``): ``cot^2 theta =
+1 / lambda - 1`` with ``lambda`` the smallest eigenvalue of ``S`` relative to ``A_c' A_c``.
+Near the degeneracy above ``theta`` is small, so the columns are solved first and ``x_0``
+then with its tolerance divided by ``1 + cot theta`` (``amplification``; the columns' own
+errors enter multiplied by ``c``, micro-arcseconds here). Checked against a direct solve of
+the bordered system in ``tests/solver/test_calibration.py``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from ..scanning.attitude import attitude_for
+
+__all__ = ["BasicAngleColumns", "basic_angle_columns", "CalibratedSolution", "solve_with_calibration"]
+
+
+@dataclasses.dataclass
+class BasicAngleColumns:
+    """The calibration design of a basic-angle variation with ``harmonics`` harmonics of the
+    spin phase, kept compactly: per measurement the spin phase ``omega`` [rad] and the weight
+    ``+1/2`` (preceding field) or ``-1/2`` (following) over the AL uncertainty [1/mas], zero for
+    AC measurements; column ``2 (j - 1)`` is ``weight cos j omega``, ``2 j - 1`` its ``sin``."""
+
+    omega: np.ndarray
+    weight: np.ndarray
+    harmonics: int
+
+    @property
+    def n_cal(self) -> int:
+        return 2 * self.harmonics
+
+    def column(self, k: int) -> np.ndarray:
+        j = k // 2 + 1
+        return self.weight * (np.cos(j * self.omega) if k % 2 == 0 else np.sin(j * self.omega))
+
+    def names(self) -> list[str]:
+        return [f"{'cos' if k % 2 == 0 else 'sin'} {k // 2 + 1} Omega" for k in range(self.n_cal)]
+
+
+def basic_angle_columns(tcb_jd, following, sigma_al_mas, is_ac, law, harmonics: int) -> BasicAngleColumns:
+    """:class:`BasicAngleColumns` of measurements at ``tcb_jd`` in the ``following`` field (bool)
+    with AL uncertainty ``sigma_al_mas``; ``is_ac`` rows get weight zero; ``law``: the
+    scanning law whose spin phase the variation follows."""
+    t = np.asarray(tcb_jd, dtype=float)
+    _, _, omega = attitude_for(law).lam_nu_omega(t)
+    sign = np.where(np.asarray(following, dtype=bool), -0.5, 0.5)
+    weight = np.where(np.asarray(is_ac, dtype=bool), 0.0, sign / np.asarray(sigma_al_mas, dtype=float))
+    return BasicAngleColumns(omega=np.asarray(omega, dtype=float), weight=weight, harmonics=int(harmonics))
+
+
+@dataclasses.dataclass
+class CalibratedSolution:
+    """The solution with calibration unknowns: ``solution`` (a :class:`.cg.GlobalSolution`
+    whose ``x`` and ``attitude`` are those of the whole system and whose ``history`` holds the
+    ``1 + n_cal`` solutions' iterations one after the other, the calibration columns' first),
+    the calibration ``c`` [mas], the iterations of each solution, the condition number of
+    ``S``, and ``amplification`` (module notes, "Accuracy"; 0 without calibration)."""
+
+    solution: object
+    c: np.ndarray
+    iterations: list
+    condition: float
+    amplification: float
+
+
+def solve_with_calibration(solve, h, columns: BasicAngleColumns, *, log=None) -> CalibratedSolution:
+    """Solve stars, attitude and the calibration ``columns`` together (module notes).
+
+    ``solve(h, log, scale)`` is one solution of the normal equations of the stars and attitude
+    for measurements ``h`` (:func:`.cg.solve_global` with the problem and the executor
+    bound), asked to return its residuals, with its error tolerance multiplied by ``scale``.
+    """
+    n = columns.n_cal
+    sols, residuals = [], []
+    for k in range(n):
+        s = solve(columns.column(k), log, 1.0)
+        sols.append(s)
+        residuals.append(s.residuals)
+        s.residuals = None
+    S, D = np.empty((n, n)), np.empty((n, n))
+    for k in range(n):
+        a = columns.column(k)
+        for l in range(n):
+            S[k, l] = math.fsum(a * residuals[l])
+            D[k, l] = math.fsum(a * columns.column(l))
+    S = 0.5 * (S + S.T)  # symmetric in exact arithmetic; the solutions' truncation is not
+    if n:
+        lam = _generalized_eigvalsh(S, D)
+        eig = np.linalg.eigvalsh(S)
+        amplification = math.sqrt(max(1.0 / lam[0] - 1.0, 0.0)) if lam[0] > 0 else math.inf
+    else:
+        eig, amplification = np.ones(1), 0.0
+    base = solve(h, log, 1.0 / (1.0 + amplification) if math.isfinite(amplification) else 0.0)
+    rhs = np.array([math.fsum(columns.column(k) * base.residuals) for k in range(n)])
+    c = np.linalg.solve(S, rhs) if n else np.zeros(0)
+    sol = dataclasses.replace(base)
+    sol.x = base.x - sum((ck * s.x for ck, s in zip(c, sols)), np.zeros_like(base.x))
+    sol.attitude = base.attitude - sum((ck * s.attitude for ck, s in zip(c, sols)), np.zeros_like(base.attitude))
+    r = base.residuals - sum((ck * rk for ck, rk in zip(c, residuals)), np.zeros_like(base.residuals))
+    sol.residuals = r
+    sol.residual_rms = float(np.sqrt(np.mean(r ** 2))) if r.size else 0.0
+    sol.history = [rec for s in sols for rec in s.history] + list(base.history)
+    sol.converged = bool(base.converged and all(s.converged for s in sols))
+    return CalibratedSolution(solution=sol, c=c, iterations=[len(s.history) for s in sols] + [len(base.history)],
+                              condition=float(eig[-1] / eig[0]) if eig[0] > 0 else math.inf,
+                              amplification=amplification)
+
+
+def _generalized_eigvalsh(S, D) -> np.ndarray:
+    """Eigenvalues of ``S`` relative to ``D`` (both symmetric, ``D`` positive definite),
+    ascending: ``1 - cos^2`` of the principal angles between the calibration columns and
+    the span of the stars' and attitude's design, in the metric of ``N``."""
+    L = np.linalg.cholesky(D)
+    Li = np.linalg.inv(L)
+    return np.linalg.eigvalsh(Li @ S @ Li.T)

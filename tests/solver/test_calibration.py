@@ -98,3 +98,21 @@ def test_the_calibrated_solution_is_the_direct_solution(gapped_problem, sigma_ma
     assert err <= ERROR_TOL
     resid = h - problem.forward(problem.join(cal.solution.x, cal.solution.attitude)) - E @ cal.c
     np.testing.assert_allclose(cal.solution.residuals, resid, rtol=0, atol=1e-9 * np.abs(h).max())
+
+
+def test_a_calibration_the_data_do_not_fix_is_an_error_not_a_solution():
+    # A column the rest of the design takes up entirely leaves S = 0 (here, with rounding of
+    # the solutions, slightly negative): no amplification bound exists and the solution stops.
+    from types import SimpleNamespace
+
+    from mcsweep.solver.calibration import BasicAngleColumns, CalibrationNotDetermined
+
+    rng = np.random.default_rng(1)
+    cols = BasicAngleColumns(omega=rng.uniform(0, 2 * np.pi, 50), weight=rng.normal(size=50), harmonics=1)
+
+    def solve(h, log, scale):  # a solution that explains every column but for a sign of rounding
+        return SimpleNamespace(x=np.zeros((1, 5)), attitude=np.zeros((1, 3)), residuals=-1e-12 * h, history=[],
+                               converged=True, residual_rms=0.0)
+
+    with pytest.raises(CalibrationNotDetermined, match="not determined by the data"):
+        solve_with_calibration(solve, np.ones(50), cols)

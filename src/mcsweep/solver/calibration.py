@@ -62,7 +62,19 @@ import numpy as np
 
 from ..scanning.attitude import attitude_for
 
-__all__ = ["BasicAngleColumns", "basic_angle_columns", "CalibratedSolution", "solve_with_calibration"]
+__all__ = ["BasicAngleColumns", "basic_angle_columns", "CalibratedSolution", "CalibrationNotDetermined",
+           "solve_with_calibration"]
+
+
+class CalibrationNotDetermined(np.linalg.LinAlgError):
+    """The calibration's Schur complement is not positive definite: some combination of the
+    calibration unknowns is not fixed by the data and the priors (to the solutions'
+    accuracy). ``smallest``: its smallest eigenvalue relative to ``A_c' A_c``."""
+
+    def __init__(self, smallest: float):
+        super().__init__(f"the calibration is not determined by the data: the smallest eigenvalue of its Schur "
+                         f"complement relative to A_c' A_c is {smallest:.3g}")
+        self.smallest = float(smallest)
 
 
 @dataclasses.dataclass
@@ -137,11 +149,15 @@ def solve_with_calibration(solve, h, columns: BasicAngleColumns, *, log=None) ->
     S = 0.5 * (S + S.T)  # symmetric in exact arithmetic; the solutions' truncation is not
     if n:
         lam = _generalized_eigvalsh(S, D)
+        if not lam[0] > 0:
+            raise CalibrationNotDetermined(lam[0])
         eig = np.linalg.eigvalsh(S)
-        amplification = math.sqrt(max(1.0 / lam[0] - 1.0, 0.0)) if lam[0] > 0 else math.inf
+        amplification = math.sqrt(max(1.0 / lam[0] - 1.0, 0.0))
     else:
         eig, amplification = np.ones(1), 0.0
-    base = solve(h, log, 1.0 / (1.0 + amplification) if math.isfinite(amplification) else 0.0)
+    base = solve(h, log, 1.0 / (1.0 + amplification))
+    if base.residuals is None:
+        raise ValueError("solve(h, log, scale) must return the residuals of its solution")
     rhs = np.array([math.fsum(columns.column(k) * base.residuals) for k in range(n)])
     c = np.linalg.solve(S, rhs) if n else np.zeros(0)
     sol = dataclasses.replace(base)
@@ -153,7 +169,7 @@ def solve_with_calibration(solve, h, columns: BasicAngleColumns, *, log=None) ->
     sol.history = [rec for s in sols for rec in s.history] + list(base.history)
     sol.converged = bool(base.converged and all(s.converged for s in sols))
     return CalibratedSolution(solution=sol, c=c, iterations=[len(s.history) for s in sols] + [len(base.history)],
-                              condition=float(eig[-1] / eig[0]) if eig[0] > 0 else math.inf,
+                              condition=float(eig[-1] / eig[0]),
                               amplification=amplification)
 
 

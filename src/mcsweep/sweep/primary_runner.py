@@ -30,6 +30,7 @@ from ..experiments.primary_cluster import prepare_on_cluster
 from ..experiments.primary_factor import factor_curves, factor_label, factor_rows, overall_factor
 from ..experiments.primary_table import table3_markdown, table3_rows
 from ..solver import AttitudeNotDetermined
+from ..solver.calibration import CalibrationNotDetermined
 from .execution import dask_client, release_free_memory
 from .global_runner import GlobalExperiment, GlobalRun, run_global
 from .store import atomic_write_bytes
@@ -154,6 +155,13 @@ def _solve(run: GlobalRun, data, label: str, client: Callable) -> None:
                 f"{exc.axis}) is not determined by the data under this prior, {knot_rule(run.section)} "
                 f"({data.transits_per_knot:.3g} FoV transits per knot on average); no table3 written, the "
                 f"solutions finished before it are kept; accepted: {_fewer_knots(run.section)}") from None
+        except CalibrationNotDetermined as exc:
+            # The same kind of end (mcsweep.solver.calibration): the variation's Schur complement
+            # is not positive definite to the solutions' accuracy under this prior.
+            raise NotConvergedError(
+                f"the {label} solution cannot fix experiment.primary.basic_angle_harmonics="
+                f"{settings.basic_angle_harmonics}: {exc}; no table3 written, the solutions finished before it "
+                "are kept; accepted: fewer harmonics, or 0 (no calibration unknowns)") from None
         atomic_write_bytes(run.chunks / f"{cid}_history.csv", hist.to_csv(index=False).encode())
         if not extra["converged"] and not settings.allow_unconverged:
             # Not a result (Table 3 would tabulate a solution PCG did not reach): only its

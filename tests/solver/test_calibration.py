@@ -14,7 +14,7 @@ from scipy.sparse.linalg import spsolve
 from mcsweep.astrometry.solve import prior_diagonal
 from mcsweep.scanning.ephemeris import gaia_position_au
 from mcsweep.solver import GlobalProblem, solve_global
-from mcsweep.solver.calibration import basic_angle_columns, solve_with_calibration
+from mcsweep.solver.calibration import MAX_ROUNDS, basic_angle_columns, solve_with_calibration
 from mcsweep.solver.direct import normal_norm, solve_direct, sparse_design
 
 from .conftest import LAW, make_problem
@@ -94,7 +94,8 @@ def test_the_calibrated_solution_is_the_direct_solution(gapped_problem, sigma_ma
     print(f"{sigma_mas} mas, {harmonics} harmonic(s): iterations {cal.iterations}, condition {cal.condition:.3g}, "
           f"amplification {cal.amplification:.3g}, "
           f"|x - x*|_N = {err:.2e}")
-    assert cal.solution.converged and len(cal.iterations) == 1 + 2 * harmonics
+    # a variation of ~1 mas: the columns' solutions are made again, tighter (module notes, "Accuracy")
+    assert cal.solution.converged and 1 + 2 * 2 * harmonics <= len(cal.iterations) <= MAX_ROUNDS * (1 + 2 * harmonics)
     assert err <= ERROR_TOL
     resid = h - problem.forward(problem.join(cal.solution.x, cal.solution.attitude)) - E @ cal.c
     np.testing.assert_allclose(cal.solution.residuals, resid, rtol=0, atol=1e-9 * np.abs(h).max())

@@ -712,7 +712,7 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
                 lambda h, log, scale: solve_global(problem, h, **settings.scaled_criterion(scale), log=log,
                                                    chunk_stars=chunk_stars, residuals=True, workers=workers,
                                                    resident_chunks=resident),
-                data.h, data.calibration, log=log)
+                data.h, data.calibration, log=log, scalable=settings.error_tol is not None)
             sol = calibrated.solution
         else:
             sol = solve_global(problem, data.h, **settings.criterion, log=log, chunk_stars=chunk_stars,

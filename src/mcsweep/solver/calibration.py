@@ -41,16 +41,22 @@ extra cost is ``n_cal`` more solutions of the same normal equations, and the res
 each (8 bytes per measurement) held until the end. The per-star covariances stay those of
 :mod:`.cg` (attitude and calibration as known), as the paper's Table 3 evaluates them.
 
-Accuracy. Each solution stops on the energy rule of :mod:`.cg` (error below a fraction of
-the formal uncertainties in the norm of ``N``). The error ``e`` of ``x_0 - X c`` reaches the
-calibration through ``A_c' A e``, and in the norm of the bordered system it grows by at most
-``1 + cot theta``, ``theta`` the smallest principal angle between the calibration columns and
-the span of the stars' and attitude's design (in the metric of ``N``): ``cot^2 theta =
-1 / lambda - 1`` with ``lambda`` the smallest eigenvalue of ``S`` relative to ``A_c' A_c``.
-Near the degeneracy above ``theta`` is small, so the columns are solved first and ``x_0``
-then with its tolerance divided by ``1 + cot theta`` (``amplification``; the columns' own
-errors enter multiplied by ``c``, micro-arcseconds here). Checked against a direct solve of
-the bordered system in ``tests/solver/test_calibration.py``.
+Accuracy. Each solution stops on the energy rule of :mod:`.cg`: its error below a fraction
+of the formal uncertainties in the norm of ``N`` (``tau``). With ``e`` the error of
+``x_0 - X c`` (``e = e_0 - sum_l c_l E_l`` from the solutions' errors ``e_0``, ``E_l``), the
+error of the whole solution in the norm of the bordered system is exactly
+
+    sqrt(e' N e + (A_c' A e)' S^-1 (A_c' A e))  <=  |e|_N / sin theta,
+
+``theta`` the smallest principal angle between the calibration columns and the span of the
+stars' and attitude's design in the metric of ``N`` (``sin^2 theta`` is the smallest
+eigenvalue of ``S`` relative to ``A_c' A_c``). Near the degeneracy above ``theta`` is small.
+So the columns are solved first (``tau``), then the data with ``tau sin theta / 2``; if
+``sum |c_l|`` [mas] times the columns' tolerance exceeds that too, the columns are solved
+again with ``tau sin theta / (2 sum |c_l|)`` (and the data again if ``theta`` moved): then
+``|e|_N <= tau sin theta`` and the whole solution is within ``tau`` of the exact one, the
+rule every solution of the experiment keeps. ``amplification`` is ``1 / sin theta``.
+Checked against a direct solve of the bordered system in ``tests/solver/test_calibration.py``.
 """
 
 from __future__ import annotations
@@ -64,6 +70,13 @@ from ..scanning.attitude import attitude_for
 
 __all__ = ["BasicAngleColumns", "basic_angle_columns", "CalibratedSolution", "CalibrationNotDetermined",
            "solve_with_calibration"]
+
+
+#: Rounds of solutions at most: the columns' solutions are made again, tighter, when the
+#: fitted calibration turns out large (module notes, "Accuracy"); one more is rarely needed.
+MAX_ROUNDS = 3
+#: Tightening beyond the bound, so that the slightly different ``c`` of the new round meets it.
+TIGHTENING_MARGIN = 0.2
 
 
 class CalibrationNotDetermined(np.linalg.LinAlgError):
@@ -126,50 +139,61 @@ class CalibratedSolution:
     amplification: float
 
 
-def solve_with_calibration(solve, h, columns: BasicAngleColumns, *, log=None) -> CalibratedSolution:
+def solve_with_calibration(solve, h, columns: BasicAngleColumns, *, log=None,
+                           scalable: bool = True) -> CalibratedSolution:
     """Solve stars, attitude and the calibration ``columns`` together (module notes).
 
     ``solve(h, log, scale)`` is one solution of the normal equations of the stars and attitude
     for measurements ``h`` (:func:`.cg.solve_global` with the problem and the executor
     bound), asked to return its residuals, with its error tolerance multiplied by ``scale``.
+    The tolerances are set so that the whole solution meets the one asked (module notes,
+    "Accuracy"): the columns' solutions are made again, tighter, when ``c`` turns out large.
+    ``scalable=False`` (a stopping rule without a relative tolerance, which ``scale`` leaves
+    alone): one solution each, at the rule as given.
     """
     n = columns.n_cal
-    sols, residuals = [], []
-    for k in range(n):
-        s = solve(columns.column(k), log, 1.0)
-        sols.append(s)
-        residuals.append(s.residuals)
-        s.residuals = None
-    S, D = np.empty((n, n)), np.empty((n, n))
-    for k in range(n):
-        a = columns.column(k)
-        for l in range(n):
-            S[k, l] = math.fsum(a * residuals[l])
-            D[k, l] = math.fsum(a * columns.column(l))
-    S = 0.5 * (S + S.T)  # symmetric in exact arithmetic; the solutions' truncation is not
-    if n:
-        lam = _generalized_eigvalsh(S, D)
+    D = np.array([[math.fsum(columns.column(k) * columns.column(l)) for l in range(n)] for k in range(n)])
+    history, iterations = [], []
+    col_scale, base, base_scale = 1.0, None, math.inf
+    for _ in range(MAX_ROUNDS):
+        sols, residuals = [], []
+        for k in range(n):
+            s = solve(columns.column(k), log, col_scale)
+            sols.append(s)
+            residuals.append(s.residuals)
+            s.residuals = None
+            history += s.history
+            iterations.append(len(s.history))
+        S = np.array([[math.fsum(columns.column(k) * residuals[l]) for l in range(n)] for k in range(n)])
+        S = 0.5 * (S + S.T)  # symmetric in exact arithmetic; the solutions' truncation is not
+        lam = _generalized_eigvalsh(S, D) if n else np.ones(1)
         if not lam[0] > 0:
             raise CalibrationNotDetermined(lam[0])
-        eig = np.linalg.eigvalsh(S)
-        amplification = math.sqrt(max(1.0 / lam[0] - 1.0, 0.0))
-    else:
-        eig, amplification = np.ones(1), 0.0
-    base = solve(h, log, 1.0 / (1.0 + amplification))
-    if base.residuals is None:
-        raise ValueError("solve(h, log, scale) must return the residuals of its solution")
-    rhs = np.array([math.fsum(columns.column(k) * base.residuals) for k in range(n)])
-    c = np.linalg.solve(S, rhs) if n else np.zeros(0)
+        amplification = 1.0 / math.sqrt(min(lam[0], 1.0))
+        if base is None or (scalable and base_scale > 0.5 / amplification):
+            base_scale = 0.5 / amplification
+            base = solve(h, log, base_scale)
+            if base.residuals is None:
+                raise ValueError("solve(h, log, scale) must return the residuals of its solution")
+            history += base.history
+            iterations.append(len(base.history))
+        rhs = np.array([math.fsum(columns.column(k) * base.residuals) for k in range(n)])
+        c = np.linalg.solve(S, rhs) if n else np.zeros(0)
+        # error of x_0 - X c (in units of the tolerance) <= base_scale + col_scale sum |c| [mas]
+        if not scalable or col_scale * np.sum(np.abs(c)) <= 0.5 / amplification:
+            break
+        col_scale = 0.5 / (amplification * np.sum(np.abs(c))) * (1.0 - TIGHTENING_MARGIN)
     sol = dataclasses.replace(base)
     sol.x = base.x - sum((ck * s.x for ck, s in zip(c, sols)), np.zeros_like(base.x))
     sol.attitude = base.attitude - sum((ck * s.attitude for ck, s in zip(c, sols)), np.zeros_like(base.attitude))
     r = base.residuals - sum((ck * rk for ck, rk in zip(c, residuals)), np.zeros_like(base.residuals))
     sol.residuals = r
     sol.residual_rms = float(np.sqrt(np.mean(r ** 2))) if r.size else 0.0
-    sol.history = [rec for s in sols for rec in s.history] + list(base.history)
-    sol.converged = bool(base.converged and all(s.converged for s in sols))
-    return CalibratedSolution(solution=sol, c=c, iterations=[len(s.history) for s in sols] + [len(base.history)],
-                              condition=float(eig[-1] / eig[0]),
+    sol.history = history
+    met = not scalable or col_scale * np.sum(np.abs(c)) <= 0.5 / amplification
+    sol.converged = bool(met and base.converged and all(s.converged for s in sols))
+    eig = np.linalg.eigvalsh(S) if n else np.ones(1)
+    return CalibratedSolution(solution=sol, c=c, iterations=iterations, condition=float(eig[-1] / eig[0]),
                               amplification=amplification)
 
 

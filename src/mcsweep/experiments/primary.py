@@ -467,6 +467,9 @@ def prepare(settings: PrimarySettings, stars: pd.DataFrame, transits: dict, *,
     star, t, psi = transits["star"], transits["t"], transits["psi"]
     harmonics = settings.basic_angle_harmonics
     following = transits.get("following") if harmonics else None
+    if harmonics and following is None:
+        raise ValueError("the basic-angle calibration needs each transit's field of view: transits from "
+                         "transits_of (star_transits with with_fov=True)")
     if star.size and np.any(np.diff(star) < 0):
         raise ValueError("transits must be sorted by star")
     dead = dead_time_of(settings)
@@ -688,6 +691,7 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
     # astrometry sets the removed rotation (docs/table3.md, the candidate for the paper's
     # collapse); not the default.
     equal = settings.frame_fit != "precision"
+    calibrated = None
     if data.on_cluster:  # everything per star stays on the workers (issue 27)
         if dask_client is None:
             raise ValueError("these data live on a cluster's workers: solve them with its dask_client")
@@ -706,7 +710,6 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
             stars = [slice(data.blocks[lo].first, data.blocks[hi - 1].first + data.blocks[hi - 1].n)
                      for lo, hi in ranges]
             resident = data.resident(dask_client, ranges).with_inverses([problem.src_inv[sl] for sl in stars])
-        calibrated = None
         if data.calibration is not None:  # issue 24, candidate 3 (mcsweep.solver.calibration)
             calibrated = solve_with_calibration(
                 lambda h, log, scale: solve_global(problem, h, **settings.scaled_criterion(scale), log=log,
@@ -742,16 +745,19 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
     m = data.n_measurements
     hist = pd.DataFrame([dataclasses.asdict(r) for r in sol.history])
     hist.insert(0, "prior", label)
+    if calibrated is not None:  # which of the solutions each iteration belongs to
+        hist.insert(1, "solution", [name for name, h in calibrated.solutions for _ in h])
     extra = {"converged": bool(sol.converged), "iterations": len(sol.history),
              "attitude_rms_uas": (1e3 * np.sqrt(sq / m)).tolist() if m else [],
              "frame_rotation_mas": eps.tolist(), "frame_spin_mas_yr": omega.tolist(),
              "residual_rms": sol.residual_rms,
              "seconds": float(sol.history[-1].seconds) if sol.history else 0.0}
-    if not data.on_cluster and calibrated is not None:
+    if calibrated is not None:
         extra["basic_angle_mas"] = dict(zip(data.calibration.names(), calibrated.c.tolist()))
         extra["solutions_iterations"] = calibrated.iterations
         extra["calibration_condition"] = calibrated.condition
         extra["calibration_amplification"] = calibrated.amplification
+        extra["seconds"] = calibrated.seconds
     if resident is not None and sol.history:  # what travelled per iteration (issue 27), measured:
         # the iterations' passes only (the one-off setup and residual passes apart)
         sent, received = resident.bytes_per_call("_forward_task", "_back_task", "_direction_task")

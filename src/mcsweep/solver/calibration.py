@@ -44,7 +44,8 @@ each (8 bytes per measurement) held until the end. The per-star covariances stay
 Accuracy. Each solution stops on the energy rule of :mod:`.cg`: its error below a fraction
 of the formal uncertainties in the norm of ``N`` (``tau``). With ``e`` the error of
 ``x_0 - X c`` (``e = e_0 - sum_l c_l E_l`` from the solutions' errors ``e_0``, ``E_l``), the
-error of the whole solution in the norm of the bordered system is exactly
+error of the whole solution in the norm of the bordered system is (exactly, with ``c`` solved
+from ``S`` as made, not from its symmetric part)
 
     sqrt(e' N e + (A_c' A e)' S^-1 (A_c' A e))  <=  |e|_N / sin theta,
 
@@ -55,7 +56,8 @@ So the columns are solved first (``tau``), then the data with ``tau sin theta / 
 ``sum |c_l|`` [mas] times the columns' tolerance exceeds that too, the columns are solved
 again with ``tau sin theta / (2 sum |c_l|)`` (and the data again if ``theta`` moved): then
 ``|e|_N <= tau sin theta`` and the whole solution is within ``tau`` of the exact one, the
-rule every solution of the experiment keeps. ``amplification`` is ``1 / sin theta``.
+rule every solution of the experiment keeps (as far as :mod:`.cg`'s estimate of each
+solution's error, an extrapolation, holds). ``amplification`` is ``1 / sin theta``.
 Checked against a direct solve of the bordered system in ``tests/solver/test_calibration.py``.
 """
 
@@ -77,17 +79,17 @@ __all__ = ["BasicAngleColumns", "basic_angle_columns", "CalibratedSolution", "Ca
 MAX_ROUNDS = 3
 #: Tightening beyond the bound, so that the slightly different ``c`` of the new round meets it.
 TIGHTENING_MARGIN = 0.2
+#: Smallest ``sin^2 theta`` accepted (module notes, "Accuracy"): below it the data would have
+#: to be solved to 5e-7 of the asked tolerance or finer, far past what PCG reaches in
+#: practice, and the calibration counts as not determined. A choice (the experiment's
+#: smallest, at 25 FoV transits per knot under 1000 mas, was 5.6e-5).
+MIN_SIN2_THETA = 1e-12
 
 
 class CalibrationNotDetermined(np.linalg.LinAlgError):
-    """The calibration's Schur complement is not positive definite: some combination of the
-    calibration unknowns is not fixed by the data and the priors (to the solutions'
-    accuracy). ``smallest``: its smallest eigenvalue relative to ``A_c' A_c``."""
-
-    def __init__(self, smallest: float):
-        super().__init__(f"the calibration is not determined by the data: the smallest eigenvalue of its Schur "
-                         f"complement relative to A_c' A_c is {smallest:.3g}")
-        self.smallest = float(smallest)
+    """The calibration cannot be solved to the asked accuracy: its Schur complement is not
+    (or only to rounding) positive definite, some combination of the calibration unknowns
+    not fixed by the data and the priors; or its rounds of solutions ran out."""
 
 
 @dataclasses.dataclass
@@ -127,16 +129,25 @@ def basic_angle_columns(tcb_jd, following, sigma_al_mas, is_ac, law, harmonics: 
 @dataclasses.dataclass
 class CalibratedSolution:
     """The solution with calibration unknowns: ``solution`` (a :class:`.cg.GlobalSolution`
-    whose ``x`` and ``attitude`` are those of the whole system and whose ``history`` holds the
-    ``1 + n_cal`` solutions' iterations one after the other, the calibration columns' first),
-    the calibration ``c`` [mas], the iterations of each solution, the condition number of
-    ``S``, and ``amplification`` (module notes, "Accuracy"; 0 without calibration)."""
+    whose ``x``, ``attitude`` and residuals are those of the whole system and whose
+    ``history`` holds every solution's iterations one after the other), the calibration ``c``
+    [mas], each solution's name and history, the condition number of ``S``, and
+    ``amplification``, ``1 / sin theta`` (module notes, "Accuracy")."""
 
     solution: object
     c: np.ndarray
-    iterations: list
+    solutions: list  # (name, history) of every solution made, in order: columns, data, columns again...
     condition: float
     amplification: float
+
+    @property
+    def iterations(self) -> list:
+        return [len(hist) for _, hist in self.solutions]
+
+    @property
+    def seconds(self) -> float:
+        """Wall time of all the solutions' iterations (each history's clock starts at zero)."""
+        return float(sum(hist[-1].seconds for _, hist in self.solutions if hist))
 
 
 def solve_with_calibration(solve, h, columns: BasicAngleColumns, *, log=None,
@@ -152,48 +163,50 @@ def solve_with_calibration(solve, h, columns: BasicAngleColumns, *, log=None,
     alone): one solution each, at the rule as given.
     """
     n = columns.n_cal
-    D = np.array([[math.fsum(columns.column(k) * columns.column(l)) for l in range(n)] for k in range(n)])
-    history, iterations = [], []
+    C = np.column_stack([columns.column(k) for k in range(n)]) if n else np.zeros((len(h), 0))
+    D = C.T @ C
+    solutions, seconds = [], 0.0  # (name, history) of every solution, in the order made
     col_scale, base, base_scale = 1.0, None, math.inf
     for _ in range(MAX_ROUNDS):
-        sols, residuals = [], []
+        sols = []
         for k in range(n):
-            s = solve(columns.column(k), log, col_scale)
-            sols.append(s)
-            residuals.append(s.residuals)
-            s.residuals = None
-            history += s.history
-            iterations.append(len(s.history))
-        S = np.array([[math.fsum(columns.column(k) * residuals[l]) for l in range(n)] for k in range(n)])
-        S = 0.5 * (S + S.T)  # symmetric in exact arithmetic; the solutions' truncation is not
-        lam = _generalized_eigvalsh(S, D) if n else np.ones(1)
-        if not lam[0] > 0:
-            raise CalibrationNotDetermined(lam[0])
+            sols.append(solve(C[:, k], log, col_scale))
+            solutions.append((f"column {columns.names()[k]}", sols[-1].history))
+        R = np.column_stack([sl.residuals for sl in sols]) if n else np.zeros((len(h), 0))
+        for sl in sols:
+            sl.residuals = None
+        S = C.T @ R  # S_kl = a_k' r_l: solved as made, its symmetric part for the spectrum
+        lam = _generalized_eigvalsh(0.5 * (S + S.T), D) if n else np.ones(1)
+        if not lam[0] >= MIN_SIN2_THETA:
+            raise CalibrationNotDetermined(
+                f"the calibration is not determined by the data: sin^2 of the smallest principal angle between "
+                f"its columns and the rest of the design is {lam[0]:.3g} (accepted: >= {MIN_SIN2_THETA:g})")
         amplification = 1.0 / math.sqrt(min(lam[0], 1.0))
         if base is None or (scalable and base_scale > 0.5 / amplification):
             base_scale = 0.5 / amplification
             base = solve(h, log, base_scale)
             if base.residuals is None:
                 raise ValueError("solve(h, log, scale) must return the residuals of its solution")
-            history += base.history
-            iterations.append(len(base.history))
-        rhs = np.array([math.fsum(columns.column(k) * base.residuals) for k in range(n)])
-        c = np.linalg.solve(S, rhs) if n else np.zeros(0)
+            solutions.append(("data", base.history))
+        c = np.linalg.solve(S, C.T @ base.residuals) if n else np.zeros(0)
         # error of x_0 - X c (in units of the tolerance) <= base_scale + col_scale sum |c| [mas]
-        if not scalable or col_scale * np.sum(np.abs(c)) <= 0.5 / amplification:
+        met = not scalable or col_scale * np.sum(np.abs(c)) <= 0.5 / amplification
+        if met:
             break
         col_scale = 0.5 / (amplification * np.sum(np.abs(c))) * (1.0 - TIGHTENING_MARGIN)
+    else:
+        raise CalibrationNotDetermined(
+            f"the calibration's solutions did not reach the asked accuracy in {MAX_ROUNDS} rounds (fitted "
+            f"calibration {np.sum(np.abs(c)):.3g} mas in all, error amplification {amplification:.3g})")
     sol = dataclasses.replace(base)
-    sol.x = base.x - sum((ck * s.x for ck, s in zip(c, sols)), np.zeros_like(base.x))
-    sol.attitude = base.attitude - sum((ck * s.attitude for ck, s in zip(c, sols)), np.zeros_like(base.attitude))
-    r = base.residuals - sum((ck * rk for ck, rk in zip(c, residuals)), np.zeros_like(base.residuals))
-    sol.residuals = r
-    sol.residual_rms = float(np.sqrt(np.mean(r ** 2))) if r.size else 0.0
-    sol.history = history
-    met = not scalable or col_scale * np.sum(np.abs(c)) <= 0.5 / amplification
-    sol.converged = bool(met and base.converged and all(s.converged for s in sols))
-    eig = np.linalg.eigvalsh(S) if n else np.ones(1)
-    return CalibratedSolution(solution=sol, c=c, iterations=iterations, condition=float(eig[-1] / eig[0]),
+    sol.x = base.x - sum((ck * sl.x for ck, sl in zip(c, sols)), np.zeros_like(base.x))
+    sol.attitude = base.attitude - sum((ck * sl.attitude for ck, sl in zip(c, sols)), np.zeros_like(base.attitude))
+    sol.residuals = base.residuals - R @ c
+    sol.residual_rms = float(np.sqrt(np.mean(sol.residuals ** 2))) if sol.residuals.size else 0.0
+    sol.history = [rec for _, hist in solutions for rec in hist]
+    sol.converged = bool(base.converged and all(sl.converged for sl in sols))
+    eig = np.linalg.eigvalsh(0.5 * (S + S.T)) if n else np.ones(1)
+    return CalibratedSolution(solution=sol, c=c, solutions=solutions, condition=float(eig[-1] / eig[0]),
                               amplification=amplification)
 
 

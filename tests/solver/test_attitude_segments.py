@@ -71,6 +71,21 @@ def test_segmented_basis_is_scipys_bspline_per_segment():
     assert np.all((j0 >= 0) & (j0 + 3 < sp.n_coef))
 
 
+def test_basis_does_not_depend_on_the_order_of_the_epochs():
+    # basis() evaluates each segment's epochs in time order (scipy's interval search is fast
+    # only then); epochs in any other order, some exactly on interior knots, get the same bits.
+    sp = _spline()
+    rng = np.random.default_rng(2)
+    knots = np.concatenate([k[4:-4] for k in sp.segment_knots])
+    t = np.concatenate([rng.uniform(a, b, 300) for a, b in sp.segments] + [knots, sp.segments.ravel()])
+    shuffled = rng.permutation(t.size)
+    j0, b = sp.basis(t[shuffled])
+    j0_sorted, b_sorted = sp.basis(np.sort(t))
+    back = np.argsort(t[shuffled], kind="stable")
+    np.testing.assert_array_equal(j0[back], j0_sorted)
+    np.testing.assert_array_equal(b[back], b_sorted)
+
+
 def test_frame_rotation_and_spin_stay_in_the_segmented_spline_space():
     # A constant and a linearly growing rotation (orientation and spin of the frame,
     # Lindegren et al. 2012, Sect. 6.1) must be exact in every segment, or the frame

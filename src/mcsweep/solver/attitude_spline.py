@@ -233,6 +233,12 @@ class AttitudeSpline:
         edges = np.flatnonzero(np.r_[True, ks[1:] != ks[:-1], True])
         for lo, hi in zip(edges[:-1], edges[1:]):  # a loop over segments, each a vector call
             seg, sel = int(ks[lo]), order[lo:hi]
+            # In time order: scipy finds each epoch's knot interval by stepping from the last
+            # one's, so epochs in star order (a star's transits, then the next star's) cost a
+            # walk over the knots each: 57 s against 0.35 s for the 5.8e5 transits of 32768
+            # stars in a year with 30 s knots (1.05e6 coefficients; scipy 1.17). The values do
+            # not depend on the order.
+            sel = sel[np.argsort(t[sel], kind="stable")]
             dm = BSpline.design_matrix(t[sel], self.segment_knots[seg], DEGREE).tocsr()
             dm.sort_indices()
             if not np.all(np.diff(dm.indptr) == DEGREE + 1):  # pragma: no cover - scipy contract

@@ -21,18 +21,23 @@ only 1-4 transits), AL + AC, noisy measurements, the prior of Eq. 18 (R = 10 /yr
    measurement held by the solver, peak traced memory, and the memory-bandwidth floor
    measured in the same run (two plain numpy streaming reads of the solver's stored bytes
    per iteration) with the ratio of the solver's time to it;
-6. an extrapolation to the issue's full scale.
+6. an extrapolation to the issue's full scale;
+7. AGIS's knot density (30 s knots, issue 23): the two compiled passes over one solver block of
+   32768 stars out of a 1.5e6-star sky, the block's stars taken in random order (every block a
+   sample of the whole sky) and in sky order (HEALPix level-12 nested, the primary experiment's
+   order: :func:`mcsweep.experiments.global_classes.sky_order`): ns per measurement of each.
 
 Times are CPU seconds of this process (``time.process_time``) except where marked wall: the
 machine is shared, so only ratios measured in this run mean anything.
 
 Run: ``python benchmarks/bench_primary.py [--stars 2000] [--days 365] [--knot-days 4] [--keep 0.25]
-[--workers-stars 40000]``.
+[--workers-stars 40000] [--sky-stars 1500000] [--only-sky-order]``.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
@@ -46,11 +51,14 @@ import scipy.sparse as sp  # noqa: E402
 from scipy.sparse.linalg import lsqr  # noqa: E402
 
 from mcsweep.astrometry.noise import NoiseModel  # noqa: E402
+from mcsweep.experiments.global_classes import sky_order  # noqa: E402
 from mcsweep.astrometry.solve import prior_diagonal  # noqa: E402
 from mcsweep.scanning import find_transits  # noqa: E402
 from mcsweep.scanning.ephemeris import gaia_position_au  # noqa: E402
 from mcsweep.solver import AttitudeSpline, GlobalProblem, build_observations, solve_global  # noqa: E402
+from mcsweep.solver import kernels  # noqa: E402
 from mcsweep.solver.attitude_update import BandedAttitudeSolver, attitude_band  # noqa: E402
+from mcsweep.solver.cg import BLOCK_STARS, make_blocks  # noqa: E402
 from mcsweep.solver.direct import solve_direct  # noqa: E402
 
 START_JD = 2456863.9375  # 2014-07-25 10:30 TCB, start of routine operations (Prusti et al. 2016)
@@ -144,6 +152,59 @@ def block_jacobi(problem, obs, h, rtol=1e-8, update_tol_uas=1e-2, max_iter=5000)
     return x, max_iter
 
 
+def block_in_order(ra, dec, take, days: float, knot_seconds: float, seed: int):
+    """The solver block of the stars ``take`` (indices into ``ra, dec``) with a ``knot_seconds``
+    spline over ``days`` (no gaps), every transit kept, AL + AC, unit star blocks."""
+    rng = np.random.default_rng(seed)
+    ra, dec = ra[take], dec[take]
+    tr = find_transits(ra, dec, START_JD, START_JD + days, compact=True)
+    star, t = tr["source_index"].to_numpy().astype(np.int64), tr["tcb_jd"].to_numpy()
+    g = rng.uniform(11.0, 19.5, ra.size)
+    noise = NoiseModel()
+    spline = AttitudeSpline(START_JD, START_JD + days, knot_seconds / 86400.0)
+    obs = build_observations(ra, dec, star, t, tr["scan_angle_deg"].to_numpy().astype(float), gaia_position_au(t),
+                             t_ref_jd=START_JD + 0.5 * days, sigma_al_mas=noise.sigma_al_mas(g)[star],
+                             sigma_ac_mas=noise.sigma_ac_mas(g)[star], spline=spline)
+    (blk,) = make_blocks(obs, ra, dec, block_stars=ra.size)
+    return blk
+
+
+def pass_ns(blk, rng, repeats: int = 3) -> tuple[float, float]:
+    """CPU ns per measurement of the forward and the back pass over ``blk`` (best of ``repeats``)."""
+    blk = dataclasses.replace(blk, binv=np.tile(np.eye(5), (blk.n, 1, 1)))
+    z_a = rng.standard_normal((blk.n_coef, 3))
+    fwd = back = np.inf
+    for _ in range(repeats):
+        y, out = rng.standard_normal((blk.n, 5)), np.zeros((blk.n_coef, 3))
+        c0 = time.process_time()
+        kernels.precondition_forward(blk, y, out)
+        fwd = min(fwd, time.process_time() - c0)
+        ya = np.zeros((blk.n_coef, 3))
+        c0 = time.process_time()
+        kernels.precondition_back(blk, y, z_a, ya)
+        back = min(back, time.process_time() - c0)
+    m = blk.t.size
+    return 1e9 * fwd / m, 1e9 * back / m
+
+
+def sky_order_section(n_sky: int, days: float):
+    print(f"\n7. AGIS's knot density (30 s knots, issue 23): one block of {BLOCK_STARS} stars of a {n_sky:.2g}-star "
+          f"sky over {days:g} days, its stars in random order and in sky order")
+    rng = np.random.default_rng(17)
+    ra = rng.uniform(0.0, 360.0, n_sky)
+    dec = np.degrees(np.arcsin(rng.uniform(-1.0, 1.0, n_sky)))
+    mid = (n_sky // BLOCK_STARS // 2) * BLOCK_STARS  # a block from the middle of the order
+    res = {}
+    for name, order in (("random order", rng.permutation(n_sky)), ("sky order", sky_order(ra, dec))):
+        blk = block_in_order(ra, dec, order[mid:mid + BLOCK_STARS], days, 30.0, seed=3)
+        fwd, back = pass_ns(blk, rng)
+        res[name] = fwd + back
+        print(f"  {name:12s}: {blk.t.size} measurements, {blk.seg.size} runs of equal first coefficient "
+              f"({blk.t.size / blk.seg.size:.1f} measurements per run): forward {fwd:.1f} ns, back {back:.1f} ns per "
+              "measurement")
+    print(f"  sky order / random order: {res['sky order'] / res['random order']:.2f}")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--stars", type=int, default=2000)
@@ -151,7 +212,12 @@ def main():
     ap.add_argument("--knot-days", type=float, default=4.0)
     ap.add_argument("--keep", type=float, default=0.25)
     ap.add_argument("--workers-stars", type=int, default=40000, help="stars of the forked-worker comparison")
+    ap.add_argument("--sky-stars", type=int, default=1500000, help="stars of the sky of section 7")
+    ap.add_argument("--only-sky-order", action="store_true", help="run section 7 only")
     args = ap.parse_args()
+    if args.only_sky_order:
+        sky_order_section(args.sky_stars, args.days)
+        return
     print("machine shared with other jobs: CPU seconds (process_time); compare ratios only")
     obs, ra, dec, x, a, rng = make_obs(args.stars, args.days, args.knot_days, args.keep)
     n_fov = np.bincount(obs.star[~obs.is_ac], minlength=obs.n_stars)
@@ -245,6 +311,7 @@ def main():
           f"{(store - 16) * m_full / 2**30:.1f} GB), plus the experiment's measurements (8 B/measurement, "
           f"{8 * m_full / 2**30:.1f} GB; it builds the blocks block by block, without a whole Observations)")
     print("  (iteration counts may grow with the problem's size and knot density)")
+    sky_order_section(args.sky_stars, args.days)
 
 if __name__ == "__main__":
     main()

@@ -23,6 +23,7 @@ import math
 import warnings
 from typing import Callable, Sequence
 
+import astropy.units as u
 import numpy as np
 import pandas as pd
 
@@ -30,8 +31,8 @@ from ..astrometry.noise import G_MAX
 from ..scanning import find_transits
 from ..scanning.timeline import DeadTime, dilution_key, draw_dead_time, keep_after_dilution
 
-__all__ = ["STAR_COLUMNS", "MARGIN_SIGMAS", "POPULATION_STREAM", "class_key", "faint_limit", "select_class_stars", "draw_classes",
-           "star_transits", "diluted", "dead_time"]
+__all__ = ["STAR_COLUMNS", "MARGIN_SIGMAS", "POPULATION_STREAM", "SKY_ORDER_LEVEL", "class_key", "faint_limit",
+           "select_class_stars", "draw_classes", "sky_order", "star_transits", "diluted", "dead_time"]
 
 #: The population columns the experiments use (Gaia archive names).
 STAR_COLUMNS = ("ra", "dec", "l", "b", "parallax", "pmra", "pmdec", "phot_g_mean_mag")
@@ -39,6 +40,8 @@ STAR_COLUMNS = ("ra", "dec", "l", "b", "parallax", "pmra", "pmdec", "phot_g_mean
 MARGIN_SIGMAS = 6.0
 #: Stream number of the population in every global experiment's seeds: (tag, 0, class key).
 POPULATION_STREAM = 0
+#: HEALPix level of :func:`sky_order`: 12, the level Gaia's source_id encodes (module notes).
+SKY_ORDER_LEVEL = 12
 
 
 def class_key(g_class: float) -> int:
@@ -119,6 +122,17 @@ def draw_classes(source, groups: Sequence[tuple[float, int, int]],
         if bar is not None:
             bar.update(1)
     return out
+
+
+def sky_order(ra_deg, dec_deg) -> np.ndarray:
+    """Indices that put stars (ICRS ``ra, dec`` [deg]) in sky order: by HEALPix level-12 nested
+    pixel, as Gaia's source_id orders them (module notes); stars of one pixel keep their order."""
+    from astropy_healpix import lonlat_to_healpix
+
+    pix = lonlat_to_healpix(np.radians(np.asarray(ra_deg, dtype=float)) * u.rad,
+                            np.radians(np.asarray(dec_deg, dtype=float)) * u.rad,
+                            2 ** SKY_ORDER_LEVEL, order="nested")
+    return np.argsort(pix, kind="stable")
 
 
 def star_transits(ra, dec, start_jd: float, end_jd: float, law, *, first: int = 0,

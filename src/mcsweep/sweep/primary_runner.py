@@ -23,7 +23,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import NotConvergedError
-from ..experiments.global_classes import STAR_COLUMNS, class_key
+from ..experiments.global_classes import STAR_COLUMNS, class_key, sky_order
 from ..experiments.primary import (CHUNKS_DIR, FACTOR_STREAM, PRIMARY_KEY, TAG, build_settings, prepare, solve_prior,
                                    stream_seed, transits_of)
 from ..experiments.primary_cluster import prepare_on_cluster
@@ -187,6 +187,9 @@ def _compute(run: GlobalRun) -> _Computed:
         df["class_key"] = key
         parts.append(df)
     stars = pd.concat(parts, ignore_index=True)
+    # One solution holds every class: its blocks of consecutive stars are then regions of the sky
+    # (mcsweep.experiments.global_classes, "Sky order"), whatever the classes' own order.
+    stars = stars.iloc[sky_order(stars["ra"].to_numpy(), stars["dec"].to_numpy())].reset_index(drop=True)
     factors = {float(k): factor_label(k) for k in run.section.factor_grid}
     with contextlib.ExitStack() as cluster:
         client = functools.cache(lambda: cluster.enter_context(dask_client(run.config.execution)))

@@ -204,6 +204,11 @@ def test_solution_is_bit_identical_for_any_chunking_and_workers(weak_problem, mo
     band_bytes = 8 * (schur_bandwidth() + 1) * 3 * problem.n_coef
     monkeypatch.setattr(cg, "SETUP_SLAB_BYTES", band_bytes // 7)  # the band in 8 slabs
     runs += [solve_global(problem, h, chunk_stars=128, **kw), solve_global(problem, h, workers=2, chunk_stars=256, **kw)]
+    from mcsweep.solver import resident
+    monkeypatch.setattr(resident, "ARENA_MIN_BYTES", 0)  # every buffer through the workers' shared arenas,
+    runs += [solve_global(problem, h, workers=2, chunk_stars=128, **kw)]
+    monkeypatch.setattr(resident, "ARENA_BYTES", 4096)  # or, past a full arena, through the pipe
+    runs += [solve_global(problem, h, workers=2, chunk_stars=128, **kw)]
     for sol in runs:
         assert np.array_equal(sol.x, ref.x) and np.array_equal(sol.attitude, ref.attitude)
         assert np.array_equal(sol.residuals, ref.residuals) and len(sol.history) == len(ref.history)

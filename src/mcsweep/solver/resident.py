@@ -47,7 +47,6 @@ import mmap
 import multiprocessing as mp
 import pickle
 import signal
-import struct
 from multiprocessing.connection import Connection, wait
 from multiprocessing.reduction import ForkingPickler
 from typing import Callable, Iterator, Sequence
@@ -157,9 +156,7 @@ def _serve(conn: Connection, chunks: dict, down: _Arena, up: _Arena) -> None:
 
 
 class _Pool:
-    def __init__(self, chunks: Sequence, n_workers: int, owners: Sequence[int] | None = None,
-                 arena_bytes: int | None = None):
-        arena_bytes = ARENA_BYTES if arena_bytes is None else arena_bytes
+    def __init__(self, chunks: Sequence, n_workers: int, owners: Sequence[int] | None = None):
         ctx = mp.get_context("fork")
         n = len(chunks)
         if owners is None:  # contiguous, equal shares of the chunks
@@ -176,7 +173,7 @@ class _Pool:
                 for ci in own:
                     self.owner[ci] = w
                 parent, child = ctx.Pipe()
-                down, up = _Arena(arena_bytes), _Arena(arena_bytes)  # mapped before the fork: shared
+                down, up = _Arena(ARENA_BYTES), _Arena(ARENA_BYTES)  # mapped before the fork: shared
                 p = ctx.Process(target=_serve, args=(child, own, down, up), daemon=True)
                 p.start()
                 child.close()

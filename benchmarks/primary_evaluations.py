@@ -1,0 +1,107 @@
+"""One primary solution evaluated three ways (issue 24; docs/table3.md, "The candidates at the
+paper's sizes").
+
+Two of issue 24's candidates change only how a solution is evaluated, not the solution:
+the frame rotator fitted with equal weights (``experiment.primary.frame_fit=equal``,
+candidate 4) and positions at each star's own mean epoch
+(``experiment.primary.evaluation_epoch=star_mean``, candidate 5). At the paper's sizes a
+solution takes up to an hour here, so this runs ``mcsweep experiment=primary`` with the
+arguments given and evaluates each prior's solution, as it is made, in the run's own way and
+in those two, with the functions the experiment uses (:func:`mcsweep.experiments.primary.
+block_frame_sums`, :func:`~mcsweep.experiments.primary.block_outcome`); each prior's three
+Table 3s go to ``evaluations_<prior>.csv`` in the run directory (columns of ``table3.csv``
+after ``evaluation``). The run's own evaluation must equal the run's ``table3.csv`` star by
+star (checked as it goes); the other two equal the runs with those config values (checked at
+3 x 2000 stars: the same counts in every cell). Local execution only (forked workers), not
+``execution=dask``, whose per-star arrays stay on the workers.
+
+Run: ``python benchmarks/primary_evaluations.py experiment.primary.class_size=500000
+experiment.primary.knot_transits=25 'experiment.primary.priors=[F90,10F90]'
+hydra.run.dir=DIR`` (any ``mcsweep`` overrides; ``experiment=primary`` is implied).
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+#: (name, frame fit with equal weights, positions at each star's mean epoch)
+EVALUATIONS = (("run", None, None), ("frame_fit=equal", True, False), ("evaluation_epoch=star_mean", False, True))
+
+
+def evaluations(settings, data, problem, sol, run_result: pd.DataFrame, label: str) -> pd.DataFrame:
+    """Table 3 rows of one solution under each of :data:`EVALUATIONS` (``None``: the run's
+    setting), the first checked against the run's own per-star result."""
+    from mcsweep.experiments.primary import block_frame_sums, block_outcome
+    from mcsweep.experiments.primary_table import table3_rows
+    from mcsweep.solver.frame import frame_from_sums
+    from mcsweep.solver.reduction import pairwise_sum
+
+    s = data.solved
+    views = [slice(b.first, b.first + b.n) for b in data.blocks]
+    dx = sol.x - data.x_true
+    epoch_offset = data.stars["epoch_offset_yr"].to_numpy()[s]
+    keys = run_result["class_key"].to_numpy()
+    g_classes = sorted(k / 100.0 for k in np.unique(keys) if k > 0)
+    tables = []
+    for name, equal, star_mean in EVALUATIONS:
+        equal = settings.frame_fit != "precision" if equal is None else equal
+        star_mean = settings.evaluation_epoch == "star_mean" if star_mean is None else star_mean
+        tau = epoch_offset if star_mean else None
+        eps, omega = frame_from_sums(pairwise_sum(block_frame_sums(problem.K[v], sol.cov[v], dx[v], equal)
+                                                  for v in views))
+        parts = [block_outcome(problem.K[v], sol.cov[v], dx[v], eps, omega, None if tau is None else tau[v],
+                               settings.confidence) for v in views]
+        res = run_result.copy()
+        res.loc[s, "inside"] = np.concatenate([p[0] for p in parts])
+        res.loc[s, "err_mas"] = np.concatenate([p[1] for p in parts]).astype(np.float32)
+        if name == "run" and not (np.array_equal(res["inside"].to_numpy(), run_result["inside"].to_numpy())
+                                  and np.array_equal(res["err_mas"].to_numpy(), run_result["err_mas"].to_numpy(),
+                                                 equal_nan=True)):
+            raise RuntimeError(f"prior {label}: the run's own evaluation is not reproduced; the script is out of date")
+        table = table3_rows({label: res}, g_classes, settings.confidence)
+        table.insert(0, "evaluation", name)
+        tables.append(table)
+    return pd.concat(tables, ignore_index=True)
+
+
+def main(argv: list[str]) -> None:
+    import mcsweep.experiments.primary as primary
+    import mcsweep.sweep.primary_runner as runner
+    from mcsweep.cli import main as cli
+
+    dirs = [a.split("=", 1)[1] for a in argv if a.startswith("hydra.run.dir=")]
+    if not dirs or any(a.startswith("execution=dask") for a in argv):
+        sys.exit("primary_evaluations: give hydra.run.dir=DIR; execution=dask is not supported")
+    run_dir = Path(dirs[0])
+    made = {}
+    solve_global, solve_prior = primary.solve_global, runner.solve_prior
+
+    def keep(problem, h, **kw):
+        made["problem"], made["solution"] = problem, solve_global(problem, h, **kw)
+        return made["solution"]
+
+    def evaluated(settings, data, label, *args, **kw):
+        if data.calibration is not None:
+            raise RuntimeError("a run with calibration unknowns solves several systems: not supported")
+        out = solve_prior(settings, data, label, *args, **kw)
+        table = evaluations(settings, data, made.pop("problem"), made.pop("solution"), out[0], label)
+        table.to_csv(run_dir / f"evaluations_{label}.csv", index=False)
+        return out
+
+    primary.solve_global, runner.solve_prior = keep, evaluated
+    sys.argv = ["mcsweep", *(["experiment=primary"] if "experiment=primary" not in argv else []), *argv]
+    try:
+        cli()
+    finally:
+        primary.solve_global, runner.solve_prior = solve_global, solve_prior
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])

@@ -543,3 +543,39 @@ def test_an_attitude_the_data_leave_free_ends_the_run_in_one_line_and_keeps_what
     assert r.returncode == 0, r.stderr[-3000:]
     assert (out / "table3.csv").exists() and kept.read_bytes() == before
     assert "prior 10F90:" in r.stdout and "prior F90:" not in r.stdout  # resumed, not solved again
+
+
+_EVERY_ITERATION = """
+import sys
+import mcsweep.sweep.progress as progress
+progress.SOLVE_LINE_SECONDS = 0.0
+from mcsweep.cli import main
+sys.argv = ["mcsweep", *sys.argv[1:]]
+main()
+"""
+
+
+def test_a_running_solution_says_where_it_stands(tmp_path):
+    # The line a minute of a long solution (mcsweep.sweep.progress.SolveLines), here at every
+    # iteration: the prior, the iteration, the seconds per iteration, the estimated error and what
+    # the solution stops at, on stderr; the results are those of a run without it.
+    cat = _catalogue(tmp_path / "stars.csv", n=3000)
+    quick = ["experiment=primary", "experiment.primary.class_size=100", "experiment.primary.primary_sources=600",
+             "experiment.primary.mission_years=0.25", "experiment.primary.knot_interval_hours=24",
+             "experiment.primary.attitude_timescale_hours=192", "experiment.primary.priors=[F90]",
+             "execution.n_jobs=1", "population=catalogue", f"population.path={cat}"]
+    r = subprocess.run([sys.executable, "-c", _EVERY_ITERATION, f"hydra.run.dir={tmp_path / 'lines'}", *quick,
+                        "execution.progress=true"], capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr[-3000:]
+    done = re.search(r"prior F90: (\d+) PCG iterations", r.stdout)
+    lines = [ln for ln in r.stderr.splitlines() if ln.startswith("mcsweep: primary: prior F90: iteration")]
+    assert done and len(lines) == int(done.group(1)), r.stderr[-3000:]
+    pattern = (r"mcsweep: primary: prior F90: iteration {k} \(\d+\.\d\d s each\), relative residual \S+, {state}; "
+               r"stops at experiment.primary.solver_error_tol 0.01 or experiment.primary.solver_max_iter \d+")
+    assert re.fullmatch(pattern.format(k=1, state=r"error not yet estimated \(too few iterations\)"), lines[0]), lines[0]
+    assert re.fullmatch(pattern.format(k=len(lines), state=r"estimated error \S+ of the formal uncertainties"),
+                        lines[-1]), lines[-1]
+    r = subprocess.run([str(BIN / "mcsweep"), f"hydra.run.dir={tmp_path / 'quiet'}", *quick, "execution.progress=false"],
+                       capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0 and "iteration" not in r.stderr, r.stderr[-3000:]
+    assert (tmp_path / "lines" / "table3.csv").read_bytes() == (tmp_path / "quiet" / "table3.csv").read_bytes()

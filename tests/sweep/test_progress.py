@@ -66,3 +66,26 @@ def test_stage_line_is_one_plain_line_and_silent_when_disabled():
     stage_line("transits", "scanning law over 3 directions", file=out)
     stage_line("transits", "hidden", enabled=False, file=out)
     assert out.getvalue() == "transits: scanning law over 3 directions\n"
+
+
+def test_a_long_solution_gets_a_line_a_minute_saying_where_it_stands():
+    # SolveLines (the primary experiment's PCG log): one line per `every` seconds of wall
+    # time, none for a solution shorter than that, none when progress is off.
+    from types import SimpleNamespace
+
+    from mcsweep.sweep.progress import SolveLines
+
+    now = [0.0]
+    out = io.StringIO()
+    lines = SolveLines("mcsweep: primary: prior F90", lambda r: f"estimated error {r.error_estimate:g}",
+                       "error 0.01", every=60.0, file=out, clock=lambda: now[0])
+    for k in range(1, 301):  # 300 iterations of 0.5 s: 150 s, so lines at 60 and 120 s
+        now[0] = 0.5 * k
+        lines(SimpleNamespace(iteration=k, seconds=0.5 * k, error_estimate=1000.0 / k))
+    assert out.getvalue().splitlines() == [
+        "mcsweep: primary: prior F90: iteration 120 (0.50 s each), estimated error 8.33333; stops at error 0.01",
+        "mcsweep: primary: prior F90: iteration 240 (0.50 s each), estimated error 4.16667; stops at error 0.01"]
+    quiet = io.StringIO()
+    off = SolveLines("x", str, "y", every=0.0, enabled=False, file=quiet, clock=lambda: now[0])
+    off(SimpleNamespace(iteration=1, seconds=1.0))
+    assert quiet.getvalue() == ""

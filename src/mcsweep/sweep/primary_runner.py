@@ -32,6 +32,7 @@ from ..experiments.primary_table import table3_markdown, table3_rows
 from ..solver import AttitudeNotDetermined
 from ..solver.calibration import CalibrationNotDetermined
 from .execution import dask_client, release_free_memory
+from .progress import SolveLines
 from .global_runner import GlobalExperiment, GlobalRun, run_global
 from .store import atomic_write_bytes
 
@@ -134,13 +135,18 @@ def _solve(run: GlobalRun, data, label: str, client: Callable) -> None:
         # their share of the blocks (mcsweep.solver.resident). A map-like executor would
         # re-send every chunk's measurements per pass, which costs more than the work
         # (mcsweep.solver.cg.solve_global). Results are the same bits either way.
+        # A line a minute while it runs: at the paper's sizes with AGIS's knots one solution
+        # takes up to an hour (docs/table3.md), with nothing else to show it is getting there.
+        log = SolveLines(f"mcsweep: primary: prior {label}", lambda r: settings.describe_state(dataclasses.asdict(r)),
+                         f"{settings.describe_criterion()} or experiment.primary.solver_max_iter {settings.max_iter}",
+                         enabled=bool(config.execution.progress))
         try:
             if config.execution.backend == "dask":
-                res, hist, extra, series = solve_prior(settings, data, label, dask_client=client(),
+                res, hist, extra, series = solve_prior(settings, data, label, log=log, dask_client=client(),
                                                        chunk_stars=int(config.execution.chunk_stars))
             else:
                 workers = int(config.execution.n_jobs) if config.execution.backend in ("loky", "threading") else 1
-                res, hist, extra, series = solve_prior(settings, data, label, workers=workers)
+                res, hist, extra, series = solve_prior(settings, data, label, log=log, workers=workers)
         except AttitudeNotDetermined as exc:
             # The knots are closer than these stars' transits can fix under this prior: found
             # only when the prior's Schur block is factorised, after the solutions before it

@@ -6,7 +6,8 @@ of bar fragments. When the stream is not a terminal, :func:`progress` prints one
 line each time another :data:`STEP_PERCENT` per cent is done (and at the end), built
 with tqdm's own formatter so the line reads like the bar. A stage that is one call
 (the transits of every direction) gets a line when it starts and one when it ends
-(:func:`stage_line`).
+(:func:`stage_line`). A global solution, whose iterations are not known in advance, gets a
+line every :data:`SOLVE_LINE_SECONDS` seconds saying where it stands (:class:`SolveLines`).
 """
 
 from __future__ import annotations
@@ -17,10 +18,13 @@ from typing import TextIO
 
 from tqdm.auto import tqdm
 
-__all__ = ["progress", "stage_line", "LineProgress", "STEP_PERCENT"]
+__all__ = ["progress", "stage_line", "LineProgress", "SolveLines", "STEP_PERCENT", "SOLVE_LINE_SECONDS"]
 
 #: Per cent of the work between two lines of a non-terminal progress report.
 STEP_PERCENT = 10
+#: Seconds between two lines of a running global solution (:class:`SolveLines`): at the paper's
+#: sizes with AGIS's knots one prior takes 10-60 min (docs/table3.md).
+SOLVE_LINE_SECONDS = 60.0
 _FORMAT = "{desc}: {n_fmt}/{total_fmt} {unit} ({percentage:3.0f} %) [{elapsed} elapsed, {remaining} left]"
 
 
@@ -78,3 +82,33 @@ def stage_line(desc: str, text: str, *, enabled: bool = True, file: TextIO | Non
     """One plain line ``desc: text`` on stderr, for a stage without steps to count."""
     if enabled:
         print(f"{desc}: {text}", file=file if file is not None else sys.stderr, flush=True)
+
+
+class SolveLines:
+    """A PCG solution's ``log`` callback (:func:`mcsweep.solver.solve_global`) that prints, at most
+    every ``every`` seconds, one line ``desc: iteration K (S s each), STATE; stops at GOAL``.
+
+    ``every`` defaults to :data:`SOLVE_LINE_SECONDS` (read when the solution starts).
+    ``state(record)`` says where the solution stands in its stopping rule's terms (the estimated
+    error, or the last update) and ``goal`` what it stops at, so a user can judge from the line
+    whether a long solution is getting there. No line for a solution shorter than ``every``; a
+    solution made of several PCG runs (calibration unknowns) restarts its iteration count, and the
+    line says so through ``K``.
+    """
+
+    def __init__(self, desc: str, state, goal: str, *, every: float | None = None,
+                 enabled: bool = True, file: TextIO | None = None, clock=time.monotonic):
+        self.desc, self.state, self.goal, self.enabled = desc, state, goal, enabled
+        self.every = float(SOLVE_LINE_SECONDS if every is None else every)
+        self.file = file if file is not None else sys.stderr
+        self.clock = clock
+        self._last = clock()
+
+    def __call__(self, record) -> None:
+        now = self.clock()
+        if not self.enabled or now - self._last < self.every:
+            return
+        self._last = now
+        each = record.seconds / record.iteration if record.iteration > 0 else float("nan")
+        print(f"{self.desc}: iteration {record.iteration} ({each:.2f} s each), {self.state(record)}; "
+              f"stops at {self.goal}", file=self.file, flush=True)

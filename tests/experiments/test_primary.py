@@ -558,7 +558,7 @@ main()
 def test_a_running_solution_says_where_it_stands(tmp_path):
     # The line a minute of a long solution (mcsweep.sweep.progress.SolveLines), here at every
     # iteration: the prior, the iteration, the seconds per iteration, the estimated error and what
-    # the solution stops at, on stderr; the results are those of a run without it.
+    # the solution stops at, on stderr (execution.progress=false: none, tests/sweep/test_progress.py).
     cat = _catalogue(tmp_path / "stars.csv", n=3000)
     quick = ["experiment=primary", "experiment.primary.class_size=100", "experiment.primary.primary_sources=600",
              "experiment.primary.mission_years=0.25", "experiment.primary.knot_interval_hours=24",
@@ -575,7 +575,3 @@ def test_a_running_solution_says_where_it_stands(tmp_path):
     assert re.fullmatch(pattern.format(k=1, state=r"error not yet estimated \(too few iterations\)"), lines[0]), lines[0]
     assert re.fullmatch(pattern.format(k=len(lines), state=r"estimated error \S+ of the formal uncertainties"),
                         lines[-1]), lines[-1]
-    r = subprocess.run([str(BIN / "mcsweep"), f"hydra.run.dir={tmp_path / 'quiet'}", *quick, "execution.progress=false"],
-                       capture_output=True, text=True, timeout=600)
-    assert r.returncode == 0 and "iteration" not in r.stderr, r.stderr[-3000:]
-    assert (tmp_path / "lines" / "table3.csv").read_bytes() == (tmp_path / "quiet" / "table3.csv").read_bytes()

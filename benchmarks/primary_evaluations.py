@@ -7,8 +7,8 @@ candidate 4) and positions at each star's own mean epoch
 (``experiment.primary.evaluation_epoch=star_mean``, candidate 5). At the paper's sizes a
 solution takes up to an hour here, so this runs ``mcsweep experiment=primary`` with the
 arguments given and evaluates each prior's solution, as it is made, in the run's own way and
-in those two, with the functions the experiment uses (:func:`mcsweep.experiments.primary.
-block_frame_sums`, :func:`~mcsweep.experiments.primary.block_outcome`); each prior's three
+in those two, with the experiment's own evaluation
+(:func:`mcsweep.experiments.primary.evaluate_solution`); each prior's three
 Table 3s go to ``evaluations_<prior>.csv`` in the run directory (columns of ``table3.csv``
 after ``evaluation``). The run's own evaluation must equal the run's ``table3.csv`` star by
 star (checked as it goes); the other two equal the runs with those config values (checked at
@@ -38,10 +38,8 @@ EVALUATIONS = (("run", None, None), ("frame_fit=equal", True, False), ("evaluati
 def evaluations(settings, data, problem, sol, run_result: pd.DataFrame, label: str) -> pd.DataFrame:
     """Table 3 rows of one solution under each of :data:`EVALUATIONS` (``None``: the run's
     setting), the first checked against the run's own per-star result."""
-    from mcsweep.experiments.primary import block_frame_sums, block_outcome
+    from mcsweep.experiments.primary import evaluate_solution
     from mcsweep.experiments.primary_table import table3_rows
-    from mcsweep.solver.frame import frame_from_sums
-    from mcsweep.solver.reduction import pairwise_sum
 
     s = data.solved
     views = [slice(b.first, b.first + b.n) for b in data.blocks]
@@ -53,14 +51,12 @@ def evaluations(settings, data, problem, sol, run_result: pd.DataFrame, label: s
     for name, equal, star_mean in EVALUATIONS:
         equal = settings.frame_fit != "precision" if equal is None else equal
         star_mean = settings.evaluation_epoch == "star_mean" if star_mean is None else star_mean
-        tau = epoch_offset if star_mean else None
-        eps, omega = frame_from_sums(pairwise_sum(block_frame_sums(problem.K[v], sol.cov[v], dx[v], equal)
-                                                  for v in views))
-        parts = [block_outcome(problem.K[v], sol.cov[v], dx[v], eps, omega, None if tau is None else tau[v],
-                               settings.confidence) for v in views]
+        _, _, (inside, err, _) = evaluate_solution(problem.K, sol.cov, dx, views, equal=equal,
+                                                   tau=epoch_offset if star_mean else None,
+                                                   confidence=settings.confidence)
         res = run_result.copy()
-        res.loc[s, "inside"] = np.concatenate([p[0] for p in parts])
-        res.loc[s, "err_mas"] = np.concatenate([p[1] for p in parts]).astype(np.float32)
+        res.loc[s, "inside"] = inside
+        res.loc[s, "err_mas"] = err.astype(np.float32)
         if name == "run" and not (np.array_equal(res["inside"].to_numpy(), run_result["inside"].to_numpy())
                                   and np.array_equal(res["err_mas"].to_numpy(), run_result["err_mas"].to_numpy(),
                                                  equal_nan=True)):

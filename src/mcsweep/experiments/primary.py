@@ -104,6 +104,7 @@ __all__ = [
     "transits_of",
     "positions_at",
     "prepare",
+    "evaluate_solution",
     "solve_prior",
     "attitude_error",
     "attitude_error_series",
@@ -669,6 +670,19 @@ def block_outcome(K, binv, dx, eps, omega, tau, confidence: float):
     return inside, np.hypot(pos[:, 0], pos[:, 1]), dx[:, 2].copy()
 
 
+def evaluate_solution(K, cov, dx, views, *, equal: bool, tau, confidence: float):
+    """``(eps, omega, (inside, err_mas, err_parallax_mas))`` of a solution held in this process:
+    the frame rotator fitted to its errors ``dx (n, 5)`` block by block (``views``: the blocks'
+    slices, summed in the fixed tree as on a cluster; ``equal``: every star alike) and each
+    star's outcome after removing it (:func:`block_outcome`; ``tau``: epochs of evaluation,
+    None for the reference epoch)."""
+    eps, omega = frame_from_sums(pairwise_sum(block_frame_sums(K[v], cov[v], dx[v], equal) for v in views)
+                                 if views else np.zeros(24))
+    parts = [block_outcome(K[v], cov[v], dx[v], eps, omega, None if tau is None else tau[v], confidence)
+             for v in views]
+    return eps, omega, tuple(np.concatenate([p[i] for p in parts]) if parts else np.zeros(0) for i in range(3))
+
+
 def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=None, *,
                 chunk_stars=None, workers: int = 1, dask_client=None):
     """One global solution for the prior ``label``: (per-star results, history, attitude errors).
@@ -720,13 +734,9 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
         else:
             sol = solve_global(problem, data.h, **settings.criterion, log=log, chunk_stars=chunk_stars,
                                residuals=False, workers=workers, resident_chunks=resident)
-        views = [slice(b.first, b.first + b.n) for b in data.blocks]
-        dx = sol.x - data.x_true
-        eps, omega = frame_from_sums(pairwise_sum(
-            block_frame_sums(problem.K[v], sol.cov[v], dx[v], equal) for v in views) if views else np.zeros(24))
-        parts = [block_outcome(problem.K[v], sol.cov[v], dx[v], eps, omega, None if tau is None else tau[v],
-                               settings.confidence) for v in views]
-        inside_s, err_s, plx_s = (np.concatenate([p[i] for p in parts]) if parts else np.zeros(0) for i in range(3))
+        eps, omega, (inside_s, err_s, plx_s) = evaluate_solution(
+            problem.K, sol.cov, sol.x - data.x_true, [slice(b.first, b.first + b.n) for b in data.blocks],
+            equal=equal, tau=tau, confidence=settings.confidence)
         sq = data.attitude_sq(sol.attitude, eps, omega)
     n = len(st)
     inside = np.full(n, -1, dtype=np.int8)

@@ -126,8 +126,15 @@ def _recv(conn: Connection, arena: _Arena | None = None):
     ``cg._fresh`` rule), whatever the sender's memory alignment."""
     places = np.frombuffer(conn.recv_bytes(), dtype=np.int64).reshape(-1, 2)
     head = conn.recv_bytes()
-    return pickle.loads(head, buffers=[np.frombuffer(conn.recv_bytes(), dtype=np.uint8).copy() if at < 0
-                                       else arena.take(int(at), int(n)) for at, n in places])
+    return pickle.loads(head, buffers=[_from_pipe(conn, int(n)) if at < 0 else arena.take(int(at), int(n))
+                                       for at, n in places])
+
+
+def _from_pipe(conn: Connection, n: int) -> np.ndarray:
+    """The next ``n``-byte message, read straight into a new array (one copy, not two)."""
+    out = np.empty(n, dtype=np.uint8)
+    conn.recv_bytes_into(out)
+    return out
 
 
 def _serve(conn: Connection, chunks: dict, down: _Arena, up: _Arena) -> None:

@@ -328,7 +328,6 @@ def test_noiseless_data_with_a_basic_angle_variation_recover_it_and_the_truth():
         worst[harmonics] = 1e3 * np.nanmax(res["err_mas"].to_numpy()[solved])
         if harmonics:
             fitted = np.array(list(extra["basic_angle_mas"].values()))
-            assert len(extra["solutions_iterations"]) == 3
             np.testing.assert_allclose(fitted, true, rtol=0, atol=RECOVERY_UAS / 1e3)
             assert max(extra["attitude_rms_uas"]) < RECOVERY_UAS
     print(f"largest position error [uas]: with the calibration {worst[1]:.3g}, without {worst[0]:.3g}")

@@ -85,7 +85,7 @@ from ..solver.reduction import pairwise_sum, run_level
 from ..solver.blocks import att_rows, spline_values, src_forward
 from ..solver import (BLOCK_STARS, AttitudeSpline, GlobalProblem, build_observations, frame_attitude,
                       in_block_order, make_blocks, precision_weights, solve_global, source_normals)
-from ..solver.calibration import BasicAngleColumns, basic_angle_columns, solve_with_calibration
+from ..solver.calibration import BasicAngleColumns, basic_angle_columns, calibration_design
 from ..solver.cg import chunk_values
 from ..solver.frame import frame_fit_sums, frame_from_sums, offsets_of
 from .global_classes import dead_time, star_transits
@@ -151,15 +151,6 @@ class PrimarySettings(GlobalSettings):
         """The PCG stopping rule as :func:`~mcsweep.solver.solve_global`'s keywords."""
         return dict(rtol=self.rtol, update_tol_uas=self.update_tol_uas, error_tol=self.error_tol,
                     max_iter=self.max_iter)
-
-    def scaled_criterion(self, scale: float) -> dict:
-        """:attr:`criterion` with the energy rule's tolerance times ``scale`` (the absolute rule
-        unchanged): a solution the calibration's bordered system amplifies the error of
-        (:mod:`mcsweep.solver.calibration`, "Accuracy")."""
-        out = self.criterion
-        if self.error_tol is not None:
-            out["error_tol"] = self.error_tol * scale
-        return out
 
     def describe_criterion(self) -> str:
         """The stopping rule in words, for messages."""
@@ -705,7 +696,6 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
     # astrometry sets the removed rotation (docs/table3.md, the candidate for the paper's
     # collapse); not the default.
     equal = settings.frame_fit != "precision"
-    calibrated = None
     if data.on_cluster:  # everything per star stays on the workers (issue 27)
         if dask_client is None:
             raise ValueError("these data live on a cluster's workers: solve them with its dask_client")
@@ -724,16 +714,11 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
             stars = [slice(data.blocks[lo].first, data.blocks[hi - 1].first + data.blocks[hi - 1].n)
                      for lo, hi in ranges]
             resident = data.resident(dask_client, ranges).with_inverses([problem.src_inv[sl] for sl in stars])
-        if data.calibration is not None:  # issue 24, candidate 3 (mcsweep.solver.calibration)
-            calibrated = solve_with_calibration(
-                lambda h, log, scale: solve_global(problem, h, **settings.scaled_criterion(scale), log=log,
-                                                   chunk_stars=chunk_stars, residuals=True, workers=workers,
-                                                   resident_chunks=resident),
-                data.h, data.calibration, log=log, scalable=settings.error_tol is not None)
-            sol = calibrated.solution
-        else:
-            sol = solve_global(problem, data.h, **settings.criterion, log=log, chunk_stars=chunk_stars,
-                               residuals=False, workers=workers, resident_chunks=resident)
+        # with the basic-angle calibration (issue 24, candidate 3) its unknowns border the
+        # system (mcsweep.solver.calibration)
+        sol = solve_global(problem, data.h, **settings.criterion, log=log, chunk_stars=chunk_stars,
+                           residuals=False, workers=workers, resident_chunks=resident,
+                           border=None if data.calibration is None else calibration_design(data.calibration))
         eps, omega, (inside_s, err_s, plx_s) = evaluate_solution(
             problem.K, sol.cov, sol.x - data.x_true, [slice(b.first, b.first + b.n) for b in data.blocks],
             equal=equal, tau=tau, confidence=settings.confidence)
@@ -755,19 +740,13 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
     m = data.n_measurements
     hist = pd.DataFrame([dataclasses.asdict(r) for r in sol.history])
     hist.insert(0, "prior", label)
-    if calibrated is not None:  # which of the solutions each iteration belongs to
-        hist.insert(1, "solution", [name for name, h in calibrated.solutions for _ in h])
     extra = {"converged": bool(sol.converged), "iterations": len(sol.history),
              "attitude_rms_uas": (1e3 * np.sqrt(sq / m)).tolist() if m else [],
              "frame_rotation_mas": eps.tolist(), "frame_spin_mas_yr": omega.tolist(),
              "residual_rms": sol.residual_rms,
              "seconds": float(sol.history[-1].seconds) if sol.history else 0.0}
-    if calibrated is not None:
-        extra["basic_angle_mas"] = dict(zip(data.calibration.names(), calibrated.c.tolist()))
-        extra["solutions_iterations"] = calibrated.iterations
-        extra["calibration_condition"] = calibrated.condition
-        extra["calibration_amplification"] = calibrated.amplification
-        extra["seconds"] = calibrated.seconds
+    if data.calibration is not None and sol.border is not None:
+        extra["basic_angle_mas"] = dict(zip(data.calibration.names(), sol.border.tolist()))
     if resident is not None and sol.history:  # what travelled per iteration (issue 27), measured:
         # the iterations' passes only (the one-off setup and residual passes apart)
         sent, received = resident.bytes_per_call("_forward_task", "_back_task", "_direction_task")

@@ -64,6 +64,18 @@ itself (prior, inverses, frame weights) are made where the chunk is (:func:`star
 and the solution stays there, so the driver holds nothing per star. Dot products are now sums of per-block dots in the fixed tree, so the
 rounding differs from a single dot over the whole vector (the same for every backend).
 
+Bordered unknowns. A few unknowns that every measurement may depend on (a calibration,
+:mod:`~mcsweep.solver.calibration`; partials ``C (m, k)``, no prior, no frame) border the
+system: ``[[N, G], [G', D]]`` with ``G = A'C``, ``D = C'C``. ``G`` is made once, in the setup
+pass, as the right-hand side each column would give as measurements; its stars' rows stay
+with their chunks (``k`` star vectors more there), its attitude rows on the driver. An
+iteration then needs no further pass over the measurements: the chunks add ``G_s z_c`` to
+``N z`` and return ``G_s' z_s`` with their dots, the driver does the rest, and the
+preconditioner takes the bordered unknowns by ``D^-1`` (block diagonal). The preconditioned
+matrix so differs from the unbordered one by rank ``<= 2k``, which costs CG at most ``2k``
+more iterations in exact arithmetic, however nearly degenerate the bordered unknowns are
+with the rest (the basic-angle variation with the parallax zero point).
+
 Convergence criterion (stated for users). By default (``error_tol`` given, as the
 experiments do) PCG stops when the error of the solution, measured in the norm of the
 normal matrix, ``|x - x*|_N = sqrt((x - x*)' N (x - x*))``, is estimated to be below
@@ -176,6 +188,7 @@ class GlobalSolution:
     residual_rms: float      # RMS of the normalised residuals (from the explicit final pass)
     history: list
     converged: bool
+    border: np.ndarray | None = None  # (k,) the bordering unknowns (solve_global's ``border``), if any
 
 
 def make_blocks(obs: Observations, ra_deg, dec_deg, *, block_stars: int = BLOCK_STARS, compact: bool = False,
@@ -510,7 +523,8 @@ def _setup_task(item):
     frame weights' means."""
     ci, blocks, hs, st, prior, K, g, leaves = item
     b_s = np.empty((sum(b.n for b in blocks), 5))
-    stars = st.get("stars")
+    stars, cols = st.get("stars"), st.get("border")
+    g_s = None if cols is None else np.empty((cols[0].shape[1], len(b_s), 5))
     if prior is None:
         prior, K, g = stars["prior"], stars["K"], normalised_weights(stars["g_raw"], g)
 
@@ -522,6 +536,13 @@ def _setup_task(item):
             part = B.block_setup(b, hs[k])
             b_s[v] = part.pop("b_s")
             part["bb"] = _dot(b_s[v], b_s[v])
+            if cols is not None:  # G = A' C, the bordering columns' right-hand sides (module notes)
+                g_a = []
+                for j in range(cols[k].shape[1]):
+                    col = B.block_setup(b, cols[k][:, j])
+                    g_s[j, v] = col["b_s"]
+                    g_a.append(col["b_a"])
+                part["g_a"] = np.stack(g_a)
             acc = part if acc is None else _add_setup(acc, part)
         return acc
 
@@ -529,6 +550,8 @@ def _setup_task(item):
     st.clear()
     if stars is not None:
         st["stars"] = stars
+    if cols is not None:
+        st["border"], st["g_s"] = cols, g_s
     zero = np.zeros_like(b_s)
     st.update(b=b_s, x=zero.copy(), r=b_s.copy(), e_x=zero.copy(), p=zero.copy(), q=zero.copy(), e_p=zero,
               prior=np.ascontiguousarray(prior, dtype=float), K=np.ascontiguousarray(K, dtype=float),
@@ -601,8 +624,12 @@ def _back_task(item):
 
     ya = pairwise_sum(_leaf_sum(add_block, run) for run in _leaf_runs(blocks, leaves))
     st["z"], st["nz"] = z, nz
+    g_s = st.get("g_s")
     numbers = pairwise_sum(np.r_[_dot(r, z), kernels.frame_sums(K, g, z)]
                            for r, z, K, g in _views(blocks, st["r"], st["z"], st["K"], st["g"]))
+    if g_s is not None:  # G_s' z_s, the stars' share of the border's rows of N z
+        numbers = np.r_[numbers, [pairwise_sum(_dot(gs, z) for gs, z in _views(blocks, g_s[j], z))
+                                  for j in range(len(g_s))]]
     return ci, ya, numbers
 
 
@@ -610,10 +637,13 @@ def _direction_task(item):
     """N z completed with the prior and the frame penalty (``sums``: C z over all stars), then
     the new search direction ``p = z + beta p`` (``beta`` None: the first, ``p = z``) and
     ``q = N p`` by recursion; returned the share of p'q."""
-    ci, blocks, _, st, sums, beta, w = item
+    ci, blocks, _, st, sums, beta, w, z_c = item
     e_z = st["prior"] * st["z"]
     kernels.frame_apply(st["K"], st["g"], sums, w[0], w[1], e_z)
     nz = st.pop("nz") + e_z
+    if z_c is not None:  # + G_s z_c: the border's columns of N z
+        for j, c in enumerate(z_c):
+            nz += c * st["g_s"][j]
     z = st.pop("z")
     if beta is None:
         st["p"], st["q"], st["e_p"] = z, nz, e_z
@@ -627,8 +657,10 @@ def _direction_task(item):
 def _residual_task(item):
     """Residuals of the solution; returned the chunk's share of the stars' solution unless it
     stays with the chunk (``send_x`` False: :class:`ResidentProblem`)."""
-    ci, blocks, hs, st, x_a, keep, send_x = item
+    ci, blocks, hs, st, x_a, keep, send_x, x_c = item
     res = [B.block_residuals(b, h, x, x_a) for b, h, (x,) in zip(blocks, hs, _views(blocks, st["x"]))]
+    if x_c is not None:
+        res = [r - c @ x_c for r, c in zip(res, st["border"])]
     return ci, (res if keep else None), pairwise_sum(_dot(r, r) for r in res), (st["x"] if send_x else None)
 
 
@@ -699,7 +731,7 @@ def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_u
                  error_tol: float | None = None, max_iter: int = 500,
                  min_iter: int = 2, log=None, chunk_stars: int | None = None,
                  residuals: bool = True, workers: int = 1, dask_client=None,
-                 resident_chunks=None) -> GlobalSolution:
+                 resident_chunks=None, border=None) -> GlobalSolution:
     """Solve ``N x = A' h`` by PCG from ``x = 0`` (module notes).
 
     Parameters
@@ -735,6 +767,12 @@ def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_u
     resident_chunks : DaskChunks, optional, keyword-only
         As ``dask_client``, with the chunks already on the workers; its chunk ``ci`` must be
         the problem's blocks of ``problem.chunks(chunk_stars)[ci]`` with their measurements.
+    border : array_like (m, k), optional, keyword-only
+        Normalised partials of ``k`` further unknowns that every measurement may depend on
+        (a calibration, :mod:`~mcsweep.solver.calibration`), in observation order, without
+        prior or frame constraint: the bordered system is solved (module notes, "Bordered
+        unknowns") and they are returned as ``GlobalSolution.border``. In-process and forked
+        workers only.
     """
     if h is None and resident_chunks is None:
         raise ValueError("the measurements h are needed unless they are on the workers (resident_chunks)")
@@ -755,6 +793,16 @@ def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_u
         raise ValueError(f"error_tol={error_tol}: expected a positive fraction of the formal uncertainties")
     kw = dict(rtol=rtol, update_tol_uas=update_tol_uas, error_tol=error_tol,
               max_iter=max_iter, min_iter=min_iter, log=log, residuals=residuals)
+    states = [{} for _ in chunks]
+    if border is not None:
+        if h is None or resident_chunks is not None:
+            raise ValueError("border unknowns are solved in-process or with forked workers, with h given")
+        border = np.asarray(border, dtype=float).reshape(h.size, -1)
+        for st, bl in zip(states, chunks):
+            st["border"] = [np.ascontiguousarray(border[b.rows]) for b in bl]
+        # C' h and C' C by numpy's pairwise sums (_dot): the same bits for any chunking
+        kw["border"] = (np.array([_dot(c, h) for c in border.T]),
+                        np.array([[_dot(a, c) for c in border.T] for a in border.T]))
     if resident_chunks is not None:
         for attempt in range(MAX_RESTARTS + 1):
             try:
@@ -762,7 +810,6 @@ def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_u
             except ChunksLost:
                 if attempt == MAX_RESTARTS:
                     raise
-    states = [{} for _ in chunks]
     bounds = share_bounds(len(problem.blocks), shares)
     owners = [int(np.searchsorted(bounds, lo, side="right")) - 1 for lo, _ in ranges]
     with forked_chunks(list(zip(chunks, hs, states)), workers, owners=owners) as pool:
@@ -792,7 +839,7 @@ def _in_process(chunks: dict, fn: Callable, items: Iterable) -> Iterator:
 
 
 def _pcg(pb: GlobalProblem, chunks, run, *, rtol, update_tol_uas, error_tol, max_iter, min_iter,
-         log, residuals) -> GlobalSolution:
+         log, residuals, border=None) -> GlobalSolution:
     """The PCG iteration of :func:`solve_global`; ``run(fn, items)`` runs chunk tasks whose items
     are ``(ci, *rest)`` on the executor that holds chunk ``ci`` and its state."""
     m = pb.n_measurements
@@ -826,7 +873,15 @@ def _pcg(pb: GlobalProblem, chunks, run, *, rtol, update_tol_uas, error_tol, max
     glob = total_att((got.pop(i) for i in n_ch), _add_setup)
     free = pb.free
     b_a = np.where(free, glob["b_a"], 0.0)
-    b_norm = float(np.sqrt(glob["bb"] + _dot(b_a, b_a))) or 1.0
+    # the bordered unknowns (module notes): right-hand side b_c = C'h, their block D = C'C,
+    # the attitude's rows of their columns G_a = A_a'C; the stars' rows G_s stay with the chunks
+    if border is None:
+        b_c, D, G_a, D_inv = np.zeros(0), np.zeros((0, 0)), np.zeros((0,) + b_a.shape), None
+    else:
+        b_c, D = border
+        G_a = np.where(free, glob["g_a"], 0.0)
+        D_inv = np.linalg.inv(D)
+    b_norm = float(np.sqrt(glob["bb"] + _dot(b_a, b_a) + _dot(b_c, b_c))) or 1.0
     hh = glob["hh"]
     del glob
     # The absorption, slab by slab of the band's columns: each slab's sum over the chunks goes
@@ -862,11 +917,11 @@ def _pcg(pb: GlobalProblem, chunks, run, *, rtol, update_tol_uas, error_tol, max
         raise ValueError(f"illegal value in argument {-info} of the banded Cholesky factorisation")
     del band
 
-    def precondition(r_a, w_a, beta):
+    def precondition(r_a, r_c, w_a, beta):
         """``z = M^-1 r`` (symmetric block Gauss-Seidel with the banded Schur block; the first
-        sweep's attitude part ``w_a`` from the forward task), its ``r'z``, then on the workers
-        ``N z`` and the new direction: returns ``z_a``, ``(N z)_a``, ``r'z`` and the stars'
-        share of ``p'q``."""
+        sweep's attitude part ``w_a`` from the forward task; the bordered unknowns by ``D^-1``),
+        its ``r'z``, then on the workers ``N z`` and the new direction: returns ``z_a``,
+        ``(N z)_a``, ``z_c``, ``(N z)_c``, ``r'z`` and the stars' share of ``p'q``."""
         w_a = np.where(free, r_a - w_a, 0.0)
         # chol is finite (dpbtrf succeeded on a checked band) and w_a is a sum of the passes: no
         # finiteness scan of the 12 x 2.3e6 factor every iteration (7 % of the driver's time at
@@ -876,45 +931,58 @@ def _pcg(pb: GlobalProblem, chunks, run, *, rtol, update_tol_uas, error_tol, max
         nz_a = total_att(o[0] for o in back)
         nz_a[~free] = z_a[~free]
         numbers = total(o[1] for o in back)
-        rz = float(numbers[0]) + _dot(r_a, z_a)
+        z_c = None
+        if D_inv is not None:  # N z's border rows G_s'z_s + G_a'z_a + D z_c; its columns G z_c
+            z_c = D_inv @ r_c
+            nz_c = numbers[7:] + np.array([_dot(g, z_a) for g in G_a]) + D @ z_c
+            for g, c in zip(G_a, z_c):
+                nz_a += c * g
+        else:
+            nz_c = np.zeros(0)
+        rz = float(numbers[0]) + _dot(r_a, z_a) + (_dot(r_c, z_c) if z_c is not None else 0.0)
         beta = None if beta is None else beta(rz)
-        pq_s = total(o[0] for o in _ordered(run, _direction_task, [(i, numbers[1:], beta, w) for i in n_ch]))
-        return z_a, nz_a, rz, beta, float(pq_s)
+        pq_s = total(o[0] for o in _ordered(run, _direction_task, [(i, numbers[1:7], beta, w, z_c) for i in n_ch]))
+        return z_a, nz_a, (np.zeros(0) if z_c is None else z_c), nz_c, rz, beta, float(pq_s)
 
     def forward(alpha):
         fwd = _ordered(run, _forward_task, [(i, alpha, leaves[i]) for i in n_ch])
         return (total_att(f[0] for f in fwd), total(f[1] for f in fwd),
                 max(f[2] for f in fwd))
 
-    x_a = np.zeros_like(b_a)
-    r_a = b_a.copy()
+    x_a, x_c = np.zeros_like(b_a), np.zeros_like(b_c)
+    r_a, r_c = b_a.copy(), b_c.copy()
     w_a, _, _ = forward(None)
-    p_a, q_a, rz, _, pq_s = precondition(r_a, w_a, None)
+    p_a, q_a, p_c, q_c, rz, _, pq_s = precondition(r_a, r_c, w_a, None)
     p_a = p_a.copy()
     history, converged = [], False
     steps = []  # squared N-norms of the steps, for the error estimate
     t0 = time.perf_counter()
     for it in range(1, max_iter + 1):
-        pq = pq_s + _dot(p_a, q_a)
+        pq = pq_s + _dot(p_a, q_a) + _dot(p_c, q_c)
         if not pq > 0.0:  # exact solution reached, loss of positive definiteness, or not finite
             break
         alpha = rz / pq
         step_a = alpha * p_a
         x_a += step_a
         r_a -= alpha * q_a
+        step_c = alpha * p_c
+        x_c += step_c
+        r_c -= alpha * q_c
         w_a, numbers, largest_s = forward(alpha)
         xbr, xex, step_pos2, rr_s = (float(v) for v in numbers)
-        # |h - A x|^2 = h'h - 2 x'b + x'A'A x with A'A x = b - r - (N_p + F) x_s
-        res2 = hh - (xbr + _dot(x_a, b_a + r_a)) - xex
+        # |h - A x|^2 = h'h - 2 x'b + x'A'A x with A'A x = b - r - (N_p + F) x_s (A, x, b and r
+        # with the bordered unknowns)
+        res2 = hh - (xbr + _dot(x_a, b_a + r_a) + _dot(x_c, b_c + r_c)) - xex
         steps.append(alpha * rz)
         error = remaining_error(steps) if error_tol is not None else float("nan")
         rec = ConvergenceRecord(
             iteration=it,
-            update_max_uas=UAS_PER_MAS * max(float(np.max(np.abs(step_a), initial=0.0)), largest_s),
+            update_max_uas=UAS_PER_MAS * max(float(np.max(np.abs(step_a), initial=0.0)), largest_s,
+                                             float(np.max(np.abs(step_c), initial=0.0))),
             update_rms_position_uas=UAS_PER_MAS * float(np.sqrt(step_pos2 / max(pb.n_stars, 1))),
             update_rms_attitude_uas=UAS_PER_MAS * float(np.sqrt(np.mean(np.sum(step_a ** 2, axis=1)))),
             residual_rms=float(np.sqrt(max(res2, 0.0) / m)) if m else 0.0,
-            relative_residual=float(np.sqrt(rr_s + _dot(r_a, r_a))) / b_norm,
+            relative_residual=float(np.sqrt(rr_s + _dot(r_a, r_a) + _dot(r_c, r_c))) / b_norm,
             seconds=time.perf_counter() - t0, energy_decrease=alpha * rz, error_estimate=error)
         history.append(rec)
         if log is not None:
@@ -925,11 +993,14 @@ def _pcg(pb: GlobalProblem, chunks, run, *, rtol, update_tol_uas, error_tol, max
             break
         if it == max_iter:
             break
-        z_a, nz_a, rz_new, beta, pq_s = precondition(r_a, w_a, lambda rz_new: rz_new / rz)
+        z_a, nz_a, z_c, nz_c, rz_new, beta, pq_s = precondition(r_a, r_c, w_a, lambda rz_new: rz_new / rz)
         p_a = z_a + beta * p_a
         q_a = nz_a + beta * q_a   # N p without another pass
+        p_c = z_c + beta * p_c
+        q_c = nz_c + beta * q_c
         rz = rz_new
-    out = _ordered(run, _residual_task, [(i, x_a, residuals, not pb.stars_with_chunks) for i in n_ch])
+    out = _ordered(run, _residual_task, [(i, x_a, residuals, not pb.stars_with_chunks,
+                                          None if border is None else x_c) for i in n_ch])
     res_all = None
     if residuals:
         res_all = np.empty(m)
@@ -939,4 +1010,4 @@ def _pcg(pb: GlobalProblem, chunks, run, *, rtol, update_tol_uas, error_tol, max
     x_s = None if pb.stars_with_chunks else np.concatenate([o[2] for o in out]) if out else np.zeros((0, 5))
     return GlobalSolution(x=x_s, attitude=x_a, cov=pb.src_inv, residuals=res_all,
                           residual_rms=float(np.sqrt(ss / m)) if m else float("nan"),
-                          history=history, converged=converged)
+                          history=history, converged=converged, border=None if border is None else x_c)

@@ -162,8 +162,8 @@ def _solve(run: GlobalRun, data, label: str, client: Callable) -> None:
                 f"({data.transits_per_knot:.3g} FoV transits per knot on average); no table3 written, the "
                 f"solutions finished before it are kept; accepted: {_fewer_knots(run.section)}") from None
         except CalibrationNotDetermined as exc:
-            # The same kind of end (mcsweep.solver.calibration): the variation's Schur complement
-            # is not positive definite to the solutions' accuracy under this prior.
+            # The same kind of end (mcsweep.solver.calibration): some combination of the
+            # variation's unknowns has no measurement.
             raise NotConvergedError(
                 f"the {label} solution cannot fix experiment.primary.basic_angle_harmonics="
                 f"{settings.basic_angle_harmonics}: {exc}; no table3 written, the solutions finished before it "
@@ -304,13 +304,11 @@ def calibration_note(pri, extras: dict) -> str | None:
     if not pri.basic_angle_harmonics:
         return None
     per = "; ".join(f"{k}: " + ", ".join(f"{n} {1e3 * v:.2f}" for n, v in e.get("basic_angle_mas", {}).items())
-                    + f" (PCG iterations {' + '.join(str(i) for i in e.get('solutions_iterations', []))}: the "
-                    f"calibration columns', then the measurements'; condition of S "
-                    f"{e.get('calibration_condition', float('nan')):.3g}, error amplification "
-                    f"{e.get('calibration_amplification', float('nan')):.3g})" for k, e in extras.items())
+                    for k, e in extras.items())
     return (f"Calibration: a basic-angle variation with {pri.basic_angle_harmonics} harmonic(s) of the spin phase "
-            f"solved with the stars and the attitude (experiment.primary.basic_angle_harmonics; its cos Omega "
-            f"term is degenerate with a shift of every parallax, Butkevich et al. 2017). Fitted [uas]: {per}.")
+            f"solved with the stars and the attitude, its unknowns bordering the normal equations of one PCG "
+            f"(experiment.primary.basic_angle_harmonics; its cos Omega term is degenerate with a shift of every "
+            f"parallax, Butkevich et al. 2017). Fitted [uas]: {per}.")
 
 
 #: The primary experiment on the global path (:func:`~mcsweep.sweep.global_runner.run_global`).

@@ -360,7 +360,8 @@ class RealSkyConf:
 
 
 #: Most harmonics of the spin phase in a basic-angle variation solved with the primary
-#: solution: each costs two more solutions of the normal equations (mcsweep.solver.calibration).
+#: solution: each adds two unknowns bordering its normal equations (mcsweep.solver.calibration),
+#: each 8 bytes per measurement on the driver.
 MAX_BASIC_ANGLE_HARMONICS = 8
 
 

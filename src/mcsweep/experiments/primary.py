@@ -745,7 +745,7 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
              "frame_rotation_mas": eps.tolist(), "frame_spin_mas_yr": omega.tolist(),
              "residual_rms": sol.residual_rms,
              "seconds": float(sol.history[-1].seconds) if sol.history else 0.0}
-    if data.calibration is not None and sol.border is not None:
+    if data.calibration is not None:
         extra["basic_angle_mas"] = dict(zip(data.calibration.names(), sol.border.tolist()))
     if resident is not None and sol.history:  # what travelled per iteration (issue 27), measured:
         # the iterations' passes only (the one-off setup and residual passes apart)

@@ -537,12 +537,10 @@ def _setup_task(item):
             b_s[v] = part.pop("b_s")
             part["bb"] = _dot(b_s[v], b_s[v])
             if cols is not None:  # G = A' C, the bordering columns' right-hand sides (module notes)
-                g_a = []
-                for j in range(cols[k].shape[1]):
-                    col = B.block_setup(b, cols[k][:, j])
-                    g_s[j, v] = col["b_s"]
-                    g_a.append(col["b_a"])
-                part["g_a"] = np.stack(g_a)
+                g = B.gather(b)
+                for j, col in enumerate(cols[k].T):
+                    g_s[j, v] = B.src_adjoint(b, col, g)
+                part["g_a"] = np.stack([B.att_adjoint(b, col, g) for col in cols[k].T])
             acc = part if acc is None else _add_setup(acc, part)
         return acc
 
@@ -801,8 +799,8 @@ def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_u
         for st, bl in zip(states, chunks):
             st["border"] = [np.ascontiguousarray(border[b.rows]) for b in bl]
         # C' h and C' C by numpy's pairwise sums (_dot): the same bits for any chunking
-        kw["border"] = (np.array([_dot(c, h) for c in border.T]),
-                        np.array([[_dot(a, c) for c in border.T] for a in border.T]))
+        kw["border_normals"] = (np.array([_dot(c, h) for c in border.T]),
+                                np.array([[_dot(a, c) for c in border.T] for a in border.T]))
     if resident_chunks is not None:
         for attempt in range(MAX_RESTARTS + 1):
             try:
@@ -839,9 +837,10 @@ def _in_process(chunks: dict, fn: Callable, items: Iterable) -> Iterator:
 
 
 def _pcg(pb: GlobalProblem, chunks, run, *, rtol, update_tol_uas, error_tol, max_iter, min_iter,
-         log, residuals, border=None) -> GlobalSolution:
+         log, residuals, border_normals=None) -> GlobalSolution:
     """The PCG iteration of :func:`solve_global`; ``run(fn, items)`` runs chunk tasks whose items
-    are ``(ci, *rest)`` on the executor that holds chunk ``ci`` and its state."""
+    are ``(ci, *rest)`` on the executor that holds chunk ``ci`` and its state. ``border_normals``:
+    ``(C'h, C'C)`` of the bordered unknowns, whose columns the chunks' states hold (None: none)."""
     m = pb.n_measurements
     stars = [slice(bl[0].first, bl[-1].first + bl[-1].n) for bl in chunks]
     n_ch = range(len(chunks))
@@ -874,13 +873,12 @@ def _pcg(pb: GlobalProblem, chunks, run, *, rtol, update_tol_uas, error_tol, max
     free = pb.free
     b_a = np.where(free, glob["b_a"], 0.0)
     # the bordered unknowns (module notes): right-hand side b_c = C'h, their block D = C'C,
-    # the attitude's rows of their columns G_a = A_a'C; the stars' rows G_s stay with the chunks
-    if border is None:
-        b_c, D, G_a, D_inv = np.zeros(0), np.zeros((0, 0)), np.zeros((0,) + b_a.shape), None
-    else:
-        b_c, D = border
-        G_a = np.where(free, glob["g_a"], 0.0)
-        D_inv = np.linalg.inv(D)
+    # the attitude's rows of their columns G_a = A_a'C; the stars' rows G_s stay with the chunks.
+    # Without any, k = 0: empty vectors, whose dots add an exact 0.0 to every sum.
+    bordered = border_normals is not None
+    b_c, D = border_normals if bordered else (np.zeros(0), np.zeros((0, 0)))
+    G_a = np.where(free, glob["g_a"], 0.0) if bordered else np.zeros((0,) + b_a.shape)
+    D_inv = np.linalg.inv(D)
     b_norm = float(np.sqrt(glob["bb"] + _dot(b_a, b_a) + _dot(b_c, b_c))) or 1.0
     hh = glob["hh"]
     del glob
@@ -931,18 +929,17 @@ def _pcg(pb: GlobalProblem, chunks, run, *, rtol, update_tol_uas, error_tol, max
         nz_a = total_att(o[0] for o in back)
         nz_a[~free] = z_a[~free]
         numbers = total(o[1] for o in back)
-        z_c = None
-        if D_inv is not None:  # N z's border rows G_s'z_s + G_a'z_a + D z_c; its columns G z_c
-            z_c = D_inv @ r_c
-            nz_c = numbers[7:] + np.array([_dot(g, z_a) for g in G_a]) + D @ z_c
-            for g, c in zip(G_a, z_c):
-                nz_a += c * g
-        else:
-            nz_c = np.zeros(0)
-        rz = float(numbers[0]) + _dot(r_a, z_a) + (_dot(r_c, z_c) if z_c is not None else 0.0)
+        # N z's border rows G_s'z_s + G_a'z_a + D z_c (the chunks' dots after the frame sums); its
+        # border columns G z_c
+        z_c = D_inv @ r_c
+        nz_c = numbers[7:] + np.array([_dot(g, z_a) for g in G_a]) + D @ z_c
+        for g, c in zip(G_a, z_c):
+            nz_a += c * g
+        rz = float(numbers[0]) + _dot(r_a, z_a) + _dot(r_c, z_c)
         beta = None if beta is None else beta(rz)
-        pq_s = total(o[0] for o in _ordered(run, _direction_task, [(i, numbers[1:7], beta, w, z_c) for i in n_ch]))
-        return z_a, nz_a, (np.zeros(0) if z_c is None else z_c), nz_c, rz, beta, float(pq_s)
+        pq_s = total(o[0] for o in _ordered(run, _direction_task, [(i, numbers[1:7], beta, w, z_c if bordered else None)
+                                                                   for i in n_ch]))
+        return z_a, nz_a, z_c, nz_c, rz, beta, float(pq_s)
 
     def forward(alpha):
         fwd = _ordered(run, _forward_task, [(i, alpha, leaves[i]) for i in n_ch])
@@ -1000,7 +997,7 @@ def _pcg(pb: GlobalProblem, chunks, run, *, rtol, update_tol_uas, error_tol, max
         q_c = nz_c + beta * q_c
         rz = rz_new
     out = _ordered(run, _residual_task, [(i, x_a, residuals, not pb.stars_with_chunks,
-                                          None if border is None else x_c) for i in n_ch])
+                                          x_c if bordered else None) for i in n_ch])
     res_all = None
     if residuals:
         res_all = np.empty(m)
@@ -1010,4 +1007,4 @@ def _pcg(pb: GlobalProblem, chunks, run, *, rtol, update_tol_uas, error_tol, max
     x_s = None if pb.stars_with_chunks else np.concatenate([o[2] for o in out]) if out else np.zeros((0, 5))
     return GlobalSolution(x=x_s, attitude=x_a, cov=pb.src_inv, residuals=res_all,
                           residual_rms=float(np.sqrt(ss / m)) if m else float("nan"),
-                          history=history, converged=converged, border=None if border is None else x_c)
+                          history=history, converged=converged, border=x_c if bordered else None)

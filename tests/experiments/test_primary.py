@@ -1,5 +1,6 @@
 """The one-year global (primary) experiment of paper Sect. 4.2 (Table 3), reduced in size."""
 
+import json
 import re
 import subprocess
 import sys
@@ -139,6 +140,7 @@ def test_bad_prior_through_cli_exits_2_in_one_line_and_leaves_no_output(tmp_path
     ("experiment.primary.evaluation_epoch=star", "evaluation_epoch"),
     ("experiment.primary.basic_angle_harmonics=-1", "basic_angle_harmonics"),
     ("experiment.primary.basic_angle_harmonics=9", "basic_angle_harmonics"),
+    ("experiment.primary.solver_start=coarse", "solver_start"),
 ])
 def test_bad_settings_are_user_errors(override, key):
     with pytest.raises(UserInputError, match=key):
@@ -291,7 +293,7 @@ def test_noiseless_data_recover_the_truth_and_the_attitude():
                            settings.end_jd, settings.law))
     data = P.prepare(settings, stars, tr, with_noise=False)
     assert 1e3 * np.sqrt(np.mean(data.true_attitude_at(data.epochs()) ** 2)) > 1000 * RECOVERY_UAS  # a real one
-    res, _, extra, _ = P.solve_prior(settings, data, "F90")
+    res, _, extra, *_ = P.solve_prior(settings, data, "F90")
     assert extra["converged"]
     solved = res["inside"].to_numpy() >= 0
     assert solved.sum() == data.solved.size > 2000
@@ -322,7 +324,7 @@ def test_noiseless_data_with_a_basic_angle_variation_recover_it_and_the_truth():
             true = np.array([0.5, -0.3])
             signal = true[0] * data.calibration.column(0) + true[1] * data.calibration.column(1)
         data.h += signal
-        res, _, extra, _ = P.solve_prior(settings, data, "F90")
+        res, _, extra, *_ = P.solve_prior(settings, data, "F90")
         assert extra["converged"]
         solved = res["inside"].to_numpy() >= 0
         worst[harmonics] = 1e3 * np.nanmax(res["err_mas"].to_numpy()[solved])
@@ -542,6 +544,17 @@ def test_an_attitude_the_data_leave_free_ends_the_run_in_one_line_and_keeps_what
     assert r.returncode == 0, r.stderr[-3000:]
     assert (out / "table3.csv").exists() and kept.read_bytes() == before
     assert "prior 10F90:" in r.stdout and "prior F90:" not in r.stdout  # resumed, not solved again
+    # The resumed 10F90 solution started from the stored F90 attitude (solver_start='previous'),
+    # as an uninterrupted run's does: the same bits.
+    whole = tmp_path / "whole"
+    r = subprocess.run([str(BIN / "mcsweep"), *args[1:], f"hydra.run.dir={whole}"], capture_output=True, text=True,
+                       timeout=600)
+    assert r.returncode == 0, r.stderr[-3000:]
+    for run_dir in (out, whole):
+        assert json.loads((run_dir / "primary_chunks" / "prior_10F90.json").read_text())["attitude_start"] == "F90"
+    pd.testing.assert_frame_equal(pd.read_parquet(out / "primary_chunks" / "prior_10F90.parquet"),
+                                  pd.read_parquet(whole / "primary_chunks" / "prior_10F90.parquet"), check_exact=True)
+    assert (out / "table3.csv").read_bytes() == (whole / "table3.csv").read_bytes()
 
 
 _EVERY_ITERATION = """

@@ -83,8 +83,16 @@ def test_cluster_built_solution_is_the_forked_one(both, client):
     assert ref[2]["attitude_rms_uas"] == got[2]["attitude_rms_uas"]
     np.testing.assert_array_equal(ref[0].to_numpy(), got[0].to_numpy())
     np.testing.assert_array_equal(ref[3].to_numpy(), got[3].to_numpy())
+    np.testing.assert_array_equal(ref.attitude, got.attitude)
     with pytest.raises(ValueError, match="dask_client"):
         P.solve_prior(settings, remote, "F90")
+    # the next prior from this one's attitude (solver_start='previous'), sent to the workers' setup
+    ref = P.solve_prior(settings, local, "10F90", workers=2, attitude_start=ref.attitude)
+    got = P.solve_prior(settings, remote, "10F90", dask_client=client, chunk_stars=2 * BLOCK,
+                        attitude_start=got.attitude)
+    assert ref.extra["iterations"] == got.extra["iterations"]
+    np.testing.assert_array_equal(ref.results.to_numpy(), got.results.to_numpy())
+    np.testing.assert_array_equal(ref.attitude, got.attitude)
 
 
 def test_cluster_built_solution_survives_a_killed_worker(both, client, kill_worker_at):

@@ -68,6 +68,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -106,6 +107,7 @@ __all__ = [
     "prepare",
     "evaluate_solution",
     "solve_prior",
+    "PriorSolution",
     "attitude_error",
     "attitude_error_series",
 ]
@@ -145,6 +147,7 @@ class PrimarySettings(GlobalSettings):
     frame_fit: str = "precision"
     evaluation_epoch: str = "reference"
     basic_angle_harmonics: int = 0
+    solver_start: str = "previous"
 
     @property
     def criterion(self) -> dict:
@@ -198,7 +201,7 @@ def build_settings(config) -> PrimarySettings:
         error_tol=None if pri.solver_error_tol is None else float(pri.solver_error_tol),
         max_iter=int(pri.solver_max_iter), allow_unconverged=bool(pri.allow_unconverged),
         frame_fit=str(pri.frame_fit), evaluation_epoch=str(pri.evaluation_epoch),
-        basic_angle_harmonics=int(pri.basic_angle_harmonics))
+        basic_angle_harmonics=int(pri.basic_angle_harmonics), solver_start=str(pri.solver_start))
 
 
 # --------------------------------------------------------------------------- data
@@ -674,9 +677,21 @@ def evaluate_solution(K, cov, dx, views, *, equal: bool, tau, confidence: float)
     return eps, omega, tuple(np.concatenate([p[i] for p in parts]) if parts else np.zeros(0) for i in range(3))
 
 
+class PriorSolution(NamedTuple):
+    """What :func:`solve_prior` gives: per-star results, PCG history, summary (``extra``),
+    attitude error on a grid, and the attitude spline coefficients solved (``n_coef, 3``,
+    mas), from which the next prior's solution may start (``solver_start='previous'``)."""
+
+    results: pd.DataFrame
+    history: pd.DataFrame
+    extra: dict
+    attitude_error: pd.DataFrame
+    attitude: np.ndarray
+
+
 def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=None, *,
-                chunk_stars=None, workers: int = 1, dask_client=None):
-    """One global solution for the prior ``label``: (per-star results, history, attitude errors).
+                chunk_stars=None, workers: int = 1, dask_client=None, attitude_start=None) -> PriorSolution:
+    """One global solution for the prior ``label`` (:class:`PriorSolution`).
 
     Per-star results (all stars of ``data.stars``): ``inside`` (1/0, -1 not solved),
     ``err_mas`` (position error after the frame correction), ``err_parallax_mas``
@@ -686,6 +701,9 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
     ``chunk_stars``, ``workers``, ``dask_client``: the chunk size, forked workers or Dask
     cluster (whose workers keep the chunks and their star vectors) for the solver's per-chunk
     work (:func:`mcsweep.solver.solve_global`); results do not depend on them.
+    ``attitude_start``: attitude coefficients PCG starts from (None: zero corrections to the
+    scanning law); any start gives the least-squares solution to ``solver_error_tol``, a good
+    one in fewer iterations (:func:`~mcsweep.solver.solve_global`).
     """
     st = data.stars
     s = data.solved
@@ -702,7 +720,8 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
         from .primary_cluster import solve_on_cluster
 
         sol, resident, eps, omega, (inside_s, err_s, plx_s), sq = solve_on_cluster(
-            settings, data, sig, dask_client, chunk_stars=chunk_stars, log=log, tau=tau, equal=equal)
+            settings, data, sig, dask_client, chunk_stars=chunk_stars, log=log, tau=tau, equal=equal,
+            attitude_start=attitude_start)
     else:
         prior = prior_diagonal(sig, settings.ratio_R)
         # Raises if a star's block is singular: every solved star has >= 1 AL+AC or 2 AL
@@ -718,7 +737,8 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
         # system (mcsweep.solver.calibration)
         sol = solve_global(problem, data.h, **settings.criterion, log=log, chunk_stars=chunk_stars,
                            residuals=False, workers=workers, resident_chunks=resident,
-                           border=None if data.calibration is None else calibration_design(data.calibration))
+                           border=None if data.calibration is None else calibration_design(data.calibration),
+                           attitude_start=attitude_start)
         eps, omega, (inside_s, err_s, plx_s) = evaluate_solution(
             problem.K, sol.cov, sol.x - data.x_true, [slice(b.first, b.first + b.n) for b in data.blocks],
             equal=equal, tau=tau, confidence=settings.confidence)
@@ -751,4 +771,4 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
         # the iterations' passes only (the one-off setup and residual passes apart)
         sent, received = resident.bytes_per_call("_forward_task", "_back_task", "_direction_task")
         extra["dask_mib_per_iteration"] = [sent / len(sol.history) / 2**20, received / len(sol.history) / 2**20]
-    return res, hist, extra, attitude_error_series(data, sol.attitude, eps, omega)
+    return PriorSolution(res, hist, extra, attitude_error_series(data, sol.attitude, eps, omega), sol.attitude)

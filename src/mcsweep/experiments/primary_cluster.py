@@ -144,7 +144,7 @@ def _outcome_task(item):
 
 
 def solve_on_cluster(settings: PrimarySettings, data: PreparedData, sig, client, *, chunk_stars, log, tau,
-                     equal: bool):
+                     equal: bool, attitude_start=None):
     """One prior's solution of data built on the cluster (:func:`prepare_on_cluster`), every
     per-star array on the workers: the prior sigmas ``sig`` [mas] of the solved stars are
     sent, the inverses, frame weights, solution and its evaluation are made there, and the
@@ -162,13 +162,13 @@ def solve_on_cluster(settings: PrimarySettings, data: PreparedData, sig, client,
     for attempt in range(MAX_RESTARTS + 1):
         try:
             return (*_solve_once(settings, data, resident, ranges, views, chunk_stars=chunk_stars, log=log, tau=tau,
-                                 equal=equal), )
+                                 equal=equal, attitude_start=attitude_start), )
         except ChunksLost:
             if attempt == MAX_RESTARTS:
                 raise
 
 
-def _solve_once(settings, data, resident, ranges, views, *, chunk_stars, log, tau, equal):
+def _solve_once(settings, data, resident, ranges, views, *, chunk_stars, log, tau, equal, attitude_start):
     levels = [run_level(lo, hi) for lo, hi in ranges]
     got = chunk_values(resident.run, _prior_task, [(ci,) for ci in range(len(ranges))])
     bad = sum(g[0] for g in got)
@@ -181,7 +181,7 @@ def _solve_once(settings, data, resident, ranges, views, *, chunk_stars, log, ta
                               w_pos=w_pos, w_pm=w_pm)
     del got
     sol = solve_global(problem, None, **settings.criterion, log=log, chunk_stars=chunk_stars, residuals=False,
-                       resident_chunks=resident)
+                       resident_chunks=resident, attitude_start=attitude_start)
     eps, omega = frame_from_sums(pairwise_sum(
         chunk_values(resident.run, _fit_task, [(ci, equal) for ci in range(len(ranges))]), None, levels))
     out = chunk_values(resident.run, _outcome_task, [(ci, eps, omega, None if tau is None else tau[v],

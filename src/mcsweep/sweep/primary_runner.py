@@ -15,6 +15,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import functools
+import io
 import json
 from pathlib import Path
 from typing import Callable
@@ -122,11 +123,15 @@ class _Computed:
     factors: dict       # factor k -> its prior label (experiment.primary.factor_grid)
 
 
-def _solve(run: GlobalRun, data, label: str, client: Callable) -> None:
+def _solve(run: GlobalRun, data, label: str, client: Callable, start: tuple | None) -> tuple:
     """The solution of prior ``label`` and its side files, unless finished (resume);
-    ``client()``: the Dask client (``execution.backend=dask``), opened at its first call."""
+    ``client()``: the Dask client (``execution.backend=dask``), opened at its first call.
+    ``start``: (label, file) of the solution whose attitude this one starts from
+    (``experiment.primary.solver_start='previous'``), or None (from zero). Returns this
+    solution's (label, file) for the next one."""
     config, settings = run.config, run.settings
     cid = _prior_id(label)
+    coefficients = run.chunks / f"{cid}_coefficients.npy"
     if run.pending([cid]) or not (run.chunks / f"{cid}.json").exists():
         # On a Dask cluster the solver's chunks are sent to the workers once per solution and
         # kept there; every pass sends only the star and attitude vectors
@@ -140,13 +145,20 @@ def _solve(run: GlobalRun, data, label: str, client: Callable) -> None:
         log = SolveLines(f"mcsweep: primary: prior {label}", lambda r: settings.describe_state(dataclasses.asdict(r)),
                          f"{settings.describe_criterion()} or experiment.primary.solver_max_iter {settings.max_iter}",
                          enabled=bool(config.execution.progress))
+        # The stored coefficients (bit for bit the solution's), so a resumed run starts from what
+        # an uninterrupted one would; a solution of a version before them: from zero, recorded.
+        if start is not None and not start[1].exists():
+            start = None
+        a0 = None if start is None else np.load(start[1])
         try:
             if config.execution.backend == "dask":
-                res, hist, extra, series = solve_prior(settings, data, label, log=log, dask_client=client(),
-                                                       chunk_stars=int(config.execution.chunk_stars))
+                res, hist, extra, series, attitude = solve_prior(
+                    settings, data, label, log=log, dask_client=client(), chunk_stars=int(config.execution.chunk_stars),
+                    attitude_start=a0)
             else:
                 workers = int(config.execution.n_jobs) if config.execution.backend in ("loky", "threading") else 1
-                res, hist, extra, series = solve_prior(settings, data, label, log=log, workers=workers)
+                res, hist, extra, series, attitude = solve_prior(settings, data, label, log=log, workers=workers,
+                                                                 attitude_start=a0)
         except AttitudeNotDetermined as exc:
             # The knots are closer than these stars' transits can fix under this prior: found
             # only when the prior's Schur block is factorised, after the solutions before it
@@ -179,11 +191,16 @@ def _solve(run: GlobalRun, data, label: str, client: Callable) -> None:
                 f"history is in {run.chunks / f'{cid}_history.csv'}; raise experiment.primary.solver_max_iter or set "
                 "experiment.primary.allow_unconverged=true to tabulate it marked" if last is not None else
                 f"the {label} solution did not start (no PCG iteration); no table3 written")
+        extra["attitude_start"] = "zero" if start is None else start[0]
         atomic_write_bytes(run.chunks / f"{cid}_attitude.csv", series.to_csv(index=False).encode())
+        buf = io.BytesIO()
+        np.save(buf, attitude)
+        atomic_write_bytes(coefficients, buf.getvalue())
         atomic_write_bytes(run.chunks / f"{cid}.json", json.dumps(extra).encode())
         run.store.write(cid, res)
         release_free_memory()  # the solution's temporaries, before the next one
         print(solution_line(label, extra), flush=True)
+    return (label, coefficients) if settings.solver_start == "previous" else None
 
 
 def _compute(run: GlobalRun) -> _Computed:
@@ -201,9 +218,10 @@ def _compute(run: GlobalRun) -> _Computed:
         client = functools.cache(lambda: cluster.enter_context(dask_client(run.config.execution)))
         data = _observations(run, stars, client)
         # The factor search (experiment.primary.factor_grid) shares solutions with Table 3's priors.
+        start = None  # each solution from the one before (experiment.primary.solver_start)
         for label in dict.fromkeys([*run.settings.priors, *factors.values()]):
             with run.prov.stage(f"solve {label}"):
-                _solve(run, data, label, client)
+                start = _solve(run, data, label, client, start)
     return _Computed(data=data, stars=stars, factors=factors)
 
 
@@ -286,7 +304,8 @@ def _aggregate(run: GlobalRun, computed: _Computed) -> dict[str, str]:
                 "(experiment.primary.evaluation_epoch=star_mean)." if settings.evaluation_epoch == "star_mean" else ""),
              *filter(None, [few_transit_spans(data.stars, pri.g_classes), calibration_note(pri, extras)]),
              "PCG iterations / attitude error RMS (x, y, z) [uas] after the frame correction: "
-             + "; ".join(f"{k}: {e['iterations']} ({'converged' if e['converged'] else 'NOT converged'}), "
+             + "; ".join(f"{k}: {e['iterations']} ({'converged' if e['converged'] else 'NOT converged'}"
+                         + _started(e) + "), "
                          + ", ".join(f"{v:.2f}" for v in e["attitude_rms_uas"]) for k, e in extras.items())
              + "."]
     outputs.update({"table3.csv": table.to_csv(index=False),
@@ -297,6 +316,12 @@ def _aggregate(run: GlobalRun, computed: _Computed) -> dict[str, str]:
     if attitude:
         outputs["primary_attitude_error.csv"] = pd.concat(attitude, ignore_index=True).to_csv(index=False)
     return outputs
+
+
+def _started(extra: dict) -> str:
+    """Where a solution's PCG started (experiment.primary.solver_start), for the table notes."""
+    start = extra.get("attitude_start", "zero")
+    return "" if start == "zero" else f", from the {start} attitude"
 
 
 def calibration_note(pri, extras: dict) -> str | None:

@@ -389,6 +389,7 @@ class PrimaryConf:
     solver_rtol: float = 1e-8
     solver_update_tol_uas: float = 1e-2
     solver_max_iter: int = 2000
+    solver_start: str = "previous"
     allow_unconverged: bool = False
     factor_grid: List[float] = field(default_factory=list)
     factor_resamples: int = 200
@@ -415,6 +416,9 @@ class PrimaryConf:
                  "'precision' (the frame rotator weighted by formal precision) or 'equal'")
         _require(self.factor_resamples >= 0, "experiment.primary.factor_resamples", self.factor_resamples,
                  "a number of bootstrap resamples >= 0")
+        _require(self.solver_start in ("previous", "zero"), "experiment.primary.solver_start", self.solver_start,
+                 "'previous' (each solution after the first starts from the attitude of the one before) or "
+                 "'zero' (every solution from the scanning law)")
         _require(self.solver_error_tol is None or (math.isfinite(self.solver_error_tol) and self.solver_error_tol > 0),
                  "experiment.primary.solver_error_tol", self.solver_error_tol,
                  "a positive fraction of the formal uncertainties, or null (stop on solver_rtol and "

@@ -75,7 +75,7 @@ def one(mode: str, n: int, iterations: int, workers: int) -> dict:
             del tr
         else:
             data = prepare_on_cluster(settings, stars, client, chunk_stars=chunk, transit_stars=chunk)
-        res, _, extra, _ = P.solve_prior(settings, data, "F90", dask_client=client, chunk_stars=chunk)
+        res, _, extra, *_ = P.solve_prior(settings, data, "F90", dask_client=client, chunk_stars=chunk)
     digest = hashlib.sha256(res.to_numpy().tobytes()).hexdigest()[:16]
     return {"mode": mode, "stars": n, "measurements": data.n_measurements, "iterations": extra["iterations"],
             "seconds": time.perf_counter() - t0, "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,

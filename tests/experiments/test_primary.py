@@ -555,6 +555,16 @@ def test_an_attitude_the_data_leave_free_ends_the_run_in_one_line_and_keeps_what
     pd.testing.assert_frame_equal(pd.read_parquet(out / "primary_chunks" / "prior_10F90.parquet"),
                                   pd.read_parquet(whole / "primary_chunks" / "prior_10F90.parquet"), check_exact=True)
     assert (out / "table3.csv").read_bytes() == (whole / "table3.csv").read_bytes()
+    # A finished solution without its stored attitude is solved again (the next one could not
+    # start from it as an uninterrupted run did); the others are kept.
+    (whole / "primary_chunks" / "prior_F90_coefficients.npy").unlink()
+    (whole / "table3.csv").unlink()
+    r = subprocess.run([str(BIN / "mcsweep"), *args[1:], f"hydra.run.dir={whole}"], capture_output=True, text=True,
+                       timeout=600)
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert "prior F90:" in r.stdout and "prior 10F90:" not in r.stdout
+    assert (whole / "primary_chunks" / "prior_F90_coefficients.npy").exists()
+    assert (out / "table3.csv").read_bytes() == (whole / "table3.csv").read_bytes()
 
 
 _EVERY_ITERATION = """

@@ -47,6 +47,18 @@ def test_default_giant_thickness_keeps_the_hash_of_configs_made_before_the_optio
     assert _hash(["population.params.giant_thickness_factor=0.6"]) != config_hash(cfg)
 
 
+def test_a_solution_from_zero_keeps_the_hash_of_configs_made_before_the_start_option():
+    # Primary runs made before experiment.primary.solver_start solved every prior from zero:
+    # they resume under solver_start=zero, and are refused under the new default 'previous'.
+    cfg = OmegaConf.to_container(compose_config(["experiment=primary", "experiment.primary.solver_start=zero"]),
+                                 resolve=True)
+    primary = cfg["experiment"]["primary"]
+    before = {**cfg, "experiment": {**cfg["experiment"], "primary": {
+        k: v for k, v in primary.items() if k != "solver_start"}}}
+    assert config_hash(cfg) == config_hash(before)
+    assert _hash(["experiment=primary"]) != config_hash(cfg)
+
+
 def test_ignored_settings_get_one_warning_line_per_experiment():
     argv = ["experiment=secondary", *IGNORED, "confidence=0.8"]
     lines = ignored_settings(argv, preflight(argv))

@@ -697,7 +697,7 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
     ``err_mas`` (position error after the frame correction), ``err_parallax_mas``
     (estimated - true parallax), ``sigma_prior_mas``. ``extra``: iterations, convergence,
     attitude error RMS per axis [uas] over the measurement epochs, fitted frame rotation and
-    spin; the last element is the attitude error on a grid (:func:`attitude_error_series`).
+    spin; ``attitude_error`` on a grid (:func:`attitude_error_series`).
     ``chunk_stars``, ``workers``, ``dask_client``: the chunk size, forked workers or Dask
     cluster (whose workers keep the chunks and their star vectors) for the solver's per-chunk
     work (:func:`mcsweep.solver.solve_global`); results do not depend on them.

@@ -78,14 +78,16 @@ with the rest (the basic-angle variation with the parallax zero point).
 
 Starting attitude. ``attitude_start = a0`` starts PCG from ``x0 = (0, a0)``: each chunk's
 setup takes ``h - A_a a0`` for its measurements (one more spline product per measurement,
-once), so the iteration solves for the correction from ``x0`` with every criterion unchanged,
-and the solution is ``a0`` plus it (the bordered unknowns' right-hand side loses ``G_a' a0``).
+once), so the iteration solves for the correction from ``x0``, and the solution is ``a0`` plus
+it (the bordered unknowns' right-hand side loses ``G_a' a0``). The energy criterion bounds the
+error of the whole solution as before; the relative residual of the other rule is then
+``|b - N x| / |b - N x0|``, relative to the starting residual.
 The stars need no start of their own: the first preconditioner step gives them their update
 given the attitude, ``B^-1 (r_s - N_sa z_a)``. Any start gives the least-squares solution to
 ``error_tol``; a start near it removes most of the error the slow modes (the weakly determined
 knots) would otherwise carry from zero. Measured on the primary experiment at 25 FoV
-transits per knot, each prior started from the attitude of the prior before it (10 times
-tighter): 10 sigma_F90 and 1000 mas in 158 / 180 iterations instead of 222 / 276 (3 x 10000
+transits per knot, each prior started from the attitude of the prior before it (sigma_F90,
+then 10 sigma_F90): 10 sigma_F90 and 1000 mas in 158 / 180 iterations instead of 222 / 276 (3 x 10000
 stars), 516 / 682 instead of 663 / 871 (3 x 30000); starting sigma_F90 from a 3 h knot
 solution's attitude gave 95 instead of 120 (3 x 10000, not kept: a second problem to build).
 The slow modes stay slow: a start shrinks the error they hold, not their number.
@@ -123,7 +125,7 @@ solve in ``tests/solver/test_energy_criterion.py``.
 Otherwise (``error_tol=None``) it stops after iteration ``k >= min_iter`` when both
 
 * the relative residual of the normal equations ``|b - N x| / |b| < rtol``
-  (recursively updated), and
+  (recursively updated; from a starting attitude ``|b - N x| / |b - N x0|``), and
 * the largest change of any unknown in that iteration (attitude coefficients and all
   five parameters of every star, mas or mas/yr) is below ``update_tol_uas``
   microarcseconds;

@@ -48,11 +48,21 @@ def _prior_id(label: str) -> str:
 def _kept(pri, done, run_dir) -> str:
     """The priors whose solutions a rerun keeps (result and summary both written)."""
     labels = list(dict.fromkeys([*map(str, pri.priors), *map(factor_label, pri.factor_grid)]))
-    kept = [lab for lab in labels
-            if _prior_id(lab) in done and (Path(run_dir) / CHUNKS_DIR / f"{_prior_id(lab)}.json").exists()]
+    kept = [lab for lab in labels if _prior_id(lab) in done and _finished(Path(run_dir) / CHUNKS_DIR, lab,
+                                                                          str(pri.solver_start))]
     which = f" ({', '.join(kept)})" if kept else ""
     return (f"the solutions of {len(kept)} of {len(labels)} priors{which} kept in {run_dir} "
             "(the stars and their transits are recomputed)")
+
+
+def _finished(chunks: Path, label: str, solver_start: str) -> bool:
+    """Whether the solution of ``label``, its store entry aside, is complete: its summary and,
+    when the next solution starts from it (``solver_start='previous'``), its attitude
+    coefficients; without them a resumed run could not start the next one as an
+    uninterrupted run does, so it is solved again."""
+    cid = _prior_id(label)
+    return (chunks / f"{cid}.json").exists() and (solver_start != "previous"
+                                                  or (chunks / f"{cid}_coefficients.npy").exists())
 
 
 def _groups(pri) -> list[tuple[float, int, int]]:
@@ -132,7 +142,7 @@ def _solve(run: GlobalRun, data, label: str, client: Callable, start: tuple | No
     config, settings = run.config, run.settings
     cid = _prior_id(label)
     coefficients = run.chunks / f"{cid}_coefficients.npy"
-    if run.pending([cid]) or not (run.chunks / f"{cid}.json").exists():
+    if run.pending([cid]) or not _finished(run.chunks, label, settings.solver_start):
         # On a Dask cluster the solver's chunks are sent to the workers once per solution and
         # kept there; every pass sends only the star and attitude vectors
         # (mcsweep.solver.dask_resident; one client for every solution, opened when the first
@@ -145,10 +155,8 @@ def _solve(run: GlobalRun, data, label: str, client: Callable, start: tuple | No
         log = SolveLines(f"mcsweep: primary: prior {label}", lambda r: settings.describe_state(dataclasses.asdict(r)),
                          f"{settings.describe_criterion()} or experiment.primary.solver_max_iter {settings.max_iter}",
                          enabled=bool(config.execution.progress))
-        # The stored coefficients (bit for bit the solution's), so a resumed run starts from what
-        # an uninterrupted one would; a solution of a version before them: from zero, recorded.
-        if start is not None and not start[1].exists():
-            start = None
+        # The stored coefficients (bit for bit the solution's, kept as long as the solution:
+        # _finished), so a resumed run starts from what an uninterrupted one would.
         a0 = None if start is None else np.load(start[1])
         try:
             if config.execution.backend == "dask":

@@ -597,3 +597,35 @@ def test_a_running_solution_says_where_it_stands(tmp_path):
     assert re.fullmatch(pattern.format(k=1, state=r"error not yet estimated \(too few iterations\)"), lines[0]), lines[0]
     assert re.fullmatch(pattern.format(k=len(lines), state=r"estimated error \S+ of the formal uncertainties"),
                         lines[-1]), lines[-1]
+
+
+def test_a_solution_started_from_the_previous_priors_attitude_stops_within_the_tolerance():
+    # The chain of experiment.primary.solver_start='previous' on the experiment's own problem:
+    # 1000 mas from the 10 sigma_F90 attitude, where the two priors' attitudes nearly agree. The
+    # first step of a started solution also sets the stars from zero; an error estimate whose
+    # window held that step stopped such a solution at iteration 11, 1.45 times over the
+    # tolerance (the default run, 3 h knots; mcsweep.solver.cg, "Starting attitude").
+    from mcsweep.astrometry.solve import prior_diagonal
+    from mcsweep.experiments.global_priors import prior_sigma_mas
+    from mcsweep.solver import solve_global
+
+    settings = P.build_settings(_config(["experiment.primary.mission_years=1", "experiment.primary.knot_interval_hours=3",
+                                         "experiment.primary.attitude_timescale_hours=24"])[0])
+    stars = _synthetic_stars(3000, 11)
+    _, tr = P.transits_of((0, 0, stars["ra"].to_numpy(), stars["dec"].to_numpy(), settings.start_jd,
+                           settings.end_jd, settings.law))
+    data = P.prepare(settings, stars, tr)
+    st = data.stars.iloc[data.solved]
+    f90 = settings.sigma_f90_mas(st["l"].to_numpy(), st["b"].to_numpy(), st["phot_g_mean_mag"].to_numpy())
+
+    def problem(label):
+        return data.problem(prior_diagonal(prior_sigma_mas(label, f90), settings.ratio_R))
+
+    start = solve_global(problem("10F90"), data.h, error_tol=0.01, max_iter=1000).attitude
+    pb = problem("1000mas")
+    ref = solve_global(pb, data.h, error_tol=1e-7, max_iter=3000)
+    sol = solve_global(pb, data.h, error_tol=0.01, max_iter=1000, attitude_start=start)
+    d = pb.join(sol.x - ref.x, sol.attitude - ref.attitude)
+    err = float(np.sqrt(d @ pb.apply(d)))
+    print(f"1000 mas from the 10 sigma_F90 attitude: {len(sol.history)} iterations, |x - x*|_N = {err:.4f}")
+    assert ref.converged and sol.converged and err <= 0.01

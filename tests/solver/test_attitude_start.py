@@ -11,6 +11,7 @@ import pytest
 
 from mcsweep.astrometry.solve import prior_diagonal
 from mcsweep.solver import GlobalProblem, solve_global
+from mcsweep.solver.cg import ERROR_WINDOW
 from mcsweep.solver.direct import normal_norm, solve_direct
 
 #: The solutions' stopping rule: error below this fraction of the formal uncertainties.
@@ -33,6 +34,8 @@ def test_a_solution_started_from_another_priors_attitude_is_the_direct_solution(
           f"{moved:.3g}), {len(cold.history)} from zero; |x - x*|_N = {err:.2e}")
     assert warm.converged and err <= ERROR_TOL
     assert len(warm.history) < len(cold.history)
+    # the first step (the stars from zero) is left out of the error's extrapolation
+    assert np.isnan(warm.history[ERROR_WINDOW].error_estimate) and not np.isnan(cold.history[ERROR_WINDOW].error_estimate)
     # residuals and their RMS are those of the whole solution, start included
     resid = h - problem.forward(problem.join(warm.x, warm.attitude))
     np.testing.assert_allclose(warm.residuals, resid, rtol=0, atol=1e-9 * np.abs(h).max())

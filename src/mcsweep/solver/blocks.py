@@ -359,9 +359,10 @@ def _orthogonal_absorption(ab, a_all, G, offset, star, key, jb, ill_row, prior, 
                                   np.r_[c_first, rows.size], _AX * jb[rows][c_first] - c_lo)
 
 
-def block_setup(blk: StarBlock, h) -> dict:
-    """What the solver needs once per prior from a block, for the measurements ``h (m,)``,
-    besides its Schur absorption (:func:`_schur_absorption`, summed slab by slab).
+def block_setup(blk: StarBlock, h, start=None) -> dict:
+    """What the solver needs once per prior from a block, for the measurements ``h (m,)``
+    less what the starting attitude ``start (n_coef, 3)`` explains, if given, besides its
+    Schur absorption (:func:`_schur_absorption`, summed slab by slab).
 
     Returns a dict of global contributions, ``b_a = A_a' h``, ``hh = h' h``, and per star
     ``b_s = A_s' h`` (n, 5). ``hh`` by numpy's pairwise add-reduce, not ``h @ h``: BLAS
@@ -369,6 +370,8 @@ def block_setup(blk: StarBlock, h) -> dict:
     (unpickled) from the driver.
     """
     g = gather(blk)
+    if start is not None:
+        h = h - att_forward(blk, start, g)
     return {"b_a": att_adjoint(blk, h, g), "hh": float(np.sum(np.multiply(h, h))), "b_s": src_adjoint(blk, h, g)}
 
 

@@ -557,8 +557,7 @@ def _setup_task(item):
         time)."""
         acc = None
         for k, b, v in run:
-            # from a starting attitude: the measurements less what it explains (module notes)
-            part = B.block_setup(b, hs[k] if start is None else hs[k] - B.att_forward(b, start))
+            part = B.block_setup(b, hs[k], start)  # less what a starting attitude explains (module notes)
             b_s[v] = part.pop("b_s")
             part["bb"] = _dot(b_s[v], b_s[v])
             if cols is not None:  # G = A' C, the bordering columns' right-hand sides (module notes)

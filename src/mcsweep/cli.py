@@ -26,21 +26,16 @@ from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf
 
 from .errors import EXIT_NOT_CONVERGED, NotConvergedError, UserInputError, report_user_error
-from .report.build import build_report
-from .experiments.primary import OUTPUTS as PRIMARY_OUTPUTS
-from .experiments.real_sky import OUTPUTS as REAL_SKY_OUTPUTS
-from .experiments.secondary import OUTPUTS as SECONDARY_OUTPUTS
 from .sweep.interruption import (EXIT_INTERRUPTED, exit_on_second_interrupt, is_disk_full, kept_in_run,
                                  remove_unfinished_writes, report_stop)
-from .sweep.provenance import PROVENANCE_FILE, Provenance, config_hash
 from .sweep.rundir import release, snapshot_for, undo_unstarted
-from .sweep.runner import OUTPUTS, run_sweep
 from .sweep.logs import quiet_third_party_console
 from .sweep.schema import register_configs
-from .sweep.primary_runner import run_primary
-from .sweep.real_sky_runner import run_real_sky
-from .sweep.secondary_runner import run_secondary
 from .sweep.validate import ignored_settings, preflight, to_config
+
+# The experiments, their runners and the report are imported by the job that needs them
+# (run_job): a mistyped override ends in 1 s instead of waiting 3.7 s for scipy.stats,
+# matplotlib and astropy to load.
 
 __all__ = ["main"]
 
@@ -53,6 +48,8 @@ def refuse_foreign_outputs(run_dir: Path, outputs) -> None:
     Without ``provenance.json`` nothing there was written by mcsweep, so a ``report.md``
     or a non-empty ``figures/`` is the user's own and a successful run would overwrite it.
     """
+    from .sweep.provenance import PROVENANCE_FILE
+
     if (run_dir / PROVENANCE_FILE).exists():
         return
     taken = [n for n in outputs if (p := run_dir / n).is_file() or (p.is_dir() and any(p.iterdir()))]
@@ -85,6 +82,8 @@ def _stopped(cfg: DictConfig, run_dir: Path, exc: BaseException) -> int:
     _log_to_files(logging.getLogger(__name__), f"mcsweep {what}", (type(exc), exc, exc.__traceback__))
     remove_unfinished_writes(run_dir)
     try:
+        from .sweep.provenance import config_hash
+
         config = to_config(cfg)
         kept = kept_in_run(config, config_hash(OmegaConf.to_container(cfg, resolve=True)), run_dir)
     except Exception:  # noqa: BLE001 - the line must come out; the count is a courtesy
@@ -102,6 +101,16 @@ def _undo(run_dir: Path) -> None:
 
 def run_job(cfg: DictConfig, run_dir: Path) -> Path:
     """Run the job described by a composed config in ``run_dir``; returns the report path."""
+    from .experiments.primary import OUTPUTS as PRIMARY_OUTPUTS
+    from .experiments.real_sky import OUTPUTS as REAL_SKY_OUTPUTS
+    from .experiments.secondary import OUTPUTS as SECONDARY_OUTPUTS
+    from .report.build import build_report
+    from .sweep.primary_runner import run_primary
+    from .sweep.provenance import Provenance
+    from .sweep.real_sky_runner import run_real_sky
+    from .sweep.runner import OUTPUTS, run_sweep
+    from .sweep.secondary_runner import run_secondary
+
     config = to_config(cfg)
     raw = OmegaConf.to_container(cfg, resolve=True)
     name = config.experiment.name

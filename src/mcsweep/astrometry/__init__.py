@@ -21,51 +21,14 @@ Arrays are padded per star, ``n`` stars x ``k`` transits with a boolean mask; se
 ``docs/architecture.md``.
 """
 
-from .confidence import (
-    chi2_threshold,
-    ellipse_semi_axes,
-    error_percentile,
-    fraction_inside,
-    inside_counts,
-    inside,
-    mahalanobis_sq,
-)
-from .design import JULIAN_YEAR_DAYS, PARAMETER_NAMES, design_matrix, reference_epoch, tangent_triad, years_since
-from .measurements import simulate
-from .noise import NoiseModel
-from .solve import (
-    DEFAULT_MAX_CONDITION,
-    DEFAULT_RATIO_R,
-    Solution,
-    normal_equations,
-    prior_diagonal,
-    solve_no_prior,
-    solve_position_only,
-    solve_with_prior,
-)
+from ..lazy_exports import attach
 
-__all__ = [
-    "JULIAN_YEAR_DAYS",
-    "PARAMETER_NAMES",
-    "design_matrix",
-    "reference_epoch",
-    "tangent_triad",
-    "years_since",
-    "NoiseModel",
-    "simulate",
-    "DEFAULT_MAX_CONDITION",
-    "DEFAULT_RATIO_R",
-    "Solution",
-    "normal_equations",
-    "prior_diagonal",
-    "solve_with_prior",
-    "solve_position_only",
-    "solve_no_prior",
-    "chi2_threshold",
-    "mahalanobis_sq",
-    "inside",
-    "fraction_inside",
-    "inside_counts",
-    "ellipse_semi_axes",
-    "error_percentile",
-]
+# imported on first use (mcsweep.lazy_exports): the config schema needs two of these names,
+# not scipy.stats, astropy and pandas
+__getattr__, __dir__, __all__ = attach(__name__, {
+    "confidence": ["chi2_threshold", "ellipse_semi_axes", "error_percentile", "fraction_inside", "inside_counts", "inside", "mahalanobis_sq"],
+    "design": ["JULIAN_YEAR_DAYS", "PARAMETER_NAMES", "design_matrix", "reference_epoch", "tangent_triad", "years_since"],
+    "measurements": ["simulate"],
+    "noise": ["NoiseModel"],
+    "solve": ["DEFAULT_MAX_CONDITION", "DEFAULT_RATIO_R", "Solution", "normal_equations", "prior_diagonal", "solve_no_prior", "solve_position_only", "solve_with_prior"],
+})

@@ -11,28 +11,12 @@ frames
     Fast ICRS -> galactic conversion with astropy's rotation (catalogue annotation).
 """
 
-from .formula import (
-    BRIGHT_CHOICES,
-    G_FIT_MAX,
-    G_FIT_MIN,
-    PAPER_COEFFICIENTS,
-    s_coefficients,
-    sigma_from_coefficients,
-)
-from .frames import galactic_from_icrs
-from .model import COEFFICIENTS_FILE, PAPER_CONFIDENCE, PAPER_RATIO_R, Prior, sigma_f90
+from ..lazy_exports import attach
 
-__all__ = [
-    "BRIGHT_CHOICES",
-    "G_FIT_MAX",
-    "G_FIT_MIN",
-    "PAPER_COEFFICIENTS",
-    "PAPER_CONFIDENCE",
-    "PAPER_RATIO_R",
-    "COEFFICIENTS_FILE",
-    "Prior",
-    "galactic_from_icrs",
-    "s_coefficients",
-    "sigma_from_coefficients",
-    "sigma_f90",
-]
+# imported on first use (mcsweep.lazy_exports): the config schema needs two of these names,
+# not scipy.stats, astropy and pandas
+__getattr__, __dir__, __all__ = attach(__name__, {
+    "formula": ["BRIGHT_CHOICES", "G_FIT_MAX", "G_FIT_MIN", "PAPER_COEFFICIENTS", "s_coefficients", "sigma_from_coefficients"],
+    "frames": ["galactic_from_icrs"],
+    "model": ["COEFFICIENTS_FILE", "PAPER_CONFIDENCE", "PAPER_RATIO_R", "Prior", "sigma_f90"],
+})

@@ -19,12 +19,16 @@ Pixel values are :meth:`mcsweep.prior.Prior.sigma_parallax_mas` at the pixel cen
 from __future__ import annotations
 
 import io
+from typing import TYPE_CHECKING
 
 import numpy as np
-from astropy.io import fits
 
 from ..errors import UserInputError
-from .model import Prior
+
+if TYPE_CHECKING:  # astropy.io.fits on first use: the config schema imports MAX_NSIDE from here
+    from astropy.io import fits
+
+    from .model import Prior
 
 __all__ = ["MAPS_FILE", "DEFAULT_NSIDE", "MAX_NSIDE", "check_nside", "pixel_centres", "map_column_name",
            "prior_maps_hdulist", "prior_maps_bytes", "read_prior_maps"]
@@ -80,6 +84,8 @@ def prior_maps_hdulist(prior: Prior | None, g_values, *, nside: int = DEFAULT_NS
     -------
     astropy.io.fits.HDUList
     """
+    from astropy.io import fits
+
     g_values = [float(g) for g in g_values]
     if not g_values:
         raise UserInputError("no G values to map; expected at least one magnitude bin")
@@ -141,6 +147,8 @@ def prior_maps_bytes(prior: Prior | None, g_values, *, nside: int = DEFAULT_NSID
 
 def read_prior_maps(path) -> tuple[int, np.ndarray, np.ndarray]:
     """``(nside, g_values (n_g,), maps (n_g, npix))`` from a ``prior_maps.fits`` (RING, galactic)."""
+    from astropy.io import fits
+
     with fits.open(path) as hdul:
         h = hdul["SIGMA_F90"].header
         data = hdul["SIGMA_F90"].data

@@ -1,20 +1,12 @@
 """Gaia scanning law: attitude, field-of-view transits and the observer's position."""
 
-from .ephemeris import gaia_position_au, sun_position_au
-from .groups import VISIT_MAX_GAP_DAYS, VISIT_MAX_TURN_DEG, assign_groups, group_summary, select_groups
-from .law import ScanningLaw
-from .transits import TRANSIT_COLUMNS, find_transits, observer_position_au
+from ..lazy_exports import attach
 
-__all__ = [
-    "ScanningLaw",
-    "find_transits",
-    "observer_position_au",
-    "select_groups",
-    "assign_groups",
-    "group_summary",
-    "VISIT_MAX_GAP_DAYS",
-    "VISIT_MAX_TURN_DEG",
-    "TRANSIT_COLUMNS",
-    "gaia_position_au",
-    "sun_position_au",
-]
+# imported on first use (mcsweep.lazy_exports): the config schema needs two of these names,
+# not scipy.stats, astropy and pandas
+__getattr__, __dir__, __all__ = attach(__name__, {
+    "ephemeris": ["gaia_position_au", "sun_position_au"],
+    "groups": ["VISIT_MAX_GAP_DAYS", "VISIT_MAX_TURN_DEG", "assign_groups", "group_summary", "select_groups"],
+    "law": ["ScanningLaw"],
+    "transits": ["TRANSIT_COLUMNS", "find_transits", "observer_position_au"],
+})

@@ -27,6 +27,9 @@ from omegaconf import OmegaConf
 from mcsweep import cli, prior_cli
 from mcsweep.report import cli as report_cli
 from mcsweep.sweep import store as store_mod
+# The command modules, imported before any test patches the store's writes (mcsweep.cli
+# imports them only when a job runs): those that import atomic_write_bytes by name keep the real one.
+from mcsweep.sweep import primary_runner, real_sky_runner, secondary_runner  # noqa: F401
 from mcsweep.sweep.runner import run_sweep
 from mcsweep.sweep.validate import compose_config, to_config
 
@@ -258,7 +261,7 @@ def test_global_experiments_say_what_is_kept(monkeypatch, capsys, tmp_path, expe
     with monkeypatch.context() as m:
         _fail_store_write(m, after=after, exc=exc)
         code, lines = _mcsweep(m, capsys, args)
-    assert code == (1 if exc is DISK_FULL else 130)
+    assert code == (1 if exc is DISK_FULL else 130), lines
     expected = expected.format(run=re.escape(str(run)), resume=RESUME)
     assert re.fullmatch(expected, lines[-1]), lines[-1]
     assert not any("Traceback" in ln for ln in lines), lines

@@ -128,8 +128,7 @@ def _transits(run: GlobalRun, stars: pd.DataFrame) -> dict:
 class _Computed:
     """What the tables need besides the solutions in the store."""
 
-    data: object        # experiments.primary.PreparedData
-    stars: pd.DataFrame
+    data: object        # experiments.primary.PreparedData (its stars: the table of every star)
     factors: dict       # factor k -> its prior label (experiment.primary.factor_grid)
 
 
@@ -217,7 +216,11 @@ def _compute(run: GlobalRun) -> _Computed:
         df = df[list(STAR_COLUMNS)]
         df["class_key"] = key
         parts.append(df)
+    # The draws (every column of the population) are not needed again: at the paper's sizes
+    # they, this table and the solution's copy of it (data.stars) held 260 bytes per star.
+    run.classes = []
     stars = pd.concat(parts, ignore_index=True)
+    del parts
     # One solution holds every class: its blocks of consecutive stars are then regions of the sky
     # (mcsweep.experiments.global_classes, "Sky order"), whatever the classes' own order.
     stars = stars.iloc[sky_order(stars["ra"].to_numpy(), stars["dec"].to_numpy())].reset_index(drop=True)
@@ -225,12 +228,13 @@ def _compute(run: GlobalRun) -> _Computed:
     with contextlib.ExitStack() as cluster:
         client = functools.cache(lambda: cluster.enter_context(dask_client(run.config.execution)))
         data = _observations(run, stars, client)
+        del stars  # data.stars has it, with each star's transit columns
         # The factor search (experiment.primary.factor_grid) shares solutions with Table 3's priors.
         start = None  # each solution from the one before (experiment.primary.solver_start)
         for label in dict.fromkeys([*run.settings.priors, *factors.values()]):
             with run.prov.stage(f"solve {label}"):
                 start = _solve(run, data, label, client, start)
-    return _Computed(data=data, stars=stars, factors=factors)
+    return _Computed(data=data, factors=factors)
 
 
 def _observations(run: GlobalRun, stars: pd.DataFrame, client: Callable):
@@ -298,7 +302,7 @@ def _aggregate(run: GlobalRun, computed: _Computed) -> dict[str, str]:
     summary["fov_transits_per_knot"] = data.transits_per_knot
     summary["attitude_segments"] = data.spline.n_segments
     summary["dead_fraction"] = data.dead_days / (settings.end_jd - settings.start_jd)
-    counts = computed.stars.groupby("class_key").size().to_dict()
+    counts = data.stars.groupby("class_key").size().to_dict()
     notes = [run.conditions(f"{pri.mission_years:g} year(s) from {pri.mission_start} (TCB), dead time "
                             f"{100 * pri.dead_time_fraction:g} % in blocks of {pri.dead_time_block_days:g} d"),
              f"Stars: {pri.class_size} per class (paper 5e5), {counts.get(PRIMARY_KEY, 0)} primary sources "

@@ -141,6 +141,7 @@ def test_bad_prior_through_cli_exits_2_in_one_line_and_leaves_no_output(tmp_path
     ("experiment.primary.basic_angle_harmonics=-1", "basic_angle_harmonics"),
     ("experiment.primary.basic_angle_harmonics=9", "basic_angle_harmonics"),
     ("experiment.primary.solver_start=coarse", "solver_start"),
+    ("experiment.primary.subset_transits=observed", "subset_transits"),
 ])
 def test_bad_settings_are_user_errors(override, key):
     with pytest.raises(UserInputError, match=key):
@@ -629,3 +630,47 @@ def test_a_solution_started_from_the_previous_priors_attitude_stops_within_the_t
     err = float(np.sqrt(d @ pb.apply(d)))
     print(f"1000 mas from the 10 sigma_F90 attitude: {len(sol.history)} iterations, |x - x*|_N = {err:.4f}")
     assert ref.converged and sol.converged and err <= 0.01
+
+
+def test_transit_summary_counts_the_live_and_the_scheduled_transits():
+    from mcsweep.scanning.timeline import DeadTime
+
+    # stars 10..13: 3 transits of star 10 (one in the dead interval), none of 11, 2 of 12 (both
+    # dead), 1 of 13; the dead interval is [5, 7)
+    star = np.array([10, 10, 10, 12, 12, 13])
+    t = np.array([1.0, 5.5, 9.0, 5.0, 6.9, 7.0])
+    out = P.transit_summary(star, t, DeadTime(np.array([5.0]), np.array([7.0])), 10, 4)
+    assert out["n_scheduled"].tolist() == [3, 0, 2, 1]
+    assert out["n_fov"].tolist() == [2, 0, 0, 1]
+    assert out["mean_t"][0] == 5.0 and out["span"][0] == 8.0
+
+
+#: Tolerance on the fraction of FoV transits the 20 % dead time removes: ~1500 blocks of 0.25 d
+#: over a year, against transits that come in visits of a few hours.
+DEAD_FRACTION_TOL = 0.02
+
+
+def test_subsets_by_scheduled_transits_change_the_tables_not_the_solutions(cli_run, tmp_path):
+    # experiment.primary.subset_transits=scheduled (issue 24, candidate 5): the <= 4 / > 4
+    # subsets count the transits before the dead time; the solutions are the same bits.
+    out = tmp_path / "run"
+    r = subprocess.run([str(BIN / "mcsweep"), f"hydra.run.dir={out}", *TINY, "population=catalogue",
+                        f"population.path={cli_run.parent / 'stars.csv'}", "experiment.primary.factor_grid=[1,10]",
+                        "experiment.primary.factor_resamples=20", "experiment.primary.subset_transits=scheduled"],
+                       capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr[-3000:]
+    for prior in ("F90", "10F90"):
+        a = pd.read_parquet(out / P.CHUNKS_DIR / f"prior_{prior}.parquet")
+        b = pd.read_parquet(cli_run / P.CHUNKS_DIR / f"prior_{prior}.parquet")
+        pd.testing.assert_frame_equal(a, b, check_exact=True)
+    live, scheduled = a["n_fov"].to_numpy(int), a["n_fov_scheduled"].to_numpy(int)
+    assert np.all(live <= scheduled)
+    assert abs(1 - live.sum() / scheduled.sum() - 0.2) < DEAD_FRACTION_TOL  # dead_time_fraction 0.2
+    table = pd.read_csv(out / "table3.csv")
+    for (subset, g), n in table[table["prior"] == "F90"].set_index(["subset", "g_class"])["n_stars"].items():
+        in_class = a["class_key"].to_numpy() == round(100 * float(g))
+        in_subset = scheduled <= 4 if subset == "<=4" else scheduled > 4
+        assert n == int(np.sum(in_class & in_subset)), (subset, g)
+    before = pd.read_csv(cli_run / "table3.csv")
+    assert not table["n_stars"].equals(before["n_stars"])  # some stars lost transits to the dead time
+    assert "subset_transits=scheduled" in (out / "table3.md").read_text()

@@ -59,6 +59,16 @@ def test_a_solution_from_zero_keeps_the_hash_of_configs_made_before_the_start_op
     assert _hash(["experiment=primary"]) != config_hash(cfg)
 
 
+def test_subsets_of_live_transits_keep_the_hash_of_configs_made_before_the_option():
+    cfg = OmegaConf.to_container(compose_config(["experiment=primary"]), resolve=True)
+    primary = cfg["experiment"]["primary"]
+    assert primary["subset_transits"] == "live"
+    before = {**cfg, "experiment": {**cfg["experiment"], "primary": {
+        k: v for k, v in primary.items() if k != "subset_transits"}}}
+    assert config_hash(cfg) == config_hash(before)
+    assert _hash(["experiment=primary", "experiment.primary.subset_transits=scheduled"]) != config_hash(cfg)
+
+
 def test_ignored_settings_get_one_warning_line_per_experiment():
     argv = ["experiment=secondary", *IGNORED, "confidence=0.8"]
     lines = ignored_settings(argv, preflight(argv))

@@ -393,8 +393,9 @@ def dead_time_of(settings: PrimarySettings) -> DeadTime:
 
 def transit_summary(star, t, dead: DeadTime, first: int, n: int) -> dict:
     """Per star ``first .. first + n - 1`` from its transits (``star``, TCB JD ``t``, sorted by
-    star): ``n_fov`` (live FoV transits), ``mean_t`` (mean live epoch), ``span`` (days between
-    the first and last live transit); and ``live`` per transit. Each star's numbers are sums
+    star): ``n_fov`` (live FoV transits), ``n_scheduled`` (FoV transits before the dead time),
+    ``mean_t`` (mean live epoch), ``span`` (days between the first and last live transit); and
+    ``live`` per transit. Each star's numbers are sums
     over its own transits in their order, so a chunk's equal the whole set's, bit for bit."""
     live = ~dead.is_dead(t)
     local = np.asarray(star, dtype=np.int64) - first
@@ -407,15 +408,17 @@ def transit_summary(star, t, dead: DeadTime, first: int, n: int) -> dict:
         starts = np.flatnonzero(np.r_[True, local[1:] != local[:-1]])
         with np.errstate(invalid="ignore"):
             span[local[starts]] = (np.fmax.reduceat(t_live, starts) - np.fmin.reduceat(t_live, starts))
-    return {"n_fov": n_fov, "mean_t": mean_t, "span": span, "live": live}
+    n_scheduled = np.bincount(local, minlength=n).astype(np.int64)
+    return {"n_fov": n_fov, "n_scheduled": n_scheduled, "mean_t": mean_t, "span": span, "live": live}
 
 
 def with_transit_columns(settings: PrimarySettings, stars: pd.DataFrame, summary: dict) -> pd.DataFrame:
-    """``stars`` with ``n_fov``, ``epoch_offset_yr`` (each star's mean live epoch relative to the
+    """``stars`` with ``n_fov``, ``n_fov_scheduled`` (before the dead time), ``epoch_offset_yr`` (each star's mean live epoch relative to the
     reference epoch: evaluation_epoch='star_mean') and ``span_days`` (the time spans of the
     <= 4 transit subset)."""
     stars = stars.copy()
     stars["n_fov"] = summary["n_fov"]
+    stars["n_fov_scheduled"] = summary["n_scheduled"]
     stars["epoch_offset_yr"] = (summary["mean_t"] - settings.t_ref_jd) / JULIAN_YEAR_DAYS
     stars["span_days"] = summary["span"]
     return stars
@@ -753,7 +756,8 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
     sigma_prior = np.full(n, np.nan)
     sigma_prior[s] = sig
     res = pd.DataFrame({"star": np.arange(n, dtype=np.int32), "class_key": st["class_key"].to_numpy(),
-                        "n_fov": st["n_fov"].to_numpy().astype(np.int16), "inside": inside,
+                        "n_fov": st["n_fov"].to_numpy().astype(np.int16),
+                        "n_fov_scheduled": st["n_fov_scheduled"].to_numpy().astype(np.int16), "inside": inside,
                         "err_mas": err.astype(np.float32),
                         "err_parallax_mas": err_plx.astype(np.float32), "sigma_prior_mas": sigma_prior.astype(np.float32),
                         "span_days": st["span_days"].to_numpy().astype(np.float32)})

@@ -254,8 +254,9 @@ def _prepare_once(settings, stars, client, *, chunk_stars, transit_stars, block_
                  for i, f in enumerate(found)]
     got = client.gather(summaries)
     del summaries
-    summary = {k: np.concatenate([g[k] for g in got]) if got else np.zeros(0) for k in ("n_fov", "mean_t", "span")}
+    summary = {k: np.concatenate([g[k] for g in got]) if got else np.zeros(0) for k in ("n_fov", "n_scheduled", "mean_t", "span")}
     summary["n_fov"] = summary["n_fov"].astype(np.int64)
+    summary["n_scheduled"] = summary["n_scheduled"].astype(np.int64)
     stars = with_transit_columns(settings, stars, summary)
     solved = solved_stars(settings, summary["n_fov"])
     epochs = np.concatenate([g["epochs"] for g in got]) if settings.knot_transits is not None else None

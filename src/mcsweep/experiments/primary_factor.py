@@ -38,7 +38,7 @@ def factor_label(k: float) -> str:
     return "F90" if float(k) == 1.0 else f"{float(k):g}F90"
 
 
-def _cell_flags(results: Mapping[float, pd.DataFrame], g_classes: Sequence[float]):
+def _cell_flags(results: Mapping[float, pd.DataFrame], g_classes: Sequence[float], count: str = "n_fov"):
     """Per cell (subset, class): ``(subset, g, flags)``, flags (n_k, n_stars) with k ascending.
 
     Flags: 1 inside, 0 outside, -1 no confidence region; the stars are the same in every solution.
@@ -46,21 +46,22 @@ def _cell_flags(results: Mapping[float, pd.DataFrame], g_classes: Sequence[float
     first = next(iter(results.values()))
     for subset in SUBSETS:
         for g in g_classes:
-            sel = cell_mask(first, subset, g)
+            sel = cell_mask(first, subset, g, count)
             yield subset, g, np.stack([results[k]["inside"].to_numpy()[sel] for k in sorted(results)])
 
 
-def factor_curves(results: Mapping[float, pd.DataFrame], g_classes: Sequence[float]) -> pd.DataFrame:
+def factor_curves(results: Mapping[float, pd.DataFrame], g_classes: Sequence[float], count: str = "n_fov"
+                  ) -> pd.DataFrame:
     """Fraction inside per cell and factor, with its Clopper-Pearson interval (Table 2's
     :func:`~mcsweep.experiments.secondary_table.fraction_statistics`)."""
     ks = sorted(results)
     rows = [(subset, g_label(g), k, *fraction_statistics(f))
-            for subset, g, flags in _cell_flags(results, g_classes) for k, f in zip(ks, flags)]
+            for subset, g, flags in _cell_flags(results, g_classes, count) for k, f in zip(ks, flags)]
     return pd.DataFrame(rows, columns=list(CURVE_COLUMNS))
 
 
 def factor_rows(results: Mapping[float, pd.DataFrame], g_classes: Sequence[float], confidence: float, *,
-                n_resamples: int, rng: np.random.Generator) -> pd.DataFrame:
+                n_resamples: int, rng: np.random.Generator, count: str = "n_fov") -> pd.DataFrame:
     """Smallest k per cell (module notes) with flag and bootstrap interval.
 
     Parameters
@@ -71,10 +72,12 @@ def factor_rows(results: Mapping[float, pd.DataFrame], g_classes: Sequence[float
     confidence : P.
     n_resamples : bootstrap resamples (0: no interval).
     rng : generator of the bootstrap.
+    count : the column counting transits for the subsets
+        (:data:`~mcsweep.experiments.primary_table.SUBSET_COUNTS`).
     """
     ks = np.array(sorted(results), dtype=float)
     rows = []
-    for subset, g, flags in _cell_flags(results, g_classes):
+    for subset, g, flags in _cell_flags(results, g_classes, count):
         # Columns n_valid, n_inside, fraction, fraction_lo, fraction_hi (rows: k ascending).
         curve = np.array([fraction_statistics(f) for f in flags])
         n_val, frac = curve[:, 0], curve[:, 2]

@@ -32,7 +32,7 @@ from .global_priors import prior_label
 from .global_table import (FRACTION_INTERVAL, PAPER_G_CLASSES, SUBSETS, error_percentile, fraction_statistics,
                            g_label, layout_markdown, paper_layout, published_value, subset_masks)
 
-__all__ = ["PAPER_TABLE3", "PAPER_G_CLASSES", "TABLE3_COLUMNS", "paper_value3", "cell_mask",
+__all__ = ["PAPER_TABLE3", "PAPER_G_CLASSES", "TABLE3_COLUMNS", "SUBSET_COUNTS", "paper_value3", "cell_mask",
            "cell_statistics", "table3_rows", "table3_layout", "table3_markdown"]
 
 #: Table 3 transcribed from the LaTeX source: (subset, prior) -> (fractions in per cent
@@ -50,20 +50,27 @@ TABLE3_COLUMNS = ("subset", "prior", "g_class", "n_stars", "n_valid", "n_inside"
                   "paper_fraction_inside", "paper_p90_error_mas", "error_percentile")
 
 
+#: ``experiment.primary.subset_transits`` -> the per-star column that counts a star's FoV
+#: transits for the <= 4 / > 4 subsets: those observed (after the dead time, the default) or
+#: those the scanning law scheduled (issue 24, candidate 5: the paper does not say which).
+SUBSET_COUNTS: Mapping[str, str] = MappingProxyType({"live": "n_fov", "scheduled": "n_fov_scheduled"})
+
+
 def paper_value3(subset: str, prior: str, g_class: float, confidence: float) -> tuple[float, float]:
     """(fraction, 90th percentile [mas]) of the paper's Table 3, NaN where not comparable
     (:func:`~mcsweep.experiments.global_table.published_value`; '1F90' is its sigma_F90 row)."""
     return published_value(PAPER_TABLE3, subset, "F90" if prior == "1F90" else prior, g_class, confidence)
 
 
-def cell_mask(results: pd.DataFrame, subset: str, g_class: float) -> np.ndarray:
+def cell_mask(results: pd.DataFrame, subset: str, g_class: float, count: str = "n_fov") -> np.ndarray:
     """The stars of one cell (subset x magnitude class) in a solution's per-star results.
 
-    ``results`` has the columns ``n_fov`` and ``class_key`` (round(100 G0), 0 for extra
-    primary sources; :func:`mcsweep.experiments.primary.solve_prior`); the stars are the
-    same in every solution of a run, so one mask serves them all.
+    ``results`` has the columns ``count`` (FoV transits per star, :data:`SUBSET_COUNTS`) and
+    ``class_key`` (round(100 G0), 0 for extra primary sources;
+    :func:`mcsweep.experiments.primary.solve_prior`); the stars are the same in every
+    solution of a run, so one mask serves them all.
     """
-    in_subset = subset_masks(results["n_fov"].to_numpy())[subset]
+    in_subset = subset_masks(results[count].to_numpy())[subset]
     return in_subset & (results["class_key"].to_numpy() == class_key(g_class))
 
 
@@ -86,20 +93,21 @@ def cell_statistics(inside: np.ndarray, err_mas: np.ndarray, confidence: float) 
 
 
 def table3_rows(results: Mapping[str, pd.DataFrame], g_classes: Sequence[float], confidence: float,
-                converged: Mapping[str, bool] | None = None) -> pd.DataFrame:
+                converged: Mapping[str, bool] | None = None, count: str = "n_fov") -> pd.DataFrame:
     """``table3.csv``: one row per subset x prior x class (extra primary sources are not tabulated).
 
     ``results[prior]`` holds the per-star results of one solution (columns ``class_key``,
     ``n_fov``, ``inside``, ``err_mas``; :func:`mcsweep.experiments.primary.solve_prior`).
     ``converged[prior]``: whether its solution met the PCG criterion (column ``converged``;
     only with ``experiment.primary.allow_unconverged`` can a False reach the table).
+    ``count``: the column counting transits for the subsets (:data:`SUBSET_COUNTS`).
     """
     q = error_percentile(confidence)
     rows = []
     for subset in SUBSETS:
         for prior, res in results.items():
             for g in g_classes:
-                sel = cell_mask(res, subset, g)
+                sel = cell_mask(res, subset, g, count)
                 stats = cell_statistics(res["inside"].to_numpy()[sel], res["err_mas"].to_numpy()[sel], confidence)
                 pf, pp = paper_value3(subset, prior, g, confidence)
                 rows.append((subset, prior, g_label(g), int(sel.sum()), *stats, pf, pp, q))

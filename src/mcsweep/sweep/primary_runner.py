@@ -29,7 +29,7 @@ from ..experiments.primary import (CHUNKS_DIR, FACTOR_STREAM, PRIMARY_KEY, TAG, 
                                    stream_seed, transits_of)
 from ..experiments.primary_cluster import prepare_on_cluster
 from ..experiments.primary_factor import factor_curves, factor_label, factor_rows, overall_factor
-from ..experiments.primary_table import table3_markdown, table3_rows
+from ..experiments.primary_table import SUBSET_COUNTS, table3_markdown, table3_rows
 from ..solver import AttitudeNotDetermined
 from ..solver.calibration import CalibrationNotDetermined
 from .execution import dask_client, release_free_memory
@@ -83,12 +83,13 @@ def solution_line(label: str, extra: dict) -> str:
                "iteration" if sent else ""))
 
 
-def few_transit_spans(stars, g_classes) -> str:
+def few_transit_spans(stars, g_classes, count: str = "n_fov") -> str:
     """The note on the <= 4 transit subset's time spans (issue 24, candidate 5): whether its
-    stars were seen in one visit or in several months apart decides their errors."""
+    stars were seen in one visit or in several months apart decides their errors. ``count``:
+    the column that defines the subset (:data:`~mcsweep.experiments.primary_table.SUBSET_COUNTS`)."""
     parts = []
     for g in g_classes:
-        sub = stars[(stars["class_key"] == class_key(g)) & stars["n_fov"].between(1, 4)]
+        sub = stars[(stars["class_key"] == class_key(g)) & (stars["n_fov"] >= 1) & (stars[count] <= 4)]
         if len(sub):
             q = np.nanquantile(sub["span_days"].to_numpy(), [0.1, 0.5, 0.9])
             parts.append(f"G~{g:g}: {q[1]:.3g} d [{q[0]:.3g}-{q[2]:.3g}], {np.mean(sub['span_days'] < 1):.0%} "
@@ -280,18 +281,20 @@ def _read_solutions(run: GlobalRun, factors: dict) -> tuple[dict, list, dict, li
 def _aggregate(run: GlobalRun, computed: _Computed) -> dict[str, str]:
     pri, settings, data, factors = run.section, run.settings, computed.data, computed.factors
     results, histories, extras, attitude = _read_solutions(run, factors)
+    count = SUBSET_COUNTS[pri.subset_transits]
     table = table3_rows({k: results[k] for k in settings.priors}, pri.g_classes, settings.confidence,
-                        converged={k: extras[k]["converged"] for k in settings.priors})
+                        converged={k: extras[k]["converged"] for k in settings.priors}, count=count)
     outputs = {}
     if factors:
         by_k = {k: results[lab] for k, lab in factors.items()}
         rng = np.random.default_rng(stream_seed(settings.seed, FACTOR_STREAM))
-        fac = factor_rows(by_k, pri.g_classes, settings.confidence, n_resamples=pri.factor_resamples, rng=rng)
+        fac = factor_rows(by_k, pri.g_classes, settings.confidence, n_resamples=pri.factor_resamples, rng=rng,
+                          count=count)
         k_all, flag = overall_factor(fac)
         fac = pd.concat([fac, pd.DataFrame([{"subset": "all", "g_class": "all", "k_min": k_all, "flag": flag}])],
                         ignore_index=True)
         outputs["primary_factor.csv"] = fac.to_csv(index=False)
-        outputs["primary_factor_curves.csv"] = factor_curves(by_k, pri.g_classes).to_csv(index=False)
+        outputs["primary_factor_curves.csv"] = factor_curves(by_k, pri.g_classes, count).to_csv(index=False)
     n_obs = data.n_measurements
     summary = pd.DataFrame([{"prior": k, **{kk: (json.dumps(v) if isinstance(v, list) else v)
                                             for kk, v in e.items()}} for k, e in extras.items()])
@@ -313,8 +316,10 @@ def _aggregate(run: GlobalRun, computed: _Computed) -> dict[str, str]:
              f"true attitude = law + {pri.attitude_amplitude_mas:g} mas "
              f"random spline rotation on a {pri.attitude_timescale_hours:g} h time scale."
              + (" Positions evaluated at each star's own mean epoch of its live transits "
-                "(experiment.primary.evaluation_epoch=star_mean)." if settings.evaluation_epoch == "star_mean" else ""),
-             *filter(None, [few_transit_spans(data.stars, pri.g_classes), calibration_note(pri, extras)]),
+                "(experiment.primary.evaluation_epoch=star_mean)." if settings.evaluation_epoch == "star_mean" else "")
+             + (" The <= 4 / > 4 subsets count the FoV transits the scanning law scheduled, before the dead "
+                "time (experiment.primary.subset_transits=scheduled)." if pri.subset_transits == "scheduled" else ""),
+             *filter(None, [few_transit_spans(data.stars, pri.g_classes, count), calibration_note(pri, extras)]),
              "PCG iterations / attitude error RMS (x, y, z) [uas] after the frame correction: "
              + "; ".join(f"{k}: {e['iterations']} ({'converged' if e['converged'] else 'NOT converged'}"
                          + _started(e) + "), "

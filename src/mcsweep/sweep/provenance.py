@@ -75,6 +75,7 @@ _DEFAULTS_FROM_BEFORE = {
     "noise.al_floor_mas": 0,
     "population.params.extinction_model": "disc",
     "experiment.primary.evaluation_epoch": "reference",
+    "experiment.primary.subset_transits": "live",  # issue 24, candidate 5
     "experiment.primary.basic_angle_harmonics": 0,  # issue 24, candidate 3
     "population.params.giant_thickness_factor": 0.45,  # exposed in issue 25 (besancon-r03-4)
     "experiment.primary.solver_start": "zero",  # issue 23: every solution from zero before

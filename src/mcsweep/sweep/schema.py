@@ -395,6 +395,7 @@ class PrimaryConf:
     factor_resamples: int = 200
     frame_fit: str = "precision"
     evaluation_epoch: str = "reference"
+    subset_transits: str = "live"
     basic_angle_harmonics: int = 0
 
     def __post_init__(self):
@@ -405,6 +406,9 @@ class PrimaryConf:
         _require(self.evaluation_epoch in ("reference", "star_mean"), "experiment.primary.evaluation_epoch",
                  self.evaluation_epoch, "'reference' (the solution's epoch) or 'star_mean' (each star's mean "
                  "epoch of its transits)")
+        _require(self.subset_transits in ("live", "scheduled"), "experiment.primary.subset_transits",
+                 self.subset_transits, "'live' (FoV transits observed, after the dead time) or 'scheduled' "
+                 "(FoV transits of the scanning law, before it)")
         _require(all(math.isfinite(k) and k > 0 for k in self.factor_grid)
                  and len(set(self.factor_grid)) == len(self.factor_grid),
                  "experiment.primary.factor_grid", list(self.factor_grid),

@@ -26,9 +26,12 @@ from ..lazy_exports import attach
 # imported on first use (mcsweep.lazy_exports): the config schema needs two of these names,
 # not scipy.stats, astropy and pandas
 __getattr__, __dir__, __all__ = attach(__name__, {
-    "confidence": ["chi2_threshold", "ellipse_semi_axes", "error_percentile", "fraction_inside", "inside_counts", "inside", "mahalanobis_sq"],
-    "design": ["JULIAN_YEAR_DAYS", "PARAMETER_NAMES", "design_matrix", "reference_epoch", "tangent_triad", "years_since"],
+    "confidence": ["chi2_threshold", "ellipse_semi_axes", "error_percentile", "fraction_inside",
+                   "inside_counts", "inside", "mahalanobis_sq"],
+    "design": ["JULIAN_YEAR_DAYS", "PARAMETER_NAMES", "design_matrix", "reference_epoch", "tangent_triad",
+               "years_since"],
     "measurements": ["simulate"],
     "noise": ["NoiseModel"],
-    "solve": ["DEFAULT_MAX_CONDITION", "DEFAULT_RATIO_R", "Solution", "normal_equations", "prior_diagonal", "solve_no_prior", "solve_position_only", "solve_with_prior"],
+    "solve": ["DEFAULT_MAX_CONDITION", "DEFAULT_RATIO_R", "Solution", "normal_equations", "prior_diagonal",
+              "solve_no_prior", "solve_position_only", "solve_with_prior"],
 })

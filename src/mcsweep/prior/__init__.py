@@ -16,7 +16,8 @@ from ..lazy_exports import attach
 # imported on first use (mcsweep.lazy_exports): the config schema needs two of these names,
 # not scipy.stats, astropy and pandas
 __getattr__, __dir__, __all__ = attach(__name__, {
-    "formula": ["BRIGHT_CHOICES", "G_FIT_MAX", "G_FIT_MIN", "PAPER_COEFFICIENTS", "s_coefficients", "sigma_from_coefficients"],
+    "formula": ["BRIGHT_CHOICES", "G_FIT_MAX", "G_FIT_MIN", "PAPER_COEFFICIENTS", "s_coefficients",
+                "sigma_from_coefficients"],
     "frames": ["galactic_from_icrs"],
     "model": ["COEFFICIENTS_FILE", "PAPER_CONFIDENCE", "PAPER_RATIO_R", "Prior", "sigma_f90"],
 })

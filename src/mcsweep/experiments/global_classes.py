@@ -133,22 +133,19 @@ def draw_classes(population: dict, groups: Sequence[tuple[float, int, int]],
     temporaries (1.4 GB for 3 x 5e5 stars) stay off this process; None: drawn here from
     one source. ``bar`` (a progress bar) advances per group.
     """
-    out = {}
-    if run is None:
+    if run is None:  # one source for every class (its tables are built once)
         source = make_source(population)
-        for g, n, key in groups:
-            out[key] = select_class_stars(source, float(g), n, np.random.default_rng(seed_of(key)),
-                                          size_key=size_key)
-            if bar is not None:
-                bar.update(1)
+        drawn = ((key, select_class_stars(source, float(g), n, np.random.default_rng(seed_of(key)),
+                                          size_key=size_key), []) for g, n, key in groups)
     else:
-        for key, stars, caught in run(draw_class, [(population, float(g), n, key, seed_of(key), size_key)
-                                                   for g, n, key in groups]):
-            for category, message in caught:
-                warnings.warn(message, category, stacklevel=2)
-            out[key] = stars
-            if bar is not None:
-                bar.update(1)
+        drawn = run(draw_class, [(population, float(g), n, key, seed_of(key), size_key) for g, n, key in groups])
+    out = {}
+    for key, stars, caught in drawn:
+        for category, message in caught:  # a worker's warnings, repeated here (none in-process)
+            warnings.warn(message, category, stacklevel=2)
+        out[key] = stars
+        if bar is not None:
+            bar.update(1)
     return [(float(g), key, out[key]) for g, _, key in groups]
 
 

@@ -21,7 +21,7 @@ from joblib import Parallel, delayed, parallel_config
 from ..errors import UserInputError
 from .schema import ExecutionConf
 
-__all__ = ["executor", "dask_client", "release_free_memory"]
+__all__ = ["executor", "in_process", "dask_client", "release_free_memory"]
 
 # BLAS threads per worker: the workers already use every core (Hydra/joblib trap:
 # oversubscribing 2 cores with n_jobs x BLAS threads).
@@ -106,6 +106,11 @@ def _shutdown_loky(*, kill: bool) -> None:
     get_reusable_executor(kill_workers=kill).shutdown(wait=True, kill_workers=kill)
 
 
+def in_process(conf: ExecutionConf) -> bool:
+    """Whether :func:`executor` runs its tasks one after the other in this process."""
+    return conf.backend == "sequential" or (conf.n_jobs == 1 and conf.backend != "dask")
+
+
 @contextmanager
 def executor(conf: ExecutionConf, *,
              release_workers: bool = False) -> Iterator[Callable[[Callable, Iterable], Iterator]]:
@@ -119,10 +124,12 @@ def executor(conf: ExecutionConf, *,
     for v in _THREAD_VARS:
         os.environ.setdefault(v, "1")
 
+    here = in_process(conf)
+
     def make_run(backend: str, n_jobs: int):
         def run(fn, items):
             items = list(items)
-            if backend == "sequential" or (n_jobs == 1 and backend != "dask"):
+            if here:
                 yield from (fn(item) for item in items)
                 return
             extra = {"initializer": ignore_sigint} if backend == "loky" else {}

@@ -37,7 +37,7 @@ import pandas as pd
 from ..experiments.global_classes import POPULATION_STREAM, draw_classes
 from ..experiments.global_settings import spawn
 from ..population import make_source
-from .execution import executor
+from .execution import executor, in_process
 from .progress import progress
 from .provenance import Provenance
 from .store import CellStore, atomic_write_bytes
@@ -153,7 +153,7 @@ class GlobalRun:
 def _draw_population(experiment: GlobalExperiment, config, settings, section, kind: str) -> list:
     """The classes of ``experiment.groups`` drawn from the configured population."""
     population = dataclasses.asdict(config.population)
-    make_source(population)  # a bad population config: its one line before any worker starts
+    make_source(population)  # a bad population config: its one line before a bar or a worker starts
     groups = experiment.groups(section)
     bar = progress(len(groups), desc=experiment.population_bar, unit="classes",
                    enabled=config.execution.progress) if experiment.population_bar else None
@@ -161,10 +161,8 @@ def _draw_population(experiment: GlobalExperiment, config, settings, section, ki
     # The galaxy model's classes are tasks of the executor: the whole-sky tables (~0.5 GB) and
     # the draw's temporaries (1.4 GB peak at 3 x 5e5 stars) stay in the workers, which are let
     # go afterwards. A catalogue is read here (its path is the driver's; one read for all classes).
-    here = (population.get("name") != "galaxy_model" or execution.backend == "sequential"
-            or (execution.backend != "dask" and execution.n_jobs == 1))
-    with contextlib.ExitStack() as stack:
-        run = None if here else stack.enter_context(executor(execution, release_workers=True))
+    here = population.get("name") != "galaxy_model" or in_process(execution)
+    with contextlib.nullcontext() if here else executor(execution, release_workers=True) as run:
         classes = draw_classes(population, groups,
                                lambda key: spawn(settings.seed, experiment.tag, POPULATION_STREAM, key),
                                size_key=f"experiment.{kind}.class_size", run=run, bar=bar)

@@ -25,6 +25,7 @@ import pandas as pd
 
 from ..errors import NotConvergedError
 from ..experiments.global_classes import STAR_COLUMNS, class_key, sky_order
+from ..experiments.global_table import subset_masks
 from ..experiments.primary import (CHUNKS_DIR, FACTOR_STREAM, PRIMARY_KEY, TAG, build_settings, prepare, solve_prior,
                                    stream_seed, transits_of)
 from ..experiments.primary_cluster import prepare_on_cluster
@@ -89,7 +90,9 @@ def few_transit_spans(stars, g_classes, count: str = "n_fov") -> str:
     the column that defines the subset (:data:`~mcsweep.experiments.primary_table.SUBSET_COUNTS`)."""
     parts = []
     for g in g_classes:
-        sub = stars[(stars["class_key"] == class_key(g)) & (stars["n_fov"] >= 1) & (stars[count] <= 4)]
+        # the table's <= 4 subset (global_table.subset_masks), of the stars with live transits
+        sub = stars[(stars["class_key"] == class_key(g)) & subset_masks(stars[count].to_numpy())["<=4"]
+                    & (stars["n_fov"] >= 1)]
         if len(sub):
             q = np.nanquantile(sub["span_days"].to_numpy(), [0.1, 0.5, 0.9])
             parts.append(f"G~{g:g}: {q[1]:.3g} d [{q[0]:.3g}-{q[2]:.3g}], {np.mean(sub['span_days'] < 1):.0%} "

@@ -85,6 +85,36 @@ def test_tiny_run_on_a_dask_cluster_gives_the_same_bits(cli_run, tmp_path):
     pd.testing.assert_frame_equal(a, b, check_exact=True)
 
 
+#: Runs the CLI with a solution's per-star results stored in parts of 700 stars (the tiny
+#: run's 1950 stars in 3 parts; the default part of 250000 would need a run too large here).
+_SMALL_PARTS = """
+import sys
+import mcsweep.experiments.primary_cells as C
+C.PART_STARS = 700
+from mcsweep.cli import main
+sys.argv = ["mcsweep", *sys.argv[1:]]
+main()
+"""
+
+
+def test_tables_read_part_by_part_are_the_tables_of_one_part(cli_run, tmp_path):
+    # Issue 27: the tables are reduced from the per-star results part by part
+    # (experiments.primary_cells); how the stars are split changes no bit of any table.
+    out = tmp_path / "run"
+    r = subprocess.run([sys.executable, "-c", _SMALL_PARTS, f"hydra.run.dir={out}", *TINY, "population=catalogue",
+                        f"population.path={cli_run.parent / 'stars.csv'}", "experiment.primary.factor_grid=[1,10]",
+                        "experiment.primary.factor_resamples=20"], capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr[-3000:]
+    for name in ("table3.csv", "table3.md", "primary_factor.csv", "primary_factor_curves.csv"):
+        assert (out / name).read_bytes() == (cli_run / name).read_bytes(), name
+    for prior in ("F90", "10F90"):
+        parts = sorted((out / P.CHUNKS_DIR).glob(f"prior_{prior}.part*.parquet"))
+        assert [p.name[-12:-8] for p in parts] == ["0000", "0001", "0002"]
+        whole = pd.concat([pd.read_parquet(p) for p in parts], ignore_index=True)
+        pd.testing.assert_frame_equal(whole, pd.read_parquet(cli_run / P.CHUNKS_DIR / f"prior_{prior}.part0000.parquet"),
+                                      check_exact=True)
+
+
 @pytest.mark.slow
 def test_tiny_run_through_cli_writes_table3_and_report(cli_run):
     table = pd.read_csv(cli_run / "table3.csv")
@@ -457,7 +487,7 @@ def test_unconverged_solution_ends_the_run_in_one_line_and_writes_no_table(tmp_p
                         r"residual \S+, error not yet estimated \(too few iterations\) against "
                         r"experiment.primary.solver_error_tol 0.01\); no table3 written.*", lines[0]), lines[0]
     assert not (out / "table3.csv").exists() and not (out / "table3.md").exists()
-    assert not (out / "primary_chunks" / "prior_F90.parquet").exists()  # never a result to resume from
+    assert not (out / "primary_chunks" / "prior_F90.part0000.parquet").exists()  # never a result to resume from
     # Asked to keep going: the table is written and says which rows did not converge.
     r = subprocess.run([*args[:1], f"hydra.run.dir={tmp_path / 'kept'}", *args[2:],
                         "experiment.primary.allow_unconverged=true"], capture_output=True, text=True, timeout=600)
@@ -538,8 +568,8 @@ def test_an_attitude_the_data_leave_free_ends_the_run_in_one_line_and_keeps_what
                         r"paper's attitude freedom: 25\)", lines[0]), lines[0]
     assert not (out / "table3.csv").exists() and not (out / "table3.md").exists()
     assert "prior F90:" in r.stdout
-    kept = out / "primary_chunks" / "prior_F90.parquet"
-    assert kept.exists() and not (out / "primary_chunks" / "prior_10F90.parquet").exists()
+    kept = out / "primary_chunks" / "prior_F90.part0000.parquet"
+    assert kept.exists() and not (out / "primary_chunks" / "prior_10F90.part0000.parquet").exists()
     before = kept.read_bytes()
     r = subprocess.run([str(BIN / "mcsweep"), *args], capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr[-3000:]
@@ -553,8 +583,8 @@ def test_an_attitude_the_data_leave_free_ends_the_run_in_one_line_and_keeps_what
     assert r.returncode == 0, r.stderr[-3000:]
     for run_dir in (out, whole):
         assert json.loads((run_dir / "primary_chunks" / "prior_10F90.json").read_text())["attitude_start"] == "F90"
-    pd.testing.assert_frame_equal(pd.read_parquet(out / "primary_chunks" / "prior_10F90.parquet"),
-                                  pd.read_parquet(whole / "primary_chunks" / "prior_10F90.parquet"), check_exact=True)
+    pd.testing.assert_frame_equal(pd.read_parquet(out / "primary_chunks" / "prior_10F90.part0000.parquet"),
+                                  pd.read_parquet(whole / "primary_chunks" / "prior_10F90.part0000.parquet"), check_exact=True)
     assert (out / "table3.csv").read_bytes() == (whole / "table3.csv").read_bytes()
     # A finished solution without its stored attitude is solved again (the next one could not
     # start from it as an uninterrupted run did); the others are kept.
@@ -660,8 +690,8 @@ def test_subsets_by_scheduled_transits_change_the_tables_not_the_solutions(cli_r
                        capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr[-3000:]
     for prior in ("F90", "10F90"):
-        a = pd.read_parquet(out / P.CHUNKS_DIR / f"prior_{prior}.parquet")
-        b = pd.read_parquet(cli_run / P.CHUNKS_DIR / f"prior_{prior}.parquet")
+        a = pd.read_parquet(out / P.CHUNKS_DIR / f"prior_{prior}.part0000.parquet")
+        b = pd.read_parquet(cli_run / P.CHUNKS_DIR / f"prior_{prior}.part0000.parquet")
         pd.testing.assert_frame_equal(a, b, check_exact=True)
     live, scheduled = a["n_fov"].to_numpy(int), a["n_fov_scheduled"].to_numpy(int)
     assert np.all(live <= scheduled)

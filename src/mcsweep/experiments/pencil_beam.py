@@ -41,6 +41,10 @@ __all__ = [
     "sigma_f90_from_curve",
     "sigma_f90_interval",
     "bootstrap_fractions",
+    "flag_patterns",
+    "merge_patterns",
+    "pattern_fractions",
+    "pattern_interval",
     "scan_curve",
     "ill_determined",
     "run_cell",
@@ -377,28 +381,63 @@ def sigma_f90_from_curve(priors_mas, fraction, p: float, interpolation: str = "l
     return float(values[0]), "below_grid" if first[0] == 0 else "ok"
 
 
-def bootstrap_fractions(inside_flags, valid_flags, n_resamples: int, rng: np.random.Generator) -> np.ndarray:
-    """Fractions inside of ``n_resamples`` bootstrap resamples of the stars, (n_resamples, n_priors).
+def flag_patterns(inside_flags, valid_flags) -> dict[bytes, int]:
+    """How many stars show each distinct pattern of (inside, valid) flags over the grid.
+
+    ``inside_flags`` and ``valid_flags`` are (n_priors, n_stars); a pattern's key is its
+    flags packed into bytes (the inside rows, then the valid rows; :func:`numpy.packbits`),
+    its value the number of stars. Counts of disjoint sets of stars add
+    (:func:`merge_patterns`): a cell read part by part has the patterns of the whole
+    (:mod:`mcsweep.experiments.primary_cells`).
+    """
+    inside_flags = np.asarray(inside_flags, bool)
+    valid_flags = np.asarray(valid_flags, bool)
+    if inside_flags.shape[1] == 0:
+        return {}
+    packed = np.packbits(np.concatenate([inside_flags, valid_flags]), axis=0)  # (bytes, n)
+    keys = np.ascontiguousarray(packed.T).view(np.dtype((np.void, packed.shape[0]))).ravel()
+    unique, counts = np.unique(keys, return_counts=True)
+    return {k.tobytes(): int(c) for k, c in zip(unique, counts)}
+
+
+def merge_patterns(total: dict[bytes, int], more: dict[bytes, int]) -> dict[bytes, int]:
+    """``total`` with the pattern counts ``more`` added (in place; returned)."""
+    for key, count in more.items():
+        total[key] = total.get(key, 0) + count
+    return total
+
+
+def pattern_fractions(patterns: dict[bytes, int], n_priors: int, n_resamples: int,
+                      rng: np.random.Generator) -> np.ndarray:
+    """Fractions inside of ``n_resamples`` bootstrap resamples of the stars counted in
+    ``patterns`` (:func:`flag_patterns` over ``n_priors`` priors), (n_resamples, n_priors).
 
     A resample's curve depends only on how many times it draws each distinct pattern of
     (inside, valid) flags over the grid. With ``n_u`` of the ``n`` stars in pattern
     ``u`` those counts are multinomial(n, n_u / n) -- exactly the distribution of
     resampling the stars one by one -- so each resample costs one multinomial draw over
-    the distinct patterns (a few hundred), and all curves one matrix product.
+    the distinct patterns (a few hundred), and all curves one matrix product. The patterns
+    are taken in the order of their keys' bytes: the draws do not depend on the order of
+    the stars, nor on how they were split into parts.
     """
-    inside_flags = np.asarray(inside_flags, bool)
-    valid_flags = np.asarray(valid_flags, bool)
-    n = inside_flags.shape[1]
-    packed = np.packbits(np.concatenate([inside_flags, valid_flags]), axis=0)  # (bytes, n)
-    keys = np.ascontiguousarray(packed.T).view(np.dtype((np.void, packed.shape[0]))).ravel()
-    # Sorted by the pattern's bytes: independent of the order of the stars.
-    _, first, counts = np.unique(keys, return_index=True, return_counts=True)
+    keys = sorted(patterns)
+    counts = np.array([patterns[k] for k in keys], dtype=float)
+    n = int(counts.sum())
+    bits = np.unpackbits(np.frombuffer(b"".join(keys), np.uint8).reshape(len(keys), -1), axis=1)
+    inside, valid = bits[:, :n_priors].astype(float), bits[:, n_priors:2 * n_priors].astype(float)
     weights = rng.multinomial(n, counts / n, size=n_resamples).astype(float)
     # Integer-valued sums below 2^53: exact whatever the summation order (bit-identical).
-    n_in = weights @ inside_flags[:, first].T.astype(float)
-    n_val = weights @ valid_flags[:, first].T.astype(float)
+    n_in = weights @ inside
+    n_val = weights @ valid
     with np.errstate(invalid="ignore", divide="ignore"):
         return np.where(n_val > 0, n_in / n_val, np.nan)
+
+
+def bootstrap_fractions(inside_flags, valid_flags, n_resamples: int, rng: np.random.Generator) -> np.ndarray:
+    """Fractions inside of ``n_resamples`` bootstrap resamples of the stars, (n_resamples, n_priors):
+    :func:`pattern_fractions` of the stars' :func:`flag_patterns`."""
+    inside_flags = np.asarray(inside_flags, bool)
+    return pattern_fractions(flag_patterns(inside_flags, valid_flags), inside_flags.shape[0], n_resamples, rng)
 
 
 def sigma_f90_interval(priors_mas, inside_flags, valid_flags, p: float, interpolation: str,
@@ -415,8 +454,17 @@ def sigma_f90_interval(priors_mas, inside_flags, valid_flags, p: float, interpol
     inside_flags = np.asarray(inside_flags, bool)
     if n_resamples <= 0 or inside_flags.shape[1] == 0:
         return float("nan"), float("nan")
-    frac = bootstrap_fractions(inside_flags, valid_flags, n_resamples, rng)
-    values = _crossings(np.asarray(priors_mas, float), frac, p, interpolation)[0]
+    return pattern_interval(priors_mas, flag_patterns(inside_flags, valid_flags), p, interpolation, n_resamples, rng)
+
+
+def pattern_interval(priors_mas, patterns: dict[bytes, int], p: float, interpolation: str,
+                     n_resamples: int, rng: np.random.Generator) -> tuple[float, float]:
+    """:func:`sigma_f90_interval` of the stars counted in ``patterns`` (:func:`flag_patterns`)."""
+    priors = np.asarray(priors_mas, float)
+    if n_resamples <= 0 or not patterns:
+        return float("nan"), float("nan")
+    frac = pattern_fractions(patterns, priors.size, n_resamples, rng)
+    values = _crossings(priors, frac, p, interpolation)[0]
     values[np.isnan(values)] = np.inf
     lo, hi = np.quantile(values, INTERVAL_QUANTILES, method="inverted_cdf")
     return float(lo), float(hi)

@@ -23,11 +23,12 @@ from typing import Mapping, Sequence
 import numpy as np
 import pandas as pd
 
-from .pencil_beam import sigma_f90_from_curve, sigma_f90_interval
-from .primary_table import cell_mask
-from .global_table import SUBSETS, fraction_statistics, g_label
+from ..astrometry.confidence import binomial_interval
+from .global_table import FRACTION_INTERVAL, SUBSETS, g_label
+from .primary_cells import CellReduction, reduce_parts
 
-__all__ = ["FACTOR_COLUMNS", "CURVE_COLUMNS", "factor_label", "factor_curves", "factor_rows", "overall_factor"]
+__all__ = ["FACTOR_COLUMNS", "CURVE_COLUMNS", "factor_label", "factor_curves", "factor_rows", "curves_from_reduction",
+           "rows_from_reduction", "overall_factor"]
 
 FACTOR_COLUMNS = ("subset", "g_class", "n_valid", "k_min", "flag", "k_lo", "k_hi")
 CURVE_COLUMNS = ("subset", "g_class", "k", "n_valid", "n_inside", "fraction_inside", "fraction_lo", "fraction_hi")
@@ -38,26 +39,35 @@ def factor_label(k: float) -> str:
     return "F90" if float(k) == 1.0 else f"{float(k):g}F90"
 
 
-def _cell_flags(results: Mapping[float, pd.DataFrame], g_classes: Sequence[float], count: str = "n_fov"):
-    """Per cell (subset, class): ``(subset, g, flags)``, flags (n_k, n_stars) with k ascending.
-
-    Flags: 1 inside, 0 outside, -1 no confidence region; the stars are the same in every solution.
-    """
-    first = next(iter(results.values()))
-    for subset in SUBSETS:
-        for g in g_classes:
-            sel = cell_mask(first, subset, g, count)
-            yield subset, g, np.stack([results[k]["inside"].to_numpy()[sel] for k in sorted(results)])
+def _reduced(results: Mapping[float, pd.DataFrame], g_classes: Sequence[float], confidence: float,
+             count: str) -> CellReduction:
+    """The cells of solutions held whole (one part each; factor k -> per-star results)."""
+    labels = {float(k): factor_label(k) for k in results}
+    parts = {labels[float(k)]: df for k, df in results.items()}
+    return reduce_parts(lambda _: parts, 1, CellReduction(list(parts), g_classes, confidence, count=count,
+                                                          factors=labels))
 
 
 def factor_curves(results: Mapping[float, pd.DataFrame], g_classes: Sequence[float], count: str = "n_fov"
                   ) -> pd.DataFrame:
     """Fraction inside per cell and factor, with its Clopper-Pearson interval (Table 2's
-    :func:`~mcsweep.experiments.secondary_table.fraction_statistics`)."""
-    ks = sorted(results)
-    rows = [(subset, g_label(g), k, *fraction_statistics(f))
-            for subset, g, flags in _cell_flags(results, g_classes, count) for k, f in zip(ks, flags)]
+    :func:`~mcsweep.experiments.secondary_table.fraction_statistics`), from solutions held
+    whole: :func:`curves_from_reduction`."""
+    return curves_from_reduction(_reduced(results, g_classes, 0.9, count))
+
+
+def curves_from_reduction(reduction: CellReduction) -> pd.DataFrame:
+    """:func:`factor_curves` from the cells of solutions read part by part
+    (:class:`~mcsweep.experiments.primary_cells.CellReduction` with its ``factors``)."""
+    rows = [(subset, g_label(g), k, n_val, n_in, *_fraction(n_in, n_val))
+            for subset in SUBSETS for g in reduction.g_classes
+            for k, (n_val, n_in) in zip(reduction.factors, reduction.factor_counts(subset, g))]
     return pd.DataFrame(rows, columns=list(CURVE_COLUMNS))
+
+
+def _fraction(n_in: int, n_valid: int) -> tuple[float, float, float]:
+    lo, hi = binomial_interval(n_in, n_valid, FRACTION_INTERVAL)
+    return (n_in / n_valid if n_valid else float("nan")), float(lo), float(hi)
 
 
 def factor_rows(results: Mapping[float, pd.DataFrame], g_classes: Sequence[float], confidence: float, *,
@@ -75,18 +85,18 @@ def factor_rows(results: Mapping[float, pd.DataFrame], g_classes: Sequence[float
     count : the column counting transits for the subsets
         (:data:`~mcsweep.experiments.primary_table.SUBSET_COUNTS`).
     """
-    ks = np.array(sorted(results), dtype=float)
+    return rows_from_reduction(_reduced(results, g_classes, confidence, count), n_resamples=n_resamples, rng=rng)
+
+
+def rows_from_reduction(reduction: CellReduction, *, n_resamples: int, rng: np.random.Generator) -> pd.DataFrame:
+    """:func:`factor_rows` from the cells of solutions read part by part: the bootstrap
+    draws over the cell's patterns of flags, which is the bootstrap over its stars
+    (:func:`~mcsweep.experiments.pencil_beam.pattern_fractions`), the same bits."""
     rows = []
-    for subset, g, flags in _cell_flags(results, g_classes, count):
-        # Columns n_valid, n_inside, fraction, fraction_lo, fraction_hi (rows: k ascending).
-        curve = np.array([fraction_statistics(f) for f in flags])
-        n_val, frac = curve[:, 0], curve[:, 2]
-        if not n_val.any():
-            rows.append((subset, g_label(g), 0, float("nan"), "no_stars", float("nan"), float("nan")))
-            continue
-        k_min, flag = sigma_f90_from_curve(ks, frac, confidence)
-        lo, hi = sigma_f90_interval(ks, flags == 1, flags >= 0, confidence, "log", n_resamples, rng)
-        rows.append((subset, g_label(g), int(n_val.max()), k_min, flag, lo, hi))
+    for subset in SUBSETS:
+        for g in reduction.g_classes:
+            n_val, k_min, flag, lo, hi = reduction.factor_crossing(subset, g, n_resamples=n_resamples, rng=rng)
+            rows.append((subset, g_label(g), n_val, k_min, flag, lo, hi))
     return pd.DataFrame(rows, columns=list(FACTOR_COLUMNS))
 
 

@@ -28,12 +28,13 @@ import pandas as pd
 
 from ..astrometry.confidence import percentile_interval
 from .global_classes import class_key
+from .primary_cells import CellReduction, reduce_parts
 from .global_priors import prior_label
 from .global_table import (FRACTION_INTERVAL, PAPER_G_CLASSES, SUBSETS, error_percentile, fraction_statistics,
                            g_label, layout_markdown, paper_layout, published_value, subset_masks)
 
 __all__ = ["PAPER_TABLE3", "PAPER_G_CLASSES", "TABLE3_COLUMNS", "SUBSET_COUNTS", "paper_value3", "cell_mask",
-           "cell_statistics", "table3_rows", "table3_layout", "table3_markdown"]
+           "cell_statistics", "table3_rows", "table3_from_reduction", "table3_layout", "table3_markdown"]
 
 #: Table 3 transcribed from the LaTeX source: (subset, prior) -> (fractions in per cent
 #: for G ~ 11, 15, 19; 90th percentiles of the position errors in mas).
@@ -101,16 +102,25 @@ def table3_rows(results: Mapping[str, pd.DataFrame], g_classes: Sequence[float],
     ``converged[prior]``: whether its solution met the PCG criterion (column ``converged``;
     only with ``experiment.primary.allow_unconverged`` can a False reach the table).
     ``count``: the column counting transits for the subsets (:data:`SUBSET_COUNTS`).
+    The results held whole: :func:`table3_from_reduction` of their one part.
     """
-    q = error_percentile(confidence)
+    reduction = reduce_parts(lambda _: results, 1, CellReduction(list(results), g_classes, confidence, count=count))
+    return table3_from_reduction(reduction, list(results), converged)
+
+
+def table3_from_reduction(reduction: CellReduction, priors: Sequence[str],
+                          converged: Mapping[str, bool] | None = None) -> pd.DataFrame:
+    """:func:`table3_rows` from the cells of solutions read part by part
+    (:class:`~mcsweep.experiments.primary_cells.CellReduction`, whose stars may never be in
+    memory at once): the same rows, bit for bit."""
+    q = error_percentile(reduction.confidence)
     rows = []
     for subset in SUBSETS:
-        for prior, res in results.items():
-            for g in g_classes:
-                sel = cell_mask(res, subset, g, count)
-                stats = cell_statistics(res["inside"].to_numpy()[sel], res["err_mas"].to_numpy()[sel], confidence)
-                pf, pp = paper_value3(subset, prior, g, confidence)
-                rows.append((subset, prior, g_label(g), int(sel.sum()), *stats, pf, pp, q))
+        for prior in priors:
+            for g in reduction.g_classes:
+                n_stars, *stats = reduction.cell_statistics(prior, subset, g)
+                pf, pp = paper_value3(subset, prior, g, reduction.confidence)
+                rows.append((subset, prior, g_label(g), n_stars, *stats, pf, pp, q))
     table = pd.DataFrame(rows, columns=list(TABLE3_COLUMNS))
     if converged is not None:
         table["converged"] = table["prior"].map(lambda p: bool(converged[p]))

@@ -25,12 +25,12 @@ import pandas as pd
 
 from ..errors import NotConvergedError
 from ..experiments.global_classes import STAR_COLUMNS, class_key, sky_order
-from ..experiments.global_table import subset_masks
 from ..experiments.primary import (CHUNKS_DIR, FACTOR_STREAM, PRIMARY_KEY, TAG, build_settings, prepare, solve_prior,
                                    stream_seed, transits_of)
 from ..experiments.primary_cluster import prepare_on_cluster
-from ..experiments.primary_factor import factor_curves, factor_label, factor_rows, overall_factor
-from ..experiments.primary_table import SUBSET_COUNTS, table3_markdown, table3_rows
+from ..experiments.primary_cells import CellReduction, parts_of, reduce_parts
+from ..experiments.primary_factor import curves_from_reduction, factor_label, overall_factor, rows_from_reduction
+from ..experiments.primary_table import SUBSET_COUNTS, table3_from_reduction, table3_markdown
 from ..solver import AttitudeNotDetermined
 from ..solver.calibration import CalibrationNotDetermined
 from .execution import dask_client, release_free_memory
@@ -46,10 +46,17 @@ def _prior_id(label: str) -> str:
     return "prior_" + label.replace(".", "p")
 
 
+def _part_ids(label: str, n_stars: int) -> list[str]:
+    """The store's cells of one solution's per-star results: one per part of
+    :data:`~mcsweep.experiments.primary_cells.PART_STARS` stars (the tables read them part
+    by part, :mod:`mcsweep.experiments.primary_cells`)."""
+    return [f"{_prior_id(label)}.part{j:04d}" for j in range(len(parts_of(n_stars)))]
+
+
 def _kept(pri, done, run_dir) -> str:
     """The priors whose solutions a rerun keeps (result and summary both written)."""
     labels = list(dict.fromkeys([*map(str, pri.priors), *map(factor_label, pri.factor_grid)]))
-    kept = [lab for lab in labels if _prior_id(lab) in done and _finished(Path(run_dir) / CHUNKS_DIR, lab,
+    kept = [lab for lab in labels if f"{_prior_id(lab)}.part0000" in done and _finished(Path(run_dir) / CHUNKS_DIR, lab,
                                                                           str(pri.solver_start))]
     which = f" ({', '.join(kept)})" if kept else ""
     return (f"the solutions of {len(kept)} of {len(labels)} priors{which} kept in {run_dir} "
@@ -84,19 +91,16 @@ def solution_line(label: str, extra: dict) -> str:
                "iteration" if sent else ""))
 
 
-def few_transit_spans(stars, g_classes, count: str = "n_fov") -> str:
+def few_transit_spans(cells: CellReduction) -> str:
     """The note on the <= 4 transit subset's time spans (issue 24, candidate 5): whether its
-    stars were seen in one visit or in several months apart decides their errors. ``count``:
-    the column that defines the subset (:data:`~mcsweep.experiments.primary_table.SUBSET_COUNTS`)."""
+    stars were seen in one visit or in several months apart decides their errors. From the
+    solutions' cells (the subset as the table counts it, of the stars with live transits)."""
     parts = []
-    for g in g_classes:
-        # the table's <= 4 subset (global_table.subset_masks), of the stars with live transits
-        sub = stars[(stars["class_key"] == class_key(g)) & subset_masks(stars[count].to_numpy())["<=4"]
-                    & (stars["n_fov"] >= 1)]
-        if len(sub):
-            q = np.nanquantile(sub["span_days"].to_numpy(), [0.1, 0.5, 0.9])
-            parts.append(f"G~{g:g}: {q[1]:.3g} d [{q[0]:.3g}-{q[2]:.3g}], {np.mean(sub['span_days'] < 1):.0%} "
-                         "within a day")
+    for g in cells.g_classes:
+        got = cells.span_summary(g)
+        if got is not None:
+            (q10, q50, q90), within = got
+            parts.append(f"G~{g:g}: {q50:.3g} d [{q10:.3g}-{q90:.3g}], {within:.0%} within a day")
     return ("Time span of the live transits of the <= 4 transit stars, median [10-90 %]: " + "; ".join(parts)
             + ".") if parts else ""
 
@@ -145,7 +149,7 @@ def _solve(run: GlobalRun, data, label: str, client: Callable, start: tuple | No
     config, settings = run.config, run.settings
     cid = _prior_id(label)
     coefficients = run.chunks / f"{cid}_coefficients.npy"
-    if run.pending([cid]) or not _finished(run.chunks, label, settings.solver_start):
+    if run.pending(_part_ids(label, len(data.stars))) or not _finished(run.chunks, label, settings.solver_start):
         # On a Dask cluster the solver's chunks are sent to the workers once per solution and
         # kept there; every pass sends only the star and attitude vectors
         # (mcsweep.solver.dask_resident; one client for every solution, opened when the first
@@ -208,7 +212,9 @@ def _solve(run: GlobalRun, data, label: str, client: Callable, start: tuple | No
         np.save(buf, attitude)
         atomic_write_bytes(coefficients, buf.getvalue())
         atomic_write_bytes(run.chunks / f"{cid}.json", json.dumps(extra).encode())
-        run.store.write(cid, res)
+        for part, rows in zip(_part_ids(label, len(res)), parts_of(len(res))):
+            run.store.write(part, res.iloc[rows].reset_index(drop=True))
+        del res
         release_free_memory()  # the solution's temporaries, before the next one
         print(solution_line(label, extra), flush=True)
     return (label, coefficients) if settings.solver_start == "previous" else None
@@ -267,37 +273,48 @@ def _observations(run: GlobalRun, stars: pd.DataFrame, client: Callable):
     return data
 
 
-def _read_solutions(run: GlobalRun, factors: dict) -> tuple[dict, list, dict, list]:
-    """Per prior: the per-star results, convergence history, summary and attitude errors."""
-    results, histories, extras, attitude = {}, [], {}, []
+def _read_solutions(run: GlobalRun, factors: dict) -> tuple[list, dict, list]:
+    """Per prior: the convergence history, summary and attitude errors (the per-star results
+    are read part by part by :func:`_cells`)."""
+    histories, extras, attitude = [], {}, []
     for label in dict.fromkeys([*run.settings.priors, *factors.values()]):
         cid = _prior_id(label)
-        (results[label],) = run.read_all([cid])
         histories.append(pd.read_csv(run.chunks / f"{cid}_history.csv"))
         att_file = run.chunks / f"{cid}_attitude.csv"
         if att_file.exists():  # absent only in a resumed run of an older version
             attitude.append(pd.read_csv(att_file).assign(prior=label))
         extras[label] = json.loads((run.chunks / f"{cid}.json").read_text())
-    return results, histories, extras, attitude
+    return histories, extras, attitude
+
+
+def _cells(run: GlobalRun, factors: dict, n_stars: int) -> CellReduction:
+    """Table 3's and the factor search's cells of every solution, read from the store part
+    by part (:mod:`mcsweep.experiments.primary_cells`): never a whole solution in memory."""
+    pri = run.section
+    labels = list(dict.fromkeys([*run.settings.priors, *factors.values()]))
+    ids = {label: _part_ids(label, n_stars) for label in labels}
+
+    def read(j: int) -> dict:
+        return dict(zip(labels, run.read_all([ids[label][j] for label in labels])))
+
+    return reduce_parts(read, len(parts_of(n_stars)), CellReduction(
+        labels, pri.g_classes, run.settings.confidence, count=SUBSET_COUNTS[pri.subset_transits], factors=factors))
 
 
 def _aggregate(run: GlobalRun, computed: _Computed) -> dict[str, str]:
     pri, settings, data, factors = run.section, run.settings, computed.data, computed.factors
-    results, histories, extras, attitude = _read_solutions(run, factors)
-    count = SUBSET_COUNTS[pri.subset_transits]
-    table = table3_rows({k: results[k] for k in settings.priors}, pri.g_classes, settings.confidence,
-                        converged={k: extras[k]["converged"] for k in settings.priors}, count=count)
+    histories, extras, attitude = _read_solutions(run, factors)
+    cells = _cells(run, factors, len(data.stars))
+    table = table3_from_reduction(cells, settings.priors, converged={k: extras[k]["converged"] for k in settings.priors})
     outputs = {}
     if factors:
-        by_k = {k: results[lab] for k, lab in factors.items()}
         rng = np.random.default_rng(stream_seed(settings.seed, FACTOR_STREAM))
-        fac = factor_rows(by_k, pri.g_classes, settings.confidence, n_resamples=pri.factor_resamples, rng=rng,
-                          count=count)
+        fac = rows_from_reduction(cells, n_resamples=pri.factor_resamples, rng=rng)
         k_all, flag = overall_factor(fac)
         fac = pd.concat([fac, pd.DataFrame([{"subset": "all", "g_class": "all", "k_min": k_all, "flag": flag}])],
                         ignore_index=True)
         outputs["primary_factor.csv"] = fac.to_csv(index=False)
-        outputs["primary_factor_curves.csv"] = factor_curves(by_k, pri.g_classes, count).to_csv(index=False)
+        outputs["primary_factor_curves.csv"] = curves_from_reduction(cells).to_csv(index=False)
     n_obs = data.n_measurements
     summary = pd.DataFrame([{"prior": k, **{kk: (json.dumps(v) if isinstance(v, list) else v)
                                             for kk, v in e.items()}} for k, e in extras.items()])
@@ -308,7 +325,7 @@ def _aggregate(run: GlobalRun, computed: _Computed) -> dict[str, str]:
     summary["fov_transits_per_knot"] = data.transits_per_knot
     summary["attitude_segments"] = data.spline.n_segments
     summary["dead_fraction"] = data.dead_days / (settings.end_jd - settings.start_jd)
-    counts = data.stars.groupby("class_key").size().to_dict()
+    counts = cells.class_counts
     notes = [run.conditions(f"{pri.mission_years:g} year(s) from {pri.mission_start} (TCB), dead time "
                             f"{100 * pri.dead_time_fraction:g} % in blocks of {pri.dead_time_block_days:g} d"),
              f"Stars: {pri.class_size} per class (paper 5e5), {counts.get(PRIMARY_KEY, 0)} primary sources "
@@ -322,7 +339,7 @@ def _aggregate(run: GlobalRun, computed: _Computed) -> dict[str, str]:
                 "(experiment.primary.evaluation_epoch=star_mean)." if settings.evaluation_epoch == "star_mean" else "")
              + (" The <= 4 / > 4 subsets count the FoV transits the scanning law scheduled, before the dead "
                 "time (experiment.primary.subset_transits=scheduled)." if pri.subset_transits == "scheduled" else ""),
-             *filter(None, [few_transit_spans(data.stars, pri.g_classes, count), calibration_note(pri, extras)]),
+             *filter(None, [few_transit_spans(cells), calibration_note(pri, extras)]),
              "PCG iterations / attitude error RMS (x, y, z) [uas] after the frame correction: "
              + "; ".join(f"{k}: {e['iterations']} ({'converged' if e['converged'] else 'NOT converged'}"
                          + _started(e) + "), "

@@ -89,7 +89,7 @@ def test_tiny_run_on_a_dask_cluster_gives_the_same_bits(cli_run, tmp_path):
 #: run's 1950 stars in 3 parts; the default part of 250000 would need a run too large here).
 _SMALL_PARTS = """
 import sys
-import mcsweep.experiments.primary_cells as C
+import mcsweep.experiments.primary_results as C
 C.PART_STARS = 700
 from mcsweep.cli import main
 sys.argv = ["mcsweep", *sys.argv[1:]]
@@ -326,10 +326,10 @@ def test_noiseless_data_recover_the_truth_and_the_attitude():
     assert 1e3 * np.sqrt(np.mean(data.true_attitude_at(data.epochs()) ** 2)) > 1000 * RECOVERY_UAS  # a real one
     res, _, extra, *_ = P.solve_prior(settings, data, "F90")
     assert extra["converged"]
-    solved = res["inside"].to_numpy() >= 0
+    solved = res.frame()["inside"].to_numpy() >= 0
     assert solved.sum() == data.solved.size > 2000
-    assert 1e3 * np.nanmax(res["err_mas"].to_numpy()[solved]) < RECOVERY_UAS
-    assert 1e3 * np.nanmax(np.abs(res["err_parallax_mas"].to_numpy()[solved])) < RECOVERY_UAS
+    assert 1e3 * np.nanmax(res.frame()["err_mas"].to_numpy()[solved]) < RECOVERY_UAS
+    assert 1e3 * np.nanmax(np.abs(res.frame()["err_parallax_mas"].to_numpy()[solved])) < RECOVERY_UAS
     assert max(extra["attitude_rms_uas"]) < RECOVERY_UAS
 
 
@@ -357,8 +357,8 @@ def test_noiseless_data_with_a_basic_angle_variation_recover_it_and_the_truth():
         data.h += signal
         res, _, extra, *_ = P.solve_prior(settings, data, "F90")
         assert extra["converged"]
-        solved = res["inside"].to_numpy() >= 0
-        worst[harmonics] = 1e3 * np.nanmax(res["err_mas"].to_numpy()[solved])
+        solved = res.frame()["inside"].to_numpy() >= 0
+        worst[harmonics] = 1e3 * np.nanmax(res.frame()["err_mas"].to_numpy()[solved])
         if harmonics:
             fitted = np.array(list(extra["basic_angle_mas"].values()))
             np.testing.assert_allclose(fitted, true, rtol=0, atol=RECOVERY_UAS / 1e3)

@@ -9,6 +9,7 @@ import warnings
 import numpy as np
 import pytest
 
+from mcsweep.astrometry.design import JULIAN_YEAR_DAYS
 from mcsweep.experiments import primary as P
 
 from .test_primary import _config, _synthetic_stars
@@ -28,7 +29,7 @@ def client(dask_local_client):
 def both(client):
     """(settings, data built in the driver, data built on the cluster) with noise, knots placed
     by the data and AL-only measurements off (AL + AC, the default)."""
-    from mcsweep.experiments.primary_cluster import prepare_on_cluster
+    from mcsweep.experiments.primary_cluster import prepare_on_cluster, table_partitions
 
     config, _ = _config(["experiment.primary.knot_transits=25", "experiment.primary.solver_max_iter=15",
                          "experiment.primary.allow_unconverged=true"])
@@ -39,7 +40,8 @@ def both(client):
     local = P.prepare(settings, stars, tr, block_stars=BLOCK)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        remote = prepare_on_cluster(settings, stars, client, chunk_stars=2 * BLOCK, transit_stars=700,
+        # partitions of 700 stars: the blocks of solved stars run across them
+        remote = prepare_on_cluster(settings, table_partitions(client, stars, 700), client, chunk_stars=2 * BLOCK,
                                     block_stars=BLOCK)
     assert not [w for w in caught if "large graph" in str(w.message).lower()]
     return settings, local, remote
@@ -48,11 +50,11 @@ def both(client):
 def test_cluster_built_data_are_the_driver_built_bits(both, client):
     settings, local, remote = both
     assert remote.on_cluster and remote.h is None and not local.on_cluster
-    assert len(local.blocks) > 6  # several blocks, chunks of two, transit chunks across them
-    for col in ("n_fov", "epoch_offset_yr", "span_days"):
-        np.testing.assert_array_equal(remote.stars[col].to_numpy(), local.stars[col].to_numpy())
-    np.testing.assert_array_equal(remote.solved, local.solved)
-    assert remote.normals is None and remote.x_true is None  # with the chunks (below)
+    assert len(local.blocks) > 6  # several blocks, chunks of two, partitions across them
+    # the driver holds no star: only counts
+    assert remote.stars is None and remote.solved is None and remote.normals is None and remote.x_true is None
+    assert (remote.n_stars, remote.n_solved, remote.n_fov_transits) == (local.n_stars, local.n_solved,
+                                                                         local.n_fov_transits)
     for a, b in zip(remote.spline.segment_knots, local.spline.segment_knots, strict=True):
         np.testing.assert_array_equal(a, b)
     np.testing.assert_array_equal(remote.covered, local.covered)
@@ -69,6 +71,10 @@ def test_cluster_built_data_are_the_driver_built_bits(both, client):
         stars = slice(local.blocks[lo].first, local.blocks[hi - 1].first + local.blocks[hi - 1].n)
         np.testing.assert_array_equal(kept["normals"], local.normals[stars])
         np.testing.assert_array_equal(kept["x_true"], local.x_true[stars])
+        np.testing.assert_array_equal(kept["star"], local.solved[stars])
+        # each star's mean live epoch (evaluation_epoch='star_mean'), by the driver's formula
+        np.testing.assert_array_equal((kept["mean_t"] - local.t_ref_jd) / JULIAN_YEAR_DAYS,
+                                      local.stars["epoch_offset_yr"].to_numpy()[local.solved[stars]])
         for blk, h, ref in zip(blocks, hs, local.blocks[lo:hi], strict=True):
             np.testing.assert_array_equal(h, local.h[ref.rows])
             for f in ("star", "src", "t", "pq", "j0", "bval", "seg", "seg_j0"):
@@ -81,7 +87,7 @@ def test_cluster_built_solution_is_the_forked_one(both, client):
     got = P.solve_prior(settings, remote, "F90", dask_client=client, chunk_stars=2 * BLOCK)
     assert ref[2]["iterations"] == got[2]["iterations"] > 5
     assert ref[2]["attitude_rms_uas"] == got[2]["attitude_rms_uas"]
-    np.testing.assert_array_equal(ref[0].to_numpy(), got[0].to_numpy())
+    np.testing.assert_array_equal(ref[0].frame().to_numpy(), got[0].frame().to_numpy())
     np.testing.assert_array_equal(ref[3].to_numpy(), got[3].to_numpy())
     np.testing.assert_array_equal(ref.attitude, got.attitude)
     with pytest.raises(ValueError, match="dask_client"):
@@ -91,7 +97,7 @@ def test_cluster_built_solution_is_the_forked_one(both, client):
     got = P.solve_prior(settings, remote, "10F90", dask_client=client, chunk_stars=2 * BLOCK,
                         attitude_start=got.attitude)
     assert ref.extra["iterations"] == got.extra["iterations"]
-    np.testing.assert_array_equal(ref.results.to_numpy(), got.results.to_numpy())
+    np.testing.assert_array_equal(ref.results.frame().to_numpy(), got.results.frame().to_numpy())
     np.testing.assert_array_equal(ref.attitude, got.attitude)
 
 
@@ -106,7 +112,7 @@ def test_cluster_built_solution_survives_a_killed_worker(both, client, kill_work
     client.wait_for_workers(2, timeout=60)  # the nanny restarts it for the next test
     assert log.killed
     assert ref[2]["iterations"] == got[2]["iterations"]
-    np.testing.assert_array_equal(ref[0].to_numpy(), got[0].to_numpy())
+    np.testing.assert_array_equal(ref[0].frame().to_numpy(), got[0].frame().to_numpy())
     np.testing.assert_array_equal(ref[3].to_numpy(), got[3].to_numpy())
 
 
@@ -135,6 +141,6 @@ def test_worker_lost_after_the_solution_restarts_it(both, client, monkeypatch):
     got = P.solve_prior(settings, remote, "F90", dask_client=client, chunk_stars=2 * BLOCK)
     client.wait_for_workers(2, timeout=60)
     assert len(calls) == 2  # solved again after the loss
-    np.testing.assert_array_equal(ref[0].to_numpy(), got[0].to_numpy())
+    np.testing.assert_array_equal(ref[0].frame().to_numpy(), got[0].frame().to_numpy())
     np.testing.assert_array_equal(ref[3].to_numpy(), got[3].to_numpy())
     assert ref[2]["attitude_rms_uas"] == got[2]["attitude_rms_uas"]

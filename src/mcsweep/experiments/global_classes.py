@@ -33,7 +33,7 @@ from ..scanning import find_transits
 from ..scanning.timeline import DeadTime, dilution_key, draw_dead_time, keep_after_dilution
 
 __all__ = ["STAR_COLUMNS", "MARGIN_SIGMAS", "POPULATION_STREAM", "SKY_ORDER_LEVEL", "class_key", "faint_limit",
-           "select_class_stars", "draw_classes", "sky_order", "star_transits", "diluted", "dead_time"]
+           "select_class_stars", "draw_classes", "sky_pixels", "sky_order", "class_table", "star_transits", "diluted", "dead_time"]
 
 #: The population columns the experiments use (Gaia archive names).
 STAR_COLUMNS = ("ra", "dec", "l", "b", "parallax", "pmra", "pmdec", "phot_g_mean_mag")
@@ -149,15 +149,27 @@ def draw_classes(population: dict, groups: Sequence[tuple[float, int, int]],
     return [(float(g), key, out[key]) for g, _, key in groups]
 
 
+def sky_pixels(ra_deg, dec_deg) -> np.ndarray:
+    """HEALPix level-:data:`SKY_ORDER_LEVEL` nested pixel of each star (ICRS ``ra, dec`` [deg]):
+    the key of :func:`sky_order`."""
+    from astropy_healpix import lonlat_to_healpix
+
+    return lonlat_to_healpix(np.radians(np.asarray(ra_deg, dtype=float)) * u.rad,
+                             np.radians(np.asarray(dec_deg, dtype=float)) * u.rad,
+                             2 ** SKY_ORDER_LEVEL, order="nested")
+
+
 def sky_order(ra_deg, dec_deg) -> np.ndarray:
     """Indices that put stars (ICRS ``ra, dec`` [deg]) in sky order: by HEALPix level-12 nested
     pixel, as Gaia's source_id orders them (module notes); stars of one pixel keep their order."""
-    from astropy_healpix import lonlat_to_healpix
+    return np.argsort(sky_pixels(ra_deg, dec_deg), kind="stable")
 
-    pix = lonlat_to_healpix(np.radians(np.asarray(ra_deg, dtype=float)) * u.rad,
-                            np.radians(np.asarray(dec_deg, dtype=float)) * u.rad,
-                            2 ** SKY_ORDER_LEVEL, order="nested")
-    return np.argsort(pix, kind="stable")
+
+def class_table(stars: pd.DataFrame, key: int) -> pd.DataFrame:
+    """A class's stars as one global solution holds them: :data:`STAR_COLUMNS` and ``class_key``."""
+    out = stars[list(STAR_COLUMNS)].copy()
+    out["class_key"] = key
+    return out
 
 
 def star_transits(ra, dec, start_jd: float, end_jd: float, law, *, first: int = 0,

@@ -92,6 +92,7 @@ from ..solver.frame import frame_fit_sums, frame_from_sums, offsets_of
 from .global_classes import dead_time, star_transits
 from .global_priors import parse_prior, prior_sigma_mas
 from .global_settings import GlobalSettings, global_fields, spawn
+from .primary_results import StarParts, results_frame
 
 __all__ = [
     "CHUNKS_DIR",
@@ -239,6 +240,11 @@ class PreparedData:
     n_rows: int | None = None  # measurements (None: h.size)
     naa_band: np.ndarray | None = None  # the attitude block's band when the blocks live on a cluster
     calibration: BasicAngleColumns | None = None  # the basic-angle variation's design, problem order
+    # data built on a cluster: the table of stars there (primary_sky.SkyPartitions; ``stars`` and
+    # ``solved`` are then None) and what the driver keeps of it (per partition its summaries'
+    # futures and first solved star; the counts of stars, solved stars and their transits)
+    sky: object | None = None
+    cluster: dict | None = None
     _problem: GlobalProblem | None = dataclasses.field(default=None, repr=False)
     _resident: tuple | None = dataclasses.field(default=None, repr=False)  # (key, DaskChunks)
 
@@ -247,8 +253,20 @@ class PreparedData:
         return self.dead.total_days
 
     @property
+    def n_stars(self) -> int:
+        """Stars of the solution's table (solved or not)."""
+        return int(self.cluster["n_stars"]) if self.cluster is not None else len(self.stars)
+
+    @property
+    def n_solved(self) -> int:
+        """Stars in the solution (with enough live transits)."""
+        return int(self.cluster["n_solved"]) if self.cluster is not None else int(self.solved.size)
+
+    @property
     def n_fov_transits(self) -> int:
         """Live FoV transits of the solved stars (the data of the attitude)."""
+        if self.cluster is not None:
+            return int(self.cluster["n_fov_transits"])
         return int(self.stars["n_fov"].to_numpy()[self.solved].sum())
 
     def coefficients_with_data(self) -> int:
@@ -681,11 +699,12 @@ def evaluate_solution(K, cov, dx, views, *, equal: bool, tau, confidence: float)
 
 
 class PriorSolution(NamedTuple):
-    """What :func:`solve_prior` gives: per-star results, PCG history, summary (``extra``),
+    """What :func:`solve_prior` gives: per-star results (:class:`~.primary_results.StarParts`,
+    read part by part), PCG history, summary (``extra``),
     attitude error on a grid, and the attitude spline coefficients solved (``n_coef, 3``,
     mas), from which the next prior's solution may start (``solver_start='previous'``)."""
 
-    results: pd.DataFrame
+    results: StarParts
     history: pd.DataFrame
     extra: dict
     attitude_error: pd.DataFrame
@@ -696,7 +715,8 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
                 chunk_stars=None, workers: int = 1, dask_client=None, attitude_start=None) -> PriorSolution:
     """One global solution for the prior ``label`` (:class:`PriorSolution`).
 
-    Per-star results (all stars of ``data.stars``): ``inside`` (1/0, -1 not solved),
+    Per-star results (all stars of the solution's table, part by part:
+    :class:`~.primary_results.StarParts`): ``inside`` (1/0, -1 not solved),
     ``err_mas`` (position error after the frame correction), ``err_parallax_mas``
     (estimated - true parallax), ``sigma_prior_mas``. ``extra``: iterations, convergence,
     attitude error RMS per axis [uas] over the measurement epochs, fitted frame rotation and
@@ -708,11 +728,6 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
     scanning law); any start gives the least-squares solution to ``solver_error_tol``, a good
     one in fewer iterations (:func:`~mcsweep.solver.solve_global`).
     """
-    st = data.stars
-    s = data.solved
-    sig = prior_sigma_mas(label, settings.sigma_f90_mas(
-        st["l"].to_numpy()[s], st["b"].to_numpy()[s], st["phot_g_mean_mag"].to_numpy()[s]))
-    tau = st["epoch_offset_yr"].to_numpy()[s] if settings.evaluation_epoch == "star_mean" else None
     # frame_fit='equal' weights every star alike: then the faint stars' prior-biased
     # astrometry sets the removed rotation (docs/table3.md, the candidate for the paper's
     # collapse); not the default.
@@ -722,10 +737,15 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
             raise ValueError("these data live on a cluster's workers: solve them with its dask_client")
         from .primary_cluster import solve_on_cluster
 
-        sol, resident, eps, omega, (inside_s, err_s, plx_s), sq = solve_on_cluster(
-            settings, data, sig, dask_client, chunk_stars=chunk_stars, log=log, tau=tau, equal=equal,
+        sol, resident, eps, omega, results, sq = solve_on_cluster(
+            settings, data, label, dask_client, chunk_stars=chunk_stars, log=log, equal=equal,
             attitude_start=attitude_start)
     else:
+        st = data.stars
+        s = data.solved
+        sig = prior_sigma_mas(label, settings.sigma_f90_mas(
+            st["l"].to_numpy()[s], st["b"].to_numpy()[s], st["phot_g_mean_mag"].to_numpy()[s]))
+        tau = st["epoch_offset_yr"].to_numpy()[s] if settings.evaluation_epoch == "star_mean" else None
         prior = prior_diagonal(sig, settings.ratio_R)
         # Raises if a star's block is singular: every solved star has >= 1 AL+AC or 2 AL
         # measurements, so it cannot be under a positive prior.
@@ -746,21 +766,14 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
             problem.K, sol.cov, sol.x - data.x_true, [slice(b.first, b.first + b.n) for b in data.blocks],
             equal=equal, tau=tau, confidence=settings.confidence)
         sq = data.attitude_sq(sol.attitude, eps, omega)
-    n = len(st)
-    inside = np.full(n, -1, dtype=np.int8)
-    inside[s] = inside_s
-    err = np.full(n, np.nan)
-    err[s] = err_s
-    err_plx = np.full(n, np.nan)
-    err_plx[s] = plx_s
-    sigma_prior = np.full(n, np.nan)
-    sigma_prior[s] = sig
-    res = pd.DataFrame({"star": np.arange(n, dtype=np.int32), "class_key": st["class_key"].to_numpy(),
-                        "n_fov": st["n_fov"].to_numpy().astype(np.int16),
-                        "n_fov_scheduled": st["n_fov_scheduled"].to_numpy().astype(np.int16), "inside": inside,
-                        "err_mas": err.astype(np.float32),
-                        "err_parallax_mas": err_plx.astype(np.float32), "sigma_prior_mas": sigma_prior.astype(np.float32),
-                        "span_days": st["span_days"].to_numpy().astype(np.float32)})
+        n = len(st)
+        inside = np.full(n, -1, dtype=np.int8)
+        inside[s] = inside_s
+        err, err_plx, sigma_prior = (np.full(n, np.nan) for _ in range(3))
+        err[s], err_plx[s], sigma_prior[s] = err_s, plx_s, sig
+        results = StarParts.of_frame(results_frame(0, st["class_key"].to_numpy(), st["n_fov"].to_numpy(),
+                                                   st["n_fov_scheduled"].to_numpy(), st["span_days"].to_numpy(),
+                                                   inside, err, err_plx, sigma_prior))
     m = data.n_measurements
     hist = pd.DataFrame([dataclasses.asdict(r) for r in sol.history])
     hist.insert(0, "prior", label)
@@ -775,4 +788,4 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
         # the iterations' passes only (the one-off setup and residual passes apart)
         sent, received = resident.bytes_per_call("_forward_task", "_back_task", "_direction_task")
         extra["dask_mib_per_iteration"] = [sent / len(sol.history) / 2**20, received / len(sol.history) / 2**20]
-    return PriorSolution(res, hist, extra, attitude_error_series(data, sol.attitude, eps, omega), sol.attitude)
+    return PriorSolution(results, hist, extra, attitude_error_series(data, sol.attitude, eps, omega), sol.attitude)

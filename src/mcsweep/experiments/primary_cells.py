@@ -35,21 +35,10 @@ from .global_classes import class_key
 from .global_table import FRACTION_INTERVAL, SUBSETS, error_percentile, subset_masks
 from .pencil_beam import flag_patterns, merge_patterns, pattern_interval, sigma_f90_from_curve
 
-__all__ = ["PART_STARS", "RankSelector", "CellReduction", "parts_of", "reduce_parts", "linear_quantile",
-           "rank_interval_indices"]
-
-#: Stars per part of a solution's per-star results (one file each in the run's store): a
-#: part's five columns are some 6 MB, so reading one (or, for the factor's patterns, one of
-#: every solution) keeps the reduction's memory flat.
-PART_STARS = 250_000
+__all__ = ["RankSelector", "CellReduction", "reduce_parts", "linear_quantile", "rank_interval_indices"]
 
 #: Quantiles of the spans of the <= 4 transit stars' live transits in the table notes.
 SPAN_QUANTILES = (0.1, 0.5, 0.9)
-
-
-def parts_of(n_stars: int) -> list[slice]:
-    """The parts of a solution's ``n_stars`` per-star results (at least one, maybe empty)."""
-    return [slice(lo, min(lo + PART_STARS, n_stars)) for lo in range(0, max(n_stars, 1), PART_STARS)]
 
 
 def linear_quantile(lower: float, upper: float, n: int, quantile: float) -> float:

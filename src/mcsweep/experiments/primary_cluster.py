@@ -1,112 +1,183 @@
 """The primary experiment built, kept and solved on the workers of a Dask cluster (issue 27).
 
-With ``execution=dask`` the driver does not search the transits, build the solver's blocks,
-hold the measurements or hold any per-star array of the solution: each of those is a task
-on the cluster, and the solver's chunks (:mod:`mcsweep.solver.dask_resident`) are the
-futures of the tasks that built them. The driver keeps the input table of the stars
-(population draw, its columns), the attitude (spline, band, Schur factor, CG vectors), the
-frame, and per star the outcome it writes (inside flag, position and parallax errors).
+With ``execution=dask`` the driver holds nothing per star: the table of stars
+(:mod:`~.primary_sky`: partitions in sky order), the transits, the solver's blocks, the
+measurements, every per-star array of a solution and each star's outcome are made and kept
+on the cluster; the driver holds the attitude (spline, band, Schur factor, CG vectors), the
+frame, a few numbers per partition, block and chunk, and one part of the per-star results
+at a time while it writes them (:class:`~.primary_results.StarParts`). The solver's chunks
+(:mod:`mcsweep.solver.dask_resident`) are the futures of the tasks that built them.
 
 Steps (``prepare_on_cluster``), each a set of tasks whose results stay on the workers
 unless said otherwise:
 
-1. Transits of each chunk of ``transit_stars`` stars (:func:`~.primary.transits_of`'s
-   search); back to the driver only each star's number of live transits, mean live epoch
-   and time span (:func:`~.primary.transit_summary`) and, with ``knot_transits``, the
-   solution's live epochs (the knots are placed by the data: 8 bytes per transit, once).
-2. The driver picks the solved stars, the spline, the first measurement of each block.
-3. Each solver chunk (aligned runs of leaves of blocks of ``BLOCK_STARS`` stars,
-   :func:`~mcsweep.solver.cg.solver_chunks`) is built by one task from the transit
-   results it overlaps (worker to worker), block by block with
+1. Per partition of the table: its transits, and per star the live transits' count, mean
+   live epoch and span (:func:`~.primary.transit_summary`); back to the driver only the
+   partition's number of solved stars and their live FoV transits, and with
+   ``knot_transits`` the solution's live epochs (the knots are placed by the data: 8 bytes
+   per transit, while the spline is made).
+2. Per partition, given its first solved star: its stars' measurements summed by solver
+   block (a few numbers per block), from which the driver has each block's first
+   measurement.
+3. Each solver chunk (aligned runs of leaves of blocks of ``BLOCK_STARS`` solved stars,
+   :func:`~mcsweep.solver.cg.solver_chunks`) is built by one task from the partitions, their
+   summaries and transits it overlaps (worker to worker), block by block with
    :func:`~.primary.build_block`, the function the driver uses without a cluster, and each
-   block's noise from its own seed: the same bits as :func:`~.primary.prepare`. The chunk
-   keeps its stars' data normal matrices and truth; back to the driver come its part of
-   the attitude block's band (summed in the solver's fixed tree) and which coefficients
-   it touches.
+   block's noise from its own seed: the same bits as :func:`~.primary.prepare` of the whole
+   table in the same order. The chunk keeps its stars' data normal matrices, truth, (l, b, G)
+   and mean epochs; back to the driver come its part of the attitude block's band (summed in
+   the solver's fixed tree) and which coefficients it touches. The transits are let go.
 
-Per prior (``solve_on_cluster``): the prior sigma of each star is sent (8 bytes per star);
+Per prior (``solve_on_cluster``): the prior's label is sent; the prior sigma of each star,
 the inverses, frame weights, solution, the frame rotator's sums and each star's outcome are
 made on the workers (:func:`~mcsweep.solver.cg.star_arrays`, :func:`~.primary.block_frame_sums`,
-:func:`~.primary.block_outcome`: the functions of the local path, summed in the same tree,
-so the same bits as a forked or in-process run).
+:func:`~.primary.block_outcome`: the functions of the local path, summed in the same tree, so
+the same bits as a forked or in-process run). The per-star results come to the driver one
+part (:data:`~.primary_results.PART_STARS` stars) at a time (:class:`~.primary_results.StarParts`).
 
-A lost worker takes its chunks and the inputs scattered to it: its chunks are built again
-from the driver's table of stars (transit search included) and the solution restarts from
-its first pass (:class:`~mcsweep.solver.cg.ChunksLost`), with the same bits (tested by
-killing a worker mid-solve).
+A lost worker takes its chunks and the state of a solution: its chunks are built again from
+the partitions (transit search included; a lost partition is made again by the scheduler
+from its lineage, :mod:`~.primary_sky`) and the solution restarts from its first pass
+(:class:`~mcsweep.solver.cg.ChunksLost`), with the same bits (tested by killing a worker
+mid-solve); a loss while the parts are written solves the prior again (same bits).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import time
+from typing import Callable
 
 import numpy as np
 import pandas as pd
 
+from ..astrometry.design import JULIAN_YEAR_DAYS
 from ..astrometry.solve import prior_diagonal
 from ..solver import BLOCK_STARS, solve_global
 from ..solver.blocks import BlockSpan, att_band
 from ..solver.cg import (MAX_RESTARTS, ChunksLost, ResidentProblem, chunk_values, penalty_weights, solver_chunks,
                          star_arrays, typical_weights, weight_sums)
-from ..solver.frame import frame_from_sums
 from ..solver.dask_resident import DaskChunks, _is_loss
+from ..solver.frame import frame_from_sums
 from ..solver.reduction import pairwise_sum, run_level
 from .global_classes import star_transits
+from .global_priors import prior_sigma_mas
 from .primary import (NOISE_STREAM, BlockJob, PreparedData, PrimarySettings, _true_attitude, attitude_spline,
-                      block_frame_sums, block_outcome, block_rows, block_transits, build_block,
-                      covered_coefficients, dead_time_of, min_transits,
-                      measurements_per_star, solved_stars, star_sigmas, stream_seed, transit_summary,
-                      true_parameters, with_transit_columns)
+                      block_frame_sums, block_outcome, block_transits, build_block, covered_coefficients,
+                      dead_time_of, measurements_per_star, min_transits, stream_seed, transit_summary)
+from .primary_results import StarParts, results_frame
+from .primary_sky import SkyPartitions, alive
 
-__all__ = ["prepare_on_cluster", "solve_on_cluster"]
-
-
-def _search(radec: tuple, first: int, start_jd: float, end_jd: float, law) -> dict:
-    return star_transits(radec[0], radec[1], start_jd, end_jd, law, first=first)
+__all__ = ["prepare_on_cluster", "solve_on_cluster", "table_partitions"]
 
 
-def _summary(transits: dict, dead, first: int, n: int, knots_by_data: bool, min_fov: int) -> dict:
-    """Per star of the chunk its live transits' count, mean epoch and span; with
-    ``knots_by_data`` also the live epochs of the stars the solution will hold."""
+# --------------------------------------------------------------------------- tasks on the partitions
+def _search(part: pd.DataFrame, first: int, start_jd: float, end_jd: float, law) -> dict:
+    return star_transits(part["ra"].to_numpy(), part["dec"].to_numpy(), start_jd, end_jd, law, first=first)
+
+
+def _summary(transits: dict, dead, first: int, n: int) -> dict:
+    """Per star of a partition: live FoV transits, scheduled ones, mean live epoch, span."""
     out = transit_summary(transits["star"], transits["t"], dead, first, n)
-    live = out.pop("live")
+    out.pop("live")
+    return out
+
+
+def _digest(summary: dict, transits: dict, dead, first: int, min_fov: int, knots_by_data: bool) -> dict:
+    """What the driver needs of a partition: its solved stars, their live FoV transits and,
+    with ``knots_by_data``, their live epochs."""
+    solvable = summary["n_fov"] >= min_fov
+    out = {"n_solved": int(np.count_nonzero(solvable)), "n_fov": int(summary["n_fov"][solvable].sum())}
     if knots_by_data:
-        solvable = out["n_fov"] >= min_fov
+        live = ~dead.is_dead(transits["t"])
         out["epochs"] = transits["t"][live & solvable[transits["star"] - first]]
     return out
 
 
-def _build_chunk(spec: dict, spline, true_attitude, dead, *parts) -> tuple:
-    """A solver chunk ``(blocks, measurements)`` and what the driver needs of it: its stars'
-    data normal matrices, its blocks' attitude band summed in the fixed tree, and which spline
-    coefficients its measurements touch. ``parts``: the transit results it overlaps, in star order."""
-    star = np.concatenate([p["star"] for p in parts])
-    t = np.concatenate([p["t"] for p in parts])
-    psi = np.concatenate([p["psi"] for p in parts])
+def _block_counts(summary: dict, part: pd.DataFrame, offset: int, block_stars: int, noise, min_fov: int) -> tuple:
+    """The measurements of a partition's solved stars (the first is solved star ``offset``)
+    summed by solver block: (first block, sums)."""
+    n_fov = summary["n_fov"]
+    solvable = n_fov >= min_fov
+    g = part["phot_g_mean_mag"].to_numpy()[solvable]
+    counts = measurements_per_star(n_fov[solvable], noise.sigma_ac_mas(g) if noise.use_ac else None)
+    if not counts.size:
+        return 0, np.zeros(0, dtype=np.int64)
+    k = (offset + np.arange(counts.size)) // block_stars
+    return int(k[0]), np.bincount(k - k[0], weights=counts).astype(np.int64)
+
+
+def _solved_columns(part: pd.DataFrame, summary: dict, first: int, min_fov: int) -> dict:
+    solvable = summary["n_fov"] >= min_fov
+    idx = np.flatnonzero(solvable)
+    out = {c: part[c].to_numpy()[idx] for c in ("ra", "dec", "l", "b", "parallax", "pmra", "pmdec",
+                                               "phot_g_mean_mag")}
+    out["star"] = first + idx
+    out["mean_t"] = summary["mean_t"][idx]
+    return out
+
+
+def _build_chunk(spec: dict, settings: PrimarySettings, spline, true_attitude, dead, *inputs) -> tuple:
+    """A solver chunk ``(blocks, measurements, kept)`` and what the driver needs of it: its
+    blocks' attitude band summed in the fixed tree, which spline coefficients its measurements
+    touch and the blocks' rows. ``inputs``: per partition it overlaps, in star order, its table,
+    summary and transits."""
+    parts, summaries, transits = inputs[0::3], inputs[1::3], inputs[2::3]
+    cols = [_solved_columns(p, s, f, spec["min_fov"]) for p, s, f in zip(parts, summaries, spec["firsts"])]
+    solved = {c: np.concatenate([x[c] for x in cols]) for c in cols[0]}
+    star = np.concatenate([t["star"] for t in transits])
+    t = np.concatenate([t["t"] for t in transits])
+    psi = np.concatenate([t["psi"] for t in transits])
     live = ~dead.is_dead(t)
-    blocks, hs, normals = [], [], []
-    for job, solved_block in zip(spec["jobs"], spec["solved"]):
-        blk, nrm, h, _ = build_block(job, *block_transits(star, t, psi, live, solved_block), spline=spline,
-                                  true_attitude=true_attitude, t_ref_jd=spec["t_ref_jd"],
-                                  block_stars=spec["block_stars"])
+    noise = settings.noise
+    blocks, hs, normals, x_true, rows = [], [], [], [], []
+    for k, first, n, first_row in spec["blocks"]:
+        v = slice(first - spec["offset"], first - spec["offset"] + n)
+        g = solved["phot_g_mean_mag"][v]
+        xt = np.column_stack([np.zeros(n), np.zeros(n), solved["parallax"][v], solved["pmra"][v], solved["pmdec"][v]])
+        job = BlockJob(first=first, ra=solved["ra"][v], dec=solved["dec"][v], x_true=xt,
+                       sigma_al_mas=noise.sigma_al_mas(g), sigma_ac_mas=noise.sigma_ac_mas(g) if noise.use_ac else None,
+                       noise_seed=stream_seed(settings.seed, NOISE_STREAM, k) if spec["with_noise"] else None,
+                       first_row=first_row)
+        blk, nrm, h, _ = build_block(job, *block_transits(star, t, psi, live, solved["star"][v]), spline=spline,
+                                     true_attitude=true_attitude, t_ref_jd=settings.t_ref_jd,
+                                     block_stars=spec["block_stars"])
         blocks.append(blk)
         hs.append(h)
         normals.append(nrm)
+        x_true.append(xt)
+        rows.append((blk.rows.start, blk.rows.stop))
+    lo, hi = spec["blocks"][0][1] - spec["offset"], spec["blocks"][-1][1] + spec["blocks"][-1][2] - spec["offset"]
+    kept = {"normals": np.concatenate(normals), "x_true": np.concatenate(x_true),
+            **{c: solved[c][lo:hi] for c in ("star", "l", "b", "phot_g_mean_mag", "mean_t")}}
     info = {"band": pairwise_sum(att_band(b) for b in blocks),
-            "covered": np.flatnonzero(covered_coefficients(blocks, spline.n_coef)),
-            "rows": [(b.rows.start, b.rows.stop) for b in blocks]}
-    kept = {"normals": np.concatenate(normals), "x_true": np.concatenate([j.x_true for j in spec["jobs"]])}
+            "covered": np.flatnonzero(covered_coefficients(blocks, spline.n_coef)), "rows": rows}
     return (blocks, hs, kept), info
 
 
+def _part_columns(part: pd.DataFrame, summary: dict, lo: int, hi: int, min_fov: int) -> dict:
+    """Rows ``lo:hi`` of a partition as the per-star results have them, and which are solved
+    (with the number of solved stars before row ``lo``)."""
+    solvable = summary["n_fov"] >= min_fov
+    return {"class_key": part["class_key"].to_numpy()[lo:hi], "n_fov": summary["n_fov"][lo:hi],
+            "n_fov_scheduled": summary["n_scheduled"][lo:hi], "span_days": summary["span"][lo:hi],
+            "solved": solvable[lo:hi], "solved_before": int(np.count_nonzero(solvable[:lo]))}
+
+
+# --------------------------------------------------------------------------- tasks on the solver's chunks
 def _attach_prior(chunk: tuple, arg: tuple) -> tuple:
     """The solver's chunk ``(blocks, measurements, state)`` for one prior, made on its worker:
-    the stars' arrays of that prior (:func:`~mcsweep.solver.cg.star_arrays`) in the state,
-    from the prior sigma per star [mas] and R (``arg``), which is all that is sent per prior."""
+    each star's prior sigma from its (l, b, G) (``settings.sigma_f90_mas``, the prior
+    ``label``) and the stars' arrays of that prior (:func:`~mcsweep.solver.cg.star_arrays`);
+    ``arg = (settings, label)`` is all that is sent per prior."""
     blocks, hs, kept = chunk
-    sig, ratio_r = arg
-    stars = star_arrays(blocks, kept["normals"], prior_diagonal(sig, ratio_r))
+    settings, label = arg
+    sig = prior_sigma_mas(label, settings.sigma_f90_mas(kept["l"], kept["b"], kept["phot_g_mean_mag"]))
+    stars = star_arrays(blocks, kept["normals"], prior_diagonal(sig, settings.ratio_R))
     stars.update(kept)
+    stars["sigma_prior"] = sig
+    if settings.evaluation_epoch == "star_mean":
+        stars["tau"] = (kept["mean_t"] - settings.t_ref_jd) / JULIAN_YEAR_DAYS
     first, binv = blocks[0].first, stars["binv"]
     return ([dataclasses.replace(b, binv=binv[b.first - first:b.first - first + b.n]) for b in blocks], hs,
             {"stars": stars})
@@ -135,46 +206,114 @@ def _fit_task(item):
 
 
 def _outcome_task(item):
-    ci, blocks, _, st, eps, omega, tau, confidence = item
+    """Each star's outcome, kept in the chunk's state for :func:`_outcome_slice`."""
+    ci, blocks, _, st, eps, omega, confidence = item
     S = st["stars"]
     dx = st["x"] - S["x_true"]
+    tau = S.get("tau")
     parts = [block_outcome(S["K"][v], S["binv"][v], dx[v], eps, omega, None if tau is None else tau[v], confidence)
              for v in _slices(blocks)]
-    return ci, tuple(np.concatenate([p[i] for p in parts]) for i in range(3))
+    st["outcome"] = tuple(np.concatenate([p[i] for p in parts]) for i in range(3))
+    return ci, None
 
 
-def solve_on_cluster(settings: PrimarySettings, data: PreparedData, sig, client, *, chunk_stars, log, tau,
+def _outcome_slice(item):
+    """The outcome (inside, position and parallax errors) and prior sigma of the chunk's
+    solved stars ``lo:hi`` (solved-star indices of the whole solution)."""
+    ci, blocks, _, st, lo, hi = item
+    first = blocks[0].first
+    a, b = max(lo - first, 0), max(min(hi - first, len(st["stars"]["x_true"])), 0)
+    return ci, (*(o[a:b] for o in st["outcome"]), st["stars"]["sigma_prior"][a:b])
+
+
+# --------------------------------------------------------------------------- the driver's side
+def _cluster_part(data: PreparedData, resident: DaskChunks, ranges, rows: slice) -> pd.DataFrame:
+    """Part ``rows`` of a solution's per-star results, gathered from the partitions and chunks
+    that hold its stars."""
+    sky, info, client = data.sky, data.cluster, resident.client
+    ends = sky.first + sky.sizes
+    overlap = np.flatnonzero((sky.first < rows.stop) & (ends > rows.start))
+    table = info["table"]
+    for attempt in range(MAX_RESTARTS + 1):
+        table.ensure()
+        try:
+            got = client.gather([client.submit(_part_columns, sky.futures[p], table.summaries[p],
+                                               max(rows.start - sky.first[p], 0),
+                                               min(rows.stop, ends[p]) - sky.first[p], info["min_fov"], pure=False)
+                                 for p in overlap])
+            break
+        except Exception as exc:  # noqa: BLE001 - only a loss is repeated
+            if attempt == MAX_RESTARTS or not _is_loss(exc):
+                raise
+            time.sleep(1.0)  # the scheduler's news of the loss
+    cols = {c: np.concatenate([g[c] for g in got]) for c in ("class_key", "n_fov", "n_fov_scheduled", "span_days",
+                                                          "solved")}
+    solved = cols.pop("solved")
+    lo = int(info["solved_first"][overlap[0]] + got[0]["solved_before"]) if len(overlap) else 0
+    hi = lo + int(np.count_nonzero(solved))
+    n = rows.stop - rows.start
+    inside = np.full(n, -1, dtype=np.int8)
+    err, err_plx, sig = (np.full(n, np.nan) for _ in range(3))
+    if hi > lo:
+        spans = data.blocks
+        firsts = np.array([spans[a].first for a, _ in ranges])
+        lasts = np.array([spans[b - 1].first + spans[b - 1].n for _, b in ranges])
+        cis = np.flatnonzero((firsts < hi) & (lasts > lo))
+        out = chunk_values(resident.run, _outcome_slice, [(int(ci), lo, hi) for ci in cis])
+        for target, i in ((inside, 0), (err, 1), (err_plx, 2), (sig, 3)):
+            target[solved] = np.concatenate([o[i] for o in out])
+    return results_frame(rows.start, cols["class_key"], cols["n_fov"], cols["n_fov_scheduled"], cols["span_days"],
+                         inside, err, err_plx, sig)
+
+
+def solve_on_cluster(settings: PrimarySettings, data: PreparedData, label: str, client, *, chunk_stars, log,
                      equal: bool, attitude_start=None):
     """One prior's solution of data built on the cluster (:func:`prepare_on_cluster`), every
-    per-star array on the workers: the prior sigmas ``sig`` [mas] of the solved stars are
-    sent, the inverses, frame weights, solution and its evaluation are made there, and the
-    driver gets the frame's sums, the attitude and per star only the outcome (inside flag,
-    position and parallax errors; ``tau``: the epochs of ``evaluation_epoch='star_mean'``).
+    per-star array on the workers: the prior's ``label`` is sent, the prior sigmas, inverses,
+    frame weights, solution and its evaluation are made there, and the driver gets the
+    frame's sums, the attitude and the per-star results part by part
+    (:class:`~.primary_results.StarParts`).
     A worker lost at any pass (the solution's or the evaluation's, whose stars' solution went
-    with it) restarts the whole sequence on the rebuilt chunks: the same bits.
-    Returns (solution, resident chunks, eps, omega, outcome, summed squared attitude error)."""
+    with it) restarts the whole sequence on the rebuilt chunks: the same bits; lost while the
+    parts are read, the prior is solved again.
+    Returns (solution, resident chunks, eps, omega, StarParts, summed squared attitude error)."""
     spans = data.blocks
     if not spans:
         raise ValueError("no star with a transit to solve")
     ranges = solver_chunks(len(spans), spans[0].n, data.n_measurements, data.spline.n_coef, chunk_stars)
-    views = [slice(spans[lo].first, spans[hi - 1].first + spans[hi - 1].n) for lo, hi in ranges]
-    resident = data.resident(client, ranges).attached(_attach_prior, [(sig[v], settings.ratio_R) for v in views])
-    for attempt in range(MAX_RESTARTS + 1):
-        try:
-            return (*_solve_once(settings, data, resident, ranges, views, chunk_stars=chunk_stars, log=log, tau=tau,
-                                 equal=equal, attitude_start=attitude_start), )
-        except ChunksLost:
-            if attempt == MAX_RESTARTS:
-                raise
+
+    def solve():
+        resident = data.resident(client, ranges).attached(_attach_prior, [(settings, label)] * len(ranges))
+        for attempt in range(MAX_RESTARTS + 1):
+            try:
+                return (resident, *_solve_once(settings, data, resident, ranges, chunk_stars=chunk_stars, log=log,
+                                               equal=equal, attitude_start=attitude_start))
+            except ChunksLost:
+                if attempt == MAX_RESTARTS:
+                    raise
+
+    state = {"solution": solve()}
+
+    def make(rows: slice) -> pd.DataFrame:
+        for attempt in range(MAX_RESTARTS + 1):
+            try:
+                return _cluster_part(data, state["solution"][0], ranges, rows)
+            except ChunksLost:  # the stars' outcome went with a worker: solved again, same bits
+                if attempt == MAX_RESTARTS:
+                    raise
+                state["solution"] = solve()
+
+    resident, sol, eps, omega, sq = state["solution"]
+    return sol, resident, eps, omega, StarParts(data.n_stars, make), sq
 
 
-def _solve_once(settings, data, resident, ranges, views, *, chunk_stars, log, tau, equal, attitude_start):
+def _solve_once(settings, data, resident, ranges, *, chunk_stars, log, equal, attitude_start):
     levels = [run_level(lo, hi) for lo, hi in ranges]
     got = chunk_values(resident.run, _prior_task, [(ci,) for ci in range(len(ranges))])
     bad = sum(g[0] for g in got)
     if bad:
         raise ValueError(f"{bad} stars have singular source blocks; remove them first")
-    n = data.solved.size
+    n = data.n_solved
     w_pos, w_pm = penalty_weights(np.concatenate([g[2] for g in got]), np.concatenate([g[3] for g in got]), n)
     problem = ResidentProblem(data.blocks, n_coef=data.spline.n_coef, n_measurements=data.n_measurements,
                               naa_band=data.naa_band, frame_means=pairwise_sum((g[1] for g in got), None, levels) / n,
@@ -184,11 +323,9 @@ def _solve_once(settings, data, resident, ranges, views, *, chunk_stars, log, ta
                        resident_chunks=resident, attitude_start=attitude_start)
     eps, omega = frame_from_sums(pairwise_sum(
         chunk_values(resident.run, _fit_task, [(ci, equal) for ci in range(len(ranges))]), None, levels))
-    out = chunk_values(resident.run, _outcome_task, [(ci, eps, omega, None if tau is None else tau[v],
-                                                    settings.confidence) for ci, v in enumerate(views)])
-    outcome = tuple(np.concatenate([o[i] for o in out]) for i in range(3))
+    chunk_values(resident.run, _outcome_task, [(ci, eps, omega, settings.confidence) for ci in range(len(ranges))])
     sq = data.attitude_sq(sol.attitude, eps, omega, resident, ranges)
-    return sol, resident, eps, omega, outcome, sq
+    return sol, eps, omega, sq
 
 
 def _first(pair):
@@ -199,10 +336,60 @@ def _second(pair):
     return pair[1]
 
 
+def _frame_part(frame: pd.DataFrame) -> pd.DataFrame:
+    return frame
+
+
+def table_partitions(client, stars: pd.DataFrame, target: int) -> SkyPartitions:
+    """A table of stars the driver holds (columns :data:`~.global_classes.STAR_COLUMNS` and
+    ``class_key``), in its own order, as partitions of ``target`` stars on the cluster: each
+    part sent inside its task (so a lost one is made again from the graph), for tests and
+    small tables; a run's classes are drawn and put in sky order on the workers
+    (:func:`~.primary_sky.sky_partitions`)."""
+    n = len(stars)
+    bounds = list(range(0, n, max(int(target), 1))) + [n]
+    pieces = [stars.iloc[a:b].reset_index(drop=True) for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
+
+    def make() -> list:
+        return [client.submit(_frame_part, piece, pure=False) for piece in pieces]
+
+    sizes = np.array([len(piece) for piece in pieces], dtype=np.int64)
+    return SkyPartitions(futures=make(), first=np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64),
+                         sizes=sizes, remake=make)
+
+
+class _Table:
+    """The table of stars on the cluster and each partition's per-star transit summary
+    (:func:`_summary`), made again after a loss: the partitions from their classes
+    (:meth:`~.primary_sky.SkyPartitions.ensure`), the summaries by searching the partitions'
+    transits again (the tasks they came from are not kept by the scheduler)."""
+
+    def __init__(self, sky: SkyPartitions, search: Callable, summarise: Callable):
+        self.sky, self._search, self._summarise = sky, search, summarise
+        self.found = [search(p) for p in range(len(sky))]
+        self.summaries = [summarise(p, f) for p, f in enumerate(self.found)]
+
+    def ensure(self) -> None:
+        """Every partition and summary there (made again where a worker took them)."""
+        remade = self.sky.ensure()
+        for p, fut in enumerate(self.summaries):
+            if remade or not alive(fut):
+                self.summaries[p] = self._summarise(p, self._search(p))
+
+    def transits(self, p: int):
+        """A future of partition ``p``'s transits: the first search's while kept, else a new one."""
+        if self.found is not None and alive(self.found[p]):
+            return self.found[p]
+        return self._search(p)
+
+    def release_transits(self) -> None:
+        self.found = None
+
+
 class _Shared:
-    """Objects every task may need (dead time, scanning law, spline, true attitude), scattered
-    once, and again if a lost worker took them (the scheduler keeps one copy of scattered
-    data: its memory manager drops the replicas of a broadcast)."""
+    """Objects every task may need (dead time, scanning law, settings, spline, true attitude),
+    scattered once, and again if a lost worker took them (the scheduler keeps one copy of
+    scattered data: its memory manager drops the replicas of a broadcast)."""
 
     def __init__(self, client):
         self.client = client
@@ -216,94 +403,88 @@ class _Shared:
         return fut
 
 
-def prepare_on_cluster(settings: PrimarySettings, stars: pd.DataFrame, client, *, chunk_stars: int | None,
-                       transit_stars: int = 50000, block_stars: int = BLOCK_STARS,
-                       with_noise: bool = True) -> PreparedData:
-    """:func:`~.primary.prepare` with the transits, blocks and measurements made and kept on the
-    workers of the Dask ``client`` (module notes): the same data, bit for bit, whose
+def prepare_on_cluster(settings: PrimarySettings, sky: SkyPartitions, client, *, chunk_stars: int | None,
+                       block_stars: int = BLOCK_STARS, with_noise: bool = True) -> PreparedData:
+    """:func:`~.primary.prepare` of the table ``sky`` (partitions on the workers of the Dask
+    ``client``) with the transits, blocks and measurements made and kept there (module notes):
+    the same data, bit for bit, as of the whole table in the same order, whose
     ``resident(client, ranges)`` for the solver's chunks of ``chunk_stars`` stars are the
-    chunks already there. ``transit_stars``: stars per transit-search task. A worker lost
-    while they are made (its scattered inputs with it) makes them again from the start."""
+    chunks already there. A worker lost while they are made makes them again from the start."""
     for attempt in range(MAX_RESTARTS + 1):
         try:
-            return _prepare_once(settings, stars, client, chunk_stars=chunk_stars, transit_stars=transit_stars,
-                                 block_stars=block_stars, with_noise=with_noise)
+            return _prepare_once(settings, sky, client, chunk_stars=chunk_stars, block_stars=block_stars,
+                                 with_noise=with_noise)
         except Exception as exc:  # noqa: BLE001 - only a loss is repeated
             if attempt == MAX_RESTARTS or not _is_loss(exc):
                 raise
 
 
-def _prepare_once(settings, stars, client, *, chunk_stars, transit_stars, block_stars, with_noise) -> PreparedData:
-    n = len(stars)
+def _prepare_once(settings, sky, client, *, chunk_stars, block_stars, with_noise) -> PreparedData:
     dead = dead_time_of(settings)
-    ra_all, dec_all = stars["ra"].to_numpy(), stars["dec"].to_numpy()
     shared = _Shared(client)
+    min_fov = min_transits(settings)
+    knots_by_data = settings.knot_transits is not None
+    n_parts = len(sky)
 
-    def search(i: int):
-        """The transit search of stars ``[i, i + 1) x transit_stars``, on one worker."""
-        lo, hi = i * transit_stars, min((i + 1) * transit_stars, n)
-        live_workers = sorted(client.scheduler_info()["workers"])
-        (radec,) = client.scatter([(ra_all[lo:hi], dec_all[lo:hi])], workers=[live_workers[i % len(live_workers)]],
-                                  hash=False)
-        return client.submit(_search, radec, lo, settings.start_jd, settings.end_jd, shared("law", settings.law),
+    def search(p: int):
+        return client.submit(_search, sky.futures[p], int(sky.first[p]), settings.start_jd, settings.end_jd,
+                             shared("law", settings.law), pure=False)
+
+    def summarise(p: int, transits):
+        return client.submit(_summary, transits, shared("dead", dead), int(sky.first[p]), int(sky.sizes[p]),
                              pure=False)
 
-    found = [search(i) for i in range(-(-n // transit_stars))]
-    summaries = [client.submit(_summary, f, shared("dead", dead), i * transit_stars, min(transit_stars, n - i * transit_stars),
-                               settings.knot_transits is not None, min_transits(settings), pure=False)
-                 for i, f in enumerate(found)]
-    got = client.gather(summaries)
-    del summaries
-    summary = {k: np.concatenate([g[k] for g in got]) if got else np.zeros(0) for k in ("n_fov", "n_scheduled", "mean_t", "span")}
-    summary["n_fov"] = summary["n_fov"].astype(np.int64)
-    summary["n_scheduled"] = summary["n_scheduled"].astype(np.int64)
-    stars = with_transit_columns(settings, stars, summary)
-    solved = solved_stars(settings, summary["n_fov"])
-    epochs = np.concatenate([g["epochs"] for g in got]) if settings.knot_transits is not None else None
-    del got
-    s_ac = star_sigmas(settings, stars, solved)[1]
+    table = _Table(sky, search, summarise)
+    summaries, found = table.summaries, table.found
+    digests = client.gather([client.submit(_digest, summaries[p], found[p], shared("dead", dead), int(sky.first[p]),
+                                           min_fov, knots_by_data, pure=False) for p in range(n_parts)])
+    n_solved_p = np.array([d["n_solved"] for d in digests], dtype=np.int64)
+    solved_first = np.concatenate([[0], np.cumsum(n_solved_p)[:-1]]).astype(np.int64)
+    n_solved = int(n_solved_p.sum())
+    n_fov_transits = int(sum(d["n_fov"] for d in digests))
+    epochs = np.concatenate([d["epochs"] for d in digests]) if knots_by_data and digests else None
+    del digests
     spline = attitude_spline(settings, dead, epochs)
     del epochs
     true_att = _true_attitude(settings)
-    counts = measurements_per_star(summary["n_fov"][solved], s_ac)
-    rows = block_rows(counts, block_stars)
-    n_blocks = len(rows)
-    ranges = solver_chunks(n_blocks, block_stars, int(counts.sum()), spline.n_coef, chunk_stars)
+    n_blocks = -(-n_solved // block_stars)
+    per_block = np.zeros(n_blocks, dtype=np.int64)
+    for k0, sums in client.gather([client.submit(_block_counts, summaries[p], sky.futures[p], int(solved_first[p]),
+                                                 block_stars, settings.noise, min_fov, pure=False)
+                                   for p in range(n_parts)]):
+        per_block[k0:k0 + sums.size] += sums
+    rows = np.concatenate([[0], np.cumsum(per_block)[:-1]]).astype(np.int64) if n_blocks else np.zeros(0, np.int64)
+    n_rows = int(per_block.sum())
+    ranges = solver_chunks(n_blocks, block_stars, n_rows, spline.n_coef, chunk_stars)
+    solved_end = solved_first + n_solved_p
 
-    def submit(ci: int, parts: list | None = None):
-        """The task building chunk ``ci`` (from the transit results ``parts``; None: searched
-        again, for a chunk lost with a worker: its scattered inputs went with it)."""
+    def submit(ci: int):
+        """The task building chunk ``ci`` (after a loss: from the partitions and summaries made
+        again where the lost worker took them, the transits searched again)."""
+        table.ensure()
         blo, bhi = ranges[ci]
+        lo, hi = blo * block_stars, min(bhi * block_stars, n_solved)
+        ps = np.flatnonzero((solved_first < hi) & (solved_end > lo) & (n_solved_p > 0))
+        spec = {"blocks": [(k, k * block_stars, min(block_stars, n_solved - k * block_stars), int(rows[k]))
+                           for k in range(blo, bhi)],
+                "offset": int(solved_first[ps[0]]), "firsts": [int(sky.first[p]) for p in ps], "min_fov": min_fov,
+                "block_stars": block_stars, "with_noise": with_noise}
+        inputs = [x for p in ps for x in (sky.futures[p], table.summaries[p], table.transits(p))]
         live_workers = sorted(client.scheduler_info()["workers"])
-        jobs, solved_blocks = [], []
-        for k in range(blo, bhi):
-            # the block's stars from the driver's table, element by element as prepare() has them
-            first, last = k * block_stars, min((k + 1) * block_stars, solved.size)
-            idx = solved[first:last]
-            sa, sc = star_sigmas(settings, stars, idx)
-            jobs.append(BlockJob(first=first, ra=ra_all[idx], dec=dec_all[idx], x_true=true_parameters(stars, idx),
-                                 sigma_al_mas=sa, sigma_ac_mas=sc,
-                                 noise_seed=stream_seed(settings.seed, NOISE_STREAM, k) if with_noise else None,
-                                 first_row=int(rows[k])))
-            solved_blocks.append(idx)
-        star_lo, star_hi = solved[blo * block_stars], solved[min(bhi * block_stars, solved.size) - 1]
-        span = range(star_lo // transit_stars, star_hi // transit_stars + 1)
-        parts = [search(i) for i in span] if parts is None else parts[span.start:span.stop]
-        home = [live_workers[ci % len(live_workers)]]
-        (spec,) = client.scatter([{"jobs": jobs, "solved": solved_blocks, "t_ref_jd": settings.t_ref_jd,
-                                   "block_stars": block_stars}], workers=home, hash=False)
-        # spread over the workers as the scattered chunks are (memory), not where the transits are
-        return client.submit(_build_chunk, spec, shared("spline", spline), shared("truth", true_att),
-                             shared("dead", dead), *parts, pure=False,
-                             workers=home, allow_other_workers=True)
+        # spread over the workers (memory), not where the transits are
+        return client.submit(_build_chunk, spec, shared("settings", settings), shared("spline", spline),
+                             shared("truth", true_att), shared("dead", dead), *inputs, pure=False,
+                             workers=[live_workers[ci % len(live_workers)]], allow_other_workers=True)
 
     def rebuild(ci: int):
         return client.submit(_first, submit(ci), pure=False)
 
-    built = [submit(ci, found) for ci in range(len(ranges))]
+
+    built = [submit(ci) for ci in range(len(ranges))]
     chunk_futures = [client.submit(_first, b, pure=False) for b in built]
     infos = client.gather([client.submit(_second, b, pure=False) for b in built])
-    del built, found  # a lost chunk is built again from the table of stars (rebuild)
+    del built, found
+    table.release_transits()  # a lost chunk searches its partitions again (rebuild)
     levels = [run_level(lo, hi) for lo, hi in ranges]
     naa_band = pairwise_sum((i["band"] for i in infos), None, levels)
     covered = np.zeros(spline.n_coef, dtype=bool)
@@ -311,12 +492,15 @@ def _prepare_once(settings, stars, client, *, chunk_stars, transit_stars, block_
     for (blo, bhi), info in zip(ranges, infos):
         covered[info["covered"]] = True
         for k, (r0, r1) in zip(range(blo, bhi), info["rows"]):
-            spans.append(BlockSpan(first=k * block_stars, n=min(block_stars, solved.size - k * block_stars),
+            spans.append(BlockSpan(first=k * block_stars, n=min(block_stars, n_solved - k * block_stars),
                                    rows=slice(r0, r1)))
-    del infos  # the stars' truth and data normal matrices are with the chunks
-    data = PreparedData(stars=stars, solved=solved, blocks=spans, normals=None, h=None, x_true=None,
+    del infos
+    data = PreparedData(stars=None, solved=None, blocks=spans, normals=None, h=None, x_true=None,
                         spline=spline, true_attitude=true_att, t_ref_jd=settings.t_ref_jd, dead=dead,
-                        covered=covered, n_rows=int(counts.sum()),
-                        naa_band=np.zeros((0, 0)) if naa_band is None else naa_band)
+                        covered=covered, n_rows=n_rows, naa_band=np.zeros((0, 0)) if naa_band is None else naa_band,
+                        sky=sky, cluster={"table": table, "solved_first": solved_first, "min_fov": min_fov,
+                                          "n_stars": sky.n_stars, "n_solved": n_solved,
+                                          "n_fov_transits": n_fov_transits})
     data.keep_resident(client, ranges, DaskChunks(client, chunk_futures, rebuild=rebuild))
     return data
+

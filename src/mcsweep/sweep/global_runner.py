@@ -77,6 +77,10 @@ class GlobalExperiment:
     #: not come from the configured population (the real-sky validation's Hipparcos
     #: stars); None: :attr:`groups` drawn from ``config.population``.
     draw: Callable | None = None
+    #: config -> whether :attr:`compute` draws the classes itself, on a cluster's workers (the
+    #: primary solution with ``execution=dask``, issue 27: the stars never reach the driver);
+    #: :func:`run_global` then only checks the population config and leaves ``classes`` empty.
+    draws_on_workers: Callable = lambda config: False
 
 
 def _spec(module: str, name: str) -> Callable[[], "GlobalExperiment"]:
@@ -189,6 +193,9 @@ def run_global(experiment: GlobalExperiment, config, raw_cfg: dict, run_dir, *, 
         if experiment.draw is not None:
             classes = experiment.draw(settings, section,
                                       lambda key: spawn(settings.seed, experiment.tag, POPULATION_STREAM, key))
+        elif experiment.draws_on_workers(config):
+            make_source(dataclasses.asdict(config.population))  # a bad population config: its one line now
+            classes = []
         else:
             classes = _draw_population(experiment, config, settings, section, kind)
     prov.write(with_manifest=False)

@@ -17,6 +17,7 @@ import dataclasses
 import functools
 import io
 import json
+import warnings
 from pathlib import Path
 from typing import Callable
 
@@ -24,11 +25,14 @@ import numpy as np
 import pandas as pd
 
 from ..errors import NotConvergedError
-from ..experiments.global_classes import STAR_COLUMNS, class_key, sky_order
+from ..experiments.global_classes import POPULATION_STREAM, class_key, class_table, draw_class, sky_order
+from ..experiments.global_settings import spawn
+from ..experiments.primary_sky import sky_partitions
 from ..experiments.primary import (CHUNKS_DIR, FACTOR_STREAM, PRIMARY_KEY, TAG, build_settings, prepare, solve_prior,
                                    stream_seed, transits_of)
 from ..experiments.primary_cluster import prepare_on_cluster
-from ..experiments.primary_cells import CellReduction, parts_of, reduce_parts
+from ..experiments.primary_cells import CellReduction, reduce_parts
+from ..experiments.primary_results import parts_of
 from ..experiments.primary_factor import curves_from_reduction, factor_label, overall_factor, rows_from_reduction
 from ..experiments.primary_table import SUBSET_COUNTS, table3_from_reduction, table3_markdown
 from ..solver import AttitudeNotDetermined
@@ -48,7 +52,7 @@ def _prior_id(label: str) -> str:
 
 def _part_ids(label: str, n_stars: int) -> list[str]:
     """The store's cells of one solution's per-star results: one per part of
-    :data:`~mcsweep.experiments.primary_cells.PART_STARS` stars (the tables read them part
+    :data:`~mcsweep.experiments.primary_results.PART_STARS` stars (the tables read them part
     by part, :mod:`mcsweep.experiments.primary_cells`)."""
     return [f"{_prior_id(label)}.part{j:04d}" for j in range(len(parts_of(n_stars)))]
 
@@ -149,7 +153,7 @@ def _solve(run: GlobalRun, data, label: str, client: Callable, start: tuple | No
     config, settings = run.config, run.settings
     cid = _prior_id(label)
     coefficients = run.chunks / f"{cid}_coefficients.npy"
-    if run.pending(_part_ids(label, len(data.stars))) or not _finished(run.chunks, label, settings.solver_start):
+    if run.pending(_part_ids(label, data.n_stars)) or not _finished(run.chunks, label, settings.solver_start):
         # On a Dask cluster the solver's chunks are sent to the workers once per solution and
         # kept there; every pass sends only the star and attitude vectors
         # (mcsweep.solver.dask_resident; one client for every solution, opened when the first
@@ -212,8 +216,9 @@ def _solve(run: GlobalRun, data, label: str, client: Callable, start: tuple | No
         np.save(buf, attitude)
         atomic_write_bytes(coefficients, buf.getvalue())
         atomic_write_bytes(run.chunks / f"{cid}.json", json.dumps(extra).encode())
-        for part, rows in zip(_part_ids(label, len(res)), parts_of(len(res))):
-            run.store.write(part, res.iloc[rows].reset_index(drop=True))
+        # one part in memory at a time (on a cluster each gathered from the workers holding its stars)
+        for part, df in zip(_part_ids(label, res.n_stars), res.parts(), strict=True):
+            run.store.write(part, df)
         del res
         release_free_memory()  # the solution's temporaries, before the next one
         print(solution_line(label, extra), flush=True)
@@ -221,24 +226,14 @@ def _solve(run: GlobalRun, data, label: str, client: Callable, start: tuple | No
 
 
 def _compute(run: GlobalRun) -> _Computed:
-    parts = []
-    for _, key, df in run.classes:
-        df = df[list(STAR_COLUMNS)]
-        df["class_key"] = key
-        parts.append(df)
-    # The draws (every column of the population) are not needed again: at the paper's sizes
-    # they, this table and the solution's copy of it (data.stars) held 260 bytes per star.
-    run.classes = []
-    stars = pd.concat(parts, ignore_index=True)
-    del parts
-    # One solution holds every class: its blocks of consecutive stars are then regions of the sky
-    # (mcsweep.experiments.global_classes, "Sky order"), whatever the classes' own order.
-    stars = stars.iloc[sky_order(stars["ra"].to_numpy(), stars["dec"].to_numpy())].reset_index(drop=True)
     factors = {float(k): factor_label(k) for k in run.section.factor_grid}
     with contextlib.ExitStack() as cluster:
         client = functools.cache(lambda: cluster.enter_context(dask_client(run.config.execution)))
-        data = _observations(run, stars, client)
-        del stars  # data.stars has it, with each star's transit columns
+        if run.config.execution.backend == "dask":
+            data = _observations_on_cluster(run, client())
+        else:
+            data = _observations(run, _table(run))
+        _record_attitude(run, data)
         # The factor search (experiment.primary.factor_grid) shares solutions with Table 3's priors.
         start = None  # each solution from the one before (experiment.primary.solver_start)
         for label in dict.fromkeys([*run.settings.priors, *factors.values()]):
@@ -247,30 +242,61 @@ def _compute(run: GlobalRun) -> _Computed:
     return _Computed(data=data, factors=factors)
 
 
-def _observations(run: GlobalRun, stars: pd.DataFrame, client: Callable):
-    """The data of every prior's solution: made in this process, or with ``execution=dask`` made
-    and kept on the cluster's workers (:mod:`mcsweep.experiments.primary_cluster`: only
-    per-star and per-coefficient arrays come back to the driver)."""
-    if run.config.execution.backend == "dask":
-        with run.prov.stage("observations"):
-            data = prepare_on_cluster(run.settings, stars, client(),
-                                      chunk_stars=int(run.config.execution.chunk_stars),
-                                      transit_stars=int(run.config.execution.chunk_stars))
-        print(f"mcsweep: primary: {len(stars)} stars, {int(data.stars['n_fov'].sum())} live FoV transits, "
-              f"built on the Dask workers", flush=True)
-    else:
-        transits = _transits(run, stars)
-        print(f"mcsweep: primary: {len(stars)} stars, {transits['t'].size} FoV transits found", flush=True)
-        with run.prov.stage("observations"):
-            data = prepare(run.settings, stars, transits)
-            del transits  # 16 bytes per transit, 2.6e7 transits at the paper's scale
-            release_free_memory()  # the blocks' build leaves free holes in the heap (1/3 of it at 3e5 stars)
+def _table(run: GlobalRun) -> pd.DataFrame:
+    """The solution's table of stars in this process: every class, in sky order."""
+    parts = [class_table(df, key) for _, key, df in run.classes]
+    # The draws (every column of the population) are not needed again: at the paper's sizes
+    # they, this table and the solution's copy of it (data.stars) held 260 bytes per star.
+    run.classes = []
+    stars = pd.concat(parts, ignore_index=True)
+    del parts
+    # One solution holds every class: its blocks of consecutive stars are then regions of the sky
+    # (mcsweep.experiments.global_classes, "Sky order"), whatever the classes' own order.
+    return stars.iloc[sky_order(stars["ra"].to_numpy(), stars["dec"].to_numpy())].reset_index(drop=True)
+
+
+def _observations(run: GlobalRun, stars: pd.DataFrame):
+    """The data of every prior's solution, made in this process."""
+    transits = _transits(run, stars)
+    print(f"mcsweep: primary: {len(stars)} stars, {transits['t'].size} FoV transits found", flush=True)
+    with run.prov.stage("observations"):
+        data = prepare(run.settings, stars, transits)
+        del transits, stars  # 16 bytes per transit, 2.6e7 transits at the paper's scale; data.stars has the table
+        release_free_memory()  # the blocks' build leaves free holes in the heap (1/3 of it at 3e5 stars)
+    return data
+
+
+def _observations_on_cluster(run: GlobalRun, client):
+    """The data of every prior's solution made and kept on the Dask cluster's workers, down to
+    the stars (:mod:`mcsweep.experiments.primary_sky`, :mod:`mcsweep.experiments.primary_cluster`):
+    each class drawn by a task (the galaxy model built there, or the catalogue read there: its
+    path must be readable by the workers, as on a cluster's shared file system), put in sky
+    order there; only numbers per partition, block and chunk come back to this process."""
+    settings, pri = run.settings, run.section
+    population = dataclasses.asdict(run.config.population)
+    chunk = int(run.config.execution.chunk_stars)
+    with run.prov.stage("population"):
+        # (a class is drawn again only if a lost worker took a partition of the sky)
+        classes = [(key, functools.partial(client.submit, draw_class, (population, float(g), n, key, spawn(
+            settings.seed, TAG, POPULATION_STREAM, key), "experiment.primary.class_size"), pure=False))
+                   for g, n, key in _groups(pri)]
+        sky, caught = sky_partitions(client, classes, chunk)
+        del classes
+    for category, message in caught:  # the workers' warnings, where the user sees them
+        warnings.warn(message, category, stacklevel=2)
+    with run.prov.stage("observations"):
+        data = prepare_on_cluster(settings, sky, client, chunk_stars=chunk)
+    print(f"mcsweep: primary: {data.n_stars} stars, {data.n_fov_transits} live FoV transits of the solved "
+          f"stars, built on the Dask workers", flush=True)
+    return data
+
+
+def _record_attitude(run: GlobalRun, data) -> None:
     with run.prov.stage("observations"):
         run.prov.derived.setdefault("primary", {}).update(
             {"attitude_segments": data.spline.n_segments, "knot_interval_hours": data.knot_interval_hours,
              "fov_transits_per_knot": data.transits_per_knot, "attitude_coefficients": 3 * data.spline.n_coef,
              "attitude_coefficients_without_data": 3 * (data.spline.n_coef - data.coefficients_with_data())})
-    return data
 
 
 def _read_solutions(run: GlobalRun, factors: dict) -> tuple[list, dict, list]:
@@ -304,7 +330,7 @@ def _cells(run: GlobalRun, factors: dict, n_stars: int) -> CellReduction:
 def _aggregate(run: GlobalRun, computed: _Computed) -> dict[str, str]:
     pri, settings, data, factors = run.section, run.settings, computed.data, computed.factors
     histories, extras, attitude = _read_solutions(run, factors)
-    cells = _cells(run, factors, len(data.stars))
+    cells = _cells(run, factors, data.n_stars)
     table = table3_from_reduction(cells, settings.priors, converged={k: extras[k]["converged"] for k in settings.priors})
     outputs = {}
     if factors:
@@ -318,7 +344,7 @@ def _aggregate(run: GlobalRun, computed: _Computed) -> dict[str, str]:
     n_obs = data.n_measurements
     summary = pd.DataFrame([{"prior": k, **{kk: (json.dumps(v) if isinstance(v, list) else v)
                                             for kk, v in e.items()}} for k, e in extras.items()])
-    summary["n_stars_solved"] = data.solved.size
+    summary["n_stars_solved"] = data.n_solved
     summary["n_measurements"] = n_obs
     summary["n_attitude_coefficients"] = 3 * data.spline.n_coef
     summary["knot_interval_hours"] = data.knot_interval_hours  # realised mean over the live time
@@ -329,7 +355,7 @@ def _aggregate(run: GlobalRun, computed: _Computed) -> dict[str, str]:
     notes = [run.conditions(f"{pri.mission_years:g} year(s) from {pri.mission_start} (TCB), dead time "
                             f"{100 * pri.dead_time_fraction:g} % in blocks of {pri.dead_time_block_days:g} d"),
              f"Stars: {pri.class_size} per class (paper 5e5), {counts.get(PRIMARY_KEY, 0)} primary sources "
-             f"(G >= {pri.primary_g_min:g}); {data.solved.size} with >= 1 transit, {n_obs} measurements; "
+             f"(G >= {pri.primary_g_min:g}); {data.n_solved} with >= 1 transit, {n_obs} measurements; "
              f"attitude: cubic spline in {data.spline.n_segments} segments between the dead-time gaps, "
              f"knot interval {data.knot_interval_hours:.3g} h ({knot_rule(pri)}), "
              f"{data.transits_per_knot:.1f} FoV transits per knot, {3 * data.spline.n_coef} coefficients; "
@@ -377,6 +403,7 @@ def calibration_note(pri, extras: dict) -> str | None:
 PRIMARY = GlobalExperiment(
     kind="primary", tag=TAG, chunks_dir=CHUNKS_DIR, build_settings=build_settings, groups=_groups,
     compute=_compute, aggregate=_aggregate, result="table3.csv", kept=_kept,
+    draws_on_workers=lambda config: config.execution.backend == "dask",
     seeds={"population": "SeedSequence(seed, spawn_key=(42, 0, round(100*G0) or 0 for the primaries))",
            "dead_time": "SeedSequence(seed, spawn_key=(42, 1))",
            "true_attitude": "SeedSequence(seed, spawn_key=(42, 2))",

@@ -144,3 +144,59 @@ def test_worker_lost_after_the_solution_restarts_it(both, client, monkeypatch):
     np.testing.assert_array_equal(ref[0].frame().to_numpy(), got[0].frame().to_numpy())
     np.testing.assert_array_equal(ref[3].to_numpy(), got[3].to_numpy())
     assert ref[2]["attitude_rms_uas"] == got[2]["attitude_rms_uas"]
+
+
+def _frame(df):
+    return df
+
+
+def test_sky_partitions_are_the_driver_sort(client):
+    # The classes put in sky order on the workers (primary_sky): the rows of the driver's sort
+    # of the whole table (global_classes.sky_order), bit for bit, with stars sharing a pixel
+    # within and across classes (the stable order decides their rows), in partitions that
+    # cut the classes' pixel ranges; made again after a loss, the same frames.
+    import functools
+
+    import pandas as pd
+
+    from mcsweep.experiments.global_classes import class_table, sky_order
+    from mcsweep.experiments.primary_sky import sky_partitions
+
+    frames = []
+    for i, key in enumerate((1100, 1500, 1900)):
+        df = _synthetic_stars(3000, 20 + i).drop(columns="class_key")
+        df.loc[:199, ["ra", "dec"]] = _synthetic_stars(200, 99)[["ra", "dec"]].to_numpy()  # shared positions
+        df.loc[200:299, ["ra", "dec"]] = df.loc[:99, ["ra", "dec"]].to_numpy()  # and within the class
+        frames.append((key, df))
+    whole = pd.concat([class_table(df, key) for key, df in frames], ignore_index=True)
+    expected = whole.iloc[sky_order(whole["ra"].to_numpy(), whole["dec"].to_numpy())].reset_index(drop=True)
+    sky, caught = sky_partitions(client, [(key, functools.partial(client.submit, _frame, df, pure=False))
+                                          for key, df in frames], 700)
+    assert caught == [] and len(sky) >= 10 and sky.n_stars == len(whole)
+    got = client.gather(sky.futures)
+    assert [len(g) for g in got] == sky.sizes.tolist()
+    np.testing.assert_array_equal(sky.first, np.concatenate([[0], np.cumsum(sky.sizes)[:-1]]))
+    pd.testing.assert_frame_equal(pd.concat(got, ignore_index=True), expected, check_exact=True)
+    again = pd.concat(client.gather(sky.remake()), ignore_index=True)
+    pd.testing.assert_frame_equal(again, expected, check_exact=True)
+
+
+def test_worker_lost_before_the_parts_are_read_solves_again(both, client, monkeypatch):
+    # The per-star results are gathered part by part after the solution: a worker lost in
+    # between took the outcome of its stars, so the prior is solved again; the same bits.
+    import os
+    import signal
+
+    from mcsweep.experiments import primary_cluster as PC
+
+    settings, local, remote = both
+    ref = P.solve_prior(settings, local, "F90").results.frame()
+    client.wait_for_workers(2, timeout=60)
+    real, calls = PC.solve_global, []
+    monkeypatch.setattr(PC, "solve_global", lambda *a, **k: calls.append(1) or real(*a, **k))
+    got = P.solve_prior(settings, remote, "F90", dask_client=client, chunk_stars=2 * BLOCK)
+    os.kill(sorted(client.run(os.getpid).values())[0], signal.SIGKILL)
+    frame = got.results.frame()
+    client.wait_for_workers(2, timeout=60)
+    assert len(calls) == 2  # solved again after the loss
+    np.testing.assert_array_equal(ref.to_numpy(), frame.to_numpy())

@@ -4,22 +4,30 @@ driver versus on the workers (issue 27).
 For each star count, two runs in fresh processes, each with a LocalCluster of ``--workers``
 worker processes (its scheduler in the driver's process, as ``execution=dask`` makes it):
 
-* ``driver``: the transits searched and the solver's blocks built in the driver
-  (:func:`mcsweep.experiments.primary.prepare`), the chunks then scattered to the workers;
-* ``cluster``: the transits, blocks and measurements made and kept on the workers
+* ``driver``: the stars drawn, put in sky order, their transits searched and the solver's
+  blocks built in the driver (:func:`mcsweep.experiments.primary.prepare`), the chunks then
+  scattered to the workers;
+* ``cluster``: the stars drawn by a task and put in sky order on the workers
+  (:func:`mcsweep.experiments.primary_sky.sky_partitions`), the transits, blocks and
+  measurements made and kept there
   (:func:`mcsweep.experiments.primary_cluster.prepare_on_cluster`).
 
-Then one solution (prior sigma_F90, ``--iterations`` PCG iterations) in each. Printed per
-run: measurements, the driver's peak resident memory (``ru_maxrss``), wall time, and whether
-the two runs' per-star results are the same bits; then the driver's growth between the two
-sizes per star and per measurement, cluster against driver (the baseline, measured in the
-same run).
+Then one solution (prior sigma_F90, ``--iterations`` PCG iterations) in each, its per-star
+results read part by part (as the run writes them). Printed per run: measurements, the
+driver's peak resident memory (``ru_maxrss``), wall time, and whether the two runs'
+per-star results are the same bits; then the driver's growth between the two sizes per
+star and per measurement, cluster against driver (the baseline, measured in the same run).
 
 Stars: uniform over the sky, G uniform in 12-19 (the population does not matter for memory),
 one year of the flown law, 20 % dead time, 3 h knots (the experiment's defaults).
 
+The per-star results are read in parts of ``--part-stars`` stars (default 10000, so both
+sizes hold several parts; a run's parts of 250000 stars bound the driver's part at some
+25 MB whatever the size, :data:`mcsweep.experiments.primary_results.PART_STARS`).
+
 Run: ``python benchmarks/bench_primary_cluster.py [--stars 30000 120000] [--iterations 5]
-[--workers 2]``.
+[--workers 2] [--part-stars 10000] [--chunk-stars 50000]`` (``--chunk-stars``: the solver's
+chunks and the table's partitions, ``execution.chunk_stars``).
 """
 
 from __future__ import annotations
@@ -49,37 +57,44 @@ def _stars(n: int, seed: int = 5):
                          "phot_g_mean_mag": rng.uniform(12.0, 19.0, n), "class_key": 1500})
 
 
-def one(mode: str, n: int, iterations: int, workers: int) -> dict:
+def one(mode: str, n: int, iterations: int, workers: int, part_stars: int, chunk: int) -> dict:
+    import functools
+
     import numpy as np
     from distributed import Client, LocalCluster
 
     from mcsweep.experiments import primary as P
+    from mcsweep.experiments import primary_results
+    from mcsweep.experiments.global_classes import class_table, sky_order
     from mcsweep.experiments.primary_cluster import prepare_on_cluster
+    from mcsweep.experiments.primary_sky import sky_partitions
     from mcsweep.sweep.validate import compose_config, to_config
 
     config = to_config(compose_config(["experiment=primary", f"experiment.primary.solver_max_iter={iterations}",
                                        "experiment.primary.allow_unconverged=true"]))
     settings = P.build_settings(config)
-    stars = _stars(n)
-    chunk = 50000
+    primary_results.PART_STARS = part_stars
+    digest = hashlib.sha256()
     t0 = time.perf_counter()
     with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
                       env={"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}) as cluster, Client(cluster) as client:
         if mode == "driver":
+            stars = class_table(_stars(n), 1500)
+            stars = stars.iloc[sky_order(stars["ra"].to_numpy(), stars["dec"].to_numpy())].reset_index(drop=True)
             ra, dec = stars["ra"].to_numpy(), stars["dec"].to_numpy()
             parts = [P.transits_of((i, lo, ra[lo:lo + chunk], dec[lo:lo + chunk], settings.start_jd, settings.end_jd,
                                     settings.law))[1] for i, lo in enumerate(range(0, n, chunk))]
             tr = {k: np.concatenate([p[k] for p in parts]) for k in ("star", "t", "psi")}
             del parts
             data = P.prepare(settings, stars, tr)
-            del tr
+            del tr, stars  # as the experiment's runner does: the solution's table (data.stars) has them
         else:
-            data = prepare_on_cluster(settings, stars, client, chunk_stars=chunk, transit_stars=chunk)
-        del stars  # as the experiment's runner does: the solution's table (data.stars) has them
+            sky, _ = sky_partitions(client, [(1500, functools.partial(client.submit, _stars, n, pure=False))], chunk)
+            data = prepare_on_cluster(settings, sky, client, chunk_stars=chunk)
         res, _, extra, *_ = P.solve_prior(settings, data, "F90", dask_client=client, chunk_stars=chunk)
-    digest = hashlib.sha256()
-    for column in res.columns:  # column by column: a copy of the whole frame would be the peak
-        digest.update(res[column].to_numpy().tobytes())
+        for part in res.parts():  # part by part, as the run writes them
+            for column in part.columns:
+                digest.update(part[column].to_numpy().tobytes())
     digest = digest.hexdigest()[:16]
     return {"mode": mode, "stars": n, "measurements": data.n_measurements, "iterations": extra["iterations"],
             "seconds": time.perf_counter() - t0, "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
@@ -91,10 +106,13 @@ def main():
     ap.add_argument("--stars", type=int, nargs=2, default=[30000, 120000])
     ap.add_argument("--iterations", type=int, default=5)
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--part-stars", type=int, default=10000)
+    ap.add_argument("--chunk-stars", type=int, default=50000)
     ap.add_argument("--one", nargs=2, metavar=("MODE", "STARS"), help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.one:
-        print(json.dumps(one(args.one[0], int(args.one[1]), args.iterations, args.workers)))
+        print(json.dumps(one(args.one[0], int(args.one[1]), args.iterations, args.workers, args.part_stars,
+                                        args.chunk_stars)))
         return
     rows = {}
     print(f"one year, flown law, 3 h knots, {args.iterations} PCG iterations, LocalCluster of {args.workers} workers")
@@ -102,7 +120,8 @@ def main():
     for n in args.stars:
         for mode in ("driver", "cluster"):
             out = subprocess.run([sys.executable, __file__, "--one", mode, str(n), "--iterations", str(args.iterations),
-                                  "--workers", str(args.workers)], capture_output=True, text=True, check=True)
+                                  "--workers", str(args.workers), "--part-stars", str(args.part_stars),
+                              "--chunk-stars", str(args.chunk_stars)], capture_output=True, text=True, check=True)
             r = json.loads(out.stdout.strip().splitlines()[-1])
             rows[mode, n] = r
             print(f"{mode:>8} {n:8d} {r['measurements']:13d} {r['peak_rss_mb']:21.0f} {r['seconds']:9.1f}  {r['digest']}")

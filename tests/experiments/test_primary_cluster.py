@@ -7,10 +7,12 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from mcsweep.astrometry.design import JULIAN_YEAR_DAYS
 from mcsweep.experiments import primary as P
+from mcsweep.experiments import primary_results
 
 from .test_primary import _config, _synthetic_stars
 
@@ -81,7 +83,7 @@ def test_cluster_built_data_are_the_driver_built_bits(both, client):
                 np.testing.assert_array_equal(getattr(blk, f), getattr(ref, f))
 
 
-def test_cluster_built_solution_is_the_forked_one(both, client):
+def test_cluster_built_solution_is_the_forked_one(both, client, monkeypatch):
     settings, local, remote = both
     ref = P.solve_prior(settings, local, "F90", workers=2)
     got = P.solve_prior(settings, remote, "F90", dask_client=client, chunk_stars=2 * BLOCK)
@@ -99,6 +101,11 @@ def test_cluster_built_solution_is_the_forked_one(both, client):
     assert ref.extra["iterations"] == got.extra["iterations"]
     np.testing.assert_array_equal(ref.results.frame().to_numpy(), got.results.frame().to_numpy())
     np.testing.assert_array_equal(ref.attitude, got.attitude)
+    # parts of 700 stars: each gathered from the partitions and chunks that hold its stars
+    monkeypatch.setattr(primary_results, "PART_STARS", 700)
+    parts = list(got.results.parts())
+    assert [len(p) for p in parts] == [700, 700, 700, len(local.stars) - 2100]
+    np.testing.assert_array_equal(pd.concat(parts, ignore_index=True).to_numpy(), ref.results.frame().to_numpy())
 
 
 def test_cluster_built_solution_survives_a_killed_worker(both, client, kill_worker_at):

@@ -60,6 +60,7 @@ from ..solver.cg import (MAX_RESTARTS, ChunksLost, ResidentProblem, chunk_values
 from ..solver.dask_resident import DaskChunks, _is_loss
 from ..solver.frame import frame_from_sums
 from ..solver.reduction import pairwise_sum, run_level
+from ..solver.selection import digit_counts, median
 from .global_classes import star_transits
 from .global_priors import prior_sigma_mas
 from .primary import (NOISE_STREAM, BlockJob, PreparedData, PrimarySettings, _true_attitude, attitude_spline,
@@ -189,13 +190,21 @@ def _slices(blocks) -> list:
 
 
 def _prior_task(item):
-    """What the driver needs of a chunk's stars under a prior: singular blocks, the frame
-    weights' sums (fixed tree) and the per-star weights whose medians set the frame penalty."""
+    """What the driver needs of a chunk's stars under a prior: singular blocks and the frame
+    weights' sums (fixed tree)."""
     ci, blocks, _, st = item
     S = st["stars"]
-    pos, pm = typical_weights(S["normals"], S["prior"])
-    return ci, (int(np.count_nonzero(~S["ok"])), pairwise_sum(weight_sums(S["g_raw"][v]) for v in _slices(blocks)),
-                pos, pm)
+    return ci, (int(np.count_nonzero(~S["ok"])), pairwise_sum(weight_sums(S["g_raw"][v]) for v in _slices(blocks)))
+
+
+def _weight_digits(item):
+    """A round of the selection of the medians that set the frame penalty
+    (:mod:`mcsweep.solver.selection`): ``queries[w]`` for the stars' weights ``w`` (0 position,
+    1 proper motion, :func:`~mcsweep.solver.cg.typical_weights`)."""
+    ci, _, _, st, queries = item
+    S = st["stars"]
+    weights = typical_weights(S["normals"], S["prior"])
+    return ci, [digit_counts(weights[w], [q])[0] for w, q in queries]
 
 
 def _fit_task(item):
@@ -314,7 +323,13 @@ def _solve_once(settings, data, resident, ranges, *, chunk_stars, log, equal, at
     if bad:
         raise ValueError(f"{bad} stars have singular source blocks; remove them first")
     n = data.n_solved
-    w_pos, w_pm = penalty_weights(np.concatenate([g[2] for g in got]), np.concatenate([g[3] for g in got]), n)
+
+    def counts_of(which: int):
+        return lambda queries: [c for c in chunk_values(resident.run, _weight_digits,
+                                                        [(ci, [(which, q) for q in queries]) for ci in range(len(ranges))])]
+
+    # the medians by selection, not by gathering every star's weights (issue 27)
+    w_pos, w_pm = penalty_weights(median(counts_of(0), n), median(counts_of(1), n), n)
     problem = ResidentProblem(data.blocks, n_coef=data.spline.n_coef, n_measurements=data.n_measurements,
                               naa_band=data.naa_band, frame_means=pairwise_sum((g[1] for g in got), None, levels) / n,
                               w_pos=w_pos, w_pm=w_pm)

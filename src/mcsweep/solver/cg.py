@@ -470,8 +470,12 @@ def typical_weights(N_src, prior) -> tuple[np.ndarray, np.ndarray]:
 def penalty_weights(pos, pm, n: int) -> tuple[float, float]:
     """Frame penalty weights: one typical star's position (proper-motion) weight per unit of
     mean rotation, so the constrained directions are as well conditioned as a star (any
-    positive weight gives the same stars for the orientation)."""
-    return float(np.median(pos)) / (2.0 * n), float(np.median(pm)) / (2.0 * n)
+    positive weight gives the same stars for the orientation). ``pos``, ``pm``: the stars'
+    weights (:func:`typical_weights`), or their medians already found (floats; on a
+    cluster, :mod:`mcsweep.solver.selection`)."""
+    med_pos = float(pos) if np.ndim(pos) == 0 else float(np.median(pos))
+    med_pm = float(pm) if np.ndim(pm) == 0 else float(np.median(pm))
+    return med_pos / (2.0 * n), med_pm / (2.0 * n)
 
 
 def star_arrays(blocks, normals, prior) -> dict:
@@ -706,13 +710,13 @@ def _fresh(obj):
 
 
 def _ordered(run, fn, items) -> list:
-    """Results of ``run(fn, items)`` (any completion order) in item order, as fresh arrays
+    """Results of ``run(fn, items)`` (any completion order) in the order of the items ``(ci, ...)``, as fresh arrays
     (:func:`_fresh`; an executor whose ``run`` has ``fresh_results`` gives them so already:
     the forked workers', :mod:`~mcsweep.solver.resident`, where a second copy of every
     attitude vector cost a third of the driver's time at AGIS's knots)."""
     fresh = getattr(run, "fresh_results", False)
     out = dict((r[0], r[1:] if fresh else _fresh(r[1:])) for r in run(fn, items))
-    return [out[i] for i in range(len(items))]
+    return [out[item[0]] for item in items]  # items (ci, ...): any chunks, not only 0 .. n - 1
 
 
 def chunk_values(run, fn, items) -> list:

@@ -65,21 +65,24 @@ def test_dask_resident_solution_is_bit_identical_to_in_process_and_forked(proble
 def test_dask_passes_send_attitude_vectors_only(problem_and_h, client):
     # After the chunks are on the workers, the star vectors stay there too (issue 27): an
     # iteration sends the attitude vector once to every worker (a small one, as here, with
-    # every task), plus a few numbers per chunk, and gets two attitude-sized vectors back per
-    # chunk, whatever the number of stars.
+    # every task), plus a few numbers per chunk, and gets back two attitude-sized sums per
+    # aligned run of a worker's chunks (DaskChunks.reduced: at most one per bit of the number
+    # of chunks, per worker), whatever the number of stars.
     from mcsweep.solver.dask_resident import DaskChunks
 
     problem, h = problem_and_h
-    ranges = problem.chunks(256)
+    ranges = problem.chunks(128)  # one block per chunk: many chunks per worker
     chunks = [problem.blocks[lo:hi] for lo, hi in ranges]
     res = DaskChunks.scatter(client, [(bl, [h[b.rows] for b in bl]) for bl in chunks])
-    sol = solve_global(problem, h, resident_chunks=res, chunk_stars=256, **KW)
+    sol = solve_global(problem, h, resident_chunks=res, chunk_stars=128, **KW)
     k = len(sol.history)
     att_vector = 8 * problem.n_att
     workers = len(client.scheduler_info()["workers"])
     sent, received = res.bytes_per_call("_forward_task", "_back_task", "_direction_task")
     assert sent / k <= max(workers, len(chunks)) * att_vector + 1024 * len(chunks)
-    assert received / k <= 2 * len(chunks) * (att_vector + 1024)
+    assert len(chunks) >= 6 * workers
+    _same(sol, solve_global(problem, h, **KW))
+    assert received / k <= 2 * workers * len(chunks).bit_length() * (att_vector + 1024) < 2 * len(chunks) * att_vector
     assert sent / k < 5 * 8 * problem.n_stars  # less than one star vector
     # setup (its sums, then the Schur absorption: one slab at this size), then forward, back
     # and direction passes: one each before the first iteration, and after every iteration

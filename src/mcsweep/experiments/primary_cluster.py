@@ -59,7 +59,7 @@ from ..solver.cg import (MAX_RESTARTS, ChunksLost, ResidentProblem, chunk_values
                          star_arrays, typical_weights, weight_sums)
 from ..solver.dask_resident import DaskChunks, _is_loss
 from ..solver.frame import frame_from_sums
-from ..solver.reduction import pairwise_sum, run_level
+from ..solver.reduction import pairwise_sum, run_level, share_bounds
 from ..solver.selection import digit_counts, median
 from .global_classes import star_transits
 from .global_priors import prior_sigma_mas
@@ -486,10 +486,13 @@ def _prepare_once(settings, sky, client, *, chunk_stars, block_stars, with_noise
                 "block_stars": block_stars, "with_noise": with_noise}
         inputs = [x for p in ps for x in (sky.futures[p], table.summaries[p], table.transits(p))]
         live_workers = sorted(client.scheduler_info()["workers"])
-        # spread over the workers (memory), not where the transits are
+        # spread over the workers (memory) in contiguous shares of the chunks, so each worker
+        # sums its chunks' outputs before they travel (DaskChunks.reduced), not where the
+        # transits are
+        owner = int(np.searchsorted(share_bounds(len(ranges), len(live_workers)), ci, side="right")) - 1
         return client.submit(_build_chunk, spec, shared("settings", settings), shared("spline", spline),
                              shared("truth", true_att), shared("dead", dead), *inputs, pure=False,
-                             workers=[live_workers[ci % len(live_workers)]], allow_other_workers=True)
+                             workers=[live_workers[owner]], allow_other_workers=True)
 
     def rebuild(ci: int):
         return client.submit(_first, submit(ci), pure=False)

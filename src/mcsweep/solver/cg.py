@@ -842,7 +842,8 @@ def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_u
     if resident_chunks is not None:
         for attempt in range(MAX_RESTARTS + 1):
             try:
-                return _pcg(problem, chunks, resident_chunks.run, **kw)
+                return _pcg(problem, chunks, resident_chunks.run, reduced=getattr(resident_chunks, "reduced", None),
+                            **kw)
             except ChunksLost:
                 if attempt == MAX_RESTARTS:
                     raise
@@ -875,10 +876,13 @@ def _in_process(chunks: dict, fn: Callable, items: Iterable) -> Iterator:
 
 
 def _pcg(pb: GlobalProblem, chunks, run, *, rtol, update_tol_uas, error_tol, max_iter, min_iter,
-         log, residuals, border_normals=None, start=None) -> GlobalSolution:
+         log, residuals, border_normals=None, start=None, reduced=None) -> GlobalSolution:
     """The PCG iteration of :func:`solve_global`; ``run(fn, items)`` runs chunk tasks whose items
     are ``(ci, *rest)`` on the executor that holds chunk ``ci`` and its state. ``border_normals``:
-    ``(C'h, C'C)`` of the bordered unknowns, whose columns the chunks' states hold (None: none)."""
+    ``(C'h, C'C)`` of the bordered unknowns, whose columns the chunks' states hold (None: none).
+    ``reduced(fn, items, specs, fresh=)``: an executor that sums the chunks' outputs where they
+    are (:meth:`~mcsweep.solver.dask_resident.DaskChunks.reduced`: a few sums per worker reach
+    the driver, not one per chunk); None: the chunks' outputs are summed here."""
     m = pb.n_measurements
     stars = [slice(bl[0].first, bl[-1].first + bl[-1].n) for bl in chunks]
     n_ch = range(len(chunks))
@@ -899,16 +903,39 @@ def _pcg(pb: GlobalProblem, chunks, run, *, rtol, update_tol_uas, error_tol, max
         """Sum of the chunks' attitude vectors (each an aligned run of leaves) in the leaves' tree."""
         return pairwise_sum(values, add, leaf_levels)
 
+    # the chunks' runs in the two trees (first block or leaf, level), for sums taken where the chunks are
+    first_block = [bl[0].first // bs for bl in chunks]
+    block_tree = {i: first_block[i] for i in n_ch}, dict(enumerate(levels))
+    leaf_tree = {i: first_block[i] // leaf for i in n_ch}, dict(enumerate(leaf_levels))
+
+    def summed(fn, items, trees, *, fresh=True):
+        """The outputs of the chunk tasks ``fn`` over all chunks, summed: ``trees[k]`` is
+        ``("blocks" | "leaves", add)`` for a sum in that tree, or ``("max", None)``. Where the
+        chunks are (``reduced``) or here from each chunk's outputs: the same bits."""
+        if reduced is not None:
+            specs = [("max",) if t == "max" else ("tree", *(block_tree if t == "blocks" else leaf_tree), add)
+                     for t, add in trees]
+            return reduced(fn, items, specs, fresh=fresh)
+        if fresh:
+            out = _ordered(run, fn, items)
+        else:  # summed as received, each chunk's outputs dropped once added (the setup's are large)
+            got = {r[0]: r[1:] for r in run(fn, items)}
+            out = (got.pop(i) for i in n_ch)
+            if len(trees) == 1:
+                (t, add), = trees
+                return [(total if t == "blocks" else total_att)((o[0] for o in out), add)]
+            out = list(out)
+        return [max(o[k] for o in out) if t == "max" else (total if t == "blocks" else total_att)(
+            (o[k] for o in out), add) for k, (t, add) in enumerate(trees)]
+
     # Setup pass: right-hand side, the stars' vectors on the workers, the banded Schur block.
     # The setup's numbers are only added element by element (no SIMD reduction whose rounding
     # could depend on where an unpickled array sits), so they are summed as received, without
     # _fresh's copies, each chunk's dropped once in the tree; and only the factor is kept
     # through the iterations.
-    got = {r[0]: r[1] for r in run(_setup_task, [(i, None, None, pb.frame_means, leaves[i], start)
-                                              if pb.stars_with_chunks else
-                                              (i, pb.prior[sl], pb.K[sl], pb.frame_weights[sl], leaves[i], start)
-                                              for i, sl in zip(n_ch, stars)])}
-    glob = total_att((got.pop(i) for i in n_ch), _add_setup)
+    (glob,) = summed(_setup_task, [(i, None, None, pb.frame_means, leaves[i], start) if pb.stars_with_chunks else
+                                   (i, pb.prior[sl], pb.K[sl], pb.frame_weights[sl], leaves[i], start)
+                                   for i, sl in zip(n_ch, stars)], [("leaves", _add_setup)], fresh=False)
     free = pb.free
     b_a = np.where(free, glob["b_a"], 0.0)
     # the bordered unknowns (module notes): right-hand side b_c = C'h, their block D = C'C,
@@ -934,8 +961,8 @@ def _pcg(pb: GlobalProblem, chunks, run, *, rtol, update_tol_uas, error_tol, max
     cuts = share_bounds(n_att, -(-8 * (B.schur_bandwidth() + 1) * n_att // SETUP_SLAB_BYTES))
     band = None
     for lo, hi in zip(cuts[:-1], cuts[1:]):
-        got = {r[0]: r[1] for r in run(_absorption_task, [(i, (lo, hi), leaves[i]) for i in n_ch])}
-        part = total_att((got.pop(i) for i in n_ch), _add_in_place)
+        (part,) = summed(_absorption_task, [(i, (lo, hi), leaves[i]) for i in n_ch], [("leaves", _add_in_place)],
+                         fresh=False)
         if band is None:
             band = np.empty((part.shape[0], n_att))
         np.negative(part, out=band[:, lo:hi])
@@ -966,10 +993,8 @@ def _pcg(pb: GlobalProblem, chunks, run, *, rtol, update_tol_uas, error_tol, max
         # finiteness scan of the 12 x 2.3e6 factor every iteration (7 % of the driver's time at
         # AGIS's knots, py-spy)
         z_a = np.where(free, cho_solve_banded((chol, False), w_a.ravel(), check_finite=False).reshape(-1, 3), 0.0)
-        back = _ordered(run, _back_task, [(i, z_a, leaves[i]) for i in n_ch])
-        nz_a = total_att(o[0] for o in back)
+        nz_a, numbers = summed(_back_task, [(i, z_a, leaves[i]) for i in n_ch], [("leaves", None), ("blocks", None)])
         nz_a[~free] = z_a[~free]
-        numbers = total(o[1] for o in back)
         # N z's border rows G_s'z_s + G_a'z_a + D z_c (the chunks' dots after the frame sums); its
         # border columns G z_c
         z_c = D_inv @ r_c
@@ -978,14 +1003,13 @@ def _pcg(pb: GlobalProblem, chunks, run, *, rtol, update_tol_uas, error_tol, max
             nz_a += c * g
         rz = float(numbers[0]) + _dot(r_a, z_a) + _dot(r_c, z_c)
         beta = None if beta is None else beta(rz)
-        pq_s = total(o[0] for o in _ordered(run, _direction_task, [(i, numbers[1:7], beta, w, z_c if bordered else None)
-                                                                   for i in n_ch]))
+        (pq_s,) = summed(_direction_task, [(i, numbers[1:7], beta, w, z_c if bordered else None) for i in n_ch],
+                         [("blocks", None)])
         return z_a, nz_a, z_c, nz_c, rz, beta, float(pq_s)
 
     def forward(alpha):
-        fwd = _ordered(run, _forward_task, [(i, alpha, leaves[i]) for i in n_ch])
-        return (total_att(f[0] for f in fwd), total(f[1] for f in fwd),
-                max(f[2] for f in fwd))
+        return tuple(summed(_forward_task, [(i, alpha, leaves[i]) for i in n_ch],
+                            [("leaves", None), ("blocks", None), ("max", None)]))
 
     x_a, x_c = np.zeros_like(b_a), np.zeros_like(b_c)
     r_a, r_c = b_a.copy(), b_c.copy()

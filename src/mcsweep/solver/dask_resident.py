@@ -36,11 +36,29 @@ import uuid
 import numpy as np
 from typing import Callable, Sequence
 
+from .reduction import AlignedPartials, pairwise_sum, share_bounds
+
 __all__ = ["DaskChunks"]
 
 
 def _call(fn: Callable, ci: int, chunk: tuple, rest: tuple):
     return fn((ci, *chunk, *rest))
+
+
+def _call_reduced(fn: Callable, cis: list, rests: list, specs: list, *chunks):
+    """``fn`` on each of one worker's chunks ``cis`` (ascending), its outputs reduced there as
+    ``specs`` say (:meth:`DaskChunks.reduced`), one chunk's outputs alive at a time."""
+    folds: list = [AlignedPartials(spec[3]) if spec[0] == "tree" else None for spec in specs]
+    largest: list = [None] * len(specs)
+    for ci, chunk, rest in zip(cis, chunks, rests):
+        out = fn((ci, *chunk, *rest))[1:]
+        for k, (spec, value) in enumerate(zip(specs, out)):
+            if spec[0] == "tree":
+                folds[k].push(spec[1][ci], spec[2][ci], value)
+            else:
+                largest[k] = value if largest[k] is None else max(largest[k], value)
+        del out
+    return [f.partials if f is not None else m for f, m in zip(folds, largest)]
 
 
 def _attach(chunk: tuple, binv) -> tuple:
@@ -115,10 +133,12 @@ class DaskChunks:
 
         def put(ci):
             workers = sorted(client.scheduler_info()["workers"])  # the live ones (after a loss too)
-            # one worker per chunk, round robin: contiguous shares are not needed (no order
-            # of completion matters) and every worker gets its part of the memory
+            # one worker per chunk, in contiguous shares: every worker gets its part of the
+            # memory, and sums its chunks' outputs before they travel (:meth:`reduced`)
             # (in a list: a tuple itself would be scattered element by element)
-            (fut,) = client.scatter([chunks[ci]], workers=[workers[ci % len(workers)]], hash=False)
+            owner = share_bounds(len(chunks), len(workers))
+            w = max(i for i in range(len(workers)) if owner[i] <= ci)
+            (fut,) = client.scatter([chunks[ci]], workers=[workers[w]], hash=False)
             return fut
 
         return cls(client, [put(ci) for ci in range(len(chunks))], rebuild=put)
@@ -258,6 +278,75 @@ class DaskChunks:
         tally[0] += self._pass_sent
         tally[1] += received
         return iter(out)
+
+    def reduced(self, fn: Callable, items, specs: Sequence[tuple], *, fresh: bool = True) -> list:
+        """The outputs of ``fn`` over the chunks of ``items`` ``(ci, *rest)`` (as :meth:`run`),
+        each reduced as ``specs[k]`` says: ``("tree", starts, levels, add)``, the sum in the fixed
+        tree (:func:`~mcsweep.solver.reduction.pairwise_sum`; ``starts[ci]``, ``levels[ci]``: chunk
+        ``ci``'s run), or ``("max",)``.
+
+        One task per worker runs ``fn`` on the chunks it holds and adds their outputs there
+        where the tree adds them (:class:`~mcsweep.solver.reduction.AlignedPartials`), so the
+        driver receives a few sums per worker, not one per chunk, and adds them in the tree:
+        the same bits as :meth:`run` and the sums taken here (tests). ``fresh``: received
+        arrays copied (:func:`~mcsweep.solver.cg._fresh`; not needed for sums only added
+        element by element). Losses as in :meth:`run`.
+        """
+        from .cg import ChunksLost, _fresh
+
+        items = [(item[0], tuple(item[1:])) for item in items]
+        counts: dict[int, int] = {}
+        for _, rest in items:
+            for obj in rest:
+                counts[id(obj)] = counts.get(id(obj), 0) + 1
+        sent: dict[int, tuple] = {}
+        self._pass_sent = 0
+        name = getattr(fn, "__name__", "task")
+        try:
+            groups: dict[str, list] = {}
+            for ci, rest in sorted(items, key=lambda it: it[0]):
+                home = self._home(ci)
+                args = tuple(self._send(o, None if counts[id(o)] > 1 else ci, sent) if _scattered(o)
+                             else self._inline(o) for o in rest)
+                groups.setdefault(home[0] if home else "", []).append((ci, args))
+            tag = uuid.uuid4().hex[:12]
+            futs = []
+            for w, (worker, group) in enumerate(sorted(groups.items())):
+                cis = [ci for ci, _ in group]
+                futs.append(self.client.submit(
+                    _call_reduced, fn, cis, [a for _, a in group], list(specs), *[self.futures[ci] for ci in cis],
+                    workers=[worker] if worker else None, allow_other_workers=not worker,
+                    key=f"{name}-w{w}-{tag}", pure=False))
+            out = self.client.gather(futs)
+        except Exception as exc:
+            if not (self._lost() or _is_loss(exc)):
+                raise
+            time.sleep(1.0)
+            lost = self._lost()
+            if lost and self.rebuild is None:
+                raise
+            for ci in lost:
+                self.futures[ci] = self.rebuild(ci)
+            self.repeated += 1
+            self._previous = {}
+            self._homes = {}
+            raise ChunksLost(f"{len(lost)} chunk(s) lost with a worker: sent again") from exc
+        self._previous = sent
+        self.passes += 1
+        received = sum(_nbytes(r) for r in out)
+        self.bytes_received += received
+        tally = self.bytes_by_task.setdefault(name, [0, 0])
+        tally[0] += self._pass_sent
+        tally[1] += received
+        result = []
+        for k, spec in enumerate(specs):
+            if spec[0] == "tree":
+                parts = sorted((p for o in out for p in o[k]), key=lambda p: p[0])
+                result.append(pairwise_sum(((_fresh(p[2]) if fresh else p[2]) for p in parts), spec[3],
+                                           [p[1] for p in parts]))
+            else:
+                result.append(max(o[k] for o in out))
+        return result
 
     def _inline(self, obj):
         """An argument sent with the task (counted)."""

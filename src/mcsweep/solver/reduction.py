@@ -31,7 +31,8 @@ from __future__ import annotations
 import itertools
 from typing import Callable, Iterable
 
-__all__ = ["pairwise_sum", "chunk_ranges", "run_level", "share_bounds", "leaf_blocks", "LEAF_RATIO", "MIN_LEAVES"]
+__all__ = ["pairwise_sum", "AlignedPartials", "chunk_ranges", "run_level", "share_bounds", "leaf_blocks", "LEAF_RATIO",
+           "MIN_LEAVES"]
 
 #: A leaf holds at least this many measurements per attitude unknown (:func:`leaf_blocks`),
 #: so its attitude vector (zeroed, sent, added: ~6 passes over 8 bytes per unknown) costs
@@ -78,6 +79,35 @@ def pairwise_sum(values: Iterable, add: Callable | None = None, levels: Iterable
     while stack:  # the carried elements, right to left
         total = add(stack.pop()[1], total)
     return total
+
+
+class AlignedPartials:
+    """Partial sums of the fixed tree over some of its runs, made where the runs are.
+
+    Runs ``(start, level, value)`` (an aligned run of ``2^level`` units from ``start``, as
+    :func:`pairwise_sum`'s ``levels`` describe them; a short last run enters at its level)
+    are pushed in the order of ``start``, not necessarily contiguous: two are added exactly
+    where the tree over all the runs adds them (contiguous, the same level, the first at a
+    multiple of ``2^(level + 1)``), the others kept apart. :attr:`partials` are then aligned
+    runs themselves, so :func:`pairwise_sum` of every holder's partials, in the order of their
+    starts, with their levels, is the sum of all the runs, bit for bit: a worker holding
+    several chunks (:mod:`~mcsweep.solver.dask_resident`) sends the driver its partials, a
+    few per worker, instead of one sum per chunk.
+    """
+
+    def __init__(self, add: Callable | None = None):
+        self.add = add or (lambda a, b: a + b)
+        self.partials: list[tuple[int, int, object]] = []
+
+    def push(self, start: int, level: int, value) -> None:
+        stack = self.partials
+        while stack:
+            s0, l0, v0 = stack[-1]
+            if not (l0 == level and s0 + (1 << level) == start and s0 % (1 << (level + 1)) == 0):
+                break
+            stack.pop()
+            value, start, level = self.add(v0, value), s0, level + 1
+        stack.append((start, level, value))
 
 
 def run_level(lo: int, hi: int) -> int:

@@ -59,7 +59,7 @@ from ..solver.cg import (MAX_RESTARTS, ChunksLost, ResidentProblem, chunk_values
                          star_arrays, typical_weights, weight_sums)
 from ..solver.dask_resident import DaskChunks, _is_loss
 from ..solver.frame import frame_from_sums
-from ..solver.reduction import pairwise_sum, run_level, share_bounds
+from ..solver.reduction import AlignedPartials, pairwise_sum, run_level, share_bounds
 from ..solver.selection import digit_counts, median
 from .global_classes import star_transits
 from .global_priors import prior_sigma_mas
@@ -154,6 +154,18 @@ def _build_chunk(spec: dict, settings: PrimarySettings, spline, true_attitude, d
     info = {"band": pairwise_sum(att_band(b) for b in blocks),
             "covered": np.flatnonzero(covered_coefficients(blocks, spline.n_coef)), "rows": rows}
     return (blocks, hs, kept), info
+
+
+def _fold_infos(starts: list, levels: list, n_coef: int, *infos) -> tuple:
+    """One worker's chunks' build results (:func:`_build_chunk`) folded: their attitude bands
+    added where the fixed tree adds them (:class:`~mcsweep.solver.reduction.AlignedPartials`),
+    the coefficients they touch, and each chunk's blocks' rows."""
+    fold = AlignedPartials()
+    covered = np.zeros(n_coef, dtype=bool)
+    for start, level, info in zip(starts, levels, infos):
+        fold.push(start, level, info["band"])
+        covered[info["covered"]] = True
+    return fold.partials, np.flatnonzero(covered), [info["rows"] for info in infos]
 
 
 def _part_columns(part: pd.DataFrame, summary: dict, lo: int, hi: int, min_fov: int) -> dict:
@@ -435,6 +447,8 @@ def prepare_on_cluster(settings: PrimarySettings, sky: SkyPartitions, client, *,
 
 
 def _prepare_once(settings, sky, client, *, chunk_stars, block_stars, with_noise) -> PreparedData:
+    from distributed import wait
+
     dead = dead_time_of(settings)
     shared = _Shared(client)
     min_fov = min_transits(settings)
@@ -500,19 +514,35 @@ def _prepare_once(settings, sky, client, *, chunk_stars, block_stars, with_noise
 
     built = [submit(ci) for ci in range(len(ranges))]
     chunk_futures = [client.submit(_first, b, pure=False) for b in built]
-    infos = client.gather([client.submit(_second, b, pure=False) for b in built])
+    infos = [client.submit(_second, b, pure=False) for b in built]
     del built, found
-    table.release_transits()  # a lost chunk searches its partitions again (rebuild)
     levels = [run_level(lo, hi) for lo, hi in ranges]
-    naa_band = pairwise_sum((i["band"] for i in infos), None, levels)
+    # each worker adds its chunks' bands where the fixed tree adds them: a few bands reach
+    # the driver, not one per chunk (the same bits, reduction.AlignedPartials)
+    wait(infos)
+    holders = client.who_has(infos)
+    groups: dict = {}
+    for ci, f in enumerate(infos):
+        groups.setdefault(min(holders.get(f.key) or [""]), []).append(ci)
+    folded = client.gather([client.submit(_fold_infos, [ranges[ci][0] for ci in cis], [levels[ci] for ci in cis],
+                                          spline.n_coef, *[infos[ci] for ci in cis], pure=False,
+                                          workers=[w] if w else None, allow_other_workers=True)
+                            for w, cis in groups.items()])
+    del infos
+    table.release_transits()  # a lost chunk searches its partitions again (rebuild)
+    partials = sorted((p for f in folded for p in f[0]), key=lambda p: p[0])
+    naa_band = pairwise_sum((p[2] for p in partials), None, [p[1] for p in partials])
     covered = np.zeros(spline.n_coef, dtype=bool)
+    rows_of = {}
+    for (_, cov, block_rows), cis in zip(folded, groups.values()):
+        covered[cov] = True
+        rows_of.update(zip(cis, block_rows))
+    del folded, partials
     spans = []
-    for (blo, bhi), info in zip(ranges, infos):
-        covered[info["covered"]] = True
-        for k, (r0, r1) in zip(range(blo, bhi), info["rows"]):
+    for ci, (blo, bhi) in enumerate(ranges):
+        for k, (r0, r1) in zip(range(blo, bhi), rows_of[ci]):
             spans.append(BlockSpan(first=k * block_stars, n=min(block_stars, n_solved - k * block_stars),
                                    rows=slice(r0, r1)))
-    del infos
     data = PreparedData(stars=None, solved=None, blocks=spans, normals=None, h=None, x_true=None,
                         spline=spline, true_attitude=true_att, t_ref_jd=settings.t_ref_jd, dead=dead,
                         covered=covered, n_rows=n_rows, naa_band=np.zeros((0, 0)) if naa_band is None else naa_band,

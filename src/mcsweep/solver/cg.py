@@ -56,8 +56,10 @@ are (in-process, a forked worker of :mod:`~mcsweep.solver.resident`, or a Dask w
 vectors and the banded Schur factor; an iteration exchanges with each chunk the step
 ``alpha``, the attitude vector ``z_a``, the six frame sums and ``beta`` one way, and two
 attitude-sized vectors and a few per-block sums (dot products, convergence numbers) the
-other, in three rounds (forward sweep with the step, back sweep, new direction). The star
-vectors reach the driver once, as the solution. Before (issue 27), the driver held them and
+other, in three rounds (forward sweep with the step, back sweep, new direction); on a Dask
+cluster each worker first adds its chunks' vectors and sums where the fixed tree adds them
+(``reduced``, :meth:`~mcsweep.solver.dask_resident.DaskChunks.reduced`), so the driver gets a
+few per worker. The star vectors reach the driver once, as the solution. Before (issue 27), the driver held them and
 sent each chunk's share of two of them every pass: 64 MiB per iteration at the paper's
 1.5e6 stars. A :class:`ResidentProblem` goes further: the per-star arrays of the problem
 itself (prior, inverses, frame weights) are made where the chunk is (:func:`star_arrays`)

@@ -3,12 +3,18 @@
 The cluster counterpart of :mod:`~mcsweep.solver.resident` (forked local workers). Each
 chunk (its blocks, its measurements and a dict of its share of the star vectors of the
 iteration) is one Dask future, made once per solution: scattered from the driver (what
-the solver and the primary experiment do today), or any future of a task that builds it
-on a worker (the interface allows it; blocks built on the workers from their seeds are
-not written yet, issue 27). Every pass then submits one task per chunk, pinned to the
-worker that holds it, which reads and updates the chunk's star vectors in place: only
-attitude-sized vectors and a few numbers per chunk are sent and come back
-(:mod:`~mcsweep.solver.cg`, "Where the vectors live").
+the solver does for a problem built in the driver, in contiguous shares of the chunks
+per worker), or any future of a task that built it on a worker (the primary experiment,
+:mod:`mcsweep.experiments.primary_cluster`). Every pass then runs the chunk task on the
+worker that holds the chunk, which reads and updates the chunk's star vectors in place:
+only attitude-sized vectors and a few numbers are sent and come back
+(:mod:`~mcsweep.solver.cg`, "Where the vectors live"). The solver's passes whose outputs
+are summed (:meth:`DaskChunks.reduced`) are one task per worker over the chunks it holds,
+which adds their outputs where the fixed tree adds them
+(:class:`~mcsweep.solver.reduction.AlignedPartials`): a few attitude-sized sums per worker
+reach the driver, not one per chunk, so what travels and what the driver holds do not grow
+with the number of chunks (issue 27); :meth:`DaskChunks.run` (one task per chunk, every
+output back) serves the others.
 
 Results are bit-identical to in-process ones: the chunk tasks are the solver's own
 functions on the same block arrays (the numba kernels sum in stored order whatever the

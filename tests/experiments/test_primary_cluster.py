@@ -207,3 +207,25 @@ def test_worker_lost_before_the_parts_are_read_solves_again(both, client, monkey
     client.wait_for_workers(2, timeout=60)
     assert len(calls) == 2  # solved again after the loss
     np.testing.assert_array_equal(ref.to_numpy(), frame.to_numpy())
+
+
+def test_knots_epochs_on_the_workers_answer_as_one_sorted_array(client, monkeypatch):
+    # With knot_transits the knots are placed by epochs that stay on the workers
+    # (primary_cluster._ClusterEpochs): counts and order statistics as of one sorted array,
+    # through buckets of time small enough here to cut the epochs many times, one of them a
+    # single bin over the bucket size (ties).
+    from mcsweep.experiments import primary_cluster as PC
+
+    rng = np.random.default_rng(5)
+    pieces = [np.sort(np.concatenate([rng.uniform(10.0, 20.0, n), np.full(300, 12.5)]))
+              for n in (700, 0, 1500, 40)]
+    whole = np.sort(np.concatenate(pieces))
+    monkeypatch.setattr(PC._ClusterEpochs, "BUCKET", 200)
+    monkeypatch.setattr(PC._ClusterEpochs, "BINS", 64)
+    epochs = PC._ClusterEpochs(client, [client.submit(_frame, p, pure=False) for p in pieces], 10.0, 20.0)
+    assert epochs.size == whole.size
+    x = np.array([9.0, 10.5, 12.5, 12.5 + 1e-12, 19.99, 21.0])
+    for side in ("left", "right"):
+        np.testing.assert_array_equal(epochs.searchsorted(x, side), np.searchsorted(whole, x, side))
+    ranks = np.array([0, 1, 199, 200, 201, 1000, 1234, whole.size - 1, 1000])
+    np.testing.assert_array_equal(epochs.values(ranks), whole[ranks])

@@ -460,11 +460,14 @@ def star_sigmas(settings: PrimarySettings, stars: pd.DataFrame, solved: np.ndarr
 
 def attitude_spline(settings: PrimarySettings, dead: DeadTime, epochs=None) -> AttitudeSpline:
     """The solver's spline: segments between the gaps, as AGIS; with ``knot_transits`` its knots
-    placed by ``epochs``, the solution's live FoV transits (not needed otherwise)."""
+    placed by ``epochs``, the solution's live FoV transits (not needed otherwise): an array,
+    or an object answering :class:`~mcsweep.solver.attitude_spline.SortedEpochs`' questions
+    (the epochs on a cluster's workers, :mod:`~.primary_cluster`)."""
     gaps = (dead.starts, dead.stops)
     if settings.knot_transits is None:
         return AttitudeSpline(settings.start_jd, settings.end_jd, settings.knot_interval_days, gaps=gaps)
-    epochs = np.asarray(epochs, dtype=float)
+    if isinstance(epochs, (np.ndarray, list, tuple)):
+        epochs = np.asarray(epochs, dtype=float)
     return AttitudeSpline(settings.start_jd, settings.end_jd, knot_interval_days(settings, epochs.size, dead),
                           gaps=gaps, epochs=epochs, transits_per_knot=settings.knot_transits)
 

@@ -47,7 +47,7 @@ import math
 import numpy as np
 from scipy.interpolate import BSpline
 
-__all__ = ["AttitudeSpline", "DEGREE", "live_segments"]
+__all__ = ["AttitudeSpline", "DEGREE", "SortedEpochs", "live_segments", "quantiles_from_neighbours"]
 
 #: Cubic splines, as AGIS (Lindegren et al. 2012, Sect. 3.3).
 DEGREE = 3
@@ -84,7 +84,56 @@ def live_segments(start_jd: float, end_jd: float, gap_starts=(), gap_stops=(), *
     return np.array(bounds, dtype=float).reshape(-1, 2)
 
 
-def _merge_sparse_segments(segments: np.ndarray, sorted_epochs: np.ndarray, per_knot: float) -> np.ndarray:
+class SortedEpochs:
+    """The epochs the knots are placed by (``transits_per_knot``), in ascending order: all
+    :class:`AttitudeSpline` asks of them is how many lie below given times and the values at
+    given ranks. Here one sorted array; epochs spread over a cluster's workers answer the
+    same questions without meeting in one process
+    (:mod:`mcsweep.experiments.primary_cluster`), so the knots are the same bits."""
+
+    def __init__(self, epochs):
+        self.t = np.sort(np.asarray(epochs, dtype=float).ravel())
+
+    @property
+    def size(self) -> int:
+        return int(self.t.size)
+
+    def searchsorted(self, x, side: str) -> np.ndarray:
+        """:func:`numpy.searchsorted` of times ``x`` in the sorted epochs."""
+        return np.searchsorted(self.t, x, side)
+
+    def values(self, ranks) -> np.ndarray:
+        """The epochs of ``ranks`` (0-based, ascending order)."""
+        return self.t[np.asarray(ranks, dtype=np.int64)]
+
+
+def _sorted(epochs) -> "SortedEpochs":
+    """``epochs`` as :class:`SortedEpochs` asks them (an array is sorted; an object answering
+    its questions, :meth:`SortedEpochs.values` included, is used as it is)."""
+    return epochs if hasattr(epochs, "values") and not isinstance(epochs, np.ndarray) else SortedEpochs(epochs)
+
+
+def _quantile_ranks(n: int, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The two neighbouring ranks and the weight of :func:`numpy.quantile`'s 'linear' method
+    for quantiles ``q`` of ``n`` sorted values (its virtual index, bounds and gamma)."""
+    virtual = (n - 1) * q
+    prev = np.floor(virtual)
+    nxt = prev + 1
+    above, below = virtual >= n - 1, virtual < 0
+    prev[above], nxt[above] = n - 1, n - 1
+    prev[below], nxt[below] = 0, 0
+    gamma = virtual - np.where(above, -1, prev)  # numpy's gamma (its 'above' index is -1)
+    return prev.astype(np.int64), nxt.astype(np.int64), gamma
+
+
+def quantiles_from_neighbours(lower, upper, gamma) -> np.ndarray:
+    """numpy's two-sided linear interpolation between neighbouring order statistics."""
+    a, b = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
+    diff = b - a
+    return np.where(gamma >= 0.5, b - diff * (1 - gamma), a + diff * gamma)
+
+
+def _merge_sparse_segments(segments: np.ndarray, sorted_epochs: "SortedEpochs", per_knot: float) -> np.ndarray:
     """Segments joined across their gaps until each holds at least ``per_knot`` epochs.
 
     A segment needs one knot interval (4 coefficients per axis) however little data it
@@ -99,8 +148,9 @@ def _merge_sparse_segments(segments: np.ndarray, sorted_epochs: np.ndarray, per_
     no dead-time segment is that sparse.
     """
     segs = [list(s) for s in segments]
-    counts = list(np.searchsorted(sorted_epochs, segments[:, 1], "right")
-                  - np.searchsorted(sorted_epochs, segments[:, 0], "left"))
+    sorted_epochs = _sorted(sorted_epochs)
+    counts = list(sorted_epochs.searchsorted(segments[:, 1], "right")
+                  - sorted_epochs.searchsorted(segments[:, 0], "left"))
     while len(segs) > 1 and min(counts) < per_knot:  # a loop over segments (hundreds), not data
         i = int(np.argmin(counts))
         left = segs[i][0] - segs[i - 1][1] if i > 0 else np.inf
@@ -132,7 +182,8 @@ class AttitudeSpline:
         Measured (1950 stars, one year, 24 h knots, 6 h dead blocks): split at every gap,
         the attitude error was ~20 times that of the bridged spline.
     epochs, transits_per_knot : optional, keyword-only
-        Knots placed by the data (module notes): the FoV transit epochs [TCB JD] and how
+        Knots placed by the data (module notes): the FoV transit epochs [TCB JD] (an array, or
+        a :class:`SortedEpochs`-like object answering its questions) and how
         many of them each knot interval holds (``knot_interval_days`` then only sets
         ``min_gap_days``' default; give the mean interval). A segment with fewer than
         ``transits_per_knot`` epochs is first joined to a neighbour across the shorter gap
@@ -159,7 +210,7 @@ class AttitudeSpline:
                 raise ValueError("the gaps cover the whole interval: no attitude segment")
             n_ints = [max(1, math.ceil((b - a) / knot_interval_days - 1e-9)) for a, b in self.segments]
         if transits_per_knot is not None:
-            inners = self._data_knots(np.asarray(epochs, dtype=float).ravel(), float(transits_per_knot))
+            inners = self._data_knots(epochs, float(transits_per_knot))
             n_ints = [k.size - 1 for k in inners]
         else:
             inners = [np.linspace(a, b, n + 1) for (a, b), n in zip(self.segments, n_ints)]
@@ -171,26 +222,45 @@ class AttitudeSpline:
         self.n_coef = int(self.segment_first[-1])
         self.segment_first = self.segment_first[:-1]
 
-    def _data_knots(self, epochs: np.ndarray, per_knot: float) -> list:
-        """Per segment: its ends and inner knots at equal counts of ``epochs`` in between."""
+    def _data_knots(self, epochs, per_knot: float) -> list:
+        """Per segment: its ends and inner knots at equal counts of ``epochs`` in between
+        (:func:`numpy.quantile` of the segment's epochs, from the order statistics it needs)."""
         if not per_knot >= 1:
             raise ValueError(f"transits_per_knot must be >= 1, got {per_knot}")
-        t = np.sort(epochs)
-        self.segments = _merge_sparse_segments(self.segments, t, per_knot)
+        epochs = _sorted(epochs)
+        self.segments = _merge_sparse_segments(self.segments, epochs, per_knot)
+        lo = epochs.searchsorted(self.segments[:, 0], "left")
+        hi = epochs.searchsorted(self.segments[:, 1], "right")
+        # one request for every order statistic: each segment's first and last epoch and the
+        # neighbours of its quantiles (a loop over segments, each a vector operation)
+        plans, ranks = [], []
+        for i0, i1 in zip(lo.tolist(), hi.tolist()):
+            n = i1 - i0
+            n_int = max(1, int(round(n / per_knot)))
+            q = np.arange(1, n_int) / n_int
+            prev, nxt, gamma = _quantile_ranks(n, q) if n else (np.zeros(0, np.int64),) * 2 + (np.zeros(0),)
+            plans.append((n, len(ranks), gamma, prev.size))
+            if n:
+                ranks.extend([i0, i1 - 1])
+                ranks.extend((i0 + prev).tolist())
+                ranks.extend((i0 + nxt).tolist())
+        values = epochs.values(np.array(ranks, dtype=np.int64)) if ranks else np.zeros(0)
         out = []
-        for i, (a, b) in enumerate(self.segments):  # a loop over segments, each a vector operation
-            ts = t[np.searchsorted(t, a, "left"):np.searchsorted(t, b, "right")]
-            if ts.size and ts[-1] > ts[0]:
-                # The segment shrinks to its data: a clamped end coefficient is the attitude
-                # at the segment's end, which a stretch without transits there (the scan
-                # crossing a sparse part of the sky before a gap) would leave nearly free.
-                # Measured (primary experiment, 3 x 3000 stars of G ~ 19, 25 transits per
-                # knot): such an end coefficient had 1e-4 of a typical one's information and
-                # the largest remaining error; 119 -> 112 PCG iterations; no change at 3 x 10000.
-                a, b = ts[0], ts[-1]
-                self.segments[i] = (a, b)
-            n_int = max(1, int(round(ts.size / per_knot)))
-            inner = np.quantile(ts, np.arange(1, n_int) / n_int) if ts.size else np.zeros(0)
+        for i, (n, at, gamma, k) in enumerate(plans):
+            a, b = self.segments[i]
+            inner = np.zeros(0)
+            if n:
+                first, last = values[at], values[at + 1]
+                if last > first:
+                    # The segment shrinks to its data: a clamped end coefficient is the attitude
+                    # at the segment's end, which a stretch without transits there (the scan
+                    # crossing a sparse part of the sky before a gap) would leave nearly free.
+                    # Measured (primary experiment, 3 x 3000 stars of G ~ 19, 25 transits per
+                    # knot): such an end coefficient had 1e-4 of a typical one's information and
+                    # the largest remaining error; 119 -> 112 PCG iterations; no change at 3 x 10000.
+                    a, b = first, last
+                    self.segments[i] = (a, b)
+                inner = quantiles_from_neighbours(values[at + 2:at + 2 + k], values[at + 2 + k:at + 2 + 2 * k], gamma)
             knots = np.unique(np.concatenate([[a], inner[(inner > a) & (inner < b)], [b]]))
             out.append(knots)
         return out

@@ -31,7 +31,8 @@ def client(dask_local_client):
 def both(client):
     """(settings, data built in the driver, data built on the cluster) with noise, knots placed
     by the data and AL-only measurements off (AL + AC, the default)."""
-    from mcsweep.experiments.primary_cluster import prepare_on_cluster, table_partitions
+    from mcsweep.experiments.primary_cluster import prepare_on_cluster
+    from mcsweep.experiments.primary_sky import table_partitions
 
     config, _ = _config(["experiment.primary.knot_transits=25", "experiment.primary.solver_max_iter=15",
                          "experiment.primary.allow_unconverged=true"])
@@ -211,18 +212,18 @@ def test_worker_lost_before_the_parts_are_read_solves_again(both, client, monkey
 
 def test_knots_epochs_on_the_workers_answer_as_one_sorted_array(client, monkeypatch):
     # With knot_transits the knots are placed by epochs that stay on the workers
-    # (primary_cluster._ClusterEpochs): counts and order statistics as of one sorted array,
+    # (primary_knots.ClusterEpochs): counts and order statistics as of one sorted array,
     # through buckets of time small enough here to cut the epochs many times, one of them a
     # single bin over the bucket size (ties).
-    from mcsweep.experiments import primary_cluster as PC
+    from mcsweep.experiments.primary_knots import ClusterEpochs
 
     rng = np.random.default_rng(5)
     pieces = [np.sort(np.concatenate([rng.uniform(10.0, 20.0, n), np.full(300, 12.5)]))
               for n in (700, 0, 1500, 40)]
     whole = np.sort(np.concatenate(pieces))
-    monkeypatch.setattr(PC._ClusterEpochs, "BUCKET", 200)
-    monkeypatch.setattr(PC._ClusterEpochs, "BINS", 64)
-    epochs = PC._ClusterEpochs(client, [client.submit(_frame, p, pure=False) for p in pieces], 10.0, 20.0)
+    monkeypatch.setattr(ClusterEpochs, "BUCKET", 200)
+    monkeypatch.setattr(ClusterEpochs, "BINS", 64)
+    epochs = ClusterEpochs(client, [client.submit(_frame, p, pure=False) for p in pieces], 10.0, 20.0)
     assert epochs.size == whole.size
     x = np.array([9.0, 10.5, 12.5, 12.5 + 1e-12, 19.99, 21.0])
     for side in ("left", "right"):

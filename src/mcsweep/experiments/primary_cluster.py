@@ -45,7 +45,6 @@ mid-solve); a loss while the parts are written solves the prior again (same bits
 from __future__ import annotations
 
 import dataclasses
-import operator
 import time
 from typing import Callable
 
@@ -67,10 +66,11 @@ from .global_priors import prior_sigma_mas
 from .primary import (NOISE_STREAM, BlockJob, PreparedData, PrimarySettings, _true_attitude, attitude_spline,
                       block_frame_sums, block_outcome, block_transits, build_block, covered_coefficients,
                       dead_time_of, measurements_per_star, min_transits, stream_seed, transit_summary)
+from .primary_knots import ClusterEpochs, live_epochs
 from .primary_results import StarParts, results_frame
 from .primary_sky import SkyPartitions, alive
 
-__all__ = ["prepare_on_cluster", "solve_on_cluster", "table_partitions"]
+__all__ = ["prepare_on_cluster", "solve_on_cluster"]
 
 
 # --------------------------------------------------------------------------- tasks on the partitions
@@ -89,81 +89,6 @@ def _digest(summary: dict, min_fov: int) -> dict:
     """What the driver needs of a partition: its solved stars and their live FoV transits."""
     solvable = summary["n_fov"] >= min_fov
     return {"n_solved": int(np.count_nonzero(solvable)), "n_fov": int(summary["n_fov"][solvable].sum())}
-
-
-def _live_epochs(summary: dict, transits: dict, dead, first: int, min_fov: int) -> np.ndarray:
-    """The live epochs of a partition's solved stars, sorted (the knots' data, ``knot_transits``)."""
-    solvable = summary["n_fov"] >= min_fov
-    live = ~dead.is_dead(transits["t"])
-    return np.sort(transits["t"][live & solvable[transits["star"] - first]])
-
-
-def _count_below(epochs: np.ndarray, x: np.ndarray, side: str) -> np.ndarray:
-    return np.searchsorted(epochs, x, side)
-
-
-def _bin_counts(epochs: np.ndarray, edges: np.ndarray) -> np.ndarray:
-    return np.bincount(np.searchsorted(edges, epochs, "right") - 1, minlength=edges.size - 1)
-
-
-def _split_epochs(epochs: np.ndarray, edges: np.ndarray) -> list:
-    cuts = np.searchsorted(epochs, edges, "left")
-    return [epochs[a:b] for a, b in zip(cuts[:-1], cuts[1:])]
-
-
-def _bucket_values(local_ranks: np.ndarray, *pieces) -> np.ndarray:
-    return np.sort(np.concatenate(pieces))[local_ranks]
-
-
-class _ClusterEpochs:
-    """The knots' epochs (``knot_transits``) sorted per partition on the workers, answering
-    :class:`~mcsweep.solver.attitude_spline.SortedEpochs`' questions without meeting in one
-    process: counts below a time are sums over the partitions; values at ranks come from
-    buckets of time of at most :attr:`BUCKET` epochs (cut at bins whose counts the partitions
-    give), each sorted on one worker, which returns only the wanted ranks' values. The driver
-    holds the bins' counts and the ranks: the knots' size, not the transits'."""
-
-    BINS = 4096
-    BUCKET = 1_000_000
-
-    def __init__(self, client, futures: list, start_jd: float, end_jd: float):
-        self.client, self.futures = client, futures
-        inner = np.linspace(start_jd, end_jd, self.BINS + 1)[1:-1]
-        self.edges = np.concatenate([[-np.inf], inner, [np.inf]])
-        self.counts = sum(client.gather([client.submit(_bin_counts, f, self.edges, pure=False) for f in futures]),
-                          np.zeros(self.BINS, dtype=np.int64))
-
-    @property
-    def size(self) -> int:
-        return int(self.counts.sum())
-
-    def searchsorted(self, x, side: str) -> np.ndarray:
-        x = np.asarray(x, dtype=float)
-        return sum(self.client.gather([self.client.submit(_count_below, f, x, side, pure=False) for f in self.futures]),
-                   np.zeros(x.shape, dtype=np.int64))
-
-    def values(self, ranks) -> np.ndarray:
-        ranks = np.asarray(ranks, dtype=np.int64)
-        client = self.client
-        bounds, total = [0], 0  # buckets of consecutive bins (a bin over BUCKET: a bucket of its own)
-        for i, c in enumerate(self.counts.tolist()):
-            if total and total + c > self.BUCKET:
-                bounds.append(i)
-                total = 0
-            total += c
-        bounds.append(self.BINS)
-        first_rank = np.concatenate([[0], np.cumsum(self.counts)])[bounds]
-        bucket = np.searchsorted(first_rank, ranks, "right") - 1
-        wanted = np.unique(bucket)
-        edges = self.edges[bounds]
-        splits = [client.submit(_split_epochs, f, edges, pure=False) for f in self.futures]
-        tasks = {int(k): client.submit(_bucket_values, ranks[bucket == k] - first_rank[k],
-                                       *[client.submit(operator.getitem, s, int(k), pure=False) for s in splits],
-                                       pure=False) for k in wanted}
-        out = np.empty(ranks.size)
-        for k, fut in tasks.items():
-            out[bucket == k] = fut.result()
-        return out
 
 
 def _block_counts(summary: dict, part: pd.DataFrame, offset: int, block_stars: int, noise, min_fov: int) -> tuple:
@@ -434,28 +359,6 @@ def _second(pair):
     return pair[1]
 
 
-def _frame_part(frame: pd.DataFrame) -> pd.DataFrame:
-    return frame
-
-
-def table_partitions(client, stars: pd.DataFrame, target: int) -> SkyPartitions:
-    """A table of stars the driver holds (columns :data:`~.global_classes.STAR_COLUMNS` and
-    ``class_key``), in its own order, as partitions of ``target`` stars on the cluster: each
-    part sent inside its task (so a lost one is made again from the graph), for tests and
-    small tables; a run's classes are drawn and put in sky order on the workers
-    (:func:`~.primary_sky.sky_partitions`)."""
-    n = len(stars)
-    bounds = list(range(0, n, max(int(target), 1))) + [n]
-    pieces = [stars.iloc[a:b].reset_index(drop=True) for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
-
-    def make() -> list:
-        return [client.submit(_frame_part, piece, pure=False) for piece in pieces]
-
-    sizes = np.array([len(piece) for piece in pieces], dtype=np.int64)
-    return SkyPartitions(futures=make(), first=np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64),
-                         sizes=sizes, remake=make)
-
-
 class _Table:
     """The table of stars on the cluster and each partition's per-star transit summary
     (:func:`_summary`), made again after a loss: the partitions from their classes
@@ -544,7 +447,7 @@ def _prepare_once(settings, sky, client, *, chunk_stars, block_stars, with_noise
     del digests
     epochs = None
     if knots_by_data:  # placed by the epochs where they are (the knots come back, not the epochs)
-        epochs = _ClusterEpochs(client, [client.submit(_live_epochs, summaries[p], found[p], shared("dead", dead),
+        epochs = ClusterEpochs(client, [client.submit(live_epochs, summaries[p], found[p], shared("dead", dead),
                                                        int(sky.first[p]), min_fov, pure=False)
                                          for p in range(n_parts)], settings.start_jd, settings.end_jd)
     spline = attitude_spline(settings, dead, epochs)

@@ -32,7 +32,7 @@ import pandas as pd
 
 from .global_classes import SKY_ORDER_LEVEL, class_table, sky_pixels
 
-__all__ = ["COARSE_LEVEL", "SkyPartitions", "alive", "sky_partitions"]
+__all__ = ["COARSE_LEVEL", "SkyPartitions", "alive", "sky_partitions", "table_partitions"]
 
 #: HEALPix level of the counts by which the sky is cut into partitions: 49152 pixels of
 #: 0.84 square degrees, fine enough for partitions of a few thousand stars anywhere.
@@ -143,3 +143,25 @@ def sky_partitions(client, classes: Sequence[tuple[int, Callable]], target: int)
     futures = build(keyed)
     del keyed
     return SkyPartitions(futures=futures, first=first, sizes=sizes[keep], remake=remake), caught
+
+
+def _frame_part(frame: pd.DataFrame) -> pd.DataFrame:
+    return frame
+
+
+def table_partitions(client, stars: pd.DataFrame, target: int) -> SkyPartitions:
+    """A table of stars the driver holds (columns :data:`~.global_classes.STAR_COLUMNS` and
+    ``class_key``), in its own order, as partitions of ``target`` stars on the cluster: each
+    part sent inside its task (so a lost one is made again from the graph), for tests and
+    small tables; a run's classes are drawn and put in sky order on the workers
+    (:func:`sky_partitions`)."""
+    n = len(stars)
+    bounds = list(range(0, n, max(int(target), 1))) + [n]
+    pieces = [stars.iloc[a:b].reset_index(drop=True) for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
+
+    def make() -> list:
+        return [client.submit(_frame_part, piece, pure=False) for piece in pieces]
+
+    sizes = np.array([len(piece) for piece in pieces], dtype=np.int64)
+    return SkyPartitions(futures=make(), first=np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64),
+                         sizes=sizes, remake=make)

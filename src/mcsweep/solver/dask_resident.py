@@ -239,7 +239,6 @@ class DaskChunks:
         A lost worker takes the chunk states it held: its chunks are sent again (``rebuild``)
         and :class:`~mcsweep.solver.cg.ChunksLost` is raised, so the solution restarts.
         """
-        from .cg import ChunksLost
 
         items = [(item[0], tuple(item[1:])) for item in items]
         counts: dict[int, int] = {}
@@ -260,30 +259,39 @@ class DaskChunks:
                     for (ci, _), a in zip(items, args)]
             out = self.client.gather(futs)
         except Exception as exc:
-            # A worker lost mid-pass: a scatter to it or a task needing its data fails, before
-            # or after the scheduler marks its data lost. Give the scheduler a moment, send the
-            # lost chunks again and have the solution restart. An error of ``fn`` itself is
-            # raised at once.
-            if not (self._lost() or _is_loss(exc)):
-                raise
-            time.sleep(1.0)
-            lost = self._lost()
-            if lost and self.rebuild is None:
-                raise
-            for ci in lost:
-                self.futures[ci] = self.rebuild(ci)
-            self.repeated += 1
-            self._previous = {}  # the kept vectors may have gone with the worker
-            self._homes = {}
-            raise ChunksLost(f"{len(lost)} chunk(s) lost with a worker: sent again") from exc
+            self._after_failure(exc)
+        self._tally(getattr(fn, "__name__", "task"), sent, out)
+        return iter(out)
+
+    def _after_failure(self, exc: Exception):
+        """A pass failed. A worker lost mid-pass: a scatter to it or a task needing its data
+        fails, before or after the scheduler marks its data lost. Give the scheduler a moment,
+        send the lost chunks again and have the solution restart (raises ChunksLost). An error
+        of the task itself is raised at once."""
+        from .cg import ChunksLost
+
+        if not (self._lost() or _is_loss(exc)):
+            raise exc
+        time.sleep(1.0)
+        lost = self._lost()
+        if lost and self.rebuild is None:
+            raise exc
+        for ci in lost:
+            self.futures[ci] = self.rebuild(ci)
+        self.repeated += 1
+        self._previous = {}  # the kept vectors may have gone with the worker
+        self._homes = {}
+        raise ChunksLost(f"{len(lost)} chunk(s) lost with a worker: sent again") from exc
+
+    def _tally(self, name: str, sent: dict, out: list) -> None:
+        """A pass done: what it sent is kept for the next, and its bytes are counted."""
         self._previous = sent
         self.passes += 1
         received = sum(_nbytes(r) for r in out)
         self.bytes_received += received
-        tally = self.bytes_by_task.setdefault(getattr(fn, "__name__", "task"), [0, 0])
+        tally = self.bytes_by_task.setdefault(name, [0, 0])
         tally[0] += self._pass_sent
         tally[1] += received
-        return iter(out)
 
     def reduced(self, fn: Callable, items, specs: Sequence[tuple], *, fresh: bool = True) -> list:
         """The outputs of ``fn`` over the chunks of ``items`` ``(ci, *rest)`` (as :meth:`run`),
@@ -298,7 +306,7 @@ class DaskChunks:
         arrays copied (:func:`~mcsweep.solver.cg._fresh`; not needed for sums only added
         element by element). Losses as in :meth:`run`.
         """
-        from .cg import ChunksLost, _fresh
+        from .cg import _fresh
 
         items = [(item[0], tuple(item[1:])) for item in items]
         counts: dict[int, int] = {}
@@ -325,25 +333,8 @@ class DaskChunks:
                     key=f"{name}-w{w}-{tag}", pure=False))
             out = self.client.gather(futs)
         except Exception as exc:
-            if not (self._lost() or _is_loss(exc)):
-                raise
-            time.sleep(1.0)
-            lost = self._lost()
-            if lost and self.rebuild is None:
-                raise
-            for ci in lost:
-                self.futures[ci] = self.rebuild(ci)
-            self.repeated += 1
-            self._previous = {}
-            self._homes = {}
-            raise ChunksLost(f"{len(lost)} chunk(s) lost with a worker: sent again") from exc
-        self._previous = sent
-        self.passes += 1
-        received = sum(_nbytes(r) for r in out)
-        self.bytes_received += received
-        tally = self.bytes_by_task.setdefault(name, [0, 0])
-        tally[0] += self._pass_sent
-        tally[1] += received
+            self._after_failure(exc)
+        self._tally(name, sent, out)
         result = []
         for k, spec in enumerate(specs):
             if spec[0] == "tree":

@@ -240,13 +240,7 @@ class DaskChunks:
         and :class:`~mcsweep.solver.cg.ChunksLost` is raised, so the solution restarts.
         """
 
-        items = [(item[0], tuple(item[1:])) for item in items]
-        counts: dict[int, int] = {}
-        for _, rest in items:
-            for obj in rest:
-                counts[id(obj)] = counts.get(id(obj), 0) + 1
-        sent: dict[int, tuple] = {}
-        self._pass_sent = 0
+        items, counts, sent = self._start_pass(items)
         try:
             args = [tuple(self._send(o, None if counts[id(o)] > 1 else ci, sent) if _scattered(o)
                           else self._inline(o) for o in rest) for ci, rest in items]
@@ -262,6 +256,17 @@ class DaskChunks:
             self._after_failure(exc)
         self._tally(getattr(fn, "__name__", "task"), sent, out)
         return iter(out)
+
+    def _start_pass(self, items) -> tuple[list, dict, dict]:
+        """A pass's items as ``(ci, rest)``, how many items hold each argument (one held by
+        several is sent to every worker once), and the record of what is sent."""
+        items = [(item[0], tuple(item[1:])) for item in items]
+        counts: dict[int, int] = {}
+        for _, rest in items:
+            for obj in rest:
+                counts[id(obj)] = counts.get(id(obj), 0) + 1
+        self._pass_sent = 0
+        return items, counts, {}
 
     def _after_failure(self, exc: Exception):
         """A pass failed. A worker lost mid-pass: a scatter to it or a task needing its data
@@ -308,13 +313,7 @@ class DaskChunks:
         """
         from .cg import _fresh
 
-        items = [(item[0], tuple(item[1:])) for item in items]
-        counts: dict[int, int] = {}
-        for _, rest in items:
-            for obj in rest:
-                counts[id(obj)] = counts.get(id(obj), 0) + 1
-        sent: dict[int, tuple] = {}
-        self._pass_sent = 0
+        items, counts, sent = self._start_pass(items)
         name = getattr(fn, "__name__", "task")
         try:
             groups: dict[str, list] = {}

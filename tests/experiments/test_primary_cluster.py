@@ -50,6 +50,90 @@ def both(client):
     return settings, local, remote
 
 
+def _frame(df):
+    return df
+
+
+def test_sky_partitions_are_the_driver_sort(client):
+    # The classes put in sky order on the workers (primary_sky): the rows of the driver's sort
+    # of the whole table (global_classes.sky_order), bit for bit, with stars sharing a pixel
+    # within and across classes (the stable order decides their rows), in partitions that
+    # cut the classes' pixel ranges; made again after a loss, the same frames.
+    import functools
+
+    import pandas as pd
+
+    from mcsweep.experiments.global_classes import class_table, sky_order
+    from mcsweep.experiments.primary_sky import sky_partitions
+
+    frames = []
+    for i, key in enumerate((1100, 1500, 1900)):
+        df = _synthetic_stars(3000, 20 + i).drop(columns="class_key")
+        df.loc[:199, ["ra", "dec"]] = _synthetic_stars(200, 99)[["ra", "dec"]].to_numpy()  # shared positions
+        df.loc[200:299, ["ra", "dec"]] = df.loc[:99, ["ra", "dec"]].to_numpy()  # and within the class
+        frames.append((key, df))
+    whole = pd.concat([class_table(df, key) for key, df in frames], ignore_index=True)
+    expected = whole.iloc[sky_order(whole["ra"].to_numpy(), whole["dec"].to_numpy())].reset_index(drop=True)
+    sky, caught = sky_partitions(client, [(key, functools.partial(client.submit, _frame, df, pure=False))
+                                          for key, df in frames], 700)
+    assert caught == [] and len(sky) >= 10 and sky.n_stars == len(whole)
+    got = client.gather(sky.futures)
+    assert [len(g) for g in got] == sky.sizes.tolist()
+    np.testing.assert_array_equal(sky.first, np.concatenate([[0], np.cumsum(sky.sizes)[:-1]]))
+    pd.testing.assert_frame_equal(pd.concat(got, ignore_index=True), expected, check_exact=True)
+    again = pd.concat(client.gather(sky.remake()), ignore_index=True)
+    pd.testing.assert_frame_equal(again, expected, check_exact=True)
+
+
+def test_knots_epochs_on_the_workers_answer_as_one_sorted_array(client, monkeypatch):
+    # With knot_transits the knots are placed by epochs that stay on the workers
+    # (primary_knots.ClusterEpochs): counts and order statistics as of one sorted array,
+    # through buckets of time small enough here to cut the epochs many times, one of them a
+    # single bin over the bucket size (ties).
+    from mcsweep.experiments.primary_knots import ClusterEpochs
+
+    rng = np.random.default_rng(5)
+    pieces = [np.sort(np.concatenate([rng.uniform(10.0, 20.0, n), np.full(300, 12.5)]))
+              for n in (700, 0, 1500, 40)]
+    whole = np.sort(np.concatenate(pieces))
+    monkeypatch.setattr(ClusterEpochs, "BUCKET", 200)
+    monkeypatch.setattr(ClusterEpochs, "BINS", 64)
+    epochs = ClusterEpochs(client, [client.submit(_frame, p, pure=False) for p in pieces], 10.0, 20.0)
+    assert epochs.size == whole.size
+    x = np.array([9.0, 10.5, 12.5, 12.5 + 1e-12, 19.99, 21.0])
+    for side in ("left", "right"):
+        np.testing.assert_array_equal(epochs.searchsorted(x, side), np.searchsorted(whole, x, side))
+    ranks = np.array([0, 1, 199, 200, 201, 1000, 1234, whole.size - 1, 1000])
+    np.testing.assert_array_equal(epochs.values(ranks), whole[ranks])
+
+
+def test_outcome_lost_before_the_parts_are_read_solves_again(both, client, monkeypatch):
+    # The per-star results are gathered part by part after the solution: a loss met there
+    # (the stars' outcome went with a worker: ChunksLost, as DaskChunks raises it after
+    # rebuilding the chunks; here raised once in place of a worker's death) solves the prior
+    # again; the same bits.
+    from mcsweep.experiments import primary_cluster as PC
+    from mcsweep.solver.cg import ChunksLost
+
+    settings, local, remote = both
+    ref = P.solve_prior(settings, local, "F90").results.frame()
+    real_solve, solves = PC.solve_global, []
+    monkeypatch.setattr(PC, "solve_global", lambda *a, **k: solves.append(1) or real_solve(*a, **k))
+    real_values, lost = PC.chunk_values, []
+
+    def once_lost(run, fn, items):
+        if fn is PC._outcome_slice and not lost:
+            lost.append(1)
+            raise ChunksLost("lost (simulated)")
+        return real_values(run, fn, items)
+
+    monkeypatch.setattr(PC, "chunk_values", once_lost)
+    got = P.solve_prior(settings, remote, "F90", dask_client=client, chunk_stars=2 * BLOCK)
+    frame = got.results.frame()
+    assert lost and len(solves) == 2  # solved again after the loss
+    np.testing.assert_array_equal(ref.to_numpy(), frame.to_numpy())
+
+
 def test_cluster_built_data_are_the_driver_built_bits(both, client):
     settings, local, remote = both
     assert remote.on_cluster and remote.h is None and not local.on_cluster
@@ -152,81 +236,3 @@ def test_worker_lost_after_the_solution_restarts_it(both, client, monkeypatch):
     np.testing.assert_array_equal(ref[0].frame().to_numpy(), got[0].frame().to_numpy())
     np.testing.assert_array_equal(ref[3].to_numpy(), got[3].to_numpy())
     assert ref[2]["attitude_rms_uas"] == got[2]["attitude_rms_uas"]
-
-
-def _frame(df):
-    return df
-
-
-def test_sky_partitions_are_the_driver_sort(client):
-    # The classes put in sky order on the workers (primary_sky): the rows of the driver's sort
-    # of the whole table (global_classes.sky_order), bit for bit, with stars sharing a pixel
-    # within and across classes (the stable order decides their rows), in partitions that
-    # cut the classes' pixel ranges; made again after a loss, the same frames.
-    import functools
-
-    import pandas as pd
-
-    from mcsweep.experiments.global_classes import class_table, sky_order
-    from mcsweep.experiments.primary_sky import sky_partitions
-
-    frames = []
-    for i, key in enumerate((1100, 1500, 1900)):
-        df = _synthetic_stars(3000, 20 + i).drop(columns="class_key")
-        df.loc[:199, ["ra", "dec"]] = _synthetic_stars(200, 99)[["ra", "dec"]].to_numpy()  # shared positions
-        df.loc[200:299, ["ra", "dec"]] = df.loc[:99, ["ra", "dec"]].to_numpy()  # and within the class
-        frames.append((key, df))
-    whole = pd.concat([class_table(df, key) for key, df in frames], ignore_index=True)
-    expected = whole.iloc[sky_order(whole["ra"].to_numpy(), whole["dec"].to_numpy())].reset_index(drop=True)
-    sky, caught = sky_partitions(client, [(key, functools.partial(client.submit, _frame, df, pure=False))
-                                          for key, df in frames], 700)
-    assert caught == [] and len(sky) >= 10 and sky.n_stars == len(whole)
-    got = client.gather(sky.futures)
-    assert [len(g) for g in got] == sky.sizes.tolist()
-    np.testing.assert_array_equal(sky.first, np.concatenate([[0], np.cumsum(sky.sizes)[:-1]]))
-    pd.testing.assert_frame_equal(pd.concat(got, ignore_index=True), expected, check_exact=True)
-    again = pd.concat(client.gather(sky.remake()), ignore_index=True)
-    pd.testing.assert_frame_equal(again, expected, check_exact=True)
-
-
-def test_worker_lost_before_the_parts_are_read_solves_again(both, client, monkeypatch):
-    # The per-star results are gathered part by part after the solution: a worker lost in
-    # between took the outcome of its stars, so the prior is solved again; the same bits.
-    import os
-    import signal
-
-    from mcsweep.experiments import primary_cluster as PC
-
-    settings, local, remote = both
-    ref = P.solve_prior(settings, local, "F90").results.frame()
-    # (the worker the previous test killed is back: its nanny restarts it, slowly on a busy machine)
-    client.wait_for_workers(2, timeout=180)
-    real, calls = PC.solve_global, []
-    monkeypatch.setattr(PC, "solve_global", lambda *a, **k: calls.append(1) or real(*a, **k))
-    got = P.solve_prior(settings, remote, "F90", dask_client=client, chunk_stars=2 * BLOCK)
-    os.kill(sorted(client.run(os.getpid).values())[0], signal.SIGKILL)
-    frame = got.results.frame()  # (the tests after this one need any worker, not both)
-    assert len(calls) == 2  # solved again after the loss
-    np.testing.assert_array_equal(ref.to_numpy(), frame.to_numpy())
-
-
-def test_knots_epochs_on_the_workers_answer_as_one_sorted_array(client, monkeypatch):
-    # With knot_transits the knots are placed by epochs that stay on the workers
-    # (primary_knots.ClusterEpochs): counts and order statistics as of one sorted array,
-    # through buckets of time small enough here to cut the epochs many times, one of them a
-    # single bin over the bucket size (ties).
-    from mcsweep.experiments.primary_knots import ClusterEpochs
-
-    rng = np.random.default_rng(5)
-    pieces = [np.sort(np.concatenate([rng.uniform(10.0, 20.0, n), np.full(300, 12.5)]))
-              for n in (700, 0, 1500, 40)]
-    whole = np.sort(np.concatenate(pieces))
-    monkeypatch.setattr(ClusterEpochs, "BUCKET", 200)
-    monkeypatch.setattr(ClusterEpochs, "BINS", 64)
-    epochs = ClusterEpochs(client, [client.submit(_frame, p, pure=False) for p in pieces], 10.0, 20.0)
-    assert epochs.size == whole.size
-    x = np.array([9.0, 10.5, 12.5, 12.5 + 1e-12, 19.99, 21.0])
-    for side in ("left", "right"):
-        np.testing.assert_array_equal(epochs.searchsorted(x, side), np.searchsorted(whole, x, side))
-    ranks = np.array([0, 1, 199, 200, 201, 1000, 1234, whole.size - 1, 1000])
-    np.testing.assert_array_equal(epochs.values(ranks), whole[ranks])

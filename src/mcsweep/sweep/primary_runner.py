@@ -17,6 +17,7 @@ import dataclasses
 import functools
 import io
 import json
+import os
 import warnings
 from pathlib import Path
 from typing import Callable
@@ -274,6 +275,8 @@ def _observations_on_cluster(run: GlobalRun, client):
     order there; only numbers per partition, block and chunk come back to this process."""
     settings, pri = run.settings, run.section
     population = dataclasses.asdict(run.config.population)
+    if population.get("path"):  # a catalogue, read where the workers run: its path as this process sees it
+        population["path"] = os.path.abspath(population["path"])
     chunk = int(run.config.execution.chunk_stars)
     with run.prov.stage("population"):
         # (a class is drawn again only if a lost worker took a partition of the sky)

@@ -50,18 +50,12 @@ def both(client):
     return settings, local, remote
 
 
-def _frame(df):
-    return df
-
-
 def test_sky_partitions_are_the_driver_sort(client):
     # The classes put in sky order on the workers (primary_sky): the rows of the driver's sort
     # of the whole table (global_classes.sky_order), bit for bit, with stars sharing a pixel
     # within and across classes (the stable order decides their rows), in partitions that
     # cut the classes' pixel ranges; made again after a loss, the same frames.
     import functools
-
-    import pandas as pd
 
     from mcsweep.experiments.global_classes import class_table, sky_order
     from mcsweep.experiments.primary_sky import sky_partitions
@@ -74,7 +68,9 @@ def test_sky_partitions_are_the_driver_sort(client):
         frames.append((key, df))
     whole = pd.concat([class_table(df, key) for key, df in frames], ignore_index=True)
     expected = whole.iloc[sky_order(whole["ra"].to_numpy(), whole["dec"].to_numpy())].reset_index(drop=True)
-    sky, caught = sky_partitions(client, [(key, functools.partial(client.submit, _frame, df, pure=False))
+    # (tasks of functions the workers can import: a test module is not on their path when
+    # pytest runs as a console script)
+    sky, caught = sky_partitions(client, [(key, functools.partial(client.submit, pd.DataFrame.copy, df, pure=False))
                                           for key, df in frames], 700)
     assert caught == [] and len(sky) >= 10 and sky.n_stars == len(whole)
     got = client.gather(sky.futures)
@@ -98,7 +94,7 @@ def test_knots_epochs_on_the_workers_answer_as_one_sorted_array(client, monkeypa
     whole = np.sort(np.concatenate(pieces))
     monkeypatch.setattr(ClusterEpochs, "BUCKET", 200)
     monkeypatch.setattr(ClusterEpochs, "BINS", 64)
-    epochs = ClusterEpochs(client, [client.submit(_frame, p, pure=False) for p in pieces], 10.0, 20.0)
+    epochs = ClusterEpochs(client, [client.submit(np.copy, p, pure=False) for p in pieces], 10.0, 20.0)
     assert epochs.size == whole.size
     x = np.array([9.0, 10.5, 12.5, 12.5 + 1e-12, 19.99, 21.0])
     for side in ("left", "right"):

@@ -7,11 +7,11 @@ import pytest
 
 from mcsweep.astrometry.confidence import percentile_interval
 from mcsweep.experiments.global_table import FRACTION_INTERVAL
-from mcsweep.experiments.pencil_beam import sigma_f90_interval
-from mcsweep.experiments.primary_cells import (SPAN_QUANTILES, CellReduction, RankSelector, linear_quantile,
-                                               reduce_parts)
+from mcsweep.experiments.pencil_beam import sigma_f90_from_curve
+from mcsweep.experiments.primary_cells import SPAN_QUANTILES, CellReduction, RankSelector, reduce_parts
 from mcsweep.experiments.primary_factor import factor_rows, rows_from_reduction
 from mcsweep.experiments.primary_table import cell_statistics, table3_from_reduction, table3_rows
+from mcsweep.solver.selection import quantile_from_neighbours, quantile_ranks
 
 #: numpy's percentile and ours from the same two order statistics: the same formula, so
 #: equal up to the last bit; a relative 1e-15 allows one rounding of difference.
@@ -57,7 +57,8 @@ def test_linear_quantile_is_numpys(n, quantile):
     x = np.sort(np.random.default_rng(n).lognormal(0, 1, n).astype(np.float32)).astype(float)
     v = (n - 1) * quantile
     lo, hi = int(np.floor(v)), min(int(np.floor(v)) + 1, n - 1)
-    assert linear_quantile(x[lo], x[hi], n, quantile) == pytest.approx(np.quantile(x, quantile),
+    gamma = quantile_ranks(n, [quantile])[2]
+    assert quantile_from_neighbours(x[lo], x[hi], gamma)[0] == pytest.approx(np.quantile(x, quantile),
                                                                        rel=RTOL_SAME_FORMULA, abs=0)
 
 
@@ -115,9 +116,26 @@ def test_few_transit_spans_are_numpys_quantiles():
     assert within == np.mean(span < 1)
 
 
+def _bootstrap_interval(ks, flags, n_resamples, rng):
+    """The Sect. 3.3 bootstrap of the crossing, written out here: star counts per distinct
+    (inside, valid) pattern in the order of the packed patterns' bytes, one multinomial draw
+    over them per resample, each resample's crossing (+inf if never reached), the 16-84 %
+    quantiles."""
+    key = np.packbits(np.concatenate([flags == 1, flags >= 0]), axis=0).T
+    patterns, counts = np.unique(key, axis=0, return_counts=True)
+    bits = np.unpackbits(patterns, axis=1)[:, :2 * len(ks)].astype(float)
+    weights = rng.multinomial(counts.sum(), counts / counts.sum(), size=n_resamples).astype(float)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        frac = (weights @ bits[:, :len(ks)]) / (weights @ bits[:, len(ks):])
+    values = np.array([sigma_f90_from_curve(ks, f, 0.9)[0] for f in frac])
+    values[np.isnan(values)] = np.inf
+    lo, hi = np.quantile(values, (0.16, 0.84), method="inverted_cdf")
+    return float(lo), float(hi)
+
+
 def test_factor_bootstrap_over_patterns_is_the_bootstrap_over_stars():
-    """The interval from the cell's pattern counts equals the one from its stars' flags
-    (pencil_beam.sigma_f90_interval, the Sect. 3.3 bootstrap), the same draws."""
+    """The interval from the cell's pattern counts equals the bootstrap over its stars'
+    flags (the Sect. 3.3 bootstrap, written out in the test), the same draws."""
     res = _results(20000, 6, labels=("F90", "2F90", "4F90"))
     rows = factor_rows({1.0: res["F90"], 2.0: res["2F90"], 4.0: res["4F90"]}, [19.0], 0.9, n_resamples=100,
                        rng=np.random.default_rng(9))
@@ -127,6 +145,6 @@ def test_factor_bootstrap_over_patterns_is_the_bootstrap_over_stars():
         sub = ((r["n_fov"] >= 1) & (r["n_fov"] <= 4)) if subset == "<=4" else r["n_fov"] > 4
         m = (sub & (r["class_key"] == 1900)).to_numpy()
         flags = np.stack([res[lab]["inside"].to_numpy()[m] for lab in ("F90", "2F90", "4F90")])
-        lo, hi = sigma_f90_interval([1.0, 2.0, 4.0], flags == 1, flags >= 0, 0.9, "log", 100, rng)
+        lo, hi = _bootstrap_interval(np.array([1.0, 2.0, 4.0]), flags, 100, rng)
         row = rows[rows["subset"] == subset].iloc[0]
         assert (row["k_lo"], row["k_hi"]) == (lo, hi)

@@ -33,30 +33,25 @@ from scipy import stats
 from ..astrometry.confidence import binomial_interval, check_probability
 from .global_classes import class_key
 from .global_table import FRACTION_INTERVAL, SUBSETS, error_percentile, subset_masks
+from ..solver.selection import float_keys, quantile_from_neighbours, quantile_ranks
 from .pencil_beam import flag_patterns, merge_patterns, pattern_interval, sigma_f90_from_curve
 
-__all__ = ["RankSelector", "CellReduction", "reduce_parts", "linear_quantile", "rank_interval_indices"]
+__all__ = ["RankSelector", "CellReduction", "reduce_parts", "rank_interval_indices"]
 
 #: Quantiles of the spans of the <= 4 transit stars' live transits in the table notes.
 SPAN_QUANTILES = (0.1, 0.5, 0.9)
 
 
-def linear_quantile(lower: float, upper: float, n: int, quantile: float) -> float:
-    """The quantile of ``n`` sorted values from its two neighbouring order statistics
-    (ranks ``floor((n - 1) quantile)`` and the next), as :func:`numpy.quantile`'s 'linear'
-    method computes it (its virtual index and its two-sided interpolation)."""
-    virtual = (n - 1) * np.float64(quantile)
-    gamma = virtual - np.floor(virtual)
-    a, b = np.float64(lower), np.float64(upper)
-    diff = b - a
-    return float(b - diff * (1 - gamma)) if gamma >= 0.5 else float(a + diff * gamma)
+def _quantile(sel: "RankSelector", quantile: float) -> float:
+    """numpy's 'linear' quantile of the values ``sel`` ranked, from its two order statistics."""
+    prev, nxt, gamma = quantile_ranks(sel.n, [quantile])
+    return float(quantile_from_neighbours(sel.value(int(prev[0])), sel.value(int(nxt[0])), gamma)[0])
 
 
-def _quantile_ranks(n: int, quantile: float) -> tuple[int, int]:
-    """The ranks (0-based) of the two order statistics :func:`linear_quantile` needs."""
-    virtual = (n - 1) * np.float64(quantile)
-    lo = int(np.floor(virtual))
-    return min(max(lo, 0), n - 1), min(max(lo + 1, 0), n - 1)
+def _quantile_wanted(n: int, quantile: float) -> list[int]:
+    """The ranks :func:`_quantile` needs."""
+    prev, nxt, _ = quantile_ranks(n, [quantile])
+    return [int(prev[0]), int(nxt[0])]
 
 
 def rank_interval_indices(n: int, q: float, level: float) -> tuple[int, int]:
@@ -93,11 +88,7 @@ class RankSelector:
     def _finite(values) -> tuple[np.ndarray, np.ndarray]:
         v = np.asarray(values, dtype=np.float32).ravel()
         v = v[np.isfinite(v)]
-        u = v.view(np.uint32)
-        # IEEE-754 bits as unsigned integers in the values' order: flip every bit of a
-        # negative number, only the sign bit of a positive one
-        key = np.where(u >> np.uint32(31) == 1, ~u, u | np.uint32(0x80000000))
-        return v, key >> np.uint32(32 - RankSelector.KEY_BITS)
+        return v, float_keys(v, np.float32) >> np.uint32(32 - RankSelector.KEY_BITS)
 
     def count(self, values) -> None:
         """Pass 1: histogram ``values``."""
@@ -225,11 +216,11 @@ class CellReduction:
         for cell in self.cells.values():
             n = cell.errors.n
             if n:
-                cell.errors.want([*_quantile_ranks(n, np.true_divide(q, 100)),
+                cell.errors.want([*_quantile_wanted(n, np.true_divide(q, 100)),
                                   *rank_interval_indices(n, q, FRACTION_INTERVAL)])
         for sel in self.spans.values():
             if sel.n:
-                sel.want([r for quantile in SPAN_QUANTILES for r in _quantile_ranks(sel.n, quantile)])
+                sel.want([r for quantile in SPAN_QUANTILES for r in _quantile_wanted(sel.n, quantile)])
         self._planned = True
 
     def collect_part(self, parts: Mapping[str, pd.DataFrame]) -> None:
@@ -262,10 +253,8 @@ class CellReduction:
         q = error_percentile(self.confidence)
         p = plo = phi = float("nan")
         if n:
-            quantile = np.true_divide(q, 100)
             if not sel.n_nonfinite:
-                a, b = _quantile_ranks(n, quantile)
-                p = linear_quantile(sel.value(a), sel.value(b), n, quantile)
+                p = _quantile(sel, np.true_divide(q, 100))
             i, j = rank_interval_indices(n, q, FRACTION_INTERVAL)
             plo = sel.value(i) if i >= 0 else float("nan")
             phi = sel.value(j) if j < n else float("nan")
@@ -298,8 +287,7 @@ class CellReduction:
             return None
         q = np.full(len(SPAN_QUANTILES), np.nan)
         if sel.n:
-            q = np.array([linear_quantile(*(sel.value(r) for r in _quantile_ranks(sel.n, quantile)), sel.n, quantile)
-                          for quantile in SPAN_QUANTILES])
+            q = np.array([_quantile(sel, quantile) for quantile in SPAN_QUANTILES])
         return q, within / n
 
 

@@ -47,7 +47,9 @@ import math
 import numpy as np
 from scipy.interpolate import BSpline
 
-__all__ = ["AttitudeSpline", "DEGREE", "SortedEpochs", "live_segments", "quantiles_from_neighbours"]
+from .selection import quantile_from_neighbours, quantile_ranks
+
+__all__ = ["AttitudeSpline", "DEGREE", "SortedEpochs", "live_segments"]
 
 #: Cubic splines, as AGIS (Lindegren et al. 2012, Sect. 3.3).
 DEGREE = 3
@@ -111,26 +113,6 @@ def _sorted(epochs) -> "SortedEpochs":
     """``epochs`` as :class:`SortedEpochs` asks them (an array is sorted; an object answering
     its questions, :meth:`SortedEpochs.values` included, is used as it is)."""
     return epochs if hasattr(epochs, "values") and not isinstance(epochs, np.ndarray) else SortedEpochs(epochs)
-
-
-def _quantile_ranks(n: int, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The two neighbouring ranks and the weight of :func:`numpy.quantile`'s 'linear' method
-    for quantiles ``q`` of ``n`` sorted values (its virtual index, bounds and gamma)."""
-    virtual = (n - 1) * q
-    prev = np.floor(virtual)
-    nxt = prev + 1
-    above, below = virtual >= n - 1, virtual < 0
-    prev[above], nxt[above] = n - 1, n - 1
-    prev[below], nxt[below] = 0, 0
-    gamma = virtual - np.where(above, -1, prev)  # numpy's gamma (its 'above' index is -1)
-    return prev.astype(np.int64), nxt.astype(np.int64), gamma
-
-
-def quantiles_from_neighbours(lower, upper, gamma) -> np.ndarray:
-    """numpy's two-sided linear interpolation between neighbouring order statistics."""
-    a, b = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
-    diff = b - a
-    return np.where(gamma >= 0.5, b - diff * (1 - gamma), a + diff * gamma)
 
 
 def _merge_sparse_segments(segments: np.ndarray, sorted_epochs: "SortedEpochs", per_knot: float) -> np.ndarray:
@@ -238,7 +220,7 @@ class AttitudeSpline:
             n = i1 - i0
             n_int = max(1, int(round(n / per_knot)))
             q = np.arange(1, n_int) / n_int
-            prev, nxt, gamma = _quantile_ranks(n, q) if n else (np.zeros(0, np.int64),) * 2 + (np.zeros(0),)
+            prev, nxt, gamma = quantile_ranks(n, q) if n else (np.zeros(0, np.int64),) * 2 + (np.zeros(0),)
             plans.append((n, len(ranks), gamma, prev.size))
             if n:
                 ranks.extend([i0, i1 - 1])
@@ -260,7 +242,7 @@ class AttitudeSpline:
                     # the largest remaining error; 119 -> 112 PCG iterations; no change at 3 x 10000.
                     a, b = first, last
                     self.segments[i] = (a, b)
-                inner = quantiles_from_neighbours(values[at + 2:at + 2 + k], values[at + 2 + k:at + 2 + 2 * k], gamma)
+                inner = quantile_from_neighbours(values[at + 2:at + 2 + k], values[at + 2 + k:at + 2 + 2 * k], gamma)
             knots = np.unique(np.concatenate([[a], inner[(inner > a) & (inner < b)], [b]]))
             out.append(knots)
         return out

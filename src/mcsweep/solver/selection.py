@@ -16,7 +16,8 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-__all__ = ["DIGIT_BITS", "float_keys", "digit_counts", "select", "median"]
+__all__ = ["DIGIT_BITS", "float_keys", "digit_counts", "select", "median", "quantile_ranks",
+           "quantile_from_neighbours"]
 
 #: Bits of the key fixed per round (four rounds for a 64-bit key).
 DIGIT_BITS = 16
@@ -24,11 +25,15 @@ _ROUNDS = 64 // DIGIT_BITS
 _MASK = np.uint64((1 << DIGIT_BITS) - 1)
 
 
-def float_keys(values) -> np.ndarray:
-    """Unsigned 64-bit keys in the order of the float64 ``values`` (IEEE-754 bits with every bit
-    of a negative number flipped, only the sign bit of a positive one)."""
-    u = np.ascontiguousarray(values, dtype=np.float64).view(np.uint64)
-    return np.where(u >> np.uint64(63) == 1, ~u, u | np.uint64(1 << 63))
+def float_keys(values, dtype=np.float64) -> np.ndarray:
+    """Unsigned keys in the order of ``values`` as ``dtype`` (float64: 64-bit keys; float32:
+    32-bit): the IEEE-754 bits with every bit of a negative number flipped, only the sign bit
+    of a positive one."""
+    bits = np.dtype(dtype).itemsize * 8
+    utype = np.uint64 if bits == 64 else np.uint32
+    u = np.ascontiguousarray(values, dtype=dtype).view(utype)
+    top = utype(bits - 1)
+    return np.where(u >> top == 1, ~u, u | (utype(1) << top))
 
 
 def _value(key: int) -> float:
@@ -85,3 +90,25 @@ def median(counts_of: Callable[[list], list], n: int) -> float:
         return select(counts_of, [n // 2])[0]
     a, b = select(counts_of, [n // 2 - 1, n // 2])
     return float(np.mean(np.array([a, b])))
+
+
+def quantile_ranks(n: int, quantiles) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The two neighbouring ranks (0-based) and the weight of :func:`numpy.quantile`'s 'linear'
+    method for ``quantiles`` (an array) of ``n`` sorted values: its virtual index, its bounds
+    and its gamma, so :func:`quantile_from_neighbours` of the two order statistics is numpy's
+    quantile bit for bit (tests)."""
+    virtual = (n - 1) * np.asarray(quantiles, dtype=float)
+    prev = np.floor(virtual)
+    nxt = prev + 1
+    above, below = virtual >= n - 1, virtual < 0
+    prev[above], nxt[above] = n - 1, n - 1
+    prev[below], nxt[below] = 0, 0
+    gamma = virtual - np.where(above, -1, prev)  # numpy's gamma (its 'above' index is -1)
+    return prev.astype(np.int64), nxt.astype(np.int64), gamma
+
+
+def quantile_from_neighbours(lower, upper, gamma) -> np.ndarray:
+    """numpy's two-sided linear interpolation between neighbouring order statistics."""
+    a, b = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
+    diff = b - a
+    return np.where(gamma >= 0.5, b - diff * (1 - gamma), a + diff * gamma)

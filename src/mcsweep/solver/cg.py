@@ -164,7 +164,7 @@ from . import kernels
 from .attitude_update import free_coefficients
 from .frame import precision_weights, rotation_matrices
 from .observations import Observations
-from .reduction import chunk_ranges, leaf_blocks, pairwise_sum, run_level, share_bounds
+from .reduction import chunk_ranges, leaf_blocks, pairwise_sum, run_level, share_bounds, share_of
 from .resident import forked_chunks
 from .source_update import solve_sources, source_normals
 
@@ -849,8 +849,7 @@ def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_u
             except ChunksLost:
                 if attempt == MAX_RESTARTS:
                     raise
-    bounds = share_bounds(len(problem.blocks), shares)
-    owners = [int(np.searchsorted(bounds, lo, side="right")) - 1 for lo, _ in ranges]
+    owners = [share_of(lo, len(problem.blocks), shares) for lo, _ in ranges]
     with forked_chunks(list(zip(chunks, hs, states)), workers, owners=owners) as pool:
         if pool is None:  # in-process: the chunks and their states are these very objects
             items = {ci: (chunks[ci], hs[ci], states[ci]) for ci in range(len(chunks))}
@@ -910,25 +909,25 @@ def _pcg(pb: GlobalProblem, chunks, run, *, rtol, update_tol_uas, error_tol, max
     block_tree = {i: first_block[i] for i in n_ch}, dict(enumerate(levels))
     leaf_tree = {i: first_block[i] // leaf for i in n_ch}, dict(enumerate(leaf_levels))
 
+    sums = {"blocks": total, "leaves": total_att}
+
     def summed(fn, items, trees, *, fresh=True):
         """The outputs of the chunk tasks ``fn`` over all chunks, summed: ``trees[k]`` is
         ``("blocks" | "leaves", add)`` for a sum in that tree, or ``("max", None)``. Where the
-        chunks are (``reduced``) or here from each chunk's outputs: the same bits."""
+        chunks are (``reduced``) or here from each chunk's outputs: the same bits. ``fresh``
+        False (one output, added element by element): summed as received, each chunk's
+        dropped once added (the setup's are large)."""
         if reduced is not None:
             specs = [("max",) if t == "max" else ("tree", *(block_tree if t == "blocks" else leaf_tree), add)
                      for t, add in trees]
             return reduced(fn, items, specs, fresh=fresh)
-        if fresh:
-            out = _ordered(run, fn, items)
-        else:  # summed as received, each chunk's outputs dropped once added (the setup's are large)
-            got = {r[0]: r[1:] for r in run(fn, items)}
-            out = (got.pop(i) for i in n_ch)
-            if len(trees) == 1:
-                (t, add), = trees
-                return [(total if t == "blocks" else total_att)((o[0] for o in out), add)]
-            out = list(out)
-        return [max(o[k] for o in out) if t == "max" else (total if t == "blocks" else total_att)(
-            (o[k] for o in out), add) for k, (t, add) in enumerate(trees)]
+        if not fresh:
+            ((t, add),) = trees
+            got = {r[0]: r[1] for r in run(fn, items)}
+            return [sums[t]((got.pop(i) for i in n_ch), add)]
+        out = _ordered(run, fn, items)
+        return [max(o[k] for o in out) if t == "max" else sums[t]((o[k] for o in out), add)
+                for k, (t, add) in enumerate(trees)]
 
     # Setup pass: right-hand side, the stars' vectors on the workers, the banded Schur block.
     # The setup's numbers are only added element by element (no SIMD reduction whose rounding

@@ -42,7 +42,7 @@ import uuid
 import numpy as np
 from typing import Callable, Sequence
 
-from .reduction import AlignedPartials, pairwise_sum, share_bounds
+from .reduction import AlignedPartials, pairwise_sum, share_of
 
 __all__ = ["DaskChunks"]
 
@@ -142,8 +142,7 @@ class DaskChunks:
             # one worker per chunk, in contiguous shares: every worker gets its part of the
             # memory, and sums its chunks' outputs before they travel (:meth:`reduced`)
             # (in a list: a tuple itself would be scattered element by element)
-            owner = share_bounds(len(chunks), len(workers))
-            w = max(i for i in range(len(workers)) if owner[i] <= ci)
+            w = share_of(ci, len(chunks), len(workers))
             (fut,) = client.scatter([chunks[ci]], workers=[workers[w]], hash=False)
             return fut
 

@@ -31,8 +31,10 @@ from __future__ import annotations
 import itertools
 from typing import Callable, Iterable
 
-__all__ = ["pairwise_sum", "AlignedPartials", "chunk_ranges", "run_level", "share_bounds", "leaf_blocks", "LEAF_RATIO",
-           "MIN_LEAVES"]
+import numpy as np
+
+__all__ = ["pairwise_sum", "AlignedPartials", "chunk_ranges", "run_level", "share_bounds", "share_of", "leaf_blocks",
+           "LEAF_RATIO", "MIN_LEAVES"]
 
 #: A leaf holds at least this many measurements per attitude unknown (:func:`leaf_blocks`),
 #: so its attitude vector (zeroed, sent, added: ~6 passes over 8 bytes per unknown) costs
@@ -121,6 +123,11 @@ def share_bounds(n: int, shares: int) -> list[int]:
     ``[bounds[w], bounds[w + 1])`` (the workers' shares of the blocks or chunks)."""
     shares = max(1, int(shares))
     return [round(w * n / shares) for w in range(shares + 1)]
+
+
+def share_of(i: int, n: int, shares: int) -> int:
+    """The share (:func:`share_bounds`) that holds item ``i`` of ``n``."""
+    return int(np.searchsorted(share_bounds(n, shares), i, side="right")) - 1
 
 
 def leaf_blocks(n_blocks: int, n_measurements: int, n_att: int) -> int:

@@ -452,9 +452,10 @@ def solved_stars(settings: PrimarySettings, n_fov: np.ndarray) -> np.ndarray:
     return np.flatnonzero(n_fov >= min_transits(settings))
 
 
-def star_sigmas(settings: PrimarySettings, stars: pd.DataFrame, solved: np.ndarray):
-    """AL and AC (None: AL only) uncertainties per FoV transit of the solved stars [mas]."""
-    gs = stars["phot_g_mean_mag"].to_numpy()[solved]
+def star_sigmas(settings: PrimarySettings, stars, solved):
+    """AL and AC (None: AL only) uncertainties per FoV transit of the solved stars [mas]
+    (``stars``: a table or a mapping of its columns; ``solved``: indices, a mask or a slice)."""
+    gs = np.asarray(stars["phot_g_mean_mag"])[solved]
     return settings.noise.sigma_al_mas(gs), (settings.noise.sigma_ac_mas(gs) if settings.noise.use_ac else None)
 
 
@@ -534,11 +535,13 @@ def prepare(settings: PrimarySettings, stars: pd.DataFrame, transits: dict, *,
                         BasicAngleColumns(omega=cal_omega, weight=cal_weight, harmonics=harmonics))
 
 
-def true_parameters(stars: pd.DataFrame, solved: np.ndarray) -> np.ndarray:
+def true_parameters(stars, solved) -> np.ndarray:
     """The truth of the solved stars (n, 5): position zero at the reference epoch (the offsets
-    are what is solved for), the population's parallax and proper motion."""
-    return np.column_stack([np.zeros(solved.size), np.zeros(solved.size), stars["parallax"].to_numpy()[solved],
-                            stars["pmra"].to_numpy()[solved], stars["pmdec"].to_numpy()[solved]])
+    are what is solved for), the population's parallax and proper motion. ``stars``: a table
+    or a mapping of its columns; ``solved``: indices or a slice."""
+    plx = np.asarray(stars["parallax"])[solved]
+    zero = np.zeros(plx.size)
+    return np.column_stack([zero, zero, plx, np.asarray(stars["pmra"])[solved], np.asarray(stars["pmdec"])[solved]])
 
 
 def measurements_per_star(n_fov: np.ndarray, sigma_ac_mas) -> np.ndarray:
@@ -550,8 +553,13 @@ def block_rows(counts: np.ndarray, block_stars: int) -> np.ndarray:
     """First measurement (observation order = block order) of each block of ``block_stars`` stars."""
     if not counts.size:
         return np.zeros(0, np.int64)
-    per_block = np.add.reduceat(counts, np.arange(0, counts.size, block_stars))
-    return np.concatenate([[0], np.cumsum(per_block)[:-1]]).astype(np.int64)
+    return first_rows(np.add.reduceat(counts, np.arange(0, counts.size, block_stars)))
+
+
+def first_rows(per_block: np.ndarray) -> np.ndarray:
+    """First measurement of each block from the blocks' numbers of measurements."""
+    return np.concatenate([[0], np.cumsum(per_block)[:-1]]).astype(np.int64) if len(per_block) else \
+        np.zeros(0, np.int64)
 
 
 def block_transits(star, t, psi, live, solved_block: np.ndarray, following=None):

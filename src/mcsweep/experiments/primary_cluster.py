@@ -59,18 +59,36 @@ from ..solver.cg import (MAX_RESTARTS, ChunksLost, ResidentProblem, chunk_values
                          star_arrays, typical_weights, weight_sums)
 from ..solver.dask_resident import DaskChunks, _is_loss
 from ..solver.frame import frame_from_sums
-from ..solver.reduction import AlignedPartials, pairwise_sum, run_level, share_bounds
+from ..solver.reduction import AlignedPartials, pairwise_sum, run_level, share_of
 from ..solver.selection import digit_counts, median
 from .global_classes import star_transits
 from .global_priors import prior_sigma_mas
 from .primary import (NOISE_STREAM, BlockJob, PreparedData, PrimarySettings, _true_attitude, attitude_spline,
                       block_frame_sums, block_outcome, block_transits, build_block, covered_coefficients,
-                      dead_time_of, measurements_per_star, min_transits, stream_seed, transit_summary)
+                      dead_time_of, first_rows, measurements_per_star, min_transits, star_sigmas, stream_seed,
+                      transit_summary, true_parameters)
 from .primary_knots import ClusterEpochs, live_epochs
 from .primary_results import StarParts, results_frame
 from .primary_sky import SkyPartitions, alive
 
 __all__ = ["prepare_on_cluster", "solve_on_cluster"]
+
+
+def _retried(action: Callable, retry_if: Callable, between: Callable = lambda: None):
+    """``action()``, repeated up to :data:`~mcsweep.solver.cg.MAX_RESTARTS` times when it
+    raises an exception ``retry_if`` accepts (a loss), ``between()`` first; any other raised
+    at once."""
+    for attempt in range(MAX_RESTARTS + 1):
+        try:
+            return action()
+        except Exception as exc:  # noqa: BLE001 - only what retry_if accepts is repeated
+            if attempt == MAX_RESTARTS or not retry_if(exc):
+                raise
+            between()
+
+
+def _is_chunks_lost(exc: BaseException) -> bool:
+    return isinstance(exc, ChunksLost)
 
 
 # --------------------------------------------------------------------------- tasks on the partitions
@@ -91,13 +109,12 @@ def _digest(summary: dict, min_fov: int) -> dict:
     return {"n_solved": int(np.count_nonzero(solvable)), "n_fov": int(summary["n_fov"][solvable].sum())}
 
 
-def _block_counts(summary: dict, part: pd.DataFrame, offset: int, block_stars: int, noise, min_fov: int) -> tuple:
+def _block_counts(summary: dict, part: pd.DataFrame, offset: int, block_stars: int, settings, min_fov: int) -> tuple:
     """The measurements of a partition's solved stars (the first is solved star ``offset``)
     summed by solver block: (first block, sums)."""
     n_fov = summary["n_fov"]
     solvable = n_fov >= min_fov
-    g = part["phot_g_mean_mag"].to_numpy()[solvable]
-    counts = measurements_per_star(n_fov[solvable], noise.sigma_ac_mas(g) if noise.use_ac else None)
+    counts = measurements_per_star(n_fov[solvable], star_sigmas(settings, part, solvable)[1])
     if not counts.size:
         return 0, np.zeros(0, dtype=np.int64)
     k = (offset + np.arange(counts.size)) // block_stars
@@ -126,14 +143,12 @@ def _build_chunk(spec: dict, settings: PrimarySettings, spline, true_attitude, d
     t = np.concatenate([t["t"] for t in transits])
     psi = np.concatenate([t["psi"] for t in transits])
     live = ~dead.is_dead(t)
-    noise = settings.noise
     blocks, hs, normals, x_true, rows = [], [], [], [], []
     for k, first, n, first_row in spec["blocks"]:
         v = slice(first - spec["offset"], first - spec["offset"] + n)
-        g = solved["phot_g_mean_mag"][v]
-        xt = np.column_stack([np.zeros(n), np.zeros(n), solved["parallax"][v], solved["pmra"][v], solved["pmdec"][v]])
-        job = BlockJob(first=first, ra=solved["ra"][v], dec=solved["dec"][v], x_true=xt,
-                       sigma_al_mas=noise.sigma_al_mas(g), sigma_ac_mas=noise.sigma_ac_mas(g) if noise.use_ac else None,
+        xt = true_parameters(solved, v)
+        sa, sc = star_sigmas(settings, solved, v)
+        job = BlockJob(first=first, ra=solved["ra"][v], dec=solved["dec"][v], x_true=xt, sigma_al_mas=sa, sigma_ac_mas=sc,
                        noise_seed=stream_seed(settings.seed, NOISE_STREAM, k) if spec["with_noise"] else None,
                        first_row=first_row)
         blk, nrm, h, _ = build_block(job, *block_transits(star, t, psi, live, solved["star"][v]), spline=spline,
@@ -251,18 +266,14 @@ def _cluster_part(data: PreparedData, resident: DaskChunks, ranges, rows: slice)
     ends = sky.first + sky.sizes
     overlap = np.flatnonzero((sky.first < rows.stop) & (ends > rows.start))
     table = info["table"]
-    for attempt in range(MAX_RESTARTS + 1):
+
+    def columns():
         table.ensure()
-        try:
-            got = client.gather([client.submit(_part_columns, sky.futures[p], table.summaries[p],
-                                               max(rows.start - sky.first[p], 0),
-                                               min(rows.stop, ends[p]) - sky.first[p], info["min_fov"], pure=False)
-                                 for p in overlap])
-            break
-        except Exception as exc:  # noqa: BLE001 - only a loss is repeated
-            if attempt == MAX_RESTARTS or not _is_loss(exc):
-                raise
-            time.sleep(1.0)  # the scheduler's news of the loss
+        return client.gather([client.submit(_part_columns, sky.futures[p], table.summaries[p],
+                                            max(rows.start - sky.first[p], 0), min(rows.stop, ends[p]) - sky.first[p],
+                                            info["min_fov"], pure=False) for p in overlap])
+
+    got = _retried(columns, _is_loss, lambda: time.sleep(1.0))  # (a moment for the scheduler's news of the loss)
     cols = {c: np.concatenate([g[c] for g in got]) for c in ("class_key", "n_fov", "n_fov_scheduled", "span_days",
                                                           "solved")}
     solved = cols.pop("solved")
@@ -301,24 +312,17 @@ def solve_on_cluster(settings: PrimarySettings, data: PreparedData, label: str, 
 
     def solve():
         resident = data.resident(client, ranges).attached(_attach_prior, [(settings, label)] * len(ranges))
-        for attempt in range(MAX_RESTARTS + 1):
-            try:
-                return (resident, *_solve_once(settings, data, resident, ranges, chunk_stars=chunk_stars, log=log,
-                                               equal=equal, attitude_start=attitude_start))
-            except ChunksLost:
-                if attempt == MAX_RESTARTS:
-                    raise
+        return (resident, *_retried(lambda: _solve_once(settings, data, resident, ranges, chunk_stars=chunk_stars,
+                                                        log=log, equal=equal, attitude_start=attitude_start),
+                                    _is_chunks_lost))
 
     state = {"solution": solve()}
 
+    def resolve():  # the stars' outcome went with a worker: solved again, same bits
+        state["solution"] = solve()
+
     def make(rows: slice) -> pd.DataFrame:
-        for attempt in range(MAX_RESTARTS + 1):
-            try:
-                return _cluster_part(data, state["solution"][0], ranges, rows)
-            except ChunksLost:  # the stars' outcome went with a worker: solved again, same bits
-                if attempt == MAX_RESTARTS:
-                    raise
-                state["solution"] = solve()
+        return _retried(lambda: _cluster_part(data, state["solution"][0], ranges, rows), _is_chunks_lost, resolve)
 
     resident, sol, eps, omega, sq = state["solution"]
     return sol, resident, eps, omega, StarParts(data.n_stars, make), sq
@@ -333,8 +337,8 @@ def _solve_once(settings, data, resident, ranges, *, chunk_stars, log, equal, at
     n = data.n_solved
 
     def counts_of(which: int):
-        return lambda queries: [c for c in chunk_values(resident.run, _weight_digits,
-                                                        [(ci, [(which, q) for q in queries]) for ci in range(len(ranges))])]
+        return lambda queries: chunk_values(resident.run, _weight_digits,
+                                            [(ci, [(which, q) for q in queries]) for ci in range(len(ranges))])
 
     # the medians by selection, not by gathering every star's weights (issue 27)
     w_pos, w_pm = penalty_weights(median(counts_of(0), n), median(counts_of(1), n), n)
@@ -411,13 +415,8 @@ def prepare_on_cluster(settings: PrimarySettings, sky: SkyPartitions, client, *,
     the same data, bit for bit, as of the whole table in the same order, whose
     ``resident(client, ranges)`` for the solver's chunks of ``chunk_stars`` stars are the
     chunks already there. A worker lost while they are made makes them again from the start."""
-    for attempt in range(MAX_RESTARTS + 1):
-        try:
-            return _prepare_once(settings, sky, client, chunk_stars=chunk_stars, block_stars=block_stars,
-                                 with_noise=with_noise)
-        except Exception as exc:  # noqa: BLE001 - only a loss is repeated
-            if attempt == MAX_RESTARTS or not _is_loss(exc):
-                raise
+    return _retried(lambda: _prepare_once(settings, sky, client, chunk_stars=chunk_stars, block_stars=block_stars,
+                                          with_noise=with_noise), _is_loss)
 
 
 def _prepare_once(settings, sky, client, *, chunk_stars, block_stars, with_noise) -> PreparedData:
@@ -456,10 +455,10 @@ def _prepare_once(settings, sky, client, *, chunk_stars, block_stars, with_noise
     n_blocks = -(-n_solved // block_stars)
     per_block = np.zeros(n_blocks, dtype=np.int64)
     for k0, sums in client.gather([client.submit(_block_counts, summaries[p], sky.futures[p], int(solved_first[p]),
-                                                 block_stars, settings.noise, min_fov, pure=False)
+                                                 block_stars, shared("settings", settings), min_fov, pure=False)
                                    for p in range(n_parts)]):
         per_block[k0:k0 + sums.size] += sums
-    rows = np.concatenate([[0], np.cumsum(per_block)[:-1]]).astype(np.int64) if n_blocks else np.zeros(0, np.int64)
+    rows = first_rows(per_block)
     n_rows = int(per_block.sum())
     ranges = solver_chunks(n_blocks, block_stars, n_rows, spline.n_coef, chunk_stars)
     solved_end = solved_first + n_solved_p
@@ -480,7 +479,7 @@ def _prepare_once(settings, sky, client, *, chunk_stars, block_stars, with_noise
         # spread over the workers (memory) in contiguous shares of the chunks, so each worker
         # sums its chunks' outputs before they travel (DaskChunks.reduced), not where the
         # transits are
-        owner = int(np.searchsorted(share_bounds(len(ranges), len(live_workers)), ci, side="right")) - 1
+        owner = share_of(ci, len(ranges), len(live_workers))
         return client.submit(_build_chunk, spec, shared("settings", settings), shared("spline", spline),
                              shared("truth", true_att), shared("dead", dead), *inputs, pure=False,
                              workers=[live_workers[owner]], allow_other_workers=True)

@@ -65,4 +65,4 @@ def _merged(start, end, gaps, t, per_knot):
     as one array): the reference's input."""
     from mcsweep.solver.attitude_spline import _merge_sparse_segments, live_segments
 
-    return _merge_sparse_segments(live_segments(start, end, *gaps, min_gap_days=0.5), SortedEpochs(t), per_knot)
+    return _merge_sparse_segments(live_segments(start, end, *gaps, min_gap_days=0.5), SortedEpochs(t), per_knot)[0]

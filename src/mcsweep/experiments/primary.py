@@ -81,7 +81,7 @@ from ..astrometry.solve import prior_diagonal
 from ..errors import UserInputError
 from ..scanning.ephemeris import gaia_position_au
 from ..scanning.timeline import DeadTime
-from ..solver.attitude_spline import DEGREE
+from ..solver.attitude_spline import DEGREE, sorted_epochs
 from ..solver.reduction import pairwise_sum, run_level
 from ..solver.blocks import att_rows, spline_values, src_forward
 from ..solver import (BLOCK_STARS, AttitudeSpline, GlobalProblem, build_observations, frame_attitude,
@@ -467,8 +467,7 @@ def attitude_spline(settings: PrimarySettings, dead: DeadTime, epochs=None) -> A
     gaps = (dead.starts, dead.stops)
     if settings.knot_transits is None:
         return AttitudeSpline(settings.start_jd, settings.end_jd, settings.knot_interval_days, gaps=gaps)
-    if isinstance(epochs, (np.ndarray, list, tuple)):
-        epochs = np.asarray(epochs, dtype=float)
+    epochs = sorted_epochs(epochs)
     return AttitudeSpline(settings.start_jd, settings.end_jd, knot_interval_days(settings, epochs.size, dead),
                           gaps=gaps, epochs=epochs, transits_per_knot=settings.knot_transits)
 

@@ -49,7 +49,7 @@ from scipy.interpolate import BSpline
 
 from .selection import quantile_from_neighbours, quantile_ranks
 
-__all__ = ["AttitudeSpline", "DEGREE", "SortedEpochs", "live_segments"]
+__all__ = ["AttitudeSpline", "DEGREE", "SortedEpochs", "live_segments", "sorted_epochs"]
 
 #: Cubic splines, as AGIS (Lindegren et al. 2012, Sect. 3.3).
 DEGREE = 3
@@ -109,13 +109,14 @@ class SortedEpochs:
         return self.t[np.asarray(ranks, dtype=np.int64)]
 
 
-def _sorted(epochs) -> "SortedEpochs":
-    """``epochs`` as :class:`SortedEpochs` asks them (an array is sorted; an object answering
-    its questions, :meth:`SortedEpochs.values` included, is used as it is)."""
-    return epochs if hasattr(epochs, "values") and not isinstance(epochs, np.ndarray) else SortedEpochs(epochs)
+def sorted_epochs(epochs) -> "SortedEpochs":
+    """``epochs`` as :class:`SortedEpochs` asks them: an object answering its questions (its
+    :meth:`~SortedEpochs.values` a method) is used as it is; anything else (an array, a list,
+    a pandas Series) is sorted."""
+    return epochs if callable(getattr(epochs, "values", None)) else SortedEpochs(epochs)
 
 
-def _merge_sparse_segments(segments: np.ndarray, sorted_epochs: "SortedEpochs", per_knot: float) -> np.ndarray:
+def _merge_sparse_segments(segments: np.ndarray, sorted_epochs: "SortedEpochs", per_knot: float):
     """Segments joined across their gaps until each holds at least ``per_knot`` epochs.
 
     A segment needs one knot interval (4 coefficients per axis) however little data it
@@ -128,11 +129,14 @@ def _merge_sparse_segments(segments: np.ndarray, sorted_epochs: "SortedEpochs", 
     through that gap (as through the gaps shorter than a knot interval), its knots still
     placed by the data on both sides. At the paper's 1.5e6 stars (~2500 transits per hour)
     no dead-time segment is that sparse.
+
+    Returns the segments and the ranks of their first and last-plus-one epochs (a joined
+    segment's ends are ends of the segments it joins, so its counts need no new search).
     """
     segs = [list(s) for s in segments]
-    sorted_epochs = _sorted(sorted_epochs)
-    counts = list(sorted_epochs.searchsorted(segments[:, 1], "right")
-                  - sorted_epochs.searchsorted(segments[:, 0], "left"))
+    first = list(sorted_epochs.searchsorted(segments[:, 0], "left"))
+    stop = list(sorted_epochs.searchsorted(segments[:, 1], "right"))
+    counts = [b - a for a, b in zip(first, stop)]
     while len(segs) > 1 and min(counts) < per_knot:  # a loop over segments (hundreds), not data
         i = int(np.argmin(counts))
         left = segs[i][0] - segs[i - 1][1] if i > 0 else np.inf
@@ -141,7 +145,10 @@ def _merge_sparse_segments(segments: np.ndarray, sorted_epochs: "SortedEpochs", 
         lo, hi = min(i, j), max(i, j)
         segs[lo:hi + 1] = [[segs[lo][0], segs[hi][1]]]
         counts[lo:hi + 1] = [counts[lo] + counts[hi]]
-    return np.array(segs, dtype=float).reshape(-1, 2)
+        first[lo:hi + 1] = [first[lo]]
+        stop[lo:hi + 1] = [stop[hi]]
+    return (np.array(segs, dtype=float).reshape(-1, 2), np.array(first, dtype=np.int64),
+            np.array(stop, dtype=np.int64))
 
 
 class AttitudeSpline:
@@ -209,10 +216,8 @@ class AttitudeSpline:
         (:func:`numpy.quantile` of the segment's epochs, from the order statistics it needs)."""
         if not per_knot >= 1:
             raise ValueError(f"transits_per_knot must be >= 1, got {per_knot}")
-        epochs = _sorted(epochs)
-        self.segments = _merge_sparse_segments(self.segments, epochs, per_knot)
-        lo = epochs.searchsorted(self.segments[:, 0], "left")
-        hi = epochs.searchsorted(self.segments[:, 1], "right")
+        epochs = sorted_epochs(epochs)
+        self.segments, lo, hi = _merge_sparse_segments(self.segments, epochs, per_knot)
         # one request for every order statistic: each segment's first and last epoch and the
         # neighbours of its quantiles (a loop over segments, each a vector operation)
         plans, ranks = [], []
@@ -220,7 +225,7 @@ class AttitudeSpline:
             n = i1 - i0
             n_int = max(1, int(round(n / per_knot)))
             q = np.arange(1, n_int) / n_int
-            prev, nxt, gamma = quantile_ranks(n, q) if n else (np.zeros(0, np.int64),) * 2 + (np.zeros(0),)
+            prev, nxt, gamma = quantile_ranks(n, q)
             plans.append((n, len(ranks), gamma, prev.size))
             if n:
                 ranks.extend([i0, i1 - 1])

@@ -4,6 +4,7 @@ statistics of all the values at once, and against themselves split otherwise (bi
 import numpy as np
 import pandas as pd
 import pytest
+from scipy import stats
 
 from mcsweep.astrometry.confidence import percentile_interval
 from mcsweep.experiments.global_table import FRACTION_INTERVAL
@@ -11,11 +12,12 @@ from mcsweep.experiments.pencil_beam import sigma_f90_from_curve
 from mcsweep.experiments.primary_cells import SPAN_QUANTILES, CellReduction, RankSelector, reduce_parts
 from mcsweep.experiments.primary_factor import factor_rows, rows_from_reduction
 from mcsweep.experiments.primary_table import cell_statistics, table3_from_reduction, table3_rows
-from mcsweep.solver.selection import quantile_from_neighbours, quantile_ranks
 
 #: numpy's percentile and ours from the same two order statistics: the same formula, so
 #: equal up to the last bit; a relative 1e-15 allows one rounding of difference.
 RTOL_SAME_FORMULA = 1e-15
+#: Two implementations of the same exact interval (beta quantiles vs. scipy's binomtest).
+RTOL_INTERVAL = 1e-9
 
 
 def _results(n, seed, labels=("F90", "10F90", "1000mas")):
@@ -51,17 +53,6 @@ def test_rank_selector_gives_numpys_order_statistics():
     assert [sel.value(r) for r in ranks] == [float(finite[r]) for r in ranks]
 
 
-@pytest.mark.parametrize("n", [1, 2, 3, 10, 997])
-@pytest.mark.parametrize("quantile", [0.1, 0.5, 0.9, 0.9000000000000001])
-def test_linear_quantile_is_numpys(n, quantile):
-    x = np.sort(np.random.default_rng(n).lognormal(0, 1, n).astype(np.float32)).astype(float)
-    v = (n - 1) * quantile
-    lo, hi = int(np.floor(v)), min(int(np.floor(v)) + 1, n - 1)
-    gamma = quantile_ranks(n, [quantile])[2]
-    assert quantile_from_neighbours(x[lo], x[hi], gamma)[0] == pytest.approx(np.quantile(x, quantile),
-                                                                       rel=RTOL_SAME_FORMULA, abs=0)
-
-
 def test_table3_cells_part_by_part_are_numpys_and_scipys_over_all_stars():
     res = _results(20000, 2)
     table = table3_rows(res, [11.0, 15.0, 19.0], 0.9)
@@ -73,6 +64,12 @@ def test_table3_cells_part_by_part_are_numpys_and_scipys_over_all_stars():
         n_valid, n_in, frac, lo, hi, p, plo, phi = cell_statistics(inside, err, 0.9)
         assert (row["n_stars"], row["n_valid"], row["n_inside"]) == (m.sum(), n_valid, n_in)
         assert row["fraction_inside"] == frac and (row["fraction_lo"], row["fraction_hi"]) == (lo, hi)
+        # and independently: the counts by numpy, the Clopper-Pearson interval by scipy's binomtest
+        flags = inside[inside >= 0]
+        n_v, n_i = int(np.count_nonzero(inside >= 0)), int(np.count_nonzero(flags == 1))
+        assert (row["n_valid"], row["n_inside"]) == (n_v, n_i) and row["fraction_inside"] == n_i / n_v
+        ci = stats.binomtest(n_i, n_v).proportion_ci(FRACTION_INTERVAL, method="exact")
+        np.testing.assert_allclose([row["fraction_lo"], row["fraction_hi"]], [ci.low, ci.high], rtol=RTOL_INTERVAL)
         valid = err[inside >= 0].astype(float)
         assert row["p90_error_mas"] == pytest.approx(np.percentile(valid, 100 * 0.9), rel=RTOL_SAME_FORMULA, abs=0)
         # the rank interval: order statistics, exactly scipy's

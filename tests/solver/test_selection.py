@@ -3,7 +3,11 @@
 import numpy as np
 import pytest
 
-from mcsweep.solver.selection import float_keys, median, select
+from mcsweep.solver.selection import float_keys, median, quantile_from_neighbours, quantile_ranks, select
+
+#: numpy's quantile and ours from the same two order statistics: the same formula, so
+#: equal up to the last bit; a relative 1e-15 allows one rounding of difference.
+RTOL_SAME_FORMULA = 1e-15
 
 
 def _counts_of(chunks):
@@ -45,3 +49,15 @@ def test_median_is_numpys_bit_for_bit(n):
     x[: n // 3] = x[0]  # ties
     chunks = np.array_split(x, min(n, 7))
     assert median(_counts_of(chunks), n) == float(np.median(x))
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 10, 997])
+@pytest.mark.parametrize("quantile", [0.1, 0.5, 0.9, 0.9000000000000001])
+def test_linear_quantile_is_numpys(n, quantile):
+    x = np.sort(np.random.default_rng(n).lognormal(0, 1, n).astype(np.float32)).astype(float)
+    v = (n - 1) * quantile
+    lo, hi = int(np.floor(v)), min(int(np.floor(v)) + 1, n - 1)
+    prev, nxt, gamma = quantile_ranks(n, [quantile])
+    assert (int(prev[0]), int(nxt[0])) == (lo, hi)
+    assert quantile_from_neighbours(x[lo], x[hi], gamma)[0] == pytest.approx(np.quantile(x, quantile),
+                                                                       rel=RTOL_SAME_FORMULA, abs=0)

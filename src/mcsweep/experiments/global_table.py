@@ -26,7 +26,7 @@ from ..astrometry.confidence import binomial_interval
 
 __all__ = ["SUBSETS", "SUBSET_SPLIT", "SUBSET_TITLES", "PAPER_G_CLASSES", "PAPER_CONFIDENCE",
            "FRACTION_INTERVAL", "g_label", "published_value", "subset_masks", "error_percentile",
-           "fraction_statistics", "table_cell", "subset_counts", "paper_layout", "layout_markdown"]
+           "fraction_statistics", "fraction_from_counts", "table_cell", "subset_counts", "paper_layout", "layout_markdown"]
 
 #: Subsets by number of retained FoV transits (values of the ``subset`` column).
 SUBSETS = ("<=4", ">4")
@@ -90,9 +90,13 @@ def fraction_statistics(inside) -> tuple[int, int, float, float, float]:
     """
     inside = np.asarray(inside)
     n_valid, n_in = int(np.count_nonzero(inside >= 0)), int(np.count_nonzero(inside == 1))
-    frac = n_in / n_valid if n_valid else float("nan")
-    lo, hi = binomial_interval(n_in, n_valid, FRACTION_INTERVAL)
-    return n_valid, n_in, frac, float(lo), float(hi)
+    return (n_valid, n_in, *fraction_from_counts(n_in, n_valid))
+
+
+def fraction_from_counts(n_inside: int, n_valid: int) -> tuple[float, float, float]:
+    """``(fraction, fraction_lo, fraction_hi)`` of a cell from its counts (:func:`fraction_statistics`)."""
+    lo, hi = binomial_interval(n_inside, n_valid, FRACTION_INTERVAL)
+    return (n_inside / n_valid if n_valid else float("nan")), float(lo), float(hi)
 
 
 def table_cell(ours: float, paper: float, fmt: str, scale: float = 1.0, interval=None) -> str:

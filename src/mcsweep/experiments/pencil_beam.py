@@ -451,9 +451,6 @@ def sigma_f90_interval(priors_mas, inside_flags, valid_flags, p: float, interpol
     ``valid_flags`` are (n_priors, n_stars) (NaN rule of ``inside_counts``); the
     resamples come from :func:`bootstrap_fractions`.
     """
-    inside_flags = np.asarray(inside_flags, bool)
-    if n_resamples <= 0 or inside_flags.shape[1] == 0:
-        return float("nan"), float("nan")
     return pattern_interval(priors_mas, flag_patterns(inside_flags, valid_flags), p, interpolation, n_resamples, rng)
 
 

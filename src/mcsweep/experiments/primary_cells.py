@@ -30,9 +30,9 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from ..astrometry.confidence import binomial_interval, check_probability
+from ..astrometry.confidence import check_probability
 from .global_classes import class_key
-from .global_table import FRACTION_INTERVAL, SUBSETS, error_percentile, subset_masks
+from .global_table import FRACTION_INTERVAL, SUBSETS, error_percentile, fraction_from_counts, subset_masks
 from ..solver.selection import float_keys, quantile_from_neighbours, quantile_ranks
 from .pencil_beam import flag_patterns, merge_patterns, pattern_interval, sigma_f90_from_curve
 
@@ -83,6 +83,7 @@ class RankSelector:
         self._start: dict[int, int] = {}   # wanted rank -> rank of its bin's first value
         self._wanted: dict[int, int] = {}  # wanted rank -> its bin
         self._bins: dict[int, list] = {}   # bin -> the values kept in pass 2
+        self._sorted: set[int] = set()     # bins already joined and sorted
 
     @staticmethod
     def _finite(values) -> tuple[np.ndarray, np.ndarray]:
@@ -123,10 +124,9 @@ class RankSelector:
         """The finite values' order statistic of ``rank`` (wanted before pass 2), as float64."""
         b = self._wanted[rank]
         kept = self._bins[b]
-        if len(kept) > 1:
+        if b not in self._sorted:
             kept[:] = [np.sort(np.concatenate(kept))]
-        elif kept:
-            kept[0] = np.sort(kept[0])
+            self._sorted.add(b)
         return float(kept[0][rank - self._start[rank]])
 
 
@@ -138,6 +138,8 @@ class _Cell:
     n_valid: int = 0
     n_inside: int = 0
     errors: RankSelector = dataclasses.field(default_factory=RankSelector)
+    #: the ranks of the percentile's interval (:func:`rank_interval_indices`), set by the plan
+    interval_ranks: tuple[int, int] = (-1, -1)
 
 
 def _errors(part: pd.DataFrame) -> np.ndarray | None:
@@ -151,12 +153,16 @@ class CellReduction:
     ``labels``: every solution read (Table 3's priors and the factor grid's); ``factors``:
     factor k -> its solution's label (empty: no factor search); ``count``: the per-star
     column that counts transits for the subsets
-    (:data:`~mcsweep.experiments.primary_table.SUBSET_COUNTS`).
+    (:data:`~mcsweep.experiments.primary_table.SUBSET_COUNTS`); ``ranked``: the labels whose
+    errors are ranked for their percentiles (default every label; a solution only in the
+    factor grid needs its counts alone).
     """
 
     def __init__(self, labels: Sequence[str], g_classes: Sequence[float], confidence: float, *,
-                 count: str = "n_fov", factors: Mapping[float, str] | None = None):
+                 count: str = "n_fov", factors: Mapping[float, str] | None = None,
+                 ranked: Sequence[str] | None = None):
         self.labels = list(dict.fromkeys(labels))
+        self.ranked = set(self.labels if ranked is None else ranked)
         self.g_classes = [float(g) for g in g_classes]
         self.confidence = float(confidence)
         self.count = count
@@ -164,7 +170,7 @@ class CellReduction:
         self.cells = {(lab, s, g): _Cell() for lab in self.labels for s in SUBSETS for g in self.g_classes}
         self.patterns: dict = {(s, g): {} for s in SUBSETS for g in self.g_classes}
         self.spans = {g: RankSelector() for g in self.g_classes}
-        self.span_counts = {g: [0, 0] for g in self.g_classes}  # (stars, within a day)
+        self.within_a_day = {g: 0 for g in self.g_classes}
         self.class_counts: dict[int, int] = {}
         self._planned = False
 
@@ -198,7 +204,7 @@ class CellReduction:
                 cell.n_stars += int(np.count_nonzero(m))
                 cell.n_valid += int(np.count_nonzero(valid))
                 cell.n_inside += int(np.count_nonzero(flags == 1))
-                if err is not None:
+                if err is not None and lab in self.ranked:
                     cell.errors.count(err[m][valid])
         for (s, g), m in masks.items():
             if self.factors:
@@ -206,8 +212,7 @@ class CellReduction:
                 merge_patterns(self.patterns[s, g], flag_patterns(flags == 1, flags >= 0))
             if s == "<=4" and span is not None:
                 sp = span[m & (n_fov >= 1)]
-                self.span_counts[g][0] += sp.size
-                self.span_counts[g][1] += int(np.count_nonzero(sp < 1))
+                self.within_a_day[g] += int(np.count_nonzero(sp < 1))
                 self.spans[g].count(sp)
 
     def plan(self) -> None:
@@ -216,24 +221,24 @@ class CellReduction:
         for cell in self.cells.values():
             n = cell.errors.n
             if n:
-                cell.errors.want([*_quantile_wanted(n, np.true_divide(q, 100)),
-                                  *rank_interval_indices(n, q, FRACTION_INTERVAL)])
+                cell.interval_ranks = rank_interval_indices(n, q, FRACTION_INTERVAL)
+                cell.errors.want([*_quantile_wanted(n, np.true_divide(q, 100)), *cell.interval_ranks])
         for sel in self.spans.values():
             if sel.n:
                 sel.want([r for quantile in SPAN_QUANTILES for r in _quantile_wanted(sel.n, quantile)])
         self._planned = True
 
     def collect_part(self, parts: Mapping[str, pd.DataFrame]) -> None:
-        """Pass 2 over one part of every solution, in any order of the parts."""
+        """Pass 2 over one part of every solution, in any order of the parts (after :meth:`plan`)."""
         if not self._planned:
-            self.plan()
+            raise RuntimeError("plan() comes between the passes")
         first = self._one(parts)
         masks = self._masks(first)
         n_fov = first["n_fov"].to_numpy()
         span = first["span_days"].to_numpy() if "span_days" in first else None
         for lab in self.labels:
             inside, err = parts[lab]["inside"].to_numpy(), _errors(parts[lab])
-            if err is None:
+            if err is None or lab not in self.ranked:
                 continue
             for (s, g), m in masks.items():
                 self.cells[lab, s, g].errors.collect(err[m][inside[m] >= 0])
@@ -247,18 +252,17 @@ class CellReduction:
         percentile_lo, percentile_hi)`` of one cell (:func:`~.primary_table.cell_statistics`'s
         numbers: the percentile NaN if an error is not finite, its interval over the finite ones)."""
         cell = self.cells[label, subset, float(g)]
-        frac = cell.n_inside / cell.n_valid if cell.n_valid else float("nan")
-        lo, hi = binomial_interval(cell.n_inside, cell.n_valid, FRACTION_INTERVAL)
+        frac, lo, hi = fraction_from_counts(cell.n_inside, cell.n_valid)
         sel, n = cell.errors, cell.errors.n
         q = error_percentile(self.confidence)
         p = plo = phi = float("nan")
         if n:
             if not sel.n_nonfinite:
                 p = _quantile(sel, np.true_divide(q, 100))
-            i, j = rank_interval_indices(n, q, FRACTION_INTERVAL)
+            i, j = cell.interval_ranks
             plo = sel.value(i) if i >= 0 else float("nan")
             phi = sel.value(j) if j < n else float("nan")
-        return cell.n_stars, cell.n_valid, cell.n_inside, frac, float(lo), float(hi), p, plo, phi
+        return cell.n_stars, cell.n_valid, cell.n_inside, frac, lo, hi, p, plo, phi
 
     def factor_counts(self, subset: str, g: float) -> list[tuple[int, int]]:
         """``(n_valid, n_inside)`` per factor k (ascending) of one cell."""
@@ -281,8 +285,8 @@ class CellReduction:
     def span_summary(self, g: float) -> tuple[np.ndarray, float] | None:
         """The <= 4 transit stars of class ``g`` with live transits: (quantiles
         :data:`SPAN_QUANTILES` of their spans [d], fraction within a day); None without any."""
-        n, within = self.span_counts[float(g)]
         sel = self.spans[float(g)]
+        n, within = sel.n + sel.n_nonfinite, self.within_a_day[float(g)]
         if not n:
             return None
         q = np.full(len(SPAN_QUANTILES), np.nan)

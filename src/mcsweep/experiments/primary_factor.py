@@ -23,8 +23,7 @@ from typing import Mapping, Sequence
 import numpy as np
 import pandas as pd
 
-from ..astrometry.confidence import binomial_interval
-from .global_table import FRACTION_INTERVAL, SUBSETS, g_label
+from .global_table import SUBSETS, fraction_from_counts, g_label
 from .primary_cells import CellReduction, reduce_parts
 
 __all__ = ["FACTOR_COLUMNS", "CURVE_COLUMNS", "factor_label", "factor_curves", "factor_rows", "curves_from_reduction",
@@ -45,7 +44,7 @@ def _reduced(results: Mapping[float, pd.DataFrame], g_classes: Sequence[float], 
     labels = {float(k): factor_label(k) for k in results}
     parts = {labels[float(k)]: df for k, df in results.items()}
     return reduce_parts(lambda _: parts, 1, CellReduction(list(parts), g_classes, confidence, count=count,
-                                                          factors=labels))
+                                                          factors=labels, ranked=()))
 
 
 def factor_curves(results: Mapping[float, pd.DataFrame], g_classes: Sequence[float], count: str = "n_fov"
@@ -59,15 +58,10 @@ def factor_curves(results: Mapping[float, pd.DataFrame], g_classes: Sequence[flo
 def curves_from_reduction(reduction: CellReduction) -> pd.DataFrame:
     """:func:`factor_curves` from the cells of solutions read part by part
     (:class:`~mcsweep.experiments.primary_cells.CellReduction` with its ``factors``)."""
-    rows = [(subset, g_label(g), k, n_val, n_in, *_fraction(n_in, n_val))
+    rows = [(subset, g_label(g), k, n_val, n_in, *fraction_from_counts(n_in, n_val))
             for subset in SUBSETS for g in reduction.g_classes
             for k, (n_val, n_in) in zip(reduction.factors, reduction.factor_counts(subset, g))]
     return pd.DataFrame(rows, columns=list(CURVE_COLUMNS))
-
-
-def _fraction(n_in: int, n_valid: int) -> tuple[float, float, float]:
-    lo, hi = binomial_interval(n_in, n_valid, FRACTION_INTERVAL)
-    return (n_in / n_valid if n_valid else float("nan")), float(lo), float(hi)
 
 
 def factor_rows(results: Mapping[float, pd.DataFrame], g_classes: Sequence[float], confidence: float, *,

@@ -27,13 +27,12 @@ import numpy as np
 import pandas as pd
 
 from ..astrometry.confidence import percentile_interval
-from .global_classes import class_key
 from .primary_cells import CellReduction, reduce_parts
 from .global_priors import prior_label
 from .global_table import (FRACTION_INTERVAL, PAPER_G_CLASSES, SUBSETS, error_percentile, fraction_statistics,
-                           g_label, layout_markdown, paper_layout, published_value, subset_masks)
+                           g_label, layout_markdown, paper_layout, published_value)
 
-__all__ = ["PAPER_TABLE3", "PAPER_G_CLASSES", "TABLE3_COLUMNS", "SUBSET_COUNTS", "paper_value3", "cell_mask",
+__all__ = ["PAPER_TABLE3", "PAPER_G_CLASSES", "TABLE3_COLUMNS", "SUBSET_COUNTS", "paper_value3",
            "cell_statistics", "table3_rows", "table3_from_reduction", "table3_layout", "table3_markdown"]
 
 #: Table 3 transcribed from the LaTeX source: (subset, prior) -> (fractions in per cent
@@ -61,18 +60,6 @@ def paper_value3(subset: str, prior: str, g_class: float, confidence: float) -> 
     """(fraction, 90th percentile [mas]) of the paper's Table 3, NaN where not comparable
     (:func:`~mcsweep.experiments.global_table.published_value`; '1F90' is its sigma_F90 row)."""
     return published_value(PAPER_TABLE3, subset, "F90" if prior == "1F90" else prior, g_class, confidence)
-
-
-def cell_mask(results: pd.DataFrame, subset: str, g_class: float, count: str = "n_fov") -> np.ndarray:
-    """The stars of one cell (subset x magnitude class) in a solution's per-star results.
-
-    ``results`` has the columns ``count`` (FoV transits per star, :data:`SUBSET_COUNTS`) and
-    ``class_key`` (round(100 G0), 0 for extra primary sources;
-    :func:`mcsweep.experiments.primary.solve_prior`); the stars are the same in every
-    solution of a run, so one mask serves them all.
-    """
-    in_subset = subset_masks(results[count].to_numpy())[subset]
-    return in_subset & (results["class_key"].to_numpy() == class_key(g_class))
 
 
 def cell_statistics(inside: np.ndarray, err_mas: np.ndarray, confidence: float) -> tuple:

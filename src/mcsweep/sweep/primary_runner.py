@@ -327,7 +327,8 @@ def _cells(run: GlobalRun, factors: dict, n_stars: int) -> CellReduction:
         return dict(zip(labels, run.read_all([ids[label][j] for label in labels])))
 
     return reduce_parts(read, len(parts_of(n_stars)), CellReduction(
-        labels, pri.g_classes, run.settings.confidence, count=SUBSET_COUNTS[pri.subset_transits], factors=factors))
+        labels, pri.g_classes, run.settings.confidence, count=SUBSET_COUNTS[pri.subset_transits], factors=factors,
+        ranked=run.settings.priors))
 
 
 def _aggregate(run: GlobalRun, computed: _Computed) -> dict[str, str]:

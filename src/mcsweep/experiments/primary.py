@@ -92,7 +92,7 @@ from ..solver.frame import frame_fit_sums, frame_from_sums, offsets_of
 from .global_classes import dead_time, star_transits
 from .global_priors import parse_prior, prior_sigma_mas
 from .global_settings import GlobalSettings, global_fields, spawn
-from .primary_results import StarParts, results_frame
+from .primary_results import StarParts, solved_results
 
 __all__ = [
     "CHUNKS_DIR",
@@ -437,9 +437,21 @@ def with_transit_columns(settings: PrimarySettings, stars: pd.DataFrame, summary
     stars = stars.copy()
     stars["n_fov"] = summary["n_fov"]
     stars["n_fov_scheduled"] = summary["n_scheduled"]
-    stars["epoch_offset_yr"] = (summary["mean_t"] - settings.t_ref_jd) / JULIAN_YEAR_DAYS
+    stars["epoch_offset_yr"] = epoch_offset_yr(settings, summary["mean_t"])
     stars["span_days"] = summary["span"]
     return stars
+
+
+def epoch_offset_yr(settings: PrimarySettings, mean_t) -> np.ndarray:
+    """Each star's mean live epoch [TCB JD] relative to the reference epoch [yr]
+    (``evaluation_epoch='star_mean'``)."""
+    return (np.asarray(mean_t) - settings.t_ref_jd) / JULIAN_YEAR_DAYS
+
+
+def prior_sigmas(settings: PrimarySettings, label: str, l_deg, b_deg, g_mag) -> np.ndarray:
+    """The parallax prior sigma [mas] of prior ``label`` for stars at (l, b, G) (Eqs. 14-17
+    scaled, or a fixed sigma: :func:`~mcsweep.experiments.global_priors.prior_sigma_mas`)."""
+    return prior_sigma_mas(label, settings.sigma_f90_mas(l_deg, b_deg, g_mag))
 
 
 def min_transits(settings: PrimarySettings) -> int:
@@ -753,8 +765,8 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
     else:
         st = data.stars
         s = data.solved
-        sig = prior_sigma_mas(label, settings.sigma_f90_mas(
-            st["l"].to_numpy()[s], st["b"].to_numpy()[s], st["phot_g_mean_mag"].to_numpy()[s]))
+        sig = prior_sigmas(settings, label, st["l"].to_numpy()[s], st["b"].to_numpy()[s],
+                           st["phot_g_mean_mag"].to_numpy()[s])
         tau = st["epoch_offset_yr"].to_numpy()[s] if settings.evaluation_epoch == "star_mean" else None
         prior = prior_diagonal(sig, settings.ratio_R)
         # Raises if a star's block is singular: every solved star has >= 1 AL+AC or 2 AL
@@ -776,14 +788,9 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
             problem.K, sol.cov, sol.x - data.x_true, [slice(b.first, b.first + b.n) for b in data.blocks],
             equal=equal, tau=tau, confidence=settings.confidence)
         sq = data.attitude_sq(sol.attitude, eps, omega)
-        n = len(st)
-        inside = np.full(n, -1, dtype=np.int8)
-        inside[s] = inside_s
-        err, err_plx, sigma_prior = (np.full(n, np.nan) for _ in range(3))
-        err[s], err_plx[s], sigma_prior[s] = err_s, plx_s, sig
-        results = StarParts.of_frame(results_frame(0, st["class_key"].to_numpy(), st["n_fov"].to_numpy(),
-                                                   st["n_fov_scheduled"].to_numpy(), st["span_days"].to_numpy(),
-                                                   inside, err, err_plx, sigma_prior))
+        results = StarParts.of_frame(solved_results(0, st["class_key"].to_numpy(), st["n_fov"].to_numpy(),
+                                                    st["n_fov_scheduled"].to_numpy(), st["span_days"].to_numpy(),
+                                                    s, (inside_s, err_s, plx_s, sig)))
     m = data.n_measurements
     hist = pd.DataFrame([dataclasses.asdict(r) for r in sol.history])
     hist.insert(0, "prior", label)

@@ -51,7 +51,6 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 
-from ..astrometry.design import JULIAN_YEAR_DAYS
 from ..astrometry.solve import prior_diagonal
 from ..solver import BLOCK_STARS, solve_global
 from ..solver.blocks import BlockSpan, att_band
@@ -61,14 +60,13 @@ from ..solver.dask_resident import DaskChunks, _is_loss
 from ..solver.frame import frame_from_sums
 from ..solver.reduction import AlignedPartials, pairwise_sum, run_level, share_of
 from ..solver.selection import digit_counts, median
-from .global_classes import star_transits
-from .global_priors import prior_sigma_mas
+from .global_classes import STAR_COLUMNS, star_transits
 from .primary import (NOISE_STREAM, BlockJob, PreparedData, PrimarySettings, _true_attitude, attitude_spline,
                       block_frame_sums, block_outcome, block_transits, build_block, covered_coefficients,
-                      dead_time_of, first_rows, measurements_per_star, min_transits, star_sigmas, stream_seed,
-                      transit_summary, true_parameters)
+                      dead_time_of, epoch_offset_yr, first_rows, measurements_per_star, min_transits,
+                      prior_sigmas, star_sigmas, stream_seed, transit_summary, true_parameters)
 from .primary_knots import ClusterEpochs, live_epochs
-from .primary_results import StarParts, results_frame
+from .primary_results import StarParts, solved_results
 from .primary_sky import SkyPartitions, alive
 
 __all__ = ["prepare_on_cluster", "solve_on_cluster"]
@@ -96,24 +94,25 @@ def _search(part: pd.DataFrame, first: int, start_jd: float, end_jd: float, law)
     return star_transits(part["ra"].to_numpy(), part["dec"].to_numpy(), start_jd, end_jd, law, first=first)
 
 
-def _summary(transits: dict, dead, first: int, n: int) -> dict:
-    """Per star of a partition: live FoV transits, scheduled ones, mean live epoch, span."""
+def _summary(transits: dict, dead, first: int, n: int, min_fov: int) -> dict:
+    """Per star of a partition: live FoV transits, scheduled ones, mean live epoch, span, and
+    whether it is solved (at least ``min_fov`` live FoV transits)."""
     out = transit_summary(transits["star"], transits["t"], dead, first, n)
     out.pop("live")
+    out["solved"] = out["n_fov"] >= min_fov
     return out
 
 
-def _digest(summary: dict, min_fov: int) -> dict:
+def _digest(summary: dict) -> dict:
     """What the driver needs of a partition: its solved stars and their live FoV transits."""
-    solvable = summary["n_fov"] >= min_fov
+    solvable = summary["solved"]
     return {"n_solved": int(np.count_nonzero(solvable)), "n_fov": int(summary["n_fov"][solvable].sum())}
 
 
-def _block_counts(summary: dict, part: pd.DataFrame, offset: int, block_stars: int, settings, min_fov: int) -> tuple:
+def _block_counts(summary: dict, part: pd.DataFrame, offset: int, block_stars: int, settings) -> tuple:
     """The measurements of a partition's solved stars (the first is solved star ``offset``)
     summed by solver block: (first block, sums)."""
-    n_fov = summary["n_fov"]
-    solvable = n_fov >= min_fov
+    n_fov, solvable = summary["n_fov"], summary["solved"]
     counts = measurements_per_star(n_fov[solvable], star_sigmas(settings, part, solvable)[1])
     if not counts.size:
         return 0, np.zeros(0, dtype=np.int64)
@@ -121,11 +120,9 @@ def _block_counts(summary: dict, part: pd.DataFrame, offset: int, block_stars: i
     return int(k[0]), np.bincount(k - k[0], weights=counts).astype(np.int64)
 
 
-def _solved_columns(part: pd.DataFrame, summary: dict, first: int, min_fov: int) -> dict:
-    solvable = summary["n_fov"] >= min_fov
-    idx = np.flatnonzero(solvable)
-    out = {c: part[c].to_numpy()[idx] for c in ("ra", "dec", "l", "b", "parallax", "pmra", "pmdec",
-                                               "phot_g_mean_mag")}
+def _solved_columns(part: pd.DataFrame, summary: dict, first: int) -> dict:
+    idx = np.flatnonzero(summary["solved"])
+    out = {c: part[c].to_numpy()[idx] for c in STAR_COLUMNS}
     out["star"] = first + idx
     out["mean_t"] = summary["mean_t"][idx]
     return out
@@ -137,7 +134,7 @@ def _build_chunk(spec: dict, settings: PrimarySettings, spline, true_attitude, d
     touch and the blocks' rows. ``inputs``: per partition it overlaps, in star order, its table,
     summary and transits."""
     parts, summaries, transits = inputs[0::3], inputs[1::3], inputs[2::3]
-    cols = [_solved_columns(p, s, f, spec["min_fov"]) for p, s, f in zip(parts, summaries, spec["firsts"])]
+    cols = [_solved_columns(p, s, f) for p, s, f in zip(parts, summaries, spec["firsts"])]
     solved = {c: np.concatenate([x[c] for x in cols]) for c in cols[0]}
     star = np.concatenate([t["star"] for t in transits])
     t = np.concatenate([t["t"] for t in transits])
@@ -179,10 +176,10 @@ def _fold_infos(starts: list, levels: list, n_coef: int, *infos) -> tuple:
     return fold.partials, np.flatnonzero(covered), [info["rows"] for info in infos]
 
 
-def _part_columns(part: pd.DataFrame, summary: dict, lo: int, hi: int, min_fov: int) -> dict:
+def _part_columns(part: pd.DataFrame, summary: dict, lo: int, hi: int) -> dict:
     """Rows ``lo:hi`` of a partition as the per-star results have them, and which are solved
     (with the number of solved stars before row ``lo``)."""
-    solvable = summary["n_fov"] >= min_fov
+    solvable = summary["solved"]
     return {"class_key": part["class_key"].to_numpy()[lo:hi], "n_fov": summary["n_fov"][lo:hi],
             "n_fov_scheduled": summary["n_scheduled"][lo:hi], "span_days": summary["span"][lo:hi],
             "solved": solvable[lo:hi], "solved_before": int(np.count_nonzero(solvable[:lo]))}
@@ -196,12 +193,12 @@ def _attach_prior(chunk: tuple, arg: tuple) -> tuple:
     ``arg = (settings, label)`` is all that is sent per prior."""
     blocks, hs, kept = chunk
     settings, label = arg
-    sig = prior_sigma_mas(label, settings.sigma_f90_mas(kept["l"], kept["b"], kept["phot_g_mean_mag"]))
+    sig = prior_sigmas(settings, label, kept["l"], kept["b"], kept["phot_g_mean_mag"])
     stars = star_arrays(blocks, kept["normals"], prior_diagonal(sig, settings.ratio_R))
     stars.update(kept)
     stars["sigma_prior"] = sig
     if settings.evaluation_epoch == "star_mean":
-        stars["tau"] = (kept["mean_t"] - settings.t_ref_jd) / JULIAN_YEAR_DAYS
+        stars["tau"] = epoch_offset_yr(settings, kept["mean_t"])
     first, binv = blocks[0].first, stars["binv"]
     return ([dataclasses.replace(b, binv=binv[b.first - first:b.first - first + b.n]) for b in blocks], hs,
             {"stars": stars})
@@ -271,7 +268,7 @@ def _cluster_part(data: PreparedData, resident: DaskChunks, ranges, rows: slice)
         table.ensure()
         return client.gather([client.submit(_part_columns, sky.futures[p], table.summaries[p],
                                             max(rows.start - sky.first[p], 0), min(rows.stop, ends[p]) - sky.first[p],
-                                            info["min_fov"], pure=False) for p in overlap])
+                                            pure=False) for p in overlap])
 
     got = _retried(columns, _is_loss, lambda: time.sleep(1.0))  # (a moment for the scheduler's news of the loss)
     cols = {c: np.concatenate([g[c] for g in got]) for c in ("class_key", "n_fov", "n_fov_scheduled", "span_days",
@@ -279,19 +276,16 @@ def _cluster_part(data: PreparedData, resident: DaskChunks, ranges, rows: slice)
     solved = cols.pop("solved")
     lo = int(info["solved_first"][overlap[0]] + got[0]["solved_before"]) if len(overlap) else 0
     hi = lo + int(np.count_nonzero(solved))
-    n = rows.stop - rows.start
-    inside = np.full(n, -1, dtype=np.int8)
-    err, err_plx, sig = (np.full(n, np.nan) for _ in range(3))
+    outcome = ()
     if hi > lo:
         spans = data.blocks
         firsts = np.array([spans[a].first for a, _ in ranges])
         lasts = np.array([spans[b - 1].first + spans[b - 1].n for _, b in ranges])
         cis = np.flatnonzero((firsts < hi) & (lasts > lo))
         out = chunk_values(resident.run, _outcome_slice, [(int(ci), lo, hi) for ci in cis])
-        for target, i in ((inside, 0), (err, 1), (err_plx, 2), (sig, 3)):
-            target[solved] = np.concatenate([o[i] for o in out])
-    return results_frame(rows.start, cols["class_key"], cols["n_fov"], cols["n_fov_scheduled"], cols["span_days"],
-                         inside, err, err_plx, sig)
+        outcome = tuple(np.concatenate([o[i] for o in out]) for i in range(4))
+    return solved_results(rows.start, cols["class_key"], cols["n_fov"], cols["n_fov_scheduled"], cols["span_days"],
+                          solved, outcome)
 
 
 def solve_on_cluster(settings: PrimarySettings, data: PreparedData, label: str, client, *, chunk_stars, log,
@@ -434,20 +428,20 @@ def _prepare_once(settings, sky, client, *, chunk_stars, block_stars, with_noise
 
     def summarise(p: int, transits):
         return client.submit(_summary, transits, shared("dead", dead), int(sky.first[p]), int(sky.sizes[p]),
-                             pure=False)
+                             min_fov, pure=False)
 
     table = _Table(sky, search, summarise)
     summaries, found = table.summaries, table.found
-    digests = client.gather([client.submit(_digest, summaries[p], min_fov, pure=False) for p in range(n_parts)])
+    digests = client.gather([client.submit(_digest, summaries[p], pure=False) for p in range(n_parts)])
     n_solved_p = np.array([d["n_solved"] for d in digests], dtype=np.int64)
-    solved_first = np.concatenate([[0], np.cumsum(n_solved_p)[:-1]]).astype(np.int64)
+    solved_first = first_rows(n_solved_p)
     n_solved = int(n_solved_p.sum())
     n_fov_transits = int(sum(d["n_fov"] for d in digests))
     del digests
     epochs = None
     if knots_by_data:  # placed by the epochs where they are (the knots come back, not the epochs)
         epochs = ClusterEpochs(client, [client.submit(live_epochs, summaries[p], found[p], shared("dead", dead),
-                                                       int(sky.first[p]), min_fov, pure=False)
+                                                       int(sky.first[p]), pure=False)
                                          for p in range(n_parts)], settings.start_jd, settings.end_jd)
     spline = attitude_spline(settings, dead, epochs)
     del epochs
@@ -455,7 +449,7 @@ def _prepare_once(settings, sky, client, *, chunk_stars, block_stars, with_noise
     n_blocks = -(-n_solved // block_stars)
     per_block = np.zeros(n_blocks, dtype=np.int64)
     for k0, sums in client.gather([client.submit(_block_counts, summaries[p], sky.futures[p], int(solved_first[p]),
-                                                 block_stars, shared("settings", settings), min_fov, pure=False)
+                                                 block_stars, shared("settings", settings), pure=False)
                                    for p in range(n_parts)]):
         per_block[k0:k0 + sums.size] += sums
     rows = first_rows(per_block)
@@ -472,7 +466,7 @@ def _prepare_once(settings, sky, client, *, chunk_stars, block_stars, with_noise
         ps = np.flatnonzero((solved_first < hi) & (solved_end > lo) & (n_solved_p > 0))
         spec = {"blocks": [(k, k * block_stars, min(block_stars, n_solved - k * block_stars), int(rows[k]))
                            for k in range(blo, bhi)],
-                "offset": int(solved_first[ps[0]]), "firsts": [int(sky.first[p]) for p in ps], "min_fov": min_fov,
+                "offset": int(solved_first[ps[0]]), "firsts": [int(sky.first[p]) for p in ps],
                 "block_stars": block_stars, "with_noise": with_noise}
         inputs = [x for p in ps for x in (sky.futures[p], table.summaries[p], table.transits(p))]
         live_workers = sorted(client.scheduler_info()["workers"])
@@ -522,7 +516,7 @@ def _prepare_once(settings, sky, client, *, chunk_stars, block_stars, with_noise
     data = PreparedData(stars=None, solved=None, blocks=spans, normals=None, h=None, x_true=None,
                         spline=spline, true_attitude=true_att, t_ref_jd=settings.t_ref_jd, dead=dead,
                         covered=covered, n_rows=n_rows, naa_band=np.zeros((0, 0)) if naa_band is None else naa_band,
-                        sky=sky, cluster={"table": table, "solved_first": solved_first, "min_fov": min_fov,
+                        sky=sky, cluster={"table": table, "solved_first": solved_first,
                                           "n_stars": sky.n_stars, "n_solved": n_solved,
                                           "n_fov_transits": n_fov_transits})
     data.keep_resident(client, ranges, DaskChunks(client, chunk_futures, rebuild=rebuild))

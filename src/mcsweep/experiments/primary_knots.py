@@ -21,11 +21,10 @@ import numpy as np
 __all__ = ["ClusterEpochs", "live_epochs"]
 
 
-def live_epochs(summary: dict, transits: dict, dead, first: int, min_fov: int) -> np.ndarray:
+def live_epochs(summary: dict, transits: dict, dead, first: int) -> np.ndarray:
     """The live epochs of a partition's solved stars, sorted (the knots' data, ``knot_transits``)."""
-    solvable = summary["n_fov"] >= min_fov
     live = ~dead.is_dead(transits["t"])
-    return np.sort(transits["t"][live & solvable[transits["star"] - first]])
+    return np.sort(transits["t"][live & summary["solved"][transits["star"] - first]])
 
 
 def _count_below(epochs: np.ndarray, x: np.ndarray, side: str) -> np.ndarray:

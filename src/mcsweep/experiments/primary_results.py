@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 
 
-__all__ = ["PART_STARS", "parts_of", "StarParts", "results_frame"]
+__all__ = ["PART_STARS", "parts_of", "StarParts", "results_frame", "solved_results"]
 
 #: Stars per part of a solution's per-star results (one file each in the run's store): a
 #: part's columns are some 7 MB, so reading one (or, for the factor's patterns, one of every
@@ -50,6 +50,18 @@ class StarParts:
     def frame(self) -> pd.DataFrame:
         """Every part in one frame (small runs and tests: the whole solution in memory)."""
         return pd.concat(list(self.parts()), ignore_index=True)
+
+
+def solved_results(first: int, class_key, n_fov, n_scheduled, span, solved, outcome) -> pd.DataFrame:
+    """:func:`results_frame` of stars of which only ``solved`` (indices or a mask) have a
+    solution: ``outcome = (inside, err, err_plx, sigma_prior)`` of those; the others are
+    flagged -1 with NaN errors."""
+    n = len(class_key)
+    inside = np.full(n, -1, dtype=np.int8)
+    err, err_plx, sigma_prior = (np.full(n, np.nan) for _ in range(3))
+    for target, values in zip((inside, err, err_plx, sigma_prior), outcome):
+        target[solved] = values
+    return results_frame(first, class_key, n_fov, n_scheduled, span, inside, err, err_plx, sigma_prior)
 
 
 def results_frame(first: int, class_key, n_fov, n_scheduled, span, inside, err, err_plx, sigma_prior) -> pd.DataFrame:

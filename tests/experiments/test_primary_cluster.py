@@ -4,6 +4,7 @@ measurement."""
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 
 import numpy as np
@@ -187,6 +188,20 @@ def test_cluster_built_solution_is_the_forked_one(both, client, monkeypatch):
     parts = list(got.results.parts())
     assert [len(p) for p in parts] == [700, 700, 700, len(local.stars) - 2100]
     np.testing.assert_array_equal(pd.concat(parts, ignore_index=True).to_numpy(), ref.results.frame().to_numpy())
+
+
+def test_positions_at_each_stars_own_epoch_on_the_cluster_are_the_forked_ones(both, client):
+    # evaluation_epoch='star_mean' (issue 24, candidate 5): the cluster attaches each star's
+    # epoch offset on its worker; the local path reads it from the driver's table
+    settings, local, remote = both
+    own = dataclasses.replace(settings, evaluation_epoch="star_mean")
+    ref = P.solve_prior(own, local, "F90", workers=2)
+    got = P.solve_prior(own, remote, "F90", dask_client=client, chunk_stars=2 * BLOCK)
+    np.testing.assert_array_equal(ref.results.frame().to_numpy(), got.results.frame().to_numpy())
+    common = P.solve_prior(settings, remote, "F90", dask_client=client, chunk_stars=2 * BLOCK)
+    np.testing.assert_array_equal(common.attitude, got.attitude)  # the solution is the same ...
+    moved = got.results.frame()["err_mas"].to_numpy() != common.results.frame()["err_mas"].to_numpy()
+    assert np.count_nonzero(moved) > len(moved) // 2  # ... its positions are referred elsewhere
 
 
 def test_cluster_built_solution_survives_a_killed_worker(both, client, kill_worker_at):

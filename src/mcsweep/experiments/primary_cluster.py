@@ -58,7 +58,7 @@ from ..solver.cg import (MAX_RESTARTS, ChunksLost, ResidentProblem, chunk_values
                          star_arrays, typical_weights, weight_sums)
 from ..solver.dask_resident import DaskChunks, _is_loss
 from ..solver.frame import frame_from_sums
-from ..solver.reduction import AlignedPartials, pairwise_sum, run_level, share_of
+from ..solver.reduction import AlignedPartials, pairwise_sum, run_level, share_of, sum_partials
 from ..solver.selection import digit_counts, median
 from .global_classes import STAR_COLUMNS, star_transits
 from .primary import (NOISE_STREAM, BlockJob, PreparedData, PrimarySettings, _true_attitude, attitude_spline,
@@ -500,14 +500,13 @@ def _prepare_once(settings, sky, client, *, chunk_stars, block_stars, with_noise
                             for w, cis in groups.items()])
     del infos
     table.release_transits()  # a lost chunk searches its partitions again (rebuild)
-    partials = sorted((p for f in folded for p in f[0]), key=lambda p: p[0])
-    naa_band = pairwise_sum((p[2] for p in partials), None, [p[1] for p in partials])
+    naa_band = sum_partials(f[0] for f in folded)
     covered = np.zeros(spline.n_coef, dtype=bool)
     rows_of = {}
     for (_, cov, block_rows), cis in zip(folded, groups.values()):
         covered[cov] = True
         rows_of.update(zip(cis, block_rows))
-    del folded, partials
+    del folded
     spans = []
     for ci, (blo, bhi) in enumerate(ranges):
         for k, (r0, r1) in zip(range(blo, bhi), rows_of[ci]):

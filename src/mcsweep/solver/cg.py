@@ -360,7 +360,7 @@ class GlobalProblem:
         g = precision_weights(self.src_inv)
         self.frame_means = pairwise_sum(weight_sums(g[b.first:b.first + b.n]) for b in self.blocks) / max(n, 1)
         self.frame_weights = normalised_weights(g, self.frame_means)
-        self.w_pos, self.w_pm = penalty_weights(*typical_weights(N_src, self.prior), n)
+        self.w_pos, self.w_pm = penalty_weights(*map(np.median, typical_weights(N_src, self.prior)), n)
 
     @property
     def stars_with_chunks(self) -> bool:
@@ -473,11 +473,9 @@ def penalty_weights(pos, pm, n: int) -> tuple[float, float]:
     """Frame penalty weights: one typical star's position (proper-motion) weight per unit of
     mean rotation, so the constrained directions are as well conditioned as a star (any
     positive weight gives the same stars for the orientation). ``pos``, ``pm``: the stars'
-    weights (:func:`typical_weights`), or their medians already found (floats; on a
-    cluster, :mod:`mcsweep.solver.selection`)."""
-    med_pos = float(pos) if np.ndim(pos) == 0 else float(np.median(pos))
-    med_pm = float(pm) if np.ndim(pm) == 0 else float(np.median(pm))
-    return med_pos / (2.0 * n), med_pm / (2.0 * n)
+    weights' medians (of :func:`typical_weights`; on a cluster found by
+    :mod:`mcsweep.solver.selection`)."""
+    return float(pos) / (2.0 * n), float(pm) / (2.0 * n)
 
 
 def star_arrays(blocks, normals, prior) -> dict:
@@ -906,8 +904,8 @@ def _pcg(pb: GlobalProblem, chunks, run, *, rtol, update_tol_uas, error_tol, max
 
     # the chunks' runs in the two trees (first block or leaf, level), for sums taken where the chunks are
     first_block = [bl[0].first // bs for bl in chunks]
-    block_tree = {i: first_block[i] for i in n_ch}, dict(enumerate(levels))
-    leaf_tree = {i: first_block[i] // leaf for i in n_ch}, dict(enumerate(leaf_levels))
+    block_tree = first_block, levels
+    leaf_tree = [f // leaf for f in first_block], leaf_levels
 
     sums = {"blocks": total, "leaves": total_att}
 

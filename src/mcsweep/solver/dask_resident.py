@@ -42,7 +42,7 @@ import uuid
 import numpy as np
 from typing import Callable, Sequence
 
-from .reduction import AlignedPartials, pairwise_sum, share_of
+from .reduction import AlignedPartials, share_of, sum_partials
 
 __all__ = ["DaskChunks"]
 
@@ -241,8 +241,7 @@ class DaskChunks:
 
         items, counts, sent = self._start_pass(items)
         try:
-            args = [tuple(self._send(o, None if counts[id(o)] > 1 else ci, sent) if _scattered(o)
-                          else self._inline(o) for o in rest) for ci, rest in items]
+            args = [self._args(ci, rest, counts, sent) for ci, rest in items]
             tag = uuid.uuid4().hex[:12]
             # pinned to the chunk's worker: the task changes the chunk's state there (a copy of
             # the chunk moved to another worker would not be the one kept)
@@ -255,6 +254,12 @@ class DaskChunks:
             self._after_failure(exc)
         self._tally(getattr(fn, "__name__", "task"), sent, out)
         return iter(out)
+
+    def _args(self, ci: int, rest: tuple, counts: dict, sent: dict) -> tuple:
+        """Chunk ``ci``'s arguments ``rest`` as its task gets them: large arrays scattered (to
+        every worker if several items hold them), the rest inline."""
+        return tuple(self._send(o, None if counts[id(o)] > 1 else ci, sent) if _scattered(o) else self._inline(o)
+                     for o in rest)
 
     def _start_pass(self, items) -> tuple[list, dict, dict]:
         """A pass's items as ``(ci, rest)``, how many items hold each argument (one held by
@@ -306,7 +311,10 @@ class DaskChunks:
         One task per worker runs ``fn`` on the chunks it holds and adds their outputs there
         where the tree adds them (:class:`~mcsweep.solver.reduction.AlignedPartials`), so the
         driver receives a few sums per worker, not one per chunk, and adds them in the tree:
-        the same bits as :meth:`run` and the sums taken here (tests). ``fresh``: received
+        the same bits as :meth:`run` and the sums taken here (tests). That task runs its
+        chunks one after the other: the clusters this project starts have one thread per
+        worker (a worker process per core), where nothing is lost; a worker of several threads
+        would run its chunks in turn. ``fresh``: received
         arrays copied (:func:`~mcsweep.solver.cg._fresh`; not needed for sums only added
         element by element). Losses as in :meth:`run`.
         """
@@ -318,9 +326,7 @@ class DaskChunks:
             groups: dict[str, list] = {}
             for ci, rest in sorted(items, key=lambda it: it[0]):
                 home = self._home(ci)
-                args = tuple(self._send(o, None if counts[id(o)] > 1 else ci, sent) if _scattered(o)
-                             else self._inline(o) for o in rest)
-                groups.setdefault(home[0] if home else "", []).append((ci, args))
+                groups.setdefault(home[0] if home else "", []).append((ci, self._args(ci, rest, counts, sent)))
             tag = uuid.uuid4().hex[:12]
             futs = []
             for w, (worker, group) in enumerate(sorted(groups.items())):
@@ -336,9 +342,7 @@ class DaskChunks:
         result = []
         for k, spec in enumerate(specs):
             if spec[0] == "tree":
-                parts = sorted((p for o in out for p in o[k]), key=lambda p: p[0])
-                result.append(pairwise_sum(((_fresh(p[2]) if fresh else p[2]) for p in parts), spec[3],
-                                           [p[1] for p in parts]))
+                result.append(sum_partials((o[k] for o in out), spec[3], _fresh if fresh else None))
             else:
                 result.append(max(o[k] for o in out))
         return result

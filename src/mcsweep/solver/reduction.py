@@ -33,7 +33,7 @@ from typing import Callable, Iterable
 
 import numpy as np
 
-__all__ = ["pairwise_sum", "AlignedPartials", "chunk_ranges", "run_level", "share_bounds", "share_of", "leaf_blocks",
+__all__ = ["pairwise_sum", "AlignedPartials", "sum_partials", "chunk_ranges", "run_level", "share_bounds", "share_of", "leaf_blocks",
            "LEAF_RATIO", "MIN_LEAVES"]
 
 #: A leaf holds at least this many measurements per attitude unknown (:func:`leaf_blocks`),
@@ -110,6 +110,15 @@ class AlignedPartials:
             stack.pop()
             value, start, level = self.add(v0, value), s0, level + 1
         stack.append((start, level, value))
+
+
+def sum_partials(holders: Iterable, add: Callable | None = None, each: Callable | None = None):
+    """The sum of every run held as :attr:`AlignedPartials.partials` by several holders
+    (``holders``: their lists of ``(start, level, value)``): :func:`pairwise_sum` of them all in
+    the order of their starts, with their levels, so the fixed tree's sum bit for bit;
+    ``each``: applied to each value first."""
+    parts = sorted((p for held in holders for p in held), key=lambda p: p[0])
+    return pairwise_sum(((p[2] if each is None else each(p[2])) for p in parts), add, [p[1] for p in parts])
 
 
 def run_level(lo: int, hi: int) -> int:

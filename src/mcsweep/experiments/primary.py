@@ -242,7 +242,7 @@ class PreparedData:
     calibration: BasicAngleColumns | None = None  # the basic-angle variation's design, problem order
     # data built on a cluster: the table of stars there (primary_sky.SkyPartitions; ``stars`` and
     # ``solved`` are then None) and what the driver keeps of it (per partition its summaries'
-    # futures and first solved star; the counts of stars, solved stars and their transits)
+    # futures and first solved star; the counts of solved stars and their transits)
     sky: object | None = None
     cluster: dict | None = None
     _problem: GlobalProblem | None = dataclasses.field(default=None, repr=False)
@@ -255,7 +255,7 @@ class PreparedData:
     @property
     def n_stars(self) -> int:
         """Stars of the solution's table (solved or not)."""
-        return int(self.cluster["n_stars"]) if self.cluster is not None else len(self.stars)
+        return int(self.sky.n_stars) if self.sky is not None else len(self.stars)
 
     @property
     def n_solved(self) -> int:

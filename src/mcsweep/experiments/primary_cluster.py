@@ -515,8 +515,7 @@ def _prepare_once(settings, sky, client, *, chunk_stars, block_stars, with_noise
     data = PreparedData(stars=None, solved=None, blocks=spans, normals=None, h=None, x_true=None,
                         spline=spline, true_attitude=true_att, t_ref_jd=settings.t_ref_jd, dead=dead,
                         covered=covered, n_rows=n_rows, naa_band=np.zeros((0, 0)) if naa_band is None else naa_band,
-                        sky=sky, cluster={"table": table, "solved_first": solved_first,
-                                          "n_stars": sky.n_stars, "n_solved": n_solved,
+                        sky=sky, cluster={"table": table, "solved_first": solved_first, "n_solved": n_solved,
                                           "n_fov_transits": n_fov_transits})
     data.keep_resident(client, ranges, DaskChunks(client, chunk_futures, rebuild=rebuild))
     return data

@@ -56,7 +56,7 @@ from ..solver import BLOCK_STARS, solve_global
 from ..solver.blocks import BlockSpan, att_band
 from ..solver.cg import (MAX_RESTARTS, ChunksLost, ResidentProblem, chunk_values, penalty_weights, solver_chunks,
                          star_arrays, typical_weights, weight_sums)
-from ..solver.dask_resident import DaskChunks, _is_loss
+from ..solver.dask_resident import DaskChunks, _is_loss, live_workers
 from ..solver.frame import frame_from_sums
 from ..solver.reduction import AlignedPartials, pairwise_sum, run_level, share_of, sum_partials
 from ..solver.selection import digit_counts, median
@@ -469,14 +469,14 @@ def _prepare_once(settings, sky, client, *, chunk_stars, block_stars, with_noise
                 "offset": int(solved_first[ps[0]]), "firsts": [int(sky.first[p]) for p in ps],
                 "block_stars": block_stars, "with_noise": with_noise}
         inputs = [x for p in ps for x in (sky.futures[p], table.summaries[p], table.transits(p))]
-        live_workers = sorted(client.scheduler_info()["workers"])
+        workers = live_workers(client)
         # spread over the workers (memory) in contiguous shares of the chunks, so each worker
         # sums its chunks' outputs before they travel (DaskChunks.reduced), not where the
         # transits are
-        owner = share_of(ci, len(ranges), len(live_workers))
+        owner = share_of(ci, len(ranges), len(workers))
         return client.submit(_build_chunk, spec, shared("settings", settings), shared("spline", spline),
                              shared("truth", true_att), shared("dead", dead), *inputs, pure=False,
-                             workers=[live_workers[owner]], allow_other_workers=True)
+                             workers=[workers[owner]], allow_other_workers=True)
 
     def rebuild(ci: int):
         return client.submit(_first, submit(ci), pure=False)

@@ -94,6 +94,25 @@ def _scattered(obj) -> bool:
     return isinstance(obj, np.ndarray) and obj.nbytes >= SCATTER_BYTES
 
 
+#: How long a pass waits for a worker when the cluster has none (all lost, nannies restarting).
+WORKER_WAIT_S = 120
+
+
+def live_workers(client) -> list[str]:
+    """The addresses of the cluster's workers now, sorted; at least one (waits up to
+    :data:`WORKER_WAIT_S` for one, then raises TimeoutError, a loss).
+
+    Asked of the scheduler itself (``Client.nthreads``), not through
+    ``Client.scheduler_info()``: distributed's client refreshes that cached identity every
+    two seconds without the workers, and a refresh finishing during the call returns the
+    cache with none (met in CI, distributed 2026.8: an IndexError on ``workers[0]``)."""
+    workers = sorted(client.nthreads())
+    if not workers:
+        client.wait_for_workers(1, timeout=WORKER_WAIT_S)
+        workers = sorted(client.nthreads())
+    return workers
+
+
 def _nbytes(obj) -> int:
     from dask.sizeof import sizeof
 
@@ -138,7 +157,7 @@ class DaskChunks:
         chunks = [(*c, {}) for c in chunks]
 
         def put(ci):
-            workers = sorted(client.scheduler_info()["workers"])  # the live ones (after a loss too)
+            workers = live_workers(client)  # the live ones (after a loss too)
             # one worker per chunk, in contiguous shares: every worker gets its part of the
             # memory, and sums its chunks' outputs before they travel (:meth:`reduced`)
             # (in a list: a tuple itself would be scattered element by element)
@@ -195,7 +214,7 @@ class DaskChunks:
         n = _nbytes(obj)
         if ci is None:
             fut = self.client.scatter(obj, broadcast=True, hash=False)
-            n *= len(self.client.scheduler_info()["workers"])
+            n *= len(live_workers(self.client))
         else:
             (fut,) = self.client.scatter([obj], workers=self._home(ci), hash=False)
         self.bytes_sent += n

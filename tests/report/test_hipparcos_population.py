@@ -2,6 +2,7 @@
 bundled catalogue, the model side its expectation and a seeded sample."""
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from mcsweep.population import GalaxyModel
@@ -44,3 +45,38 @@ def test_bad_options_exit_2(capsys):
     assert hp.main(["--n-draw", "0"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 2 and all(line.startswith("hipparcos_population:") for line in err)
+
+
+@pytest.fixture(scope="module")
+def by_mprime():
+    return hp.absolute_magnitude_comparison(GalaxyModel(), n_draw=N_DRAW)
+
+
+def test_absolute_magnitude_rows_hold_every_star_of_each_band(by_mprime, table):
+    n_bins = len(hp.MPRIME_EDGES) - 1
+    assert len(by_mprime) == len(hp.G_BINS) * len(hp.BANDS_DEG) * n_bins
+    # the M' bins run from -inf to +inf: each band's catalogue stars are all there, once
+    per_band = by_mprime.groupby(["g_min", "b_lo"], sort=True).n_hip.sum().to_numpy()
+    assert tuple(per_band) == tuple(table.sort_values(["g_min", "b_lo"]).n_hip)
+    model = GalaxyModel()
+    for (g0, g1), part in by_mprime.groupby(["g_min", "g_max"]):
+        assert part.n_model.sum() == pytest.approx(model.expected_count(0, 90, 180, g0, g1), rel=1e-9)
+    assert (by_mprime.n_hip_above_ms <= by_mprime.n_hip).all()
+
+
+def test_above_main_sequence_against_the_dwarf_sequence():
+    # Mamajek's F5V (B - V 0.440, M_G 3.26) and K0V (0.816, 5.553): on the sequence, as an equal
+    # binary (0.75 mag above) and 1.5 / 2.9 mag above; the red clump (B - V ~ 1.0, M_G ~ 0.5)
+    # and an A star above the sequence are outside the colours counted
+    b_v = [0.440, 0.440, 0.440, 0.440, 0.440, 0.816, 0.816, 1.0, 0.15]
+    mg = [3.26, 2.51, 1.76, 0.36, 0.20, 5.553, 4.053, 0.5, 0.5]
+    assert hp.above_main_sequence(b_v, mg).tolist() == [False, False, True, True, False, False, True, False,
+                                                        False]
+
+
+def test_cli_writes_the_absolute_magnitude_table(tmp_path, capsys):
+    out = tmp_path / "mprime.csv"
+    assert hp.main(["--by-absolute-magnitude", "--n-draw", "2000", "--out", str(out)]) == 0
+    got = pd.read_csv(out)
+    assert {"mprime_lo", "mprime_hi", "n_hip", "n_model", "n_hip_above_ms"} <= set(got.columns)
+    assert "n_hip_above_ms" in capsys.readouterr().out

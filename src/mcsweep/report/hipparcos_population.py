@@ -7,10 +7,20 @@ values come from ``n_draw`` stars drawn from its density (seeded), its counts fr
 expectation; Hipparcos' from the catalogue (G derived as in :mod:`mcsweep.population.hipparcos`;
 its parallax errors, 0.5-1 mas, are left in).
 
+By absolute magnitude (``--by-absolute-magnitude``, :func:`absolute_magnitude_comparison`):
+the same stars counted per bin of M' = G + 5 log10(parallax / 100 mas), the absolute
+magnitude with the extinction left in, so that model and catalogue are read alike (the
+model's parallaxes get Hipparcos-sized errors, drawn from the catalogue's errors in the same
+G bin). It says which kind of star the model has too many or too few of; the catalogue's
+stars lying 1-3 mag above the dwarf sequence at F0-K2 colours (subgiants, which the model's
+luminosity function does not hold: :mod:`mcsweep.population.galaxy.luminosity`) are counted
+per bin too.
+
 Usage::
 
     python -m mcsweep.report.hipparcos_population [--extinction-model arenou1992]
-        [--giant-thickness-factor 0.6] [--thin-disc-factor 1.18] [--out FILE.csv]
+        [--giant-thickness-factor 0.6] [--thin-disc-factor 1.18] [--by-absolute-magnitude]
+        [--out FILE.csv]
 """
 
 from __future__ import annotations
@@ -27,13 +37,27 @@ from ..errors import UserInputError
 from ..population import GalaxyModel
 from ..population import hipparcos
 
-__all__ = ["BANDS_DEG", "G_BINS", "compare", "main"]
+__all__ = ["BANDS_DEG", "G_BINS", "MPRIME_EDGES", "absolute_magnitude_comparison", "above_main_sequence", "compare",
+           "main"]
 
 #: |b| bands of the real-sky validation, deg.
 BANDS_DEG = ((0.0, 15.0), (15.0, 35.0), (35.0, 90.0))
 #: G bins compared.
 G_BINS = ((6.0, 7.0), (7.0, 8.0))
 SEED = 20150821
+#: Bins of M' = G + 5 log10(parallax / 100 mas) [mag]: luminous giants and B stars; giants and
+#: B8-A0 dwarfs; the red clump and A0-A3; A3-F0 dwarfs and subgiants; F dwarfs and subgiants;
+#: G dwarfs; later.
+MPRIME_EDGES = (-np.inf, -1.0, 0.0, 1.0, 2.0, 3.0, 4.0, np.inf)
+#: The dwarf sequence (B - V, M_G) from F0V to K3V: E. Mamajek, "A Modern Mean Dwarf Stellar
+#: Color and Effective Temperature Sequence" (version 2021.03.02; Pecaut & Mamajek 2013, ApJS
+#: 208, 9, Table 5, to be cited), columns B-V and M_G.
+DWARF_BV = (0.295, 0.440, 0.595, 0.680, 0.816, 0.884, 0.990)
+DWARF_MG = (2.51, 3.26, 4.325, 4.801, 5.553, 5.83, 6.20)
+#: Colours (F0V-K2V) and heights above the sequence [mag] counted as subgiants: an unresolved
+#: equal binary sits 0.75 mag above, the red clump is redder (B - V ~ 1).
+SUBGIANT_BV = (0.295, 0.884)
+SUBGIANT_ABOVE = (1.0, 3.0)
 
 
 def _stats(b, plx, pmra, pmdec):
@@ -46,21 +70,79 @@ def _stats(b, plx, pmra, pmdec):
 
 def compare(model, *, n_draw=200_000, seed=SEED):
     """One row per (G bin, |b| band): counts, p90 parallax [mas], median proper motion
-    [mas/yr], model and Hipparcos, and their ratios."""
+    [mas/yr], model and Hipparcos, and their ratios; and Hipparcos' p90 parallax and median
+    proper motion without its stars above the dwarf sequence (:func:`above_main_sequence`)."""
     hip = hipparcos.load_hipparcos()
     rng = np.random.default_rng(seed)
     rows = []
     for g0, g1 in G_BINS:
         h = hip[(hip.phot_g_mean_mag >= g0) & (hip.phot_g_mean_mag < g1)]
         hs = _stats(h.b.to_numpy(), h.parallax.to_numpy(), h.pmra.to_numpy(), h.pmdec.to_numpy())
+        # the catalogue without its stars above the dwarf sequence, which the model lacks
+        on = ~above_main_sequence(h.b_v, _mprime(h.phot_g_mean_mag, h.parallax))
+        hs_on = _stats(h.b.to_numpy()[on], h.parallax.to_numpy()[on], h.pmra.to_numpy()[on], h.pmdec.to_numpy()[on])
         total = model.expected_count(0.0, 90.0, 180.0, g0, g1)
         s = model.sample_cone(0.0, 90.0, 180.0, g0, g1, rng, min_draw=n_draw)
         ms = _stats(s.b.to_numpy(), s.parallax.to_numpy(), s.pmra.to_numpy(), s.pmdec.to_numpy())
-        for (lo, hi), (hn, hp, hm), (mn, mp, mm) in zip(BANDS_DEG, hs, ms):
+        for (lo, hi), (hn, hp, hm), (mn, mp, mm), (_, hp_on, hm_on) in zip(BANDS_DEG, hs, ms, hs_on):
             n_model = total * mn / len(s)
             rows.append(dict(g_min=g0, g_max=g1, b_lo=lo, b_hi=hi, n_hip=hn, n_model=n_model,
                              count_ratio=n_model / hn, plx90_hip=hp, plx90_model=mp, plx90_ratio=mp / hp,
-                             pm50_hip=hm, pm50_model=mm, pm50_ratio=mm / hm))
+                             pm50_hip=hm, pm50_model=mm, pm50_ratio=mm / hm,
+                             plx90_hip_not_above_ms=hp_on, pm50_hip_not_above_ms=hm_on))
+    return pd.DataFrame(rows)
+
+
+def _in_band(b, lo, hi) -> np.ndarray:
+    b = np.abs(np.asarray(b, dtype=float))
+    return (b >= lo) & ((b < hi) | (hi == 90.0))
+
+
+def _mprime(g, parallax) -> np.ndarray:
+    """G + 5 log10(parallax / 100 mas); -inf for a parallax <= 0 (counted in the brightest bin)."""
+    g, parallax = np.asarray(g, dtype=float), np.asarray(parallax, dtype=float)
+    out = np.full(g.shape, -np.inf)
+    pos = parallax > 0
+    out[pos] = g[pos] + 5.0 * np.log10(parallax[pos] / 100.0)
+    return out
+
+
+def above_main_sequence(b_v, mprime) -> np.ndarray:
+    """Whether a star of colour ``b_v`` and absolute magnitude ``mprime`` lies
+    :data:`SUBGIANT_ABOVE` mag above the dwarf sequence at F0-K2 colours (:data:`SUBGIANT_BV`)."""
+    b_v, mprime = np.asarray(b_v, dtype=float), np.asarray(mprime, dtype=float)
+    above = np.interp(b_v, DWARF_BV, DWARF_MG) - mprime
+    return ((b_v >= SUBGIANT_BV[0]) & (b_v < SUBGIANT_BV[1])
+            & (above >= SUBGIANT_ABOVE[0]) & (above < SUBGIANT_ABOVE[1]))
+
+
+def absolute_magnitude_comparison(model, *, n_draw=200_000, seed=SEED):
+    """One row per (G bin, |b| band, M' bin): stars of the model (its expectation, shared out as
+    its drawn stars fall) and of Hipparcos 2, their ratio, and the catalogue's stars above the
+    dwarf sequence (:func:`above_main_sequence`). M' is read from parallaxes with Hipparcos-sized
+    errors on both sides (module notes)."""
+    hip = hipparcos.load_hipparcos()
+    rng = np.random.default_rng(seed)
+    edges = np.asarray(MPRIME_EDGES)
+    rows = []
+    for g0, g1 in G_BINS:
+        h = hip[(hip.phot_g_mean_mag >= g0) & (hip.phot_g_mean_mag < g1)]
+        mh = _mprime(h.phot_g_mean_mag, h.parallax)
+        sub = above_main_sequence(h.b_v, mh)
+        total = model.expected_count(0.0, 90.0, 180.0, g0, g1)
+        s = model.sample_cone(0.0, 90.0, 180.0, g0, g1, rng, min_draw=n_draw)
+        errors = rng.choice(h.parallax_error.to_numpy(), len(s))
+        mm = _mprime(s.phot_g_mean_mag, s.parallax.to_numpy() + errors * rng.standard_normal(len(s)))
+        for lo, hi in BANDS_DEG:
+            inh, inm = _in_band(h.b, lo, hi), _in_band(s.b, lo, hi)
+            n_hip = np.histogram(mh[inh], edges)[0]
+            n_sub = np.histogram(mh[inh & sub], edges)[0]
+            n_model = np.histogram(mm[inm], edges)[0] * (total / len(s))
+            for k in range(len(edges) - 1):
+                rows.append(dict(g_min=g0, g_max=g1, b_lo=lo, b_hi=hi, mprime_lo=edges[k], mprime_hi=edges[k + 1],
+                                 n_hip=int(n_hip[k]), n_model=n_model[k],
+                                 ratio=n_model[k] / n_hip[k] if n_hip[k] else np.nan,
+                                 n_hip_above_ms=int(n_sub[k])))
     return pd.DataFrame(rows)
 
 
@@ -73,6 +155,8 @@ def main(argv=None):
     ap.add_argument("--thin-disc-factor", type=float, default=None,
                     help="galaxy model thin_disc_scale_height_factor")
     ap.add_argument("--n-draw", type=int, default=200_000)
+    ap.add_argument("--by-absolute-magnitude", action="store_true",
+                    help="counts per bin of M' = G + 5 log10(parallax / 100 mas) instead")
     ap.add_argument("--out", default=None, help="CSV file to write")
     args = ap.parse_args(argv)
     try:
@@ -86,7 +170,8 @@ def main(argv=None):
         params = {k: v for k, v in given.items() if v is not None}
         if args.n_draw < 1:
             raise UserInputError(f"--n-draw={args.n_draw} is not accepted; expected a positive integer")
-        df = compare(GalaxyModel(params), n_draw=args.n_draw)
+        table = absolute_magnitude_comparison if args.by_absolute_magnitude else compare
+        df = table(GalaxyModel(params), n_draw=args.n_draw)
     except UserInputError as exc:
         print(f"hipparcos_population: {exc}", file=sys.stderr)
         return 2

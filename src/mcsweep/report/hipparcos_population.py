@@ -19,8 +19,8 @@ per bin too.
 Usage::
 
     python -m mcsweep.report.hipparcos_population [--extinction-model arenou1992]
-        [--giant-thickness-factor 0.6] [--thin-disc-factor 1.18] [--by-absolute-magnitude]
-        [--out FILE.csv]
+        [--giant-thickness-factor 0.6] [--thin-disc-factor 1.18] [--subgiants]
+        [--by-absolute-magnitude] [--out FILE.csv]
 """
 
 from __future__ import annotations
@@ -154,6 +154,7 @@ def main(argv=None):
                     help="galaxy model giant_thickness_factor")
     ap.add_argument("--thin-disc-factor", type=float, default=None,
                     help="galaxy model thin_disc_scale_height_factor")
+    ap.add_argument("--subgiants", action="store_true", help="galaxy model subgiants=true")
     ap.add_argument("--n-draw", type=int, default=200_000)
     ap.add_argument("--by-absolute-magnitude", action="store_true",
                     help="counts per bin of M' = G + 5 log10(parallax / 100 mas) instead")
@@ -166,7 +167,8 @@ def main(argv=None):
                                  "writable folder")
         given = {"extinction_model": args.extinction_model,
                  "giant_thickness_factor": args.giant_thickness_factor,
-                 "thin_disc_scale_height_factor": args.thin_disc_factor}
+                 "thin_disc_scale_height_factor": args.thin_disc_factor,
+                 "subgiants": True if args.subgiants else None}
         params = {k: v for k, v in given.items() if v is not None}
         if args.n_draw < 1:
             raise UserInputError(f"--n-draw={args.n_draw} is not accepted; expected a positive integer")

@@ -79,6 +79,7 @@ _DEFAULTS_FROM_BEFORE = {
     "experiment.primary.basic_angle_harmonics": 0,  # issue 24, candidate 3
     "population.params.giant_thickness_factor": 0.45,  # exposed in issue 25 (besancon-r03-4)
     "experiment.primary.solver_start": "zero",  # issue 23: every solution from zero before
+    "population.params.subgiants": False,  # issue 25: no subgiants before the option
 }
 
 

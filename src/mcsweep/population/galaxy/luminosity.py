@@ -30,7 +30,14 @@ Method (a justified simplification of the Besancon population synthesis):
    luminosity functions add up exactly to phi(M_V) at the Sun.
 3. The bulge, absent at the Sun, gets the same weights with its central density.
 4. M_V becomes M_G with the dwarf sequence's G - V (Mamajek's table) and G - V = -0.31
-   for giants. The dwarfs of the old metal-poor thick disc and halo are shifted so their
+   for giants.
+5. Optionally (``subgiants=True``; the galaxy model's ``subgiants``), stars off the main
+   sequence at 1 < M_V < 4.5: where Bovy's main sequence replaces the Wielen/Allen bins,
+   what the Wielen/Allen function (all stars) holds beyond it (:func:`subgiant_lf`). They
+   are evolved stars, shared among the components like the giants (the rate of leaving the
+   main sequence) with G - V of G5V (:data:`.parameters.SUBGIANT_G_MINUS_V`). Without them
+   the model has no stars between the main sequence and the giants' bins, where Hipparcos
+   holds a fifth of its G = 6-7 stars at M_G = 1-4 (docs/galaxy_model.md, issue 25). The dwarfs of the old metal-poor thick disc and halo are shifted so their
    turn-off lies at M_V = 4.0 (globular-cluster turn-offs, Newby et al. 2011).
 
 Data files are read lazily on first use via :mod:`importlib.resources`.
@@ -54,6 +61,7 @@ __all__ = [
     "imf",
     "turnoff_mass",
     "local_dwarf_lf",
+    "subgiant_lf",
     "build_luminosity_table",
 ]
 
@@ -221,7 +229,25 @@ def local_dwarf_lf(faint_scale=1.0):
     return mv, np.where(bright, pdmf, phi * faint_scale), bright
 
 
-def build_luminosity_table(components, *, local=None, faint_scale=1.0):
+def subgiant_lf():
+    """Local stars off the main sequence per 1-mag M_V bin (module notes, item 5): the
+    Wielen/Allen bins (all stars) minus Bovy's main sequence where it replaces them
+    (``GIANT_MV_MAX < M_V < BOVY_PDMF_MV_MAX``), clipped at zero.
+
+    Returns
+    -------
+    mv : ndarray
+        Bin centres, mag.
+    phi : ndarray
+        Stars per pc^3 in each bin.
+    """
+    mv, phi = load_local_lf()
+    dwarf_mv, dwarf_phi, bright = local_dwarf_lf()
+    wielen = phi[mv > P.GIANT_MV_MAX][bright]
+    return dwarf_mv[bright], np.clip(wielen - dwarf_phi[bright], 0.0, None)
+
+
+def build_luminosity_table(components, *, local=None, faint_scale=1.0, subgiants=False):
     """Luminosity functions in M_G of ``components`` (see module notes).
 
     Parameters
@@ -235,6 +261,8 @@ def build_luminosity_table(components, *, local=None, faint_scale=1.0):
         component's LF independent of which components are switched off.
     faint_scale : float
         Factor on the dwarfs fainter than :data:`.parameters.BOVY_PDMF_MV_MAX`.
+    subgiants : bool
+        Add the stars off the main sequence of :func:`subgiant_lf` (module notes, item 5).
 
     Returns
     -------
@@ -262,6 +290,9 @@ def build_luminosity_table(components, *, local=None, faint_scale=1.0):
     hi_g_sol = hi_v + _g_minus_v(hi_v)
     glo = giant_mv - 0.5 + P.GIANT_G_MINUS_V
     ghi = giant_mv + 0.5 + P.GIANT_G_MINUS_V
+    sub_mv, sub_phi = subgiant_lf() if subgiants else (np.zeros(0), np.zeros(0))
+    slo = sub_mv - 0.5 + P.SUBGIANT_G_MINUS_V
+    shi = sub_mv + 0.5 + P.SUBGIANT_G_MINUS_V
 
     cdf = np.zeros((len(components), mg.size))
     for k, c in enumerate(components):
@@ -269,15 +300,17 @@ def build_luminosity_table(components, *, local=None, faint_scale=1.0):
         n_dwarf = dwarf_phi * np.divide(wd, w_local_d, out=np.zeros_like(wd),
                                         where=w_local_d > 0)
         n_giant = giant_phi * (wg / w_local_g)
-        # an age bin's giants live in its giant-only companion (parameters.py)
+        n_sub = sub_phi * (wg / w_local_g)  # evolved stars, shared as the giants are
+        # an age bin's giants (and subgiants) live in its giant-only companion (parameters.py)
         n_dwarf = n_dwarf * (c.lf_part != "giants")
         n_giant = n_giant * (c.lf_part != "dwarfs")
+        n_sub = n_sub * (c.lf_part != "dwarfs")
         shift = 0.0
         if c.metal_poor:
             shift = float(_mv_of_mass(turnoff_mass(c.age_gyr[1]))) - P.OLD_METAL_POOR_TURNOFF_MV
-        lo = np.concatenate([lo_g_sol - shift, glo])
-        hi = np.concatenate([hi_g_sol - shift, ghi])
-        n = np.concatenate([n_dwarf, n_giant])
+        lo = np.concatenate([lo_g_sol - shift, glo, slo])
+        hi = np.concatenate([hi_g_sol - shift, ghi, shi])
+        n = np.concatenate([n_dwarf, n_giant, n_sub])
         frac = np.clip((mg[None, :] - lo[:, None]) / (hi - lo)[:, None], 0.0, 1.0)
         cdf[k] = (n[:, None] * frac).sum(axis=0)
     return LuminosityTable(names=tuple(c.name for c in components), mg=mg, cdf=cdf)

@@ -69,6 +69,7 @@ DEFAULT_PARAMS = {
     "components": list(POPULATION_CATEGORIES),
     "count": "poisson",
     "multiplicity_frequency": P.MULTIPLICITY_FREQUENCY,
+    "subgiants": False,
 }
 
 #: ``extinction_model`` values: the smooth exponential disc (:mod:`.extinction`) alone, or
@@ -94,9 +95,9 @@ def _check_params(p):
                 key in ("dust_av_per_kpc", "multiplicity_frequency") and v < 0):
             raise UserInputError(f"galaxy_model: {key}={p[key]!r} is not accepted; expected a "
                                  f"{'positive' if key in _POSITIVE else 'finite'} number")
-    if not isinstance(p["extinction"], (bool, np.bool_)):
-        raise UserInputError(f"galaxy_model: extinction={p['extinction']!r} is not accepted; "
-                             "expected true or false")
+    for key in ("extinction", "subgiants"):
+        if not isinstance(p[key], (bool, np.bool_)):
+            raise UserInputError(f"galaxy_model: {key}={p[key]!r} is not accepted; expected true or false")
     if p["extinction_model"] not in EXTINCTION_MODELS:
         raise UserInputError(f"galaxy_model: extinction_model={p['extinction_model']!r} is not "
                              f"accepted; expected one of {list(EXTINCTION_MODELS)}")
@@ -116,8 +117,8 @@ def local_sources_per_pc3(lf, mg_max=P.GCNS_MG_LIMIT):
     return float(np.interp(mg_max, lf.mg, lf.cdf[keep].sum(axis=0)))
 
 
-@lru_cache(maxsize=1)
-def gcns_faint_scale():
+@lru_cache(maxsize=2)
+def gcns_faint_scale(subgiants=False):
     """Factor on the faint (Wielen/Allen) dwarfs that makes the model's sources with
     M_G < 15.5 within 100 pc equal the GCNS's (:data:`.parameters.GCNS_SOURCES_WITHIN_100PC`).
 
@@ -126,7 +127,8 @@ def gcns_faint_scale():
     the GCNS count is compared with the density at the Sun.
     """
     comps = [c for c in P.COMPONENTS if c.law != "bulge"]
-    d0, d1 = (local_sources_per_pc3(build_luminosity_table(comps, faint_scale=f)) for f in (0.0, 1.0))
+    d0, d1 = (local_sources_per_pc3(build_luminosity_table(comps, faint_scale=f, subgiants=subgiants))
+              for f in (0.0, 1.0))
     target = P.GCNS_SOURCES_WITHIN_100PC / (4.0 / 3.0 * np.pi * 100.0 ** 3)
     return (target - d0) / (d1 - d0)
 
@@ -185,7 +187,9 @@ class GalaxyModel:
                  + (P.THICK_DISC, P.HALO, P.BULGE))
         self.components = tuple(c for c in comps if c.label in keep)
         local = [c for c in P.COMPONENTS if c.law != "bulge" and c.lf_part != "giants"]
-        lf = build_luminosity_table(self.components, local=local, faint_scale=gcns_faint_scale())
+        subgiants = bool(p["subgiants"])
+        lf = build_luminosity_table(self.components, local=local, faint_scale=gcns_faint_scale(subgiants),
+                                    subgiants=subgiants)
         # The calibrations (Bovy 2017, GCNS) count sources; counting component stars
         # instead (multiplicity_frequency=0) scales every magnitude alike.
         scale = (1.0 + P.MULTIPLICITY_FREQUENCY) / (1.0 + float(p["multiplicity_frequency"]))

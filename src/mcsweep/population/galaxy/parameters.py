@@ -33,6 +33,7 @@ __all__ = [
     "MS_LIFETIME_SLOPE",
     "OLD_METAL_POOR_TURNOFF_MV",
     "GIANT_G_MINUS_V",
+    "SUBGIANT_G_MINUS_V",
     "GIANT_MV_MAX",
     "MASS_MIN_MSUN",
     "MULTIPLICITY_FREQUENCY",
@@ -163,6 +164,13 @@ THIN_DISC_THICKNESS_FACTOR = 1.15
 #: G - V of giants: the dwarf-sequence G - V at BP - RP = 1.19 (K3V row of Mamajek's
 #: table [V]); red-clump and red-giant-branch stars have BP - RP ~ 1.1-1.3 [M].
 GIANT_G_MINUS_V = -0.31
+#: G - V of subgiants (``subgiants=true``): the dwarf-sequence G - V of G5V (Mamajek's
+#: table [V], ``data/dwarf_sequence_mamajek.ecsv``). Most of the solar neighbourhood's
+#: stars off the dwarf sequence at M_V 1.5-4.5 are G-type: Mamajek's densities of "G stars
+#: (all luminosity classes)" 4.8e-3 +- 1.1e-3 against G dwarfs 3.3e-3 +- 0.4e-3 pc^-3, of F
+#: stars 2.5e-3 against F dwarfs 2.4e-3 (E. Mamajek, "Star densities in the solar
+#: neighbourhood", memo_star_dens.html [S]).
+SUBGIANT_G_MINUS_V = -0.16
 
 #: Fraction of stellar systems that are multiple in the 10-pc census ("multiplicity
 #: frequency of around 27 %", 540 objects in 339 systems): Reyle et al. (2021, A&A 650,

@@ -1,0 +1,56 @@
+"""The galaxy model's optional subgiants (issue 25; population.params.subgiants)."""
+
+import numpy as np
+import pytest
+
+from mcsweep.population import GalaxyModel
+from mcsweep.population.galaxy import luminosity as L
+from mcsweep.population.galaxy import parameters as P
+from mcsweep.report import hipparcos_population as hp
+
+#: Wielen (1974) via Allen's Astrophysical Quantities, stars pc^-3 in the M_V bins centred on 2,
+#: 3 and 4 (data/lf_wielen_allen.ecsv: 6, 12 and 19 x 1e-4), all luminosity classes.
+WIELEN_ALLEN_MV234 = (6.0e-4, 12.0e-4, 19.0e-4)
+
+
+def _bovy_ms(mv):
+    """Bovy's (2017) dn/dM = 0.016 M^-4.7 integrated over the 1-mag bin at ``mv``, its mass limits
+    from the dwarf sequence interpolated in log mass (closed form of the power law)."""
+    seq_mv, _, seq_m = L.load_dwarf_sequence()
+    m_bright, m_faint = (10.0 ** np.interp(mv + d, seq_mv, np.log10(seq_m)) for d in (-0.5, 0.5))
+    return 0.016 / 3.7 * (m_faint ** -3.7 - m_bright ** -3.7)
+
+
+def test_subgiants_are_what_wielen_allen_holds_beyond_bovys_main_sequence():
+    mv, phi = L.subgiant_lf()
+    assert mv.tolist() == [2.0, 3.0, 4.0]
+    expected = [w - _bovy_ms(m) for w, m in zip(WIELEN_ALLEN_MV234, mv)]
+    assert phi == pytest.approx(expected, rel=1e-9)
+    assert np.all(phi > 0)
+
+
+def test_the_components_share_out_exactly_the_local_subgiants():
+    # the components present at the Sun add up to the local function, subgiants included
+    local = [c for c in P.COMPONENTS if c.law != "bulge"]
+    with_, without = (L.build_luminosity_table(local, subgiants=s).total().sum() for s in (True, False))
+    assert with_ - without == pytest.approx(L.subgiant_lf()[1].sum(), rel=1e-9)
+
+
+def test_subgiants_bring_the_g6_7_stars_at_mg_1_to_4_to_hipparcos():
+    # Hipparcos 2 at G = 6-7 (complete): without subgiants the model holds 0.76-0.83 of its stars
+    # at M' = 1-4 in every band, with them (Arenou dust) 0.99-1.06 (docs/galaxy_model.md)
+    def mid_ratio(model):
+        t = hp.absolute_magnitude_comparison(model, n_draw=40_000)
+        t = t[(t.g_min == 6.0) & (t.mprime_lo >= 1.0) & (t.mprime_hi <= 4.0)]
+        s = t.groupby("b_lo")[["n_model", "n_hip"]].sum()
+        return (s.n_model / s.n_hip).to_numpy()
+
+    assert np.all(mid_ratio(GalaxyModel(extinction_model="arenou1992")) < 0.88)
+    assert np.all(np.abs(mid_ratio(GalaxyModel(extinction_model="arenou1992", subgiants=True)) - 1.0) < 0.10)
+
+
+def test_subgiants_must_be_a_boolean():
+    from mcsweep.errors import UserInputError
+
+    with pytest.raises(UserInputError, match="subgiants"):
+        GalaxyModel(subgiants="yes")

@@ -30,10 +30,20 @@ def test_subgiants_are_what_wielen_allen_holds_beyond_bovys_main_sequence():
 
 
 def test_the_components_share_out_exactly_the_local_subgiants():
-    # the components present at the Sun add up to the local function, subgiants included
+    # the components present at the Sun add up to the local function, subgiants included; they
+    # go where the giants go (the thin disc's giant-only companions, the thick disc, the halo),
+    # in the giants' proportions, and the thin disc's dwarf components do not change
     local = [c for c in P.COMPONENTS if c.law != "bulge"]
-    with_, without = (L.build_luminosity_table(local, subgiants=s).total().sum() for s in (True, False))
-    assert with_ - without == pytest.approx(L.subgiant_lf()[1].sum(), rel=1e-9)
+    with_, without = (L.build_luminosity_table(local, subgiants=s) for s in (True, False))
+    added = with_.total() - without.total()
+    assert added.sum() == pytest.approx(L.subgiant_lf()[1].sum(), rel=1e-9)
+    dwarfs = np.array([c.lf_part == "dwarfs" for c in local])
+    assert np.array_equal(with_.cdf[dwarfs], without.cdf[dwarfs])
+    assert np.all(added[~dwarfs] > 0)
+    # each component's giants: its stars brighter than M_G = -0.5, all of them giants (the
+    # brightest dwarf bin starts at M_V = 1, and no old population keeps its 2 Msun dwarfs)
+    giants = np.array([np.interp(-0.5, without.mg, row) for row in without.cdf])
+    assert added[~dwarfs] / added.sum() == pytest.approx(giants[~dwarfs] / giants[~dwarfs].sum(), rel=1e-6)
 
 
 def test_subgiants_bring_the_g6_7_stars_at_mg_1_to_4_to_hipparcos():

@@ -457,9 +457,10 @@ def _prepare_once(settings, sky, client, *, chunk_stars, block_stars, with_noise
     ranges = solver_chunks(n_blocks, block_stars, n_rows, spline.n_coef, chunk_stars)
     solved_end = solved_first + n_solved_p
 
-    def submit(ci: int):
+    def submit(ci: int, workers=None):
         """The task building chunk ``ci`` (after a loss: from the partitions and summaries made
-        again where the lost worker took them, the transits searched again)."""
+        again where the lost worker took them, the transits searched again; the live workers
+        asked again unless given)."""
         table.ensure()
         blo, bhi = ranges[ci]
         lo, hi = blo * block_stars, min(bhi * block_stars, n_solved)
@@ -469,7 +470,7 @@ def _prepare_once(settings, sky, client, *, chunk_stars, block_stars, with_noise
                 "offset": int(solved_first[ps[0]]), "firsts": [int(sky.first[p]) for p in ps],
                 "block_stars": block_stars, "with_noise": with_noise}
         inputs = [x for p in ps for x in (sky.futures[p], table.summaries[p], table.transits(p))]
-        workers = live_workers(client)
+        workers = workers or live_workers(client)
         # spread over the workers (memory) in contiguous shares of the chunks, so each worker
         # sums its chunks' outputs before they travel (DaskChunks.reduced), not where the
         # transits are
@@ -482,7 +483,8 @@ def _prepare_once(settings, sky, client, *, chunk_stars, block_stars, with_noise
         return client.submit(_first, submit(ci), pure=False)
 
 
-    built = [submit(ci) for ci in range(len(ranges))]
+    first = live_workers(client)  # one scheduler query for the first build
+    built = [submit(ci, first) for ci in range(len(ranges))]
     chunk_futures = [client.submit(_first, b, pure=False) for b in built]
     infos = [client.submit(_second, b, pure=False) for b in built]
     del built, found

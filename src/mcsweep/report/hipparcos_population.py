@@ -51,7 +51,8 @@ SEED = 20150821
 MPRIME_EDGES = (-np.inf, -1.0, 0.0, 1.0, 2.0, 3.0, 4.0, np.inf)
 #: The dwarf sequence (B - V, M_G) from F0V to K3V: E. Mamajek, "A Modern Mean Dwarf Stellar
 #: Color and Effective Temperature Sequence" (version 2021.03.02; Pecaut & Mamajek 2013, ApJS
-#: 208, 9, Table 5, to be cited), columns B-V and M_G.
+#: 208, 9, Table 5, to be cited), columns B-V and M_G. (The galaxy model's copy of the table,
+#: version 2024.05.15, has no B - V; its M_V + (G - V) differs from these M_G by <= 0.02 mag.)
 DWARF_BV = (0.295, 0.440, 0.595, 0.680, 0.816, 0.884, 0.990)
 DWARF_MG = (2.51, 3.26, 4.325, 4.801, 5.553, 5.83, 6.20)
 #: Colours (F0V-K2V) and heights above the sequence [mag] counted as subgiants: an unresolved
@@ -63,7 +64,7 @@ SUBGIANT_ABOVE = (1.0, 3.0)
 def _stats(b, plx, pmra, pmdec):
     out = []
     for lo, hi in BANDS_DEG:
-        sel = (np.abs(b) >= lo) & ((np.abs(b) < hi) | (hi == 90.0))
+        sel = _in_band(b, lo, hi)
         out.append((sel.sum(), np.percentile(plx[sel], 90), np.median(np.hypot(pmra[sel], pmdec[sel]))))
     return out
 

@@ -156,8 +156,8 @@ class DaskChunks:
         over them), each with an empty state."""
         chunks = [(*c, {}) for c in chunks]
 
-        def put(ci):
-            workers = live_workers(client)  # the live ones (after a loss too)
+        def put(ci, workers=None):
+            workers = workers or live_workers(client)  # the live ones (after a loss: asked again)
             # one worker per chunk, in contiguous shares: every worker gets its part of the
             # memory, and sums its chunks' outputs before they travel (:meth:`reduced`)
             # (in a list: a tuple itself would be scattered element by element)
@@ -165,7 +165,8 @@ class DaskChunks:
             (fut,) = client.scatter([chunks[ci]], workers=[workers[w]], hash=False)
             return fut
 
-        return cls(client, [put(ci) for ci in range(len(chunks))], rebuild=put)
+        first = live_workers(client)  # one scheduler query for the first placement
+        return cls(client, [put(ci, first) for ci in range(len(chunks))], rebuild=put)
 
     def with_inverses(self, binv: Sequence) -> "DaskChunks":
         """These chunks (the solver's blocks and measurements, kept on the workers) with the

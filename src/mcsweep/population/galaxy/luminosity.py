@@ -30,15 +30,18 @@ Method (a justified simplification of the Besancon population synthesis):
    luminosity functions add up exactly to phi(M_V) at the Sun.
 3. The bulge, absent at the Sun, gets the same weights with its central density.
 4. M_V becomes M_G with the dwarf sequence's G - V (Mamajek's table) and G - V = -0.31
-   for giants.
-5. Optionally (``subgiants=True``; the galaxy model's ``subgiants``), stars off the main
-   sequence at 1 < M_V < 4.5: where Bovy's main sequence replaces the Wielen/Allen bins,
-   what the Wielen/Allen function (all stars) holds beyond it (:func:`subgiant_lf`). They
-   are evolved stars, shared among the components like the giants (the rate of leaving the
-   main sequence) with G - V of G5V (:data:`.parameters.SUBGIANT_G_MINUS_V`). Without them
-   the model has no stars between the main sequence and the giants' bins, where Hipparcos
-   holds a fifth of its G = 6-7 stars at M_G = 1-4 (docs/galaxy_model.md, issue 25). The dwarfs of the old metal-poor thick disc and halo are shifted so their
+   for giants. The dwarfs of the old metal-poor thick disc and halo are shifted so their
    turn-off lies at M_V = 4.0 (globular-cluster turn-offs, Newby et al. 2011).
+5. Optionally (``subgiants=True``; the galaxy model's ``subgiants``), stars off the main
+   sequence at 1.5 < M_V < 4.5 (the bins centred on 2, 3 and 4): where Bovy's main
+   sequence replaces the Wielen/Allen bins, what the Wielen/Allen function (all stars)
+   holds beyond it (:func:`subgiant_lf`). They are evolved stars, shared among the
+   components like the giants (the rate of leaving the main sequence; in the thin disc
+   they live in the giant-only companions, so ``giant_thickness_factor`` sets their
+   heights and velocities too) with G - V of G5V (:data:`.parameters.SUBGIANT_G_MINUS_V`).
+   Without them the model has no stars between the main sequence and the giants' bins,
+   where Hipparcos holds a fifth of its G = 6-7 stars at M_G = 1-4 (docs/galaxy_model.md,
+   issue 25).
 
 Data files are read lazily on first use via :mod:`importlib.resources`.
 """

@@ -117,7 +117,6 @@ def local_sources_per_pc3(lf, mg_max=P.GCNS_MG_LIMIT):
     return float(np.interp(mg_max, lf.mg, lf.cdf[keep].sum(axis=0)))
 
 
-@lru_cache(maxsize=2)
 def gcns_faint_scale(subgiants=False):
     """Factor on the faint (Wielen/Allen) dwarfs that makes the model's sources with
     M_G < 15.5 within 100 pc equal the GCNS's (:data:`.parameters.GCNS_SOURCES_WITHIN_100PC`).
@@ -126,6 +125,11 @@ def gcns_faint_scale(subgiants=False):
     The vertical fall-off of the discs within 100 pc (a few per cent) is neglected, as
     the GCNS count is compared with the density at the Sun.
     """
+    return _gcns_faint_scale(bool(subgiants))
+
+
+@lru_cache(maxsize=None)
+def _gcns_faint_scale(subgiants: bool) -> float:
     comps = [c for c in P.COMPONENTS if c.law != "bulge"]
     d0, d1 = (local_sources_per_pc3(build_luminosity_table(comps, faint_scale=f, subgiants=subgiants))
               for f in (0.0, 1.0))

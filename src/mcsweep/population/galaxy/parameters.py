@@ -122,7 +122,8 @@ BOVY_PDMF_MV_MAX = 4.5
 GCNS_SOURCES_WITHIN_100PC = 331_312 * (1 - 0.09)
 GCNS_MG_LIMIT = 15.5
 #: Thickness of the giants' discs relative to the dwarfs' of the same age (multiplies
-#: the Einasto axis ratios of the giant-only thin-disc components, :data:`THIN_DISC_GIANTS`).
+#: the Einasto axis ratios of the giant-only thin-disc components, :data:`THIN_DISC_GIANTS`,
+#: which also hold the optional subgiants).
 #: Calibrated (issue #14): with giants at Bovy's local density, the all-sky counts of
 #: Tycho-2 at G = 4-10 (report/published_counts.py) are met only if the giants' density
 #: falls off faster with height than R03's age laws give (x 1.0: G = 4-10 counts 1.25-1.6

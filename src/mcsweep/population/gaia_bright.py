@@ -54,8 +54,9 @@ def have_catalogue() -> bool:
 def load_gaia_bright() -> pd.DataFrame:
     """Every star of the bundled file (module notes): ``source_id``, ``ra``, ``dec`` [deg],
     ``phot_g_mean_mag``, ``phot_bp_mean_mag``, ``phot_rp_mean_mag`` (NaN where missing) and
-    ``from_hipparcos`` (the gap-fill rows). Cached; raises :class:`~mcsweep.errors.UserInputError` without the extra or for a
-    file that is not of the documented format."""
+    ``from_hipparcos`` (the gap-fill rows). Cached; raises
+    :class:`~mcsweep.errors.UserInputError` without the extra or for a file not of the
+    documented format."""
     if not have_catalogue():
         raise UserInputError(EXTRA_MESSAGE)
     raw = resources.files(_PACKAGE).joinpath(*_FILE).read_bytes()

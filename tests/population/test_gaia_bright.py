@@ -63,17 +63,35 @@ def test_gaia_counts_confirm_the_tycho2_counts_and_their_colour_term_below_g_10(
     assert np.isnan(gaia_bright.counts_per_g([10])[0])
 
 
-def test_count_comparison_carries_the_gaia_counts():
+def test_count_comparison_carries_the_gaia_counts(monkeypatch):
     c = pc.count_comparison(GalaxyModel(), range(8, 12))
     assert c.gaia_dr3.notna().tolist() == [True, True, False, False]
-    assert np.allclose(c.ratio_gaia.dropna(), (c.model / c.gaia_dr3).dropna())
+    assert c.gaia_dr3.iloc[0] == np.count_nonzero(gaia_bright.load_gaia_bright().phot_g_mean_mag.between(8, 9,
+                                                                                                       inclusive="left"))
+    # without the optional extra the columns are there, empty
+    monkeypatch.setattr(gaia_bright, "have_catalogue", lambda: False)
+    assert pc.count_comparison(GalaxyModel(), range(8, 10)).gaia_dr3.isna().all()
 
 
-def test_arenou_dust_with_subgiants_within_8_percent_of_gaia_at_g_4_10():
+def test_missing_magnitudes_are_nan_and_a_foreign_file_is_refused():
+    from mcsweep.errors import UserInputError
+
+    d = gaia_bright.load_gaia_bright()
+    assert not (d[["phot_bp_mean_mag", "phot_rp_mean_mag"]] == 0.0).any().any()
+    assert d[d.from_hipparcos][["phot_bp_mean_mag", "phot_rp_mean_mag"]].isna().all().all()
+    header = b"GDR3" + np.uint32(1).tobytes() + np.uint64(2).tobytes()
+    for raw in (b"GDR3", header + bytes(36), b"GDR2" + header[4:] + bytes(72),
+                b"GDR3" + np.uint32(2).tobytes() + np.uint64(2).tobytes() + bytes(72)):
+        with pytest.raises(UserInputError, match="not accepted"):
+            gaia_bright.parse_records(raw)
+    assert len(gaia_bright.parse_records(header + bytes(72))) == 2
+
+
+def test_arenou_dust_with_subgiants_within_5_percent_of_gaia_at_g_4_10():
     # docs/galaxy_model.md (issue 25): against Gaia's own G counts the AGG92 + subgiants model
     # is 0.96-1.01 at G = 4-10 (the default disc model 1.03-1.10)
     c = pc.count_comparison(GalaxyModel(extinction_model="arenou1992", subgiants=True), range(4, 10))
-    assert np.all(np.abs(c.ratio_gaia - 1.0) < 0.08)
+    assert np.all(np.abs(c.ratio_gaia - 1.0) < 0.05)
 
 
 @pytest.mark.xfail(strict=True, reason="the default model (disc dust, no subgiants) is 1.03-1.10 x Gaia DR3's "
@@ -84,13 +102,18 @@ def test_default_model_within_8_percent_of_gaia_at_g_4_10():
     assert np.all(np.abs(c.ratio_gaia - 1.0) < 0.08)
 
 
-def test_gaia_band_counts_hold_every_star_of_each_g_bin():
+def test_gaia_band_counts_against_astropy_latitudes(capsys):
+    # the band counts with galactic latitudes from astropy (an independent transformation)
+    from astropy.coordinates import SkyCoord
+
     from mcsweep.report import hipparcos_population as hp
 
-    model = GalaxyModel()
-    t = hp.gaia_band_counts(model, ((8.0, 9.0), (9.0, 10.0)), n_draw=5000)
-    assert len(t) == 2 * len(hp.BANDS_DEG)
-    per_g = t.groupby("g_min")[["n_gaia", "n_model"]].sum()
-    assert per_g.n_gaia.tolist() == gaia_bright.counts_per_g([8, 9]).tolist()
-    for g0, n in per_g.n_model.items():
-        assert n == pytest.approx(model.expected_count(0, 90, 180, g0, g0 + 1), rel=1e-9)
+    t = hp.gaia_band_counts(GalaxyModel(), ((9.0, 10.0),), n_draw=5000)
+    d = gaia_bright.load_gaia_bright()
+    d = d[~d.from_hipparcos & d.phot_g_mean_mag.between(9, 10, inclusive="left")]
+    b = np.abs(SkyCoord(d.ra.values, d.dec.values, unit="deg").galactic.b.deg)
+    expected = [np.count_nonzero((b >= lo) & ((b < hi) | (hi == 90))) for lo, hi in hp.BANDS_DEG]
+    # a star within rounding of a band edge may fall either side
+    assert np.allclose(t.n_gaia, expected, atol=2)
+    assert hp.main(["--gaia-counts", "--n-draw", "2000"]) == 0
+    assert "n_gaia" in capsys.readouterr().out

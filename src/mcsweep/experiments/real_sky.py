@@ -29,7 +29,8 @@ This experiment takes the Hipparcos 2 catalogue (van Leeuwen 2007, CDS I/311;
    and all) and G bin (6-7, 7-8, 8-9; and all) the fraction inside with its
    Clopper-Pearson interval and the P-th percentile error with its order-statistic
    interval; ``real_sky_errors.csv``: Hipparcos' median parallax error against the median
-   prior per band and G bin.
+   prior per band and G bin; ``real_sky_complete.csv``: the fractions carried over to the
+   complete sky by colour (:mod:`mcsweep.experiments.real_sky_complete`).
 
 Reproducibility: noise and perturbations are drawn per fixed block of
 :data:`BLOCK_STARS` stars, so chunking, workers and completion order change nothing.
@@ -64,7 +65,8 @@ __all__ = ["TAG", "CHUNKS_DIR", "OUTPUTS", "BLOCK_STARS", "B_BANDS", "G_BINS", "
 TAG = 43  # real-sky validation: first element of every spawn key (41: Sect. 4.1, 42: Sect. 4.2)
 POPULATION_STREAM, NOISE_STREAM, PERTURB_STREAM = 0, 2, 3
 CHUNKS_DIR = "real_sky_chunks"
-OUTPUTS = (CHUNKS_DIR, "real_sky.csv", "real_sky.md", "real_sky_errors.csv", "real_sky_fraction.png",
+OUTPUTS = (CHUNKS_DIR, "real_sky.csv", "real_sky.md", "real_sky_errors.csv", "real_sky_complete.csv",
+           "real_sky_fraction.png",
            "report.md", "report.html", "provenance.json")
 #: Stars per noise block (the unit of randomness).
 BLOCK_STARS = 1024

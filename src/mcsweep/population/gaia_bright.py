@@ -38,7 +38,8 @@ from ..errors import UserInputError
 from ..prior.frames import galactic_from_icrs
 
 __all__ = ["EXTRA_MESSAGE", "G_LIMIT", "PACKAGE_VERSION", "have_catalogue", "load_gaia_bright", "parse_records",
-           "counts_per_g", "HIPPARCOS_EPOCH", "GAIA_DR3_EPOCH", "MATCH_RADIUS_ARCSEC", "not_in_hipparcos"]
+           "counts_per_g", "HIPPARCOS_EPOCH", "GAIA_DR3_EPOCH", "MATCH_RADIUS_ARCSEC", "not_in_hipparcos",
+           "bp_rp_of_hipparcos", "hipparcos_at_gaia_epoch"]
 
 EXTRA_MESSAGE = "the Gaia DR3 bright-star counts need the optional extra: pip install 'mcsweep[realsky]'"
 #: The package's magnitude limit (``phot_g_mean_mag < 10``).
@@ -119,13 +120,33 @@ def counts_per_g(g_bins) -> np.ndarray:
 def not_in_hipparcos(gaia: pd.DataFrame, hip: pd.DataFrame, radius_arcsec=MATCH_RADIUS_ARCSEC) -> np.ndarray:
     """Whether each row of ``gaia`` (columns ``ra, dec`` at J2016.0) has no Hipparcos 2 star
     (``ra, dec, pmra, pmdec`` at J1991.25, as :func:`mcsweep.population.hipparcos.load_hipparcos`
-    gives) within ``radius_arcsec``, Hipparcos' positions moved to Gaia's epoch by their proper
-    motions (astropy's ``apply_space_motion``; no parallax or radial velocity is needed for a
-    25 yr step at the match radius)."""
+    gives) within ``radius_arcsec``, Hipparcos' positions moved to Gaia's epoch
+    (:func:`hipparcos_at_gaia_epoch`)."""
     if len(gaia) == 0:
         return np.zeros(0, dtype=bool)
     if len(hip) == 0:
         return np.ones(len(gaia), dtype=bool)
+    _, sep, _ = _sky(gaia).match_to_catalog_sky(hipparcos_at_gaia_epoch(hip))
+    return sep.arcsec > radius_arcsec
+
+
+def bp_rp_of_hipparcos(hip: pd.DataFrame, gaia: pd.DataFrame, radius_arcsec=MATCH_RADIUS_ARCSEC) -> np.ndarray:
+    """Gaia's BP - RP of each Hipparcos 2 star: that of the nearest ``gaia`` row within
+    ``radius_arcsec`` of its position moved to J2016.0; NaN without one (or without colours)."""
+    out = np.full(len(hip), np.nan)
+    if len(hip) == 0 or len(gaia) == 0:
+        return out
+    idx, sep, _ = hipparcos_at_gaia_epoch(hip).match_to_catalog_sky(_sky(gaia))
+    ok = sep.arcsec <= radius_arcsec
+    colour = (gaia["phot_bp_mean_mag"] - gaia["phot_rp_mean_mag"]).to_numpy()
+    out[ok] = colour[idx[ok]]
+    return out
+
+
+def hipparcos_at_gaia_epoch(hip: pd.DataFrame) -> SkyCoord:
+    """Hipparcos 2 positions moved from J1991.25 to J2016.0 by their proper motions (astropy's
+    ``apply_space_motion``; no parallax or radial velocity is needed for 25 yr at the match
+    radius)."""
     at_hip = SkyCoord(ra=hip["ra"].to_numpy() * u.deg, dec=hip["dec"].to_numpy() * u.deg,
                       pm_ra_cosdec=hip["pmra"].to_numpy() * u.mas / u.yr, pm_dec=hip["pmdec"].to_numpy() * u.mas / u.yr,
                       obstime=Time(HIPPARCOS_EPOCH, format="jyear"))
@@ -133,6 +154,8 @@ def not_in_hipparcos(gaia: pd.DataFrame, hip: pd.DataFrame, radius_arcsec=MATCH_
         # without distances ERFA assumes a large one and says so ("distance overridden")
         warnings.simplefilter("ignore", ErfaWarning)
         moved = at_hip.apply_space_motion(new_obstime=Time(GAIA_DR3_EPOCH, format="jyear"))
-    g = SkyCoord(ra=gaia["ra"].to_numpy() * u.deg, dec=gaia["dec"].to_numpy() * u.deg)
-    _, sep, _ = g.match_to_catalog_sky(SkyCoord(ra=moved.ra, dec=moved.dec))
-    return sep.arcsec > radius_arcsec
+    return SkyCoord(ra=moved.ra, dec=moved.dec)
+
+
+def _sky(gaia: pd.DataFrame) -> SkyCoord:
+    return SkyCoord(ra=gaia["ra"].to_numpy() * u.deg, dec=gaia["dec"].to_numpy() * u.deg)

@@ -5,8 +5,9 @@ chunk store and resume, aggregation, atomic tables) in :mod:`mcsweep.sweep.globa
 What is its own: the stars come from the Hipparcos 2 catalogue instead of the galaxy
 model (:attr:`GlobalExperiment.draw`), each star's sigma_F90 of every prior is computed
 in the parent (so tasks carry numbers, not priors), chunks of whole noise blocks are
-solved through the executor, and the tables ``real_sky.csv``, ``real_sky.md`` and
-``real_sky_errors.csv`` are written.
+solved through the executor, and the tables ``real_sky.csv``, ``real_sky.md``,
+``real_sky_errors.csv`` and ``real_sky_complete.csv`` (the fractions carried over to the
+complete sky, :mod:`mcsweep.experiments.real_sky_complete`) are written.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import pandas as pd
 
 from ..experiments.real_sky import (BLOCK_STARS, CHUNKS_DIR, TAG, build_settings, draw_stars, error_rows,
                                     prior_sigmas, solve_chunk, table_markdown, table_rows)
+from ..experiments.real_sky_complete import complete_markdown, complete_rows
 from .global_runner import GlobalExperiment, GlobalRun, run_global
 
 __all__ = ["REAL_SKY", "run_real_sky"]
@@ -70,8 +72,10 @@ def _aggregate(run: GlobalRun, _computed=None) -> dict[str, str]:
              f"R = {settings.ratio_R:g} /yr; reference epoch: {run.epoch['text']}.",
              "Each cell: fraction inside [68 % Clopper-Pearson interval] / P-th percentile of |estimated - true "
              "position| [mas] (n = stars solved); truth = Hipparcos parallax and proper motion."]
+    complete = complete_rows(stars, results, settings)
+    md = table_markdown(table, errors, settings, notes) + "\n".join([""] + complete_markdown(complete, settings.confidence))
     return {"real_sky.csv": table.to_csv(index=False), "real_sky_errors.csv": errors.to_csv(index=False),
-            "real_sky.md": table_markdown(table, errors, settings, notes)}
+            "real_sky_complete.csv": complete.to_csv(index=False), "real_sky.md": md}
 
 
 #: The real-sky validation on the global path (:func:`~mcsweep.sweep.global_runner.run_global`).

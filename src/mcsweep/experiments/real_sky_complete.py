@@ -1,0 +1,141 @@
+"""The real-sky fractions carried over to the complete sky (issue 25).
+
+Hipparcos 2 is complete only to its Survey limit, V = 7.9 + 1.1 sin|b| for spectral types
+earlier than G5 and 7.3 + 1.1 sin|b| for later ones (ESA 1997, The Hipparcos and Tycho
+Catalogues, ESA SP-1200, Vol. 1, Sect. 1.2); fainter stars are there only if an observing
+proposal asked for them. Against Gaia DR3's own stars (:mod:`mcsweep.population.gaia_bright`)
+it holds 86-97 % of the sky's G = 6-7 stars per |b| band and 60-87 % of the G = 7-8 ones;
+those it lacks are mostly red (docs/galaxy_model.md), i.e. distant giants. Kinds of star
+differ in how often their errors fall inside the P ellipse (measured with the fitted prior,
+two visits, G = 7-8: Hipparcos' red giants 96 %, its other stars 82-85 %), so the
+catalogue's mix of kinds sets a cell's fraction, not only the prior.
+
+Here each cell's fraction is carried over to the complete sky by colour: the stars of the
+cell, Hipparcos' and the Gaia stars it lacks (:func:`~mcsweep.population.gaia_bright.not_in_hipparcos`),
+are sorted into classes of Gaia BP - RP (:data:`BP_RP_EDGES`; Hipparcos' stars take the
+colour of their Gaia counterpart, :func:`~mcsweep.population.gaia_bright.bp_rp_of_hipparcos`;
+stars without one form a class of their own); the complete sky's fraction is the mean of the
+classes' Hipparcos fractions weighted by the classes' shares of all the cell's stars.
+
+The assumption: within a class, the stars Hipparcos lacks fall inside as often as those it
+holds. At a given G and colour, V is fixed, so the Survey took a class's stars all or none
+in a band (up to the class's width and the G5 split); the others Hipparcos holds came from
+proposals, which favoured nearby stars (large parallaxes, outside the ellipse more often), so
+the carried-over fraction leans low if anything. Its interval is +-1 sigma of the weighted
+binomial (normal approximation, 68 %). A class with stars but none solved in Hipparcos makes
+the cell's value NaN.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from ..population import gaia_bright
+from ..population.hipparcos import load_hipparcos
+from .real_sky import B_BANDS, band_of, g_bins, gbin_of
+
+__all__ = ["BP_RP_EDGES", "colour_class", "carried_fraction", "complete_rows", "complete_markdown"]
+
+#: Class edges in Gaia BP - RP [mag]: B-A stars; F; G; K0-K3 dwarfs and the red clump; K
+#: giants; M giants and red dwarfs.
+BP_RP_EDGES = (0.5, 0.8, 1.1, 1.4, 1.8)
+
+
+def colour_class(bp_rp) -> np.ndarray:
+    """Class index of each colour: 0 ... len(BP_RP_EDGES) by the edges, one more for NaN."""
+    c = np.asarray(bp_rp, dtype=float)
+    out = np.searchsorted(np.asarray(BP_RP_EDGES), c, side="right")
+    out[~np.isfinite(c)] = len(BP_RP_EDGES) + 1
+    return out
+
+
+def carried_fraction(inside, classes, class_counts) -> tuple[float, float]:
+    """(fraction, its 1-sigma) of the whole: ``inside`` (1/0) and ``classes`` of the solved
+    stars, ``class_counts`` the number of stars of each class in the whole (solved or not).
+    NaN when a class of the whole has no solved star."""
+    inside, classes = np.asarray(inside, dtype=float), np.asarray(classes)
+    counts = np.asarray(class_counts, dtype=float)
+    n_solved = np.bincount(classes, minlength=counts.size).astype(float)
+    if counts.sum() == 0 or np.any((counts > 0) & (n_solved == 0)):
+        return np.nan, np.nan
+    k_in = np.bincount(classes, weights=inside, minlength=counts.size)
+    use = counts > 0
+    f = k_in[use] / n_solved[use]
+    w = counts[use] / counts.sum()
+    return float(w @ f), float(np.sqrt(np.sum(w ** 2 * f * (1.0 - f) / n_solved[use])))
+
+
+def complete_rows(stars: pd.DataFrame, results: pd.DataFrame, settings, *, truth="hipparcos") -> pd.DataFrame:
+    """``real_sky_complete.csv``: per prior x case x |b| band x G bin, Hipparcos' stars and
+    the Gaia stars it lacks in the cell, its completeness, its fraction inside and the
+    complete sky's (module notes). G bins beyond Gaia's bundled G < 10 are left out."""
+    hip_all = load_hipparcos()
+    gaia = gaia_bright.load_gaia_bright()
+    gaia = gaia[~gaia.from_hipparcos]
+    bins = [bn for bn in g_bins(settings.g_min, settings.g_max) if bn[1] <= gaia_bright.G_LIMIT]
+    in_range = (gaia.phot_g_mean_mag >= bins[0][0]) & (gaia.phot_g_mean_mag < bins[-1][1]) if bins else gaia.b < -99
+    gaia = gaia[in_range]
+    missing = gaia[gaia_bright.not_in_hipparcos(gaia, hip_all)]
+    m_class = colour_class((missing.phot_bp_mean_mag - missing.phot_rp_mean_mag).to_numpy())
+    m_band, m_g = band_of(missing.b.to_numpy()), gbin_of(missing.phot_g_mean_mag.to_numpy(), bins)
+    # every Hipparcos star of the range sets the weights, the solved ones (a subset with
+    # max_stars) the fractions
+    h_g = hip_all.phot_g_mean_mag.to_numpy()
+    hip = hip_all[(h_g >= bins[0][0]) & (h_g < bins[-1][1])] if bins else hip_all.iloc[:0]
+    h_class = colour_class(gaia_bright.bp_rp_of_hipparcos(hip, gaia))
+    h_band, h_g = band_of(hip.b.to_numpy()), gbin_of(hip.phot_g_mean_mag.to_numpy(), bins)
+    colour_of = dict(zip(hip.hip.to_numpy(), h_class))
+    s_class = np.array([colour_of.get(h, len(BP_RP_EDGES) + 1) for h in stars["hip"].to_numpy()], dtype=int)
+    s_gmag = stars["phot_g_mean_mag"].to_numpy()
+    s_in = (s_gmag >= bins[0][0]) & (s_gmag < bins[-1][1]) if bins else np.zeros(len(stars), bool)
+    s_band, s_g = band_of(stars["b"].to_numpy()), gbin_of(s_gmag, bins)
+    n_classes = len(BP_RP_EDGES) + 2
+    rows = []
+    for prior, _ in settings.priors:
+        for case, _ in settings.cases:
+            flags = results[f"inside_{case}_{truth}_{prior}"].to_numpy()
+            for i, (b0, b1) in enumerate(B_BANDS):
+                for j, (g0, g1) in enumerate(bins):
+                    h_cell, m_cell = (h_band == i) & (h_g == j), (m_band == i) & (m_g == j)
+                    solved = s_in & (s_band == i) & (s_g == j) & (flags >= 0)
+                    counts = (np.bincount(h_class[h_cell], minlength=n_classes)
+                              + np.bincount(m_class[m_cell], minlength=n_classes))
+                    frac, sigma = carried_fraction(flags[solved], s_class[solved], counts)
+                    n_hip, n_miss = int(h_cell.sum()), int(m_cell.sum())
+                    rows.append({"prior": prior, "truth": truth, "case": case, "b_band_deg": f"{b0:g}-{b1:g}",
+                                 "g_bin": f"{g0:g}-{g1:g}", "n_hipparcos": n_hip, "n_not_in_hipparcos": n_miss,
+                                 "hipparcos_completeness": n_hip / (n_hip + n_miss) if n_hip + n_miss else np.nan,
+                                 "n_solved": int(solved.sum()),
+                                 "fraction_hipparcos": float(flags[solved].mean()) if solved.any() else np.nan,
+                                 "fraction_complete_sky": frac, "fraction_complete_sky_sigma": sigma})
+    return pd.DataFrame(rows)
+
+
+def complete_markdown(rows: pd.DataFrame, confidence: float) -> list[str]:
+    """The section of ``real_sky.md``: per prior and case, the complete sky's fraction
+    +- 1 sigma, Hipparcos' own and its completeness, per |b| band (rows) and G bin."""
+    if rows.empty:
+        return []
+    pct = f"{100 * confidence:g}"
+    lines = ["## Carried over to the complete sky (Gaia DR3's stars by BP - RP)", "",
+             "Per cell: the complete sky's fraction inside +- 1 sigma / Hipparcos' own (Hipparcos' share of "
+             "Gaia DR3's stars); each colour class weighted by its share of all the cell's stars, on the "
+             "assumption that the stars Hipparcos lacks fall inside as often as those of their class it holds "
+             "(docs/galaxy_model.md).", ""]
+    gnames = list(dict.fromkeys(rows["g_bin"]))
+    for (prior, case), sub in rows.groupby(["prior", "case"], sort=False):
+        lines += [f"### Prior '{prior}', case '{case}': in {pct} % ellipse [%]", ""]
+        head = ["abs(b) band [deg]"] + [f"G {g}" for g in gnames]
+        lines += ["| " + " | ".join(head) + " |", "|" + "|".join("---" for _ in head) + "|"]
+        for bname, part in sub.groupby("b_band_deg", sort=False):
+            cells = []
+            for g in gnames:
+                r = part[part["g_bin"] == g].iloc[0]
+                full = ("–" if not np.isfinite(r["fraction_complete_sky"]) else
+                        f"{100 * r['fraction_complete_sky']:.1f} +- {100 * r['fraction_complete_sky_sigma']:.1f}")
+                cells.append(f"{full} / {100 * r['fraction_hipparcos']:.1f} "
+                             f"({100 * r['hipparcos_completeness']:.0f} %)")
+            lines.append("| " + " | ".join([bname] + cells) + " |")
+        lines.append("")
+    return lines

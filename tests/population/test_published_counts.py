@@ -19,8 +19,13 @@ GUMS_BEAM_COUNT = 458
 LF_TOL = 0.20           # local luminosity function per 1-mag bin
 #: Relative rounding of a density published with 3 significant digits (CNS5: 7.99e-2, 4.03e-3).
 CNS5_ROUNDING = 0.005 / 4.03
-#: G bins compared (Tycho-2 / UCAC4 range where the magnitudes are V-like and complete).
-MET_BINS = list(range(4, 14))
+#: The issue's target against the real sky's counts (issue 25: "within 8 % as today").
+GAIA_COUNT_TOL = 0.08
+#: G bins compared with Tycho-2 (V < 10.25 with G - V = -0.25: the Tycho-2 part of the
+#: compilation, its magnitudes V-like and complete).
+MET_BINS = list(range(4, 10))
+#: G bins compared with Gaia DR3's own counts (bundled file below G = 10, quoted counts to 14).
+GAIA_BINS = list(range(4, 14))
 
 
 @pytest.fixture(scope="module")
@@ -29,11 +34,39 @@ def model():
 
 
 @pytest.mark.parametrize("g", MET_BINS)
-def test_all_sky_counts_per_magnitude_match_tycho2_ucac4(model, g):
+def test_all_sky_counts_per_magnitude_match_tycho2(model, g):
     row = pc.count_comparison(model, [g]).iloc[0]
     print(f"G {g}-{g + 1}: model {row.model:.4g}, published {row.published:.4g} "
           f"+- {100 * row.rel_uncertainty:.0f} %")
     assert abs(row.ratio - 1.0) <= COUNT_TOL
+
+
+@pytest.mark.parametrize("g", GAIA_BINS)
+def test_all_sky_counts_per_magnitude_match_gaia_dr3(model, g):
+    row = pc.count_comparison(model, [g]).iloc[0]
+    if np.isnan(row.gaia_dr3):
+        pytest.skip("Gaia DR3's counts below G = 10 need the optional extra realsky")
+    print(f"G {g}-{g + 1}: model {row.model:.4g}, Gaia DR3 {row.gaia_dr3:.4g} "
+          f"+- {100 * row.gaia_rel_uncertainty:.1f} %")
+    assert abs(row.ratio_gaia - 1.0) <= GAIA_COUNT_TOL
+
+
+def test_the_compilation_s_ucac4_part_is_too_bright_against_gaia_dr3():
+    # two published sources of the same sky: the quoted Gaia DR3 counts at G = 11-13 lie
+    # 20 % or more below the Tycho-2/UCAC4 compilation, well beyond the quoted digits and the
+    # G - V systematic's low side; at G = 10-11 (V = 10.25-11.25, the seam) by 13 %
+    g = [10, 11, 12, 13]
+    gaia, err = pc.gaia_dr3_counts_per_g(g)
+    assert np.all(err / gaia < 0.06)
+    low_side = pc.published_counts_per_g(np.array(g, float), pc.G_MINUS_V + pc.G_MINUS_V_SYST)
+    assert np.all(pc.published_counts_per_g(np.array(g[1:], float)) / gaia[1:] > 1.2)
+    assert np.all(low_side[1:] / gaia[1:] > 1.10)
+    # the quoted N(G < 10) is the bundled file's own count (when the extra is installed)
+    from mcsweep.population import gaia_bright
+
+    if gaia_bright.have_catalogue():
+        assert len(gaia_bright.load_gaia_bright()) == pytest.approx(pc.GAIA_DR3_CUMULATIVE_G[0][1],
+                                                                    abs=pc.GAIA_DR3_CUMULATIVE_G[0][2])
 
 
 def test_cns5_published_densities_match_its_counts():
@@ -62,11 +95,10 @@ def test_faint_total_at_least_gaia_dr3(model):
     assert model.expected_count(0, 90, 180, -5, 21) >= pc.DR3_TOTAL
 
 
-@pytest.mark.xfail(strict=True, reason="N(G < 20) is 1.23 x GUMS-10 once the bright end follows "
-                   "Bovy (2017) and Tycho-2 (issue #14, docs/galaxy_model.md)")
 def test_faint_total_against_gums(model):
-    # GUMS-10 is a model itself; the issue's 10 % target is not claimed here
-    assert model.expected_count(0, 90, 180, -5, 20) == pytest.approx(pc.GUMS_G20, rel=0.20)
+    # GUMS-10 is a model itself (issue #14's 10 % target); 1.05 x with besancon-r03-5, 1.23 x with
+    # r03-4's disc dust
+    assert model.expected_count(0, 90, 180, -5, 20) == pytest.approx(pc.GUMS_G20, rel=COUNT_TOL)
 
 
 def test_bright_main_sequence_lf_matches_bovy_per_bin(model):

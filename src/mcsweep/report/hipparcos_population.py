@@ -30,7 +30,7 @@ bracketed so: a giant at 300 pc moving at 30 km/s has ~20 mas/yr, the size of th
 Usage::
 
     python -m mcsweep.report.hipparcos_population [--extinction-model arenou1992]
-        [--giant-thickness-factor 0.6] [--thin-disc-factor 1.18] [--subgiants]
+        [--giant-thickness-factor 0.6] [--thin-disc-factor 1.18] [--[no-]subgiants]
         [--by-absolute-magnitude | --gaia-counts] [--out FILE.csv]
 
 ``--gaia-counts`` (:func:`gaia_band_counts`): the model's stars per band at G = 6-10 against
@@ -239,7 +239,8 @@ def main(argv=None):
                     help="galaxy model giant_thickness_factor")
     ap.add_argument("--thin-disc-factor", type=float, default=None,
                     help="galaxy model thin_disc_scale_height_factor")
-    ap.add_argument("--subgiants", action="store_true", help="galaxy model subgiants=true")
+    ap.add_argument("--subgiants", action=argparse.BooleanOptionalAction, default=None,
+                    help="galaxy model subgiants (default: the model's)")
     ap.add_argument("--n-draw", type=int, default=200_000)
     table_kind = ap.add_mutually_exclusive_group()
     table_kind.add_argument("--by-absolute-magnitude", action="store_true",
@@ -256,7 +257,7 @@ def main(argv=None):
         given = {"extinction_model": args.extinction_model,
                  "giant_thickness_factor": args.giant_thickness_factor,
                  "thin_disc_scale_height_factor": args.thin_disc_factor,
-                 "subgiants": True if args.subgiants else None}
+                 "subgiants": args.subgiants}
         params = {k: v for k, v in given.items() if v is not None}
         if args.n_draw < 1:
             raise UserInputError(f"--n-draw={args.n_draw} is not accepted; expected a positive integer")

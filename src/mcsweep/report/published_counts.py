@@ -20,6 +20,19 @@ compilation of the cited catalogue; [M] standard value, not re-checked here.
   with no colour conversion. They agree with the Tycho-2 counts above to 0-4 % per bin at
   G = 3-10 (``tests/population/test_gaia_bright.py``), which checks the G - V conversion
   there; they say nothing about the UCAC4 part (G >= 11).
+* Gaia DR3 at G = 10-14, cumulative N(G < 11, 12, 13, 14) ~ 1.25e6, 3.09e6, 7.37e6, 17e6
+  (counts of ``gaia_source`` by ``phot_g_mean_mag``, with N(G < 10) ~ 482e3, which the
+  bundled file above reproduces: 482 106 + 70 gap-fill rows), as quoted in the documentation
+  of tetra3rs, the star tracker whose build script made that file (``docs/getting-started/
+  catalog.md``, commit 375b60a) [S]. The quoted digits set the uncertainty: +-5e3 on the
+  first three, +-0.5e6 on the last. They show that the UCAC4 part of the compilation above is
+  too bright: over these counts, the compilation with G - V = -0.25 gives 1.13 / 1.28 / 1.26 /
+  1.25 at G = 10 / 11 / 12 / 13. The compiler's converter (HNSKY, github.com/han-k59/hnsky,
+  ``Tycho and USNO to 290``, ``Unit_USNO.pas``) gives each UCAC4 star the brightest of its
+  fit-model magnitude (a band at 579-642 nm, redder than V), its APASS V and its aperture
+  magnitude [V]: every star too bright by the minimum of three noisy, partly redder
+  estimates. So from G = 10 on the Gaia counts are the reference
+  (:func:`gaia_dr3_counts_per_g`); the compilation's bins are still shown.
 * Faint end: GUMS-10 holds 1.1e9 sources with G < 20 (Robin et al. 2012, A&A 543,
   A100) [V] (a model, the paper's); Gaia DR3 holds 1 811 709 771 sources to G ~ 21
   (Gaia Collaboration, Vallenari et al. 2023, A&A 674, A1) [V], incomplete beyond
@@ -85,6 +98,9 @@ __all__ = [
     "GUMS_G20",
     "DR3_TOTAL",
     "published_counts_per_g",
+    "GAIA_DR3_CUMULATIVE_G",
+    "GAIA_DR3_G_QUOTED",
+    "gaia_dr3_counts_per_g",
     "count_comparison",
     "local_sources_within",
     "GCNS60_STARS",
@@ -129,6 +145,11 @@ CNS5_25PC = {"main_sequence": 4946, "giants": 20, "white_dwarfs": 264, "stars": 
              "brown_dwarfs": 701}
 #: Local giant density, pc^-3, and its uncertainty (Bovy 2017) [V].
 BOVY_GIANTS_PC3, BOVY_GIANTS_ERR_PC3 = 3.9e-4, 0.1e-4
+#: (G, N(< G) over the whole sky, its quoted precision): Gaia DR3 as quoted by tetra3rs [S].
+GAIA_DR3_CUMULATIVE_G = ((10, 482e3, 0.5e3), (11, 1.25e6, 5e3), (12, 3.09e6, 5e3), (13, 7.37e6, 5e3),
+                         (14, 17e6, 0.5e6))
+#: G bins whose Gaia DR3 count comes from :data:`GAIA_DR3_CUMULATIVE_G` (below: the bundled file).
+GAIA_DR3_G_QUOTED = (10, 14)
 GUMS_G20 = 1.1e9
 DR3_TOTAL = 1_811_709_771
 
@@ -159,6 +180,25 @@ def published_counts_per_g(g_lo, g_minus_v=G_MINUS_V):
     return np.where(hi <= TYCHO_UCAC4_CUMULATIVE[-1][0], out, np.nan)
 
 
+def gaia_dr3_counts_per_g(g_bins):
+    """Gaia DR3's all-sky sources with ``g <= G < g + 1`` for each ``g`` of ``g_bins`` and their
+    uncertainty (two arrays): from the bundled file at G < 10 (exact; NaN without the extra
+    ``realsky``), from :data:`GAIA_DR3_CUMULATIVE_G` at G = 10-14 (the quoted digits of both
+    ends, added in quadrature), NaN elsewhere."""
+    g = np.asarray(list(g_bins), dtype=float)
+    n, err = np.full(g.shape, np.nan), np.full(g.shape, np.nan)
+    bright = g + 1.0 <= gaia_bright.G_LIMIT
+    if bright.any() and gaia_bright.have_catalogue():
+        n[bright] = gaia_bright.counts_per_g(g[bright])
+        err[bright] = 0.0
+    table = {m: (c, e) for m, c, e in GAIA_DR3_CUMULATIVE_G}
+    for i, lo in enumerate(g):
+        if lo in table and lo + 1.0 in table and GAIA_DR3_G_QUOTED[0] <= lo < GAIA_DR3_G_QUOTED[1]:
+            (c0, e0), (c1, e1) = table[lo], table[lo + 1.0]
+            n[i], err[i] = c1 - c0, np.hypot(e0, e1)
+    return n, err
+
+
 def count_comparison(model, g_bins=range(4, 20)):
     """Model all-sky counts per 1-mag G bin next to the published ones (DataFrame).
 
@@ -166,12 +206,13 @@ def count_comparison(model, g_bins=range(4, 20)):
     +- its systematic), ``ratio``, ``rel_uncertainty`` (systematic and Poisson of the
     published count added in quadrature); ``gaia_dr3`` and ``ratio_gaia``: Gaia DR3's own
     count in G (:mod:`mcsweep.population.gaia_bright`, G < 10; NaN beyond, or without the
-    optional extra ``realsky``).
+    optional extra ``realsky``; at G = 10-14 the quoted counts, :func:`gaia_dr3_counts_per_g`),
+    ``gaia_rel_uncertainty`` (the quoted digits; 0 for the file's exact counts).
     """
     g_bins = list(g_bins)
-    gaia = gaia_bright.counts_per_g(g_bins) if gaia_bright.have_catalogue() else np.full(len(g_bins), np.nan)
+    gaia, gaia_err = gaia_dr3_counts_per_g(g_bins)
     rows = []
-    for g, n_gaia in zip(g_bins, gaia):
+    for g, n_gaia, e_gaia in zip(g_bins, gaia, gaia_err):
         n = model.expected_count(0.0, 90.0, 180.0, g, g + 1)
         pub = float(published_counts_per_g(g))
         lo = float(published_counts_per_g(g, G_MINUS_V - G_MINUS_V_SYST))
@@ -179,7 +220,7 @@ def count_comparison(model, g_bins=range(4, 20)):
         rel = np.hypot(0.5 * abs(hi - lo) / pub, 1.0 / np.sqrt(pub)) if np.isfinite(pub) else np.nan
         rows.append(dict(G_min=g, model=n, published=pub, published_lo=min(lo, hi),
                          published_hi=max(lo, hi), ratio=n / pub, rel_uncertainty=rel,
-                         gaia_dr3=n_gaia, ratio_gaia=n / n_gaia))
+                         gaia_dr3=n_gaia, ratio_gaia=n / n_gaia, gaia_rel_uncertainty=e_gaia / n_gaia))
     return pd.DataFrame(rows)
 
 
@@ -366,8 +407,11 @@ def local_density_by_class(model):
     rows.append(dict(cls="white dwarfs (CNS5)", M_G_lo=np.nan, M_G_hi=np.nan, published=CNS5_WD_PC3,
                      uncertainty=CNS5_WD_ERR_PC3, counts="stars", model=np.nan,
                      sample="CNS5 25 pc (no white-dwarf population in the model)"))
+    # the thin disc's giant components also hold its subgiants (M_V > 1.5): only the giants' bins
+    giant_mg_max = P.GIANT_MV_MAX + 0.5 + P.GIANT_G_MINUS_V
     rows.append(dict(cls="red giants", M_G_lo=np.nan, M_G_hi=np.nan, published=MAMAJEK_GIANTS_PC3,
-                     uncertainty=np.nan, counts="sources", model=float(lf.cdf[giants, -1].sum()),
+                     uncertainty=np.nan, counts="sources",
+                     model=float(np.interp(giant_mg_max, lf.mg, lf.cdf[giants].sum(axis=0))),
                      sample="K/M III and later (Mamajek); model: all thin-disc giants (Bovy 2017)"))
     out = pd.DataFrame(rows)
     out["ratio"] = out["model"] / out["published"]

@@ -61,7 +61,7 @@ DEFAULT_PARAMS = {
     "thin_disc_scale_height_factor": P.THIN_DISC_THICKNESS_FACTOR,
     "giant_thickness_factor": P.GIANT_THICKNESS_FACTOR,
     "extinction": True,
-    "extinction_model": "disc",
+    "extinction_model": "arenou1992",
     "dust_av_per_kpc": AV_PER_KPC,
     "dust_scale_length_kpc": DUST_SCALE_LENGTH_KPC,
     "dust_scale_height_pc": DUST_SCALE_HEIGHT_PC,
@@ -69,7 +69,7 @@ DEFAULT_PARAMS = {
     "components": list(POPULATION_CATEGORIES),
     "count": "poisson",
     "multiplicity_frequency": P.MULTIPLICITY_FREQUENCY,
-    "subgiants": False,
+    "subgiants": True,
 }
 
 #: ``extinction_model`` values: the smooth exponential disc (:mod:`.extinction`) alone, or

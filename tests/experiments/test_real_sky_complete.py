@@ -29,3 +29,24 @@ def test_carried_fraction_weights_each_class_by_its_share_of_the_whole():
     assert np.isnan(carried_fraction(inside, classes, [30, 70, 5])[0])
     # a class of the solved stars absent from the whole weighs nothing
     assert carried_fraction(inside, classes, [30, 0])[0] == pytest.approx(0.8, rel=RTOL)
+
+
+def test_carried_quantile_against_hazen_and_a_two_value_closed_form():
+    from mcsweep.experiments.real_sky_complete import carried_quantile
+
+    values = np.random.default_rng(3).lognormal(1.0, 0.7, 501)
+    classes = np.random.default_rng(4).integers(0, 3, values.size)
+    own = np.bincount(classes, minlength=3)
+    # each class weighted by its own share: the plain (Hazen) quantile of the values
+    for q in (0.1, 0.5, 0.9):
+        assert carried_quantile(values, classes, own, q) == pytest.approx(np.quantile(values, q, method="hazen"),
+                                                                          rel=RTOL)
+    # value 1 standing for 3 stars, value 2 for 1: the median lies a quarter of the way up
+    assert carried_quantile([1.0, 2.0], [0, 1], [3, 1], 0.5) == pytest.approx(1.25, rel=RTOL)
+    # a coloured class of the whole without values: no value; stars without colour (the last
+    # class) unseen: shared out like the rest
+    assert np.isnan(carried_quantile([1.0, 2.0], [0, 1], [3, 1, 2], 0.5))
+    no_colour = np.zeros(len(BP_RP_EDGES) + 2)
+    no_colour[[0, 1, -1]] = [3, 1, 40]
+    assert carried_quantile([1.0, 2.0], [0, 1], no_colour, 0.5) == pytest.approx(1.25, rel=RTOL)
+    assert carried_fraction([1, 0], [0, 1], no_colour)[0] == pytest.approx(0.75, rel=RTOL)

@@ -61,6 +61,9 @@ def test_hipparcos_plus_the_gaia_stars_it_lacks_make_gaia_s_count(table):
         assert 0.5 < row.hip_completeness <= 1.0
         # the missing stars put below the percentile can only lower it
         assert row.plx90_hip_complete <= row.plx90_hip
+        # carried over by colour: the missing stars, mostly red giants, are taken to be like
+        # Hipparcos' own of their colour, which lie between the two
+        assert row.plx90_hip_complete <= row.plx90_hip_carried <= row.plx90_hip
 
 
 def test_quantile_with_unseen_is_the_whole_sample_s_quantile():

@@ -22,8 +22,9 @@ holds. At a given G and colour, V is fixed, so the Survey took a class's stars a
 in a band (up to the class's width and the G5 split); the others Hipparcos holds came from
 proposals, which favoured nearby stars (large parallaxes, outside the ellipse more often), so
 the carried-over fraction leans low if anything. Its interval is +-1 sigma of the weighted
-binomial (normal approximation, 68 %). A class with stars but none solved in Hipparcos makes
-the cell's value NaN.
+binomial (normal approximation, 68 %). Stars without a colour are shared out like the rest
+when Hipparcos has none of them solved; any other class with stars but none solved makes the
+cell's value NaN.
 """
 
 from __future__ import annotations
@@ -35,7 +36,8 @@ from ..population import gaia_bright
 from ..population.hipparcos import load_hipparcos
 from .real_sky import B_BANDS, band_of, g_bins, gbin_of
 
-__all__ = ["BP_RP_EDGES", "colour_class", "carried_fraction", "complete_rows", "complete_markdown"]
+__all__ = ["BP_RP_EDGES", "colour_class", "carried_fraction", "carried_quantile", "complete_rows",
+           "complete_markdown"]
 
 #: Class edges in Gaia BP - RP [mag]: B-A stars; F; G; K0-K3 dwarfs and the red clump; K
 #: giants; M giants and red dwarfs.
@@ -57,6 +59,7 @@ def carried_fraction(inside, classes, class_counts) -> tuple[float, float]:
     inside, classes = np.asarray(inside, dtype=float), np.asarray(classes)
     counts = np.asarray(class_counts, dtype=float)
     n_solved = np.bincount(classes, minlength=counts.size).astype(float)
+    counts = _colourless_shared_out(counts, n_solved)
     if counts.sum() == 0 or np.any((counts > 0) & (n_solved == 0)):
         return np.nan, np.nan
     k_in = np.bincount(classes, weights=inside, minlength=counts.size)
@@ -64,6 +67,33 @@ def carried_fraction(inside, classes, class_counts) -> tuple[float, float]:
     f = k_in[use] / n_solved[use]
     w = counts[use] / counts.sum()
     return float(w @ f), float(np.sqrt(np.sum(w ** 2 * f * (1.0 - f) / n_solved[use])))
+
+
+def carried_quantile(values, classes, class_counts, q) -> float:
+    """The ``q`` quantile of the whole, each value of class k standing for
+    ``class_counts[k] / (values of class k)`` stars (the inverse of the weighted empirical
+    distribution, interpolated between the weights' midpoints); NaN when a class of the
+    whole has no value."""
+    values, classes = np.asarray(values, dtype=float), np.asarray(classes)
+    counts = np.asarray(class_counts, dtype=float)
+    n_seen = np.bincount(classes, minlength=counts.size).astype(float)
+    counts = _colourless_shared_out(counts, n_seen)
+    if values.size == 0 or np.any((counts > 0) & (n_seen == 0)):
+        return np.nan
+    w = counts[classes] / n_seen[classes]
+    order = np.argsort(values, kind="stable")
+    v, w = values[order], w[order]
+    mid = (np.cumsum(w) - 0.5 * w) / w.sum()
+    return float(np.interp(q, mid, v))
+
+
+def _colourless_shared_out(counts, n_seen):
+    """``counts`` without the no-colour class (the last) when none of it is seen: those stars
+    then count like the coloured ones."""
+    if counts.size == len(BP_RP_EDGES) + 2 and counts[-1] > 0 and n_seen[-1] == 0:
+        counts = counts.copy()
+        counts[-1] = 0.0
+    return counts
 
 
 def complete_rows(stars: pd.DataFrame, results: pd.DataFrame, settings, *, truth="hipparcos") -> pd.DataFrame:

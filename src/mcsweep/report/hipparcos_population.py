@@ -26,6 +26,10 @@ parallax below the complete sample's 90th percentile, that percentile is the cat
 known higher quantile (:func:`quantile_with_unseen`): ``plx90_hip_complete``, the lower end of the
 range in which the complete sky's value lies (``plx90_hip`` the upper). Proper motions are not
 bracketed so: a giant at 300 pc moving at 30 km/s has ~20 mas/yr, the size of the median.
+Both are also carried over to the complete sky by colour, as the real-sky fractions are
+(:mod:`mcsweep.experiments.real_sky_complete`: each class of Gaia BP - RP weighted by its share
+of all the cell's stars, the stars Hipparcos lacks taken to be like those of their class it
+holds): ``plx90_hip_carried``, ``pm50_hip_carried`` and their ratios.
 
 Usage::
 
@@ -48,6 +52,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import UserInputError
+from ..experiments.real_sky_complete import BP_RP_EDGES, carried_quantile, colour_class
 from ..population import GalaxyModel
 from ..population import gaia_bright, hipparcos
 
@@ -100,20 +105,17 @@ def compare(model, *, n_draw=200_000, seed=SEED):
         # the catalogue without its stars above the dwarf sequence, which the model lacks
         on = ~above_main_sequence(h.b_v, _mprime(h.phot_g_mean_mag, h.parallax))
         hs_on = _stats(h.b.to_numpy()[on], h.parallax.to_numpy()[on], h.pmra.to_numpy()[on], h.pmdec.to_numpy()[on])
-        missing_b = _not_in_hipparcos_b(gaia, hip, g0, g1)
+        missing_b, missing_class, hip_class = _not_in_hipparcos(gaia, hip, h, g0, g1)
         total, s = _model_draw(model, g0, g1, rng, n_draw)
         ms = _stats(s.b.to_numpy(), s.parallax.to_numpy(), s.pmra.to_numpy(), s.pmdec.to_numpy())
         for (lo, hi), (hn, hp, hm), (mn, mp, mm), (_, hp_on, hm_on) in zip(BANDS_DEG, hs, ms, hs_on):
             n_model = total * mn / len(s)
-            n_not = int(np.count_nonzero(in_band(missing_b, lo, hi))) if missing_b is not None else np.nan
-            hp_complete = (quantile_with_unseen(h.parallax.to_numpy()[in_band(h.b, lo, hi)], 0.9, n_below=n_not)
-                           if missing_b is not None else np.nan)
-            rows.append(dict(g_min=g0, g_max=g1, b_lo=lo, b_hi=hi, n_hip=hn, n_model=n_model,
-                             count_ratio=n_model / hn, plx90_hip=hp, plx90_model=mp, plx90_ratio=mp / hp,
-                             pm50_hip=hm, pm50_model=mm, pm50_ratio=mm / hm,
-                             plx90_hip_not_above_ms=hp_on, pm50_hip_not_above_ms=hm_on,
-                             n_not_hip=n_not, hip_completeness=hn / (hn + n_not),
-                             plx90_hip_complete=hp_complete, plx90_ratio_complete=mp / hp_complete))
+            row = dict(g_min=g0, g_max=g1, b_lo=lo, b_hi=hi, n_hip=hn, n_model=n_model,
+                       count_ratio=n_model / hn, plx90_hip=hp, plx90_model=mp, plx90_ratio=mp / hp,
+                       pm50_hip=hm, pm50_model=mm, pm50_ratio=mm / hm,
+                       plx90_hip_not_above_ms=hp_on, pm50_hip_not_above_ms=hm_on)
+            row.update(_completeness(h, hip_class, missing_b, missing_class, lo, hi, mp, mm))
+            rows.append(row)
     return pd.DataFrame(rows)
 
 
@@ -140,14 +142,35 @@ def _gaia_rows():
     return gaia[~gaia.from_hipparcos]
 
 
-def _not_in_hipparcos_b(gaia, hip, g0, g1):
-    """Latitudes [deg] of the Gaia stars with ``g0 <= G < g1`` that no Hipparcos 2 star matches
-    (the catalogue searched whole, so a star whose derived G falls outside the bin still
-    counts as present); None without Gaia."""
+def _not_in_hipparcos(gaia, hip, h, g0, g1):
+    """Latitudes [deg] and BP - RP classes of the Gaia stars with ``g0 <= G < g1`` that no
+    Hipparcos 2 star matches (the catalogue searched whole, so a star whose derived G falls
+    outside the bin still counts as present), and the classes of the bin's Hipparcos stars
+    ``h`` (by their Gaia counterparts); three Nones without Gaia."""
     if gaia is None:
-        return None
+        return None, None, None
     cell = gaia[(gaia.phot_g_mean_mag >= g0) & (gaia.phot_g_mean_mag < g1)]
-    return cell.b.to_numpy()[gaia_bright.not_in_hipparcos(cell, hip)]
+    missing = cell[gaia_bright.not_in_hipparcos(cell, hip)]
+    return (missing.b.to_numpy(), colour_class((missing.phot_bp_mean_mag - missing.phot_rp_mean_mag).to_numpy()),
+            colour_class(gaia_bright.bp_rp_of_hipparcos(h, gaia)))
+
+
+def _completeness(h, hip_class, missing_b, missing_class, lo, hi, plx90_model, pm50_model) -> dict:
+    """The completeness columns of one (G bin, band) row of :func:`compare` (NaN without Gaia)."""
+    keys = ("n_not_hip", "hip_completeness", "plx90_hip_complete", "plx90_ratio_complete", "plx90_hip_carried",
+            "plx90_ratio_carried", "pm50_hip_carried", "pm50_ratio_carried")
+    if missing_b is None:
+        return dict.fromkeys(keys, np.nan)
+    inb, inm = in_band(h.b, lo, hi), in_band(missing_b, lo, hi)
+    plx, pm = h.parallax.to_numpy()[inb], np.hypot(h.pmra, h.pmdec).to_numpy()[inb]
+    n_not = int(np.count_nonzero(inm))
+    n_classes = len(BP_RP_EDGES) + 2
+    counts = np.bincount(hip_class[inb], minlength=n_classes) + np.bincount(missing_class[inm], minlength=n_classes)
+    plx_bound = quantile_with_unseen(plx, 0.9, n_below=n_not)
+    plx_carried = carried_quantile(plx, hip_class[inb], counts, 0.9)
+    pm_carried = carried_quantile(pm, hip_class[inb], counts, 0.5)
+    return dict(zip(keys, (n_not, plx.size / (plx.size + n_not), plx_bound, plx90_model / plx_bound, plx_carried,
+                           plx90_model / plx_carried, pm_carried, pm50_model / pm_carried)))
 
 
 def _model_draw(model, g0, g1, rng, n_draw):

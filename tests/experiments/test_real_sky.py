@@ -127,6 +127,7 @@ def test_small_run_through_the_cli(tmp_path):
     for _, band in c.groupby("b_band_deg"):
         assert band.sort_values("g_bin")["hipparcos_completeness"].is_monotonic_decreasing
     assert "Carried over to the complete sky" in (out / "real_sky.md").read_text()
+    assert "Carried over to the complete sky" in (out / "report.md").read_text()
     errors = pd.read_csv(out / "real_sky_errors.csv")
     assert {"median_parallax_error_mas", "median_sigma_paper_mas", "median_sigma_fitted_mas"} <= set(errors.columns)
     report = (out / "report.md").read_text()

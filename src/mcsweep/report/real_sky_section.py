@@ -1,10 +1,12 @@
 """Report section of the real-sky validation (issue 25): Hipparcos stars as truth.
 
-Reads ``real_sky.csv`` and ``real_sky_errors.csv`` (written by
-:func:`mcsweep.sweep.real_sky_runner.run_real_sky`). In the order every global
-experiment's section follows (:mod:`mcsweep.report.global_section`): the headline (the
-fraction inside the P ellipse per |b| band for each prior, ours with its Clopper-Pearson
-interval, in the case from which sigma_F90 is defined; what Hipparcos' own errors change),
+Reads ``real_sky.csv``, ``real_sky_errors.csv`` and, where the run wrote it,
+``real_sky_complete.csv`` (written by :func:`mcsweep.sweep.real_sky_runner.run_real_sky`).
+In the order every global experiment's section follows (:mod:`mcsweep.report.global_section`):
+the headline (the fraction inside the P ellipse per |b| band for each prior, ours with its
+Clopper-Pearson interval, in the case from which sigma_F90 is defined; the same per G bin
+carried over to the complete sky, :mod:`mcsweep.experiments.real_sky_complete`; what
+Hipparcos' own errors change),
 the figure, then the setup and the tables, then the diagnostics (Hipparcos' parallax
 errors against the prior).
 """
@@ -57,6 +59,11 @@ def plot_fraction_by_band(table: pd.DataFrame, case: str, p: float, path: Path) 
     return path
 
 
+def _carried(r: pd.Series) -> str:
+    f, e = r["fraction_complete_sky"], r["fraction_complete_sky_sigma"]
+    return "–" if not np.isfinite(f) else f"{100 * f:.1f} +- {100 * e:.1f}"
+
+
 def real_sky_section(doc: Document, run_dir: Path, prov: dict) -> None:
     """Add the real-sky section to ``doc`` (module notes)."""
     run_dir = Path(run_dir)
@@ -78,6 +85,20 @@ def real_sky_section(doc: Document, run_dir: Path, prov: dict) -> None:
         r = base[(base["prior"] == prior) & (base["case"] == case)].set_index("b_band_deg")
         items.append(f"prior '{prior}': all sky {_cell(r.loc['all'])}; "
                      + "; ".join(f"|b| {b} deg {_cell(r.loc[b])}" for b in r.index if b != "all"))
+    complete_file = run_dir / "real_sky_complete.csv"
+    complete = (pd.read_csv(complete_file, dtype={"b_band_deg": str, "g_bin": str}) if complete_file.exists()
+                else None)
+    if complete is not None:
+        for prior in priors:
+            part = complete[(complete["prior"] == prior) & (complete["case"] == case)]
+            if part.empty:
+                continue
+            items.append(f"Carried over to the complete sky (Gaia DR3's stars by BP - RP, prior '{prior}'), "
+                         "per |b| band, G bins " + " / ".join(dict.fromkeys(part["g_bin"])) + ": "
+                         + "; ".join(f"|b| {b} deg " + " / ".join(_carried(r) for _, r in band.iterrows())
+                                     for b, band in part.groupby("b_band_deg", sort=False))
+                         + " % (Hipparcos holds " + ", ".join(f"{100 * v:.0f}" for v in part["hipparcos_completeness"])
+                         + " % of those cells' stars).")
     pert = table[(table["truth"] == "perturbed") & (table["g_bin"] == "all") & (table["b_band_deg"] == "all")]
     for prior in priors:
         a = base[(base["prior"] == prior) & (base["b_band_deg"] == "all")].set_index("case")["fraction_inside"]

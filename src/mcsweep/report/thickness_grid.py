@@ -3,7 +3,9 @@
 Repeats issue #14's calibration of ``thin_disc_scale_height_factor`` and
 ``giant_thickness_factor`` (docs/galaxy_model.md) for a given extinction model, from the
 model's expected counts (no sampling): per (giants' factor, thin-disc factor) the all-sky
-counts per 1-mag G bin over Tycho-2/UCAC4 (:func:`.published_counts.count_comparison`),
+counts per 1-mag G bin over Tycho-2/UCAC4 (``G4`` ...) and over Gaia DR3 (``gaia_G4`` ...;
+the reference from G = 10 on, where the compilation is too bright; issue 25) from
+:func:`.published_counts.count_comparison`,
 the paper's Table 1 beam (458 GUMS stars), N(G < 20) and N(G < 21), and the vertical
 profiles the factors imply, to set against the published scale heights:
 
@@ -20,7 +22,7 @@ profiles the factors imply, to set against the published scale heights:
 Usage::
 
     python -m mcsweep.report.thickness_grid --extinction-model arenou1992 \\
-        --giant 0.45,0.6,0.8,1.0 --thin 1.0,1.15,1.3,1.45 [--out FILE.csv]
+        --giant 0.45,0.6,0.8,1.0 --thin 1.0,1.15,1.3,1.45 [--[no-]subgiants] [--out FILE.csv]
 """
 
 from __future__ import annotations
@@ -77,16 +79,21 @@ def vertical_heights_pc(model):
             1e3 * float(np.interp(-0.5, -dwarfs, z)))
 
 
-def grid(giant_factors, thin_factors, *, extinction_model="arenou1992", g_bins=range(4, 14)):
-    """One row per (giants' factor, thin-disc factor): count ratios per G bin (``G4`` ...),
-    ``beam``, ``N20``, ``N21`` and the heights of :func:`vertical_heights_pc`."""
+def grid(giant_factors, thin_factors, *, extinction_model="arenou1992", subgiants=None, g_bins=range(4, 14)):
+    """One row per (giants' factor, thin-disc factor): count ratios per G bin (``G4`` ...
+    over Tycho-2/UCAC4, ``gaia_G4`` ... over Gaia DR3), ``beam``, ``N20``, ``N21`` and the
+    heights of :func:`vertical_heights_pc`; ``subgiants`` None: the model's default."""
     rows = []
+    extra = {} if subgiants is None else {"subgiants": bool(subgiants)}
     for fg, ft in itertools.product(giant_factors, thin_factors):
         m = GalaxyModel(extinction_model=extinction_model, giant_thickness_factor=fg,
-                        thin_disc_scale_height_factor=ft)
-        row = dict(giant_factor=fg, thin_factor=ft)
-        for r in pc.count_comparison(m, g_bins).itertuples():
+                        thin_disc_scale_height_factor=ft, **extra)
+        row = dict(giant_factor=fg, thin_factor=ft, subgiants=m.params["subgiants"])
+        comp = pc.count_comparison(m, g_bins)
+        for r in comp.itertuples():
             row[f"G{r.G_min}"] = r.ratio
+        for r in comp.itertuples():
+            row[f"gaia_G{r.G_min}"] = r.ratio_gaia
         row["beam"] = m.expected_count(**BEAM)
         row["N20"] = m.expected_count(0.0, 90.0, 180.0, -5.0, 20.0)
         row["N21"] = m.expected_count(0.0, 90.0, 180.0, -5.0, 21.0)
@@ -111,6 +118,8 @@ def main(argv=None):
     ap.add_argument("--extinction-model", default="arenou1992")
     ap.add_argument("--giant", default="0.45,0.6,0.8,1.0", help="giants' thickness factors")
     ap.add_argument("--thin", default="1.0,1.15,1.3,1.45", help="thin-disc thickness factors")
+    ap.add_argument("--subgiants", action=argparse.BooleanOptionalAction, default=None,
+                    help="galaxy model subgiants (default: the model's)")
     ap.add_argument("--out", default=None, help="CSV file to write")
     args = ap.parse_args(argv)
     try:
@@ -119,7 +128,7 @@ def main(argv=None):
             raise UserInputError(f"--out={args.out!r} is not accepted; expected a file in an existing, "
                                  "writable folder")
         df = grid(_floats(args.giant, "giant"), _floats(args.thin, "thin"),
-                  extinction_model=args.extinction_model)
+                  extinction_model=args.extinction_model, subgiants=args.subgiants)
     except UserInputError as exc:
         print(f"thickness_grid: {exc}", file=sys.stderr)
         return 2

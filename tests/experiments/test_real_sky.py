@@ -137,6 +137,20 @@ def test_small_run_through_the_cli(tmp_path):
     assert "noise" in seeds and "perturbed_truth" in seeds
 
 
+def test_a_g_range_beyond_the_bundled_gaia_stars_has_no_complete_sky_rows(tmp_path):
+    # Gaia's bundled stars stop at G = 10: the carried-over table is empty, the run and its
+    # report complete
+    out = tmp_path / "run"
+    r = subprocess.run([str(BIN / "mcsweep"), "experiment=real_sky", f"hydra.run.dir={out}",
+                        "experiment.real_sky.g_min=10", "experiment.real_sky.g_max=11",
+                        "experiment.real_sky.max_stars=50", "experiment.real_sky.cases=[two]",
+                        "execution.n_jobs=1", "execution.progress=false"], capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    complete = pd.read_csv(out / "real_sky_complete.csv")
+    assert complete.empty and "fraction_complete_sky" in complete.columns
+    assert "Hipparcos stars as truth" in (out / "report.md").read_text()
+
+
 def test_a_bad_fitted_run_is_one_line_exit_2_nothing_written(tmp_path):
     out = tmp_path / "run"
     r = subprocess.run([str(BIN / "mcsweep"), "experiment=real_sky", f"hydra.run.dir={out}",

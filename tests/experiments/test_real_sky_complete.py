@@ -50,3 +50,13 @@ def test_carried_quantile_against_hazen_and_a_two_value_closed_form():
     no_colour[[0, 1, -1]] = [3, 1, 40]
     assert carried_quantile([1.0, 2.0], [0, 1], no_colour, 0.5) == pytest.approx(1.25, rel=RTOL)
     assert carried_fraction([1, 0], [0, 1], no_colour)[0] == pytest.approx(0.75, rel=RTOL)
+    # values of a class absent from the whole stand for no star
+    assert carried_quantile([1.0, 5.0, 10.0], [0, 1, 2], [1, 0, 1], 0.5) == pytest.approx(5.5, rel=RTOL)
+
+
+def test_classes_by_colour_within_half_magnitudes():
+    from mcsweep.experiments.real_sky_complete import N_COLOUR_CLASSES, SUB_BINS, colour_magnitude_class
+
+    assert SUB_BINS == 2
+    got = colour_magnitude_class([0.0, 0.0, 1.2, np.nan, 1.2], [6.1, 6.6, 7.49, 7.99, 8.0], [(6, 7), (7, 8), (8, 9)])
+    assert got.tolist() == [0, N_COLOUR_CLASSES, 3, 2 * N_COLOUR_CLASSES - 1, 3]

@@ -24,8 +24,9 @@ GAIA_COUNT_TOL = 0.08
 #: G bins compared with Tycho-2 (V < 10.25 with G - V = -0.25: the Tycho-2 part of the
 #: compilation, its magnitudes V-like and complete).
 MET_BINS = list(range(4, 10))
-#: G bins compared with Gaia DR3's own counts (bundled file below G = 10, quoted counts to 14).
-GAIA_BINS = list(range(4, 14))
+#: G bins compared with Gaia DR3's own counts (bundled file below G = 10, quoted counts to 13;
+#: G = 13-14 rests on a rounded "~17M", +-10 %: shown in the report, not tested).
+GAIA_BINS = list(range(4, 13))
 
 
 @pytest.fixture(scope="module")
@@ -54,19 +55,20 @@ def test_all_sky_counts_per_magnitude_match_gaia_dr3(model, g):
 def test_the_compilation_s_ucac4_part_is_too_bright_against_gaia_dr3():
     # two published sources of the same sky: the quoted Gaia DR3 counts at G = 11-13 lie
     # 20 % or more below the Tycho-2/UCAC4 compilation, well beyond the quoted digits and the
-    # G - V systematic's low side; at G = 10-11 (V = 10.25-11.25, the seam) by 13 %
+    # G - V systematic's low side; at G = 10-11 (V = 10.25-11.25, the seam) by 13 %; the
+    # G = 13-14 bin (+-10 %) only shown
     g = [10, 11, 12, 13]
     gaia, err = pc.gaia_dr3_counts_per_g(g)
-    assert np.all(err / gaia < 0.06)
+    assert np.all(err[:3] / gaia[:3] < 0.01)
     low_side = pc.published_counts_per_g(np.array(g, float), pc.G_MINUS_V + pc.G_MINUS_V_SYST)
-    assert np.all(pc.published_counts_per_g(np.array(g[1:], float)) / gaia[1:] > 1.2)
-    assert np.all(low_side[1:] / gaia[1:] > 1.10)
+    assert np.all(pc.published_counts_per_g(np.array(g[1:3], float)) / gaia[1:3] > 1.2)
+    assert np.all(low_side[1:3] / gaia[1:3] > 1.10)
     # the quoted N(G < 10) is the bundled file's own count (when the extra is installed)
     from mcsweep.population import gaia_bright
 
     if gaia_bright.have_catalogue():
-        assert len(gaia_bright.load_gaia_bright()) == pytest.approx(pc.GAIA_DR3_CUMULATIVE_G[0][1],
-                                                                    abs=pc.GAIA_DR3_CUMULATIVE_G[0][2])
+        n_gaia = int((~gaia_bright.load_gaia_bright().from_hipparcos).sum())
+        assert n_gaia == pytest.approx(pc.GAIA_DR3_CUMULATIVE_G[0][1], abs=pc.GAIA_DR3_CUMULATIVE_G[0][2])
 
 
 def test_cns5_published_densities_match_its_counts():

@@ -47,6 +47,20 @@ def test_default_giant_thickness_keeps_the_hash_of_configs_made_before_the_optio
     assert _hash(["population.params.giant_thickness_factor=0.6"]) != config_hash(cfg)
 
 
+def test_the_r03_4_model_keeps_its_hash_and_the_r03_5_defaults_get_a_new_one():
+    # besancon-r03-5 changed two defaults: runs made before under the old ones resume when the
+    # old values are given, and are refused under the new defaults
+    cfg = OmegaConf.to_container(compose_config(["population.params.extinction_model=disc",
+                                                 "population.params.subgiants=false"]), resolve=True)
+    params = cfg["population"]["params"]
+    before = {**cfg, "population": {**cfg["population"], "params": {
+        k: v for k, v in params.items() if k not in ("extinction_model", "subgiants")}}}
+    assert config_hash(cfg) == config_hash(before)
+    new = OmegaConf.to_container(compose_config([]), resolve=True)["population"]["params"]
+    assert (new["extinction_model"], new["subgiants"]) == ("arenou1992", True)
+    assert _hash([]) != config_hash(cfg)
+
+
 def test_a_solution_from_zero_keeps_the_hash_of_configs_made_before_the_start_option():
     # Primary runs made before experiment.primary.solver_start solved every prior from zero:
     # they resume under solver_start=zero, and are refused under the new default 'previous'.

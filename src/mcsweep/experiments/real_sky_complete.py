@@ -10,21 +10,24 @@ differ in how often their errors fall inside the P ellipse (measured with the fi
 two visits, G = 7-8: Hipparcos' red giants 96 %, its other stars 82-85 %), so the
 catalogue's mix of kinds sets a cell's fraction, not only the prior.
 
-Here each cell's fraction is carried over to the complete sky by colour: the stars of the
-cell, Hipparcos' and the Gaia stars it lacks (:func:`~mcsweep.population.gaia_bright.not_in_hipparcos`),
-are sorted into classes of Gaia BP - RP (:data:`BP_RP_EDGES`; Hipparcos' stars take the
-colour of their Gaia counterpart, :func:`~mcsweep.population.gaia_bright.bp_rp_of_hipparcos`;
-stars without one form a class of their own); the complete sky's fraction is the mean of the
-classes' Hipparcos fractions weighted by the classes' shares of all the cell's stars.
+Here each cell's fraction is carried over to the complete sky by colour and magnitude: the
+stars of the cell, Hipparcos' and the Gaia stars it lacks
+(:func:`~mcsweep.population.gaia_bright.not_in_hipparcos`), are sorted into classes of Gaia
+BP - RP (:data:`BP_RP_EDGES`; Hipparcos' stars take the colour of their Gaia counterpart,
+:func:`~mcsweep.population.gaia_bright.bp_rp_of_hipparcos`; stars without one form a class of
+their own) within each :data:`SUB_BINS`-th of the G bin (the stars Hipparcos lacks lie toward
+the faint side of a bin, and the prior changes with G); the complete sky's fraction is the mean
+of the classes' Hipparcos fractions weighted by the classes' shares of all the cell's stars.
 
 The assumption: within a class, the stars Hipparcos lacks fall inside as often as those it
 holds. At a given G and colour, V is fixed, so the Survey took a class's stars all or none
 in a band (up to the class's width and the G5 split); the others Hipparcos holds came from
 proposals, which favoured nearby stars (large parallaxes, outside the ellipse more often), so
 the carried-over fraction leans low if anything. Its interval is +-1 sigma of the weighted
-binomial (normal approximation, 68 %). Stars without a colour are shared out like the rest
-when Hipparcos has none of them solved; any other class with stars but none solved makes the
-cell's value NaN.
+binomial (normal approximation, 68 %). Stars without a colour are shared out like the rest of
+their sub-bin when Hipparcos has none of them solved; any other class with stars but none
+solved makes the cell's value NaN. A G range beyond the bundled Gaia stars (G >= 10) has no
+rows.
 """
 
 from __future__ import annotations
@@ -36,12 +39,20 @@ from ..population import gaia_bright
 from ..population.hipparcos import load_hipparcos
 from .real_sky import B_BANDS, band_of, g_bins, gbin_of
 
-__all__ = ["BP_RP_EDGES", "colour_class", "carried_fraction", "carried_quantile", "complete_rows",
-           "complete_markdown"]
+__all__ = ["BP_RP_EDGES", "SUB_BINS", "N_COLOUR_CLASSES", "COLUMNS", "colour_class", "colour_magnitude_class",
+           "carried_fraction", "carried_quantile", "complete_rows", "complete_markdown"]
 
 #: Class edges in Gaia BP - RP [mag]: B-A stars; F; G; K0-K3 dwarfs and the red clump; K
 #: giants; M giants and red dwarfs.
 BP_RP_EDGES = (0.5, 0.8, 1.1, 1.4, 1.8)
+#: Sub-bins of each G bin in which the colour classes are formed (half magnitudes).
+SUB_BINS = 2
+#: Classes per sub-bin: the colour classes and the one without colour (the last).
+N_COLOUR_CLASSES = len(BP_RP_EDGES) + 2
+#: The columns of ``real_sky_complete.csv``.
+COLUMNS = ("prior", "truth", "case", "b_band_deg", "g_bin", "n_hipparcos", "n_not_in_hipparcos",
+           "hipparcos_completeness", "n_solved", "fraction_hipparcos", "fraction_complete_sky",
+           "fraction_complete_sky_sigma")
 
 
 def colour_class(bp_rp) -> np.ndarray:
@@ -81,46 +92,58 @@ def carried_quantile(values, classes, class_counts, q) -> float:
     if values.size == 0 or np.any((counts > 0) & (n_seen == 0)):
         return np.nan
     w = counts[classes] / n_seen[classes]
-    order = np.argsort(values, kind="stable")
-    v, w = values[order], w[order]
+    keep = w > 0  # values of a class absent from the whole stand for no star
+    order = np.argsort(values[keep], kind="stable")
+    v, w = values[keep][order], w[keep][order]
     mid = (np.cumsum(w) - 0.5 * w) / w.sum()
     return float(np.interp(q, mid, v))
 
 
 def _colourless_shared_out(counts, n_seen):
-    """``counts`` without the no-colour class (the last) when none of it is seen: those stars
-    then count like the coloured ones."""
-    if counts.size == len(BP_RP_EDGES) + 2 and counts[-1] > 0 and n_seen[-1] == 0:
-        counts = counts.copy()
-        counts[-1] = 0.0
-    return counts
+    """``counts`` without the stars of a no-colour class (the last of each group of
+    :data:`N_COLOUR_CLASSES`) none of whose stars is seen, shared out over the coloured
+    classes of the same group in proportion; then they count like the coloured ones."""
+    if counts.size % N_COLOUR_CLASSES:
+        return counts
+    c = counts.reshape(-1, N_COLOUR_CLASSES).copy()
+    seen = n_seen.reshape(-1, N_COLOUR_CLASSES)
+    lost = (c[:, -1] > 0) & (seen[:, -1] == 0)
+    coloured = c[:, :-1].sum(axis=1)
+    share = lost & (coloured > 0)
+    c[share, :-1] *= (1.0 + c[share, -1] / coloured[share])[:, None]
+    c[share, -1] = 0.0
+    return c.ravel()
 
 
 def complete_rows(stars: pd.DataFrame, results: pd.DataFrame, settings, *, truth="hipparcos") -> pd.DataFrame:
     """``real_sky_complete.csv``: per prior x case x |b| band x G bin, Hipparcos' stars and
     the Gaia stars it lacks in the cell, its completeness, its fraction inside and the
     complete sky's (module notes). G bins beyond Gaia's bundled G < 10 are left out."""
-    hip_all = load_hipparcos()
-    gaia = gaia_bright.load_gaia_bright()
-    gaia = gaia[~gaia.from_hipparcos]
     bins = [bn for bn in g_bins(settings.g_min, settings.g_max) if bn[1] <= gaia_bright.G_LIMIT]
-    in_range = (gaia.phot_g_mean_mag >= bins[0][0]) & (gaia.phot_g_mean_mag < bins[-1][1]) if bins else gaia.b < -99
-    gaia = gaia[in_range]
+    if not bins:
+        return pd.DataFrame(columns=list(COLUMNS))
+    lo, hi = bins[0][0], bins[-1][1]
+    hip_all = load_hipparcos()
+    gaia_all = gaia_bright.load_gaia_bright()
+    gaia_all = gaia_all[~gaia_all.from_hipparcos]
+    gaia = gaia_all[(gaia_all.phot_g_mean_mag >= lo) & (gaia_all.phot_g_mean_mag < hi)]
     missing = gaia[gaia_bright.not_in_hipparcos(gaia, hip_all)]
-    m_class = colour_class((missing.phot_bp_mean_mag - missing.phot_rp_mean_mag).to_numpy())
-    m_band, m_g = band_of(missing.b.to_numpy()), gbin_of(missing.phot_g_mean_mag.to_numpy(), bins)
+    m_gmag = missing.phot_g_mean_mag.to_numpy()
+    m_class = colour_magnitude_class((missing.phot_bp_mean_mag - missing.phot_rp_mean_mag).to_numpy(), m_gmag, bins)
+    m_band, m_g = band_of(missing.b.to_numpy()), gbin_of(m_gmag, bins)
     # every Hipparcos star of the range sets the weights, the solved ones (a subset with
-    # max_stars) the fractions
-    h_g = hip_all.phot_g_mean_mag.to_numpy()
-    hip = hip_all[(h_g >= bins[0][0]) & (h_g < bins[-1][1])] if bins else hip_all.iloc[:0]
-    h_class = colour_class(gaia_bright.bp_rp_of_hipparcos(hip, gaia))
-    h_band, h_g = band_of(hip.b.to_numpy()), gbin_of(hip.phot_g_mean_mag.to_numpy(), bins)
-    colour_of = dict(zip(hip.hip.to_numpy(), h_class))
-    s_class = np.array([colour_of.get(h, len(BP_RP_EDGES) + 1) for h in stars["hip"].to_numpy()], dtype=int)
+    # max_stars) the fractions; colours from all of Gaia (a counterpart's G may lie outside)
+    h_gmag = hip_all.phot_g_mean_mag.to_numpy()
+    hip = hip_all[(h_gmag >= lo) & (h_gmag < hi)]
+    h_gmag = hip.phot_g_mean_mag.to_numpy()
+    h_class = colour_magnitude_class(gaia_bright.bp_rp_of_hipparcos(hip, gaia_all), h_gmag, bins)
+    h_band, h_g = band_of(hip.b.to_numpy()), gbin_of(h_gmag, bins)
+    class_of = dict(zip(hip.hip.to_numpy(), h_class))
     s_gmag = stars["phot_g_mean_mag"].to_numpy()
-    s_in = (s_gmag >= bins[0][0]) & (s_gmag < bins[-1][1]) if bins else np.zeros(len(stars), bool)
+    s_in = (s_gmag >= lo) & (s_gmag < hi)
+    s_class = np.array([class_of.get(h, 0) for h in stars["hip"].to_numpy()], dtype=int)
     s_band, s_g = band_of(stars["b"].to_numpy()), gbin_of(s_gmag, bins)
-    n_classes = len(BP_RP_EDGES) + 2
+    n_classes = N_COLOUR_CLASSES * SUB_BINS
     rows = []
     for prior, _ in settings.priors:
         for case, _ in settings.cases:
@@ -139,7 +162,16 @@ def complete_rows(stars: pd.DataFrame, results: pd.DataFrame, settings, *, truth
                                  "n_solved": int(solved.sum()),
                                  "fraction_hipparcos": float(flags[solved].mean()) if solved.any() else np.nan,
                                  "fraction_complete_sky": frac, "fraction_complete_sky_sigma": sigma})
-    return pd.DataFrame(rows)
+    return pd.DataFrame(rows, columns=list(COLUMNS))
+
+
+def colour_magnitude_class(bp_rp, gmag, bins) -> np.ndarray:
+    """Class index of each star: its colour class (:func:`colour_class`) within its
+    :data:`SUB_BINS`-th of its G bin (``bins``: (lo, hi) pairs, each 1 mag wide);
+    ``N_COLOUR_CLASSES * SUB_BINS`` classes in all."""
+    lo = np.asarray([b[0] for b in bins])[gbin_of(gmag, bins)]
+    sub = np.clip(np.floor((np.asarray(gmag, float) - lo) * SUB_BINS), 0, SUB_BINS - 1).astype(int)
+    return sub * N_COLOUR_CLASSES + colour_class(bp_rp)
 
 
 def complete_markdown(rows: pd.DataFrame, confidence: float) -> list[str]:

@@ -14,8 +14,8 @@ magnitude with the extinction left in, so that model and catalogue are read alik
 model's parallaxes get Hipparcos-sized errors, drawn from the catalogue's errors in the same
 G bin). It says which kind of star the model has too many or too few of; the catalogue's
 stars lying 1-3 mag above the dwarf sequence at F0-K2 colours (subgiants, which the model's
-luminosity function does not hold: :mod:`mcsweep.population.galaxy.luminosity`) are counted
-per bin too.
+luminosity function holds only with ``subgiants=true``, the default since besancon-r03-5:
+:mod:`mcsweep.population.galaxy.luminosity`) are counted per bin too.
 
 Completeness (``compare``, with the optional extra ``realsky``): Gaia DR3's stars of each cell
 with no Hipparcos 2 star within 3 arcsec (:func:`mcsweep.population.gaia_bright.not_in_hipparcos`)
@@ -52,7 +52,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import UserInputError
-from ..experiments.real_sky_complete import BP_RP_EDGES, carried_quantile, colour_class
+from ..experiments.real_sky_complete import N_COLOUR_CLASSES, SUB_BINS, carried_quantile, colour_magnitude_class
 from ..population import GalaxyModel
 from ..population import gaia_bright, hipparcos
 
@@ -102,7 +102,7 @@ def compare(model, *, n_draw=200_000, seed=SEED):
     for g0, g1 in G_BINS:
         h = hip[(hip.phot_g_mean_mag >= g0) & (hip.phot_g_mean_mag < g1)]
         hs = _stats(h.b.to_numpy(), h.parallax.to_numpy(), h.pmra.to_numpy(), h.pmdec.to_numpy())
-        # the catalogue without its stars above the dwarf sequence, which the model lacks
+        # the catalogue without its stars above the dwarf sequence (a model without subgiants lacks them)
         on = ~above_main_sequence(h.b_v, _mprime(h.phot_g_mean_mag, h.parallax))
         hs_on = _stats(h.b.to_numpy()[on], h.parallax.to_numpy()[on], h.pmra.to_numpy()[on], h.pmdec.to_numpy()[on])
         missing_b, missing_class, hip_class = _not_in_hipparcos(gaia, hip, h, g0, g1)
@@ -151,8 +151,11 @@ def _not_in_hipparcos(gaia, hip, h, g0, g1):
         return None, None, None
     cell = gaia[(gaia.phot_g_mean_mag >= g0) & (gaia.phot_g_mean_mag < g1)]
     missing = cell[gaia_bright.not_in_hipparcos(cell, hip)]
-    return (missing.b.to_numpy(), colour_class((missing.phot_bp_mean_mag - missing.phot_rp_mean_mag).to_numpy()),
-            colour_class(gaia_bright.bp_rp_of_hipparcos(h, gaia)))
+    bins = [(g0, g1)]
+    return (missing.b.to_numpy(),
+            colour_magnitude_class((missing.phot_bp_mean_mag - missing.phot_rp_mean_mag).to_numpy(),
+                                   missing.phot_g_mean_mag.to_numpy(), bins),
+            colour_magnitude_class(gaia_bright.bp_rp_of_hipparcos(h, gaia), h.phot_g_mean_mag.to_numpy(), bins))
 
 
 def _completeness(h, hip_class, missing_b, missing_class, lo, hi, plx90_model, pm50_model) -> dict:
@@ -164,7 +167,7 @@ def _completeness(h, hip_class, missing_b, missing_class, lo, hi, plx90_model, p
     inb, inm = in_band(h.b, lo, hi), in_band(missing_b, lo, hi)
     plx, pm = h.parallax.to_numpy()[inb], np.hypot(h.pmra, h.pmdec).to_numpy()[inb]
     n_not = int(np.count_nonzero(inm))
-    n_classes = len(BP_RP_EDGES) + 2
+    n_classes = N_COLOUR_CLASSES * SUB_BINS
     counts = np.bincount(hip_class[inb], minlength=n_classes) + np.bincount(missing_class[inm], minlength=n_classes)
     plx_bound = quantile_with_unseen(plx, 0.9, n_below=n_not)
     plx_carried = carried_quantile(plx, hip_class[inb], counts, 0.9)

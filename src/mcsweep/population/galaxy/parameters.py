@@ -61,7 +61,8 @@ __all__ = [
 #: ellipsoids scaled to their thinner discs (:data:`GIANT_VELOCITY_FACTOR`); ``besancon-r03-5``
 #: issue 25: the defaults become the Arenou et al. (1992) dust near the Sun and the
 #: subgiants (both options of r03-4), which hold the all-sky counts within 8 % of Gaia DR3's
-#: own G counts at G = 4-14, where the r03-4 defaults are 3-30 % high.
+#: own G counts at G = 4-13 (7 % high at 13-14, known to +-10 %), where the r03-4 defaults are
+#: 3-24 % high (30 % at 13-14).
 MODEL_VERSION = "besancon-r03-5"
 
 # --- Sun and rotation ------------------------------------------------------------------

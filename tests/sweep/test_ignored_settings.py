@@ -120,3 +120,22 @@ def test_same_values_under_an_older_hash_rule_are_explained(tmp_path):
                                                           "mcsweep_version": "0.1"}))
     with pytest.raises(UserInputError, match="same values, hash 0ld by 0.1"):
         Provenance(tmp_path, {"seed": 1}, kind="secondary").check_compatible()
+
+
+def test_a_refusal_names_both_values_of_a_changed_default(tmp_path):
+    # a run made under r03-4's defaults (the keys left out of its science part) refused under
+    # r03-5's: the line names the old and the new value, not None
+    import json
+
+    import pytest
+
+    from mcsweep.errors import UserInputError
+    from mcsweep.sweep.provenance import Provenance
+
+    old = OmegaConf.to_container(compose_config(["population.params.extinction_model=disc",
+                                                 "population.params.subgiants=false"]), resolve=True)
+    (tmp_path / "provenance.json").write_text(json.dumps({"config_hash": config_hash(old), "config": old}))
+    new = OmegaConf.to_container(compose_config([]), resolve=True)
+    with pytest.raises(UserInputError, match="extinction_model: 'disc' -> 'arenou1992'; "
+                                             "population.params.subgiants: False -> True"):
+        Provenance(tmp_path, new, kind="f90_sweep").check_compatible()

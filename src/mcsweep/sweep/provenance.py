@@ -13,6 +13,7 @@ mixing the results of two configs.
 
 from __future__ import annotations
 
+import copy
 import hashlib
 import json
 import platform
@@ -89,6 +90,21 @@ def config_hash(cfg: dict) -> str:
     return hashlib.sha256(blob).hexdigest()[:16]
 
 
+def _with_defaults_from_before(science: dict) -> dict:
+    """``science`` with the keys that :data:`_DEFAULTS_FROM_BEFORE` left out put back at their
+    'before' value (where their section is there), so a refusal names both values (e.g.
+    ``extinction_model: 'disc' -> 'arenou1992'``) rather than ``None`` for one of them."""
+    out = copy.deepcopy(science)
+    for dotted, before in _DEFAULTS_FROM_BEFORE.items():
+        *parents, leaf = dotted.split(".")
+        node = out
+        for k in parents:
+            node = node.get(k) if isinstance(node, dict) else None
+        if isinstance(node, dict) and leaf not in node:
+            node[leaf] = before
+    return out
+
+
 def _diff_keys(a: Any, b: Any, prefix: str = "") -> list[str]:
     if isinstance(a, dict) and isinstance(b, dict):
         out = []
@@ -123,7 +139,8 @@ class Provenance:
             return
         old = json.loads(self.path.read_text())
         if old.get("config_hash") != self.hash:
-            diffs = _diff_keys(_science_part(old.get("config", {})), _science_part(self.cfg))
+            diffs = _diff_keys(_with_defaults_from_before(_science_part(old.get("config", {}))),
+                               _with_defaults_from_before(_science_part(self.cfg)))
             what = "; ".join(diffs[:3]) + (" ..." if len(diffs) > 3 else "") if diffs else \
                 f"same values, hash {old.get('config_hash')} by {old.get('mcsweep_version')} vs {self.hash}"
             raise UserInputError(

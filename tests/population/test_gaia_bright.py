@@ -132,7 +132,7 @@ def test_barnards_star_is_matched_only_once_hipparcos_is_moved_to_2016():
     gaia = gaia_bright.load_gaia_bright()
     barnard = gaia[gaia.source_id == 4472832130942575872]
     assert len(barnard) == 1
-    assert not gaia_bright.not_in_hipparcos(barnard, hip)[0]
-    assert gaia_bright.not_in_hipparcos(barnard, hip.assign(pmra=0.0, pmdec=0.0))[0]
+    assert not gaia_bright.match_hipparcos(barnard, hip).gaia_unmatched[0]
+    assert gaia_bright.match_hipparcos(barnard, hip.assign(pmra=0.0, pmdec=0.0)).gaia_unmatched[0]
     far = barnard.assign(dec=barnard.dec + 5.0 / 3600.0)  # 5 arcsec north of it: no match
-    assert gaia_bright.not_in_hipparcos(far, hip)[0]
+    assert gaia_bright.match_hipparcos(far, hip).gaia_unmatched[0]

@@ -12,10 +12,9 @@ catalogue's mix of kinds sets a cell's fraction, not only the prior.
 
 Here each cell's fraction is carried over to the complete sky by colour and magnitude: the
 stars of the cell, Hipparcos' and the Gaia stars it lacks
-(:func:`~mcsweep.population.gaia_bright.not_in_hipparcos`), are sorted into classes of Gaia
-BP - RP (:data:`BP_RP_EDGES`; Hipparcos' stars take the colour of their Gaia counterpart,
-:func:`~mcsweep.population.gaia_bright.bp_rp_of_hipparcos`; stars without one form a class of
-their own) within each :data:`SUB_BINS`-th of the G bin (the stars Hipparcos lacks lie toward
+(:func:`~mcsweep.population.gaia_bright.hipparcos_match`), are sorted into classes of Gaia
+BP - RP (:data:`BP_RP_EDGES`; Hipparcos' stars take the colour of their Gaia counterpart;
+stars without one form a class of their own) within each :data:`SUB_BINS`-th of the G bin (the stars Hipparcos lacks lie toward
 the faint side of a bin, and the prior changes with G); the complete sky's fraction is the mean
 of the classes' Hipparcos fractions weighted by the classes' shares of all the cell's stars.
 
@@ -123,25 +122,25 @@ def complete_rows(stars: pd.DataFrame, results: pd.DataFrame, settings, *, truth
     if not bins:
         return pd.DataFrame(columns=list(COLUMNS))
     lo, hi = bins[0][0], bins[-1][1]
-    hip_all = load_hipparcos()
-    gaia_all = gaia_bright.load_gaia_bright()
-    gaia_all = gaia_all[~gaia_all.from_hipparcos]
-    gaia = gaia_all[(gaia_all.phot_g_mean_mag >= lo) & (gaia_all.phot_g_mean_mag < hi)]
-    missing = gaia[gaia_bright.not_in_hipparcos(gaia, hip_all)]
+    hip_all, gaia = load_hipparcos(), gaia_bright.gaia_sources()
+    match = gaia_bright.hipparcos_match()
+    g = gaia.phot_g_mean_mag.to_numpy()
+    missing = gaia[match.gaia_unmatched & (g >= lo) & (g < hi)]
     m_gmag = missing.phot_g_mean_mag.to_numpy()
     m_class = colour_magnitude_class((missing.phot_bp_mean_mag - missing.phot_rp_mean_mag).to_numpy(), m_gmag, bins)
     m_band, m_g = band_of(missing.b.to_numpy()), gbin_of(m_gmag, bins)
     # every Hipparcos star of the range sets the weights, the solved ones (a subset with
     # max_stars) the fractions; colours from all of Gaia (a counterpart's G may lie outside)
     h_gmag = hip_all.phot_g_mean_mag.to_numpy()
-    hip = hip_all[(h_gmag >= lo) & (h_gmag < hi)]
-    h_gmag = hip.phot_g_mean_mag.to_numpy()
-    h_class = colour_magnitude_class(gaia_bright.bp_rp_of_hipparcos(hip, gaia_all), h_gmag, bins)
+    in_range = (h_gmag >= lo) & (h_gmag < hi)
+    hip, h_gmag = hip_all[in_range], h_gmag[in_range]
+    h_class = colour_magnitude_class(match.hip_bp_rp[in_range], h_gmag, bins)
     h_band, h_g = band_of(hip.b.to_numpy()), gbin_of(h_gmag, bins)
-    class_of = dict(zip(hip.hip.to_numpy(), h_class))
     s_gmag = stars["phot_g_mean_mag"].to_numpy()
     s_in = (s_gmag >= lo) & (s_gmag < hi)
-    s_class = np.array([class_of.get(h, 0) for h in stars["hip"].to_numpy()], dtype=int)
+    # the solved stars are Hipparcos stars of the range: their classes by identifier
+    s_class = pd.Series(h_class, index=hip.hip.to_numpy()).reindex(stars["hip"].to_numpy(),
+                                                                   fill_value=0).to_numpy()
     s_band, s_g = band_of(stars["b"].to_numpy()), gbin_of(s_gmag, bins)
     n_classes = N_COLOUR_CLASSES * SUB_BINS
     rows = []

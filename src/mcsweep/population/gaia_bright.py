@@ -18,11 +18,12 @@ Hipparcos gap-fill row). Measured against Hipparcos 2 stars of G = 6-8 matched w
 arcsec: the first float is G (median G - our Hipparcos-derived G +0.009 mag, MAD 0.02); the
 other two lie +0.44 and -0.63 mag from it, their difference follows B - V (correlation
 0.93) and none is negative. They are read as BP and RP here: the counts use G only; BP - RP
-sorts the stars Hipparcos lacks into colour classes (:func:`not_in_hipparcos`, issue 25).
+sorts the stars Hipparcos lacks into colour classes (:func:`match_hipparcos`, issue 25).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import warnings
 from importlib import resources
@@ -36,10 +37,11 @@ from erfa import ErfaWarning  # pyerfa comes with astropy
 
 from ..errors import UserInputError
 from ..prior.frames import galactic_from_icrs
+from .hipparcos import load_hipparcos
 
 __all__ = ["EXTRA_MESSAGE", "G_LIMIT", "PACKAGE_VERSION", "have_catalogue", "load_gaia_bright", "parse_records",
-           "counts_per_g", "HIPPARCOS_EPOCH", "GAIA_DR3_EPOCH", "MATCH_RADIUS_ARCSEC", "not_in_hipparcos",
-           "bp_rp_of_hipparcos", "hipparcos_at_gaia_epoch"]
+           "counts_per_g", "HIPPARCOS_EPOCH", "GAIA_DR3_EPOCH", "MATCH_RADIUS_ARCSEC", "gaia_sources",
+           "HipparcosMatch", "match_hipparcos", "hipparcos_match", "hipparcos_at_gaia_epoch"]
 
 EXTRA_MESSAGE = "the Gaia DR3 bright-star counts need the optional extra: pip install 'mcsweep[realsky]'"
 #: The package's magnitude limit (``phot_g_mean_mag < 10``).
@@ -117,30 +119,49 @@ def counts_per_g(g_bins) -> np.ndarray:
     return np.where(lo + 1.0 <= G_LIMIT, n.astype(float), np.nan)
 
 
-def not_in_hipparcos(gaia: pd.DataFrame, hip: pd.DataFrame, radius_arcsec=MATCH_RADIUS_ARCSEC) -> np.ndarray:
-    """Whether each row of ``gaia`` (columns ``ra, dec`` at J2016.0) has no Hipparcos 2 star
-    (``ra, dec, pmra, pmdec`` at J1991.25, as :func:`mcsweep.population.hipparcos.load_hipparcos`
-    gives) within ``radius_arcsec``, Hipparcos' positions moved to Gaia's epoch
-    (:func:`hipparcos_at_gaia_epoch`)."""
-    if len(gaia) == 0:
-        return np.zeros(0, dtype=bool)
-    if len(hip) == 0:
-        return np.ones(len(gaia), dtype=bool)
-    _, sep, _ = _sky(gaia).match_to_catalog_sky(hipparcos_at_gaia_epoch(hip))
-    return sep.arcsec > radius_arcsec
+@functools.lru_cache(maxsize=1)
+def gaia_sources() -> pd.DataFrame:
+    """The rows of :func:`load_gaia_bright` that are Gaia DR3 sources (not the Hipparcos
+    gap-fill)."""
+    gaia = load_gaia_bright()
+    return gaia[~gaia.from_hipparcos]
 
 
-def bp_rp_of_hipparcos(hip: pd.DataFrame, gaia: pd.DataFrame, radius_arcsec=MATCH_RADIUS_ARCSEC) -> np.ndarray:
-    """Gaia's BP - RP of each Hipparcos 2 star: that of the nearest ``gaia`` row within
-    ``radius_arcsec`` of its position moved to J2016.0; NaN without one (or without colours)."""
-    out = np.full(len(hip), np.nan)
-    if len(hip) == 0 or len(gaia) == 0:
-        return out
-    idx, sep, _ = hipparcos_at_gaia_epoch(hip).match_to_catalog_sky(_sky(gaia))
+@dataclasses.dataclass(frozen=True)
+class HipparcosMatch:
+    """Gaia rows and Hipparcos 2 stars matched within a radius, Hipparcos' positions moved to
+    J2016.0 (:func:`hipparcos_at_gaia_epoch`)."""
+
+    #: Per Gaia row: no Hipparcos star within the radius (a star Hipparcos lacks).
+    gaia_unmatched: np.ndarray
+    #: Per Hipparcos star: the BP - RP of its nearest Gaia row within the radius; NaN without
+    #: one (or without colours).
+    hip_bp_rp: np.ndarray
+
+
+def match_hipparcos(gaia: pd.DataFrame, hip: pd.DataFrame, radius_arcsec=MATCH_RADIUS_ARCSEC) -> HipparcosMatch:
+    """Match ``gaia`` (columns ``ra, dec, phot_bp_mean_mag, phot_rp_mean_mag`` at J2016.0) and
+    ``hip`` (``ra, dec, pmra, pmdec`` at J1991.25, as
+    :func:`mcsweep.population.hipparcos.load_hipparcos` gives), nearest neighbours both ways."""
+    unmatched, bp_rp = np.ones(len(gaia), dtype=bool), np.full(len(hip), np.nan)
+    if len(gaia) == 0 or len(hip) == 0:
+        return HipparcosMatch(unmatched, bp_rp)
+    at_gaia = SkyCoord(ra=gaia["ra"].to_numpy() * u.deg, dec=gaia["dec"].to_numpy() * u.deg)
+    moved = hipparcos_at_gaia_epoch(hip)
+    _, sep, _ = at_gaia.match_to_catalog_sky(moved)
+    unmatched = sep.arcsec > radius_arcsec
+    idx, sep, _ = moved.match_to_catalog_sky(at_gaia)
     ok = sep.arcsec <= radius_arcsec
-    colour = (gaia["phot_bp_mean_mag"] - gaia["phot_rp_mean_mag"]).to_numpy()
-    out[ok] = colour[idx[ok]]
-    return out
+    bp_rp[ok] = (gaia["phot_bp_mean_mag"] - gaia["phot_rp_mean_mag"]).to_numpy()[idx[ok]]
+    return HipparcosMatch(unmatched, bp_rp)
+
+
+@functools.lru_cache(maxsize=1)
+def hipparcos_match() -> HipparcosMatch:
+    """:func:`match_hipparcos` of every Gaia source (:func:`gaia_sources`) and every Hipparcos 2
+    star (:func:`~mcsweep.population.hipparcos.load_hipparcos`), in their row order. Cached:
+    one epoch propagation and two sky matches per process."""
+    return match_hipparcos(gaia_sources(), load_hipparcos())
 
 
 def hipparcos_at_gaia_epoch(hip: pd.DataFrame) -> SkyCoord:
@@ -156,6 +177,3 @@ def hipparcos_at_gaia_epoch(hip: pd.DataFrame) -> SkyCoord:
         moved = at_hip.apply_space_motion(new_obstime=Time(GAIA_DR3_EPOCH, format="jyear"))
     return SkyCoord(ra=moved.ra, dec=moved.dec)
 
-
-def _sky(gaia: pd.DataFrame) -> SkyCoord:
-    return SkyCoord(ra=gaia["ra"].to_numpy() * u.deg, dec=gaia["dec"].to_numpy() * u.deg)

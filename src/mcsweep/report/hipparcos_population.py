@@ -18,7 +18,7 @@ luminosity function holds only with ``subgiants=true``, the default since besanc
 :mod:`mcsweep.population.galaxy.luminosity`) are counted per bin too.
 
 Completeness (``compare``, with the optional extra ``realsky``): Gaia DR3's stars of each cell
-with no Hipparcos 2 star within 3 arcsec (:func:`mcsweep.population.gaia_bright.not_in_hipparcos`)
+with no Hipparcos 2 star within 3 arcsec (:func:`mcsweep.population.gaia_bright.hipparcos_match`)
 are the ones Hipparcos lacks (its Survey is complete only to V = 7.3-7.9 + 1.1 sin|b|: ESA 1997,
 The Hipparcos and Tycho Catalogues, Vol. 1, Sect. 1.2). They are red or early-type and crowd
 to the plane (docs/galaxy_model.md): distant giants and OB-A stars. If every one of them has a
@@ -96,16 +96,16 @@ def compare(model, *, n_draw=200_000, seed=SEED):
     Hipparcos lacks (``n_not_hip``), ``hip_completeness`` and ``plx90_hip_complete`` with
     ``plx90_ratio_complete`` (module notes)."""
     hip = hipparcos.load_hipparcos()
-    gaia = _gaia_rows()
     rng = np.random.default_rng(seed)
     rows = []
     for g0, g1 in G_BINS:
-        h = hip[(hip.phot_g_mean_mag >= g0) & (hip.phot_g_mean_mag < g1)]
+        in_bin = (hip.phot_g_mean_mag >= g0) & (hip.phot_g_mean_mag < g1)
+        h = hip[in_bin]
         hs = _stats(h.b.to_numpy(), h.parallax.to_numpy(), h.pmra.to_numpy(), h.pmdec.to_numpy())
         # the catalogue without its stars above the dwarf sequence (a model without subgiants lacks them)
         on = ~above_main_sequence(h.b_v, _mprime(h.phot_g_mean_mag, h.parallax))
         hs_on = _stats(h.b.to_numpy()[on], h.parallax.to_numpy()[on], h.pmra.to_numpy()[on], h.pmdec.to_numpy()[on])
-        missing_b, missing_class, hip_class = _not_in_hipparcos(gaia, hip, h, g0, g1)
+        missing_b, missing_class, hip_class = _not_in_hipparcos(in_bin.to_numpy(), h, g0, g1)
         total, s = _model_draw(model, g0, g1, rng, n_draw)
         ms = _stats(s.b.to_numpy(), s.parallax.to_numpy(), s.pmra.to_numpy(), s.pmdec.to_numpy())
         for (lo, hi), (hn, hp, hm), (mn, mp, mm), (_, hp_on, hm_on) in zip(BANDS_DEG, hs, ms, hs_on):
@@ -134,28 +134,22 @@ def quantile_with_unseen(values, q, *, n_below=0, n_above=0) -> float:
     return float(np.quantile(v, pos / (n - 1))) if n > 1 else float(v[0])
 
 
-def _gaia_rows():
-    """Gaia DR3's own rows (not the Hipparcos gap-fill), or None without the extra."""
-    if not gaia_bright.have_catalogue():
-        return None
-    gaia = gaia_bright.load_gaia_bright()
-    return gaia[~gaia.from_hipparcos]
-
-
-def _not_in_hipparcos(gaia, hip, h, g0, g1):
+def _not_in_hipparcos(in_bin, h, g0, g1):
     """Latitudes [deg] and BP - RP classes of the Gaia stars with ``g0 <= G < g1`` that no
     Hipparcos 2 star matches (the catalogue searched whole, so a star whose derived G falls
     outside the bin still counts as present), and the classes of the bin's Hipparcos stars
-    ``h`` (by their Gaia counterparts); three Nones without Gaia."""
-    if gaia is None:
+    ``h`` (rows ``in_bin`` of the catalogue; by their Gaia counterparts); three Nones without
+    Gaia."""
+    if not gaia_bright.have_catalogue():
         return None, None, None
-    cell = gaia[(gaia.phot_g_mean_mag >= g0) & (gaia.phot_g_mean_mag < g1)]
-    missing = cell[gaia_bright.not_in_hipparcos(cell, hip)]
+    gaia, match = gaia_bright.gaia_sources(), gaia_bright.hipparcos_match()
+    g = gaia.phot_g_mean_mag.to_numpy()
+    missing = gaia[match.gaia_unmatched & (g >= g0) & (g < g1)]
     bins = [(g0, g1)]
     return (missing.b.to_numpy(),
             colour_magnitude_class((missing.phot_bp_mean_mag - missing.phot_rp_mean_mag).to_numpy(),
                                    missing.phot_g_mean_mag.to_numpy(), bins),
-            colour_magnitude_class(gaia_bright.bp_rp_of_hipparcos(h, gaia), h.phot_g_mean_mag.to_numpy(), bins))
+            colour_magnitude_class(match.hip_bp_rp[in_bin], h.phot_g_mean_mag.to_numpy(), bins))
 
 
 def _completeness(h, hip_class, missing_b, missing_class, lo, hi, plx90_model, pm50_model) -> dict:
@@ -241,8 +235,7 @@ def gaia_band_counts(model, g_bins=((6.0, 7.0), (7.0, 8.0), (8.0, 9.0), (9.0, 10
     """One row per (G bin, |b| band): the model's stars (its expectation, shared out as its drawn
     stars fall) against Gaia DR3's own (:mod:`mcsweep.population.gaia_bright`, G < 10, complete
     where Hipparcos is not, the Hipparcos gap-fill rows left out)."""
-    gaia = gaia_bright.load_gaia_bright()
-    gaia = gaia[~gaia.from_hipparcos]
+    gaia = gaia_bright.gaia_sources()
     b, g = gaia.b.to_numpy(), gaia.phot_g_mean_mag.to_numpy()
     rng = np.random.default_rng(seed)
     rows = []

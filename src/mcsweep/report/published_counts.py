@@ -100,7 +100,6 @@ __all__ = [
     "DR3_TOTAL",
     "published_counts_per_g",
     "GAIA_DR3_CUMULATIVE_G",
-    "GAIA_DR3_G_QUOTED",
     "gaia_dr3_counts_per_g",
     "count_comparison",
     "local_sources_within",
@@ -149,8 +148,6 @@ BOVY_GIANTS_PC3, BOVY_GIANTS_ERR_PC3 = 3.9e-4, 0.1e-4
 #: (G, N(< G) over the whole sky, its quoted precision): Gaia DR3 as quoted by tetra3rs [S].
 GAIA_DR3_CUMULATIVE_G = ((10, 482e3, 0.5e3), (11, 1.25e6, 5e3), (12, 3.09e6, 5e3), (13, 7.37e6, 5e3),
                          (14, 17e6, 1e6))
-#: G bins whose Gaia DR3 count comes from :data:`GAIA_DR3_CUMULATIVE_G` (below: the bundled file).
-GAIA_DR3_G_QUOTED = (10, 14)
 GUMS_G20 = 1.1e9
 DR3_TOTAL = 1_811_709_771
 
@@ -194,7 +191,7 @@ def gaia_dr3_counts_per_g(g_bins):
         err[bright] = 0.0
     table = {m: (c, e) for m, c, e in GAIA_DR3_CUMULATIVE_G}
     for i, lo in enumerate(g):
-        if lo in table and lo + 1.0 in table and GAIA_DR3_G_QUOTED[0] <= lo < GAIA_DR3_G_QUOTED[1]:
+        if lo in table and lo + 1.0 in table:
             (c0, e0), (c1, e1) = table[lo], table[lo + 1.0]
             n[i], err[i] = c1 - c0, np.hypot(e0, e1)
     return n, err

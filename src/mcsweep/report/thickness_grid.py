@@ -90,10 +90,8 @@ def grid(giant_factors, thin_factors, *, extinction_model="arenou1992", subgiant
                         thin_disc_scale_height_factor=ft, **extra)
         row = dict(giant_factor=fg, thin_factor=ft, subgiants=m.params["subgiants"])
         comp = pc.count_comparison(m, g_bins)
-        for r in comp.itertuples():
-            row[f"G{r.G_min}"] = r.ratio
-        for r in comp.itertuples():
-            row[f"gaia_G{r.G_min}"] = r.ratio_gaia
+        row.update({f"G{r.G_min}": r.ratio for r in comp.itertuples()})
+        row.update({f"gaia_G{r.G_min}": r.ratio_gaia for r in comp.itertuples()})
         row["beam"] = m.expected_count(**BEAM)
         row["N20"] = m.expected_count(0.0, 90.0, 180.0, -5.0, 20.0)
         row["N21"] = m.expected_count(0.0, 90.0, 180.0, -5.0, 21.0)

@@ -12,6 +12,7 @@ from mcsweep.solver import (GlobalProblem, attitude_band, band_to_dense, fit_fra
                             frame_offsets, solve_global)
 from mcsweep.solver.direct import solve_direct, sparse_design
 from mcsweep.solver.blocks import schur_bandwidth
+from mcsweep.solver.cg import BLOCK_STARS
 from mcsweep.solver.source_update import solve_sources, source_normals, source_rhs
 from mcsweep.solver.attitude_update import attitude_rhs
 from mcsweep.scanning.ephemeris import gaia_position_au
@@ -448,3 +449,20 @@ def test_compiled_band_scatter_has_the_bits_of_one_bincount_per_band_element():
         by_bincount(ref)
         band_scatter(got, H, BH, base)
         assert np.array_equal(got, ref)
+
+
+def test_the_design_of_a_problem_of_several_blocks_names_every_measurement_s_own_star():
+    """``GlobalProblem.design`` against the observations it was built from, with more stars
+    than one block's int16 indices reach (found at 3 x 1e5 stars: the second block's first
+    star, 32768, overflowed int16)."""
+    from tests.solver.conftest import make_problem
+
+    P = make_problem(n_stars=200000, days=10.0, knot_days=0.5, min_transits=1)
+    obs = P["obs"]
+    assert obs.n_stars > BLOCK_STARS
+    problem = GlobalProblem(obs, prior_diagonal(np.full(obs.n_stars, 1.0), 10.0), P["ra"], P["dec"])
+    assert len(problem.blocks) == 2
+    star, src, att, j0, bval = problem.design()
+    np.testing.assert_array_equal(star, obs.star)
+    np.testing.assert_array_equal(j0, obs.j0)
+    np.testing.assert_array_equal(src, obs.src)

@@ -419,7 +419,8 @@ class GlobalProblem:
         star, j0 = np.empty(m, np.int64), np.empty(m, np.int64)
         src, att, bval = np.empty((m, 5)), np.empty((m, 3)), np.empty((m, 4))
         for b in self.blocks:
-            star[b.rows], j0[b.rows] = b.star + b.first, b.j0
+            # int64 before the offset: a block's int16 indices plus a first star >= 32768 overflow
+            star[b.rows], j0[b.rows] = b.star.astype(np.int64) + b.first, b.j0
             src[b.rows], att[b.rows], bval[b.rows] = B.src_rows(b).T, B.att_rows(b).T, b.bval.T
         return star, src, att, j0, bval
 

@@ -167,6 +167,7 @@ def test_bad_prior_through_cli_exits_2_in_one_line_and_leaves_no_output(tmp_path
     ("experiment.primary.factor_grid=[2,2]", "factor_grid"),
     ("experiment.primary.frame_fit=median", "frame_fit"),
     ("experiment.primary.knot_transits=0.5", "knot_transits"),
+    ("experiment.primary.knot_rule=agis", "knot_rule"),
     ("experiment.primary.evaluation_epoch=star", "evaluation_epoch"),
     ("experiment.primary.basic_angle_harmonics=-1", "basic_angle_harmonics"),
     ("experiment.primary.basic_angle_harmonics=9", "basic_angle_harmonics"),
@@ -445,9 +446,10 @@ def test_sky_order_puts_a_block_of_stars_into_few_stretches_of_the_scan():
 
 
 def test_knot_transits_places_the_knots_by_the_data_between_the_gaps():
-    # knot_transits: every knot interval holds about that many of the solution's live FoV
-    # transits, and the spline has no segment in the dead time (AGIS breaks it at gaps).
-    config, _ = _config(["experiment.primary.knot_transits=25"])
+    # knot_transits with knot_rule=counts: every knot interval holds about that many of the
+    # solution's live FoV transits, and the spline has no segment in the dead time (AGIS
+    # breaks it at gaps).
+    config, _ = _config(["experiment.primary.knot_transits=25", "experiment.primary.knot_rule=counts"])
     settings = P.build_settings(config)
     stars = _synthetic_stars(2000, 5)
     _, tr = P.transits_of((0, 0, stars["ra"].to_numpy(), stars["dec"].to_numpy(), settings.start_jd,
@@ -471,6 +473,34 @@ def test_knot_transits_places_the_knots_by_the_data_between_the_gaps():
     assert np.all(np.minimum(n_in[:-1], n_in[1:])[bridged] < 25)
     per_segment = np.searchsorted(np.sort(t), sp.segments[:, 1], "right") - np.searchsorted(np.sort(t), sp.segments[:, 0], "left")
     assert per_segment.min() >= 25 and sp.n_segments == stretches.shape[0] - bridged.sum()
+    assert data.coefficients_with_data() == sp.n_coef
+
+
+def test_uniform_knots_keep_agis_s_interval_and_at_least_knot_transits_per_knot():
+    # knot_rule=uniform (the default): no knot interval shorter than the mean interval of
+    # knot_transits live FoV transits (AGIS's 30 s at the paper's sizes), and where fewer fall
+    # in it the knots hold about knot_transits each; so more than knot_transits on average.
+    config, _ = _config(["experiment.primary.knot_transits=25"])
+    settings = P.build_settings(config)
+    assert settings.knot_rule == "uniform"
+    stars = _synthetic_stars(2000, 5)
+    _, tr = P.transits_of((0, 0, stars["ra"].to_numpy(), stars["dec"].to_numpy(), settings.start_jd,
+                           settings.end_jd, settings.law))
+    data = P.prepare(settings, stars, tr, with_noise=False)
+    t = np.sort(tr["t"][~data.dead.is_dead(tr["t"])])
+    sp = data.spline
+    D = P.knot_interval_days(settings, t.size, data.dead)
+    assert sp.knot_interval_days == D
+    inner = [k[3:-3] for k in sp.segment_knots]
+    steps = np.concatenate([np.diff(k) for k in inner])
+    counts = np.concatenate([np.histogram(t, bins=k)[0] for k in inner])
+    assert counts.sum() == t.size and counts.mean() > 25.0
+    # a segment's knots divide its density integral into round(integral) parts: a step may
+    # fall short of D by half a part over the segment's parts (>= 3 here), no more
+    n_parts = np.concatenate([np.full(k.size - 1, k.size - 1) for k in inner])
+    assert np.all(steps >= D * (1 - 0.5 / n_parts) * (1 - 1e-12))
+    longer = steps > 1.01 * D  # lengthened for lack of transits: they hold about 25 on average
+    assert 0 < longer.sum() < steps.size and abs(counts[longer].mean() - 25.0) < 3.0
     assert data.coefficients_with_data() == sp.n_coef
 
 

@@ -66,3 +66,50 @@ def _merged(start, end, gaps, t, per_knot):
     from mcsweep.solver.attitude_spline import _merge_sparse_segments, live_segments
 
     return _merge_sparse_segments(live_segments(start, end, *gaps, min_gap_days=0.5), SortedEpochs(t), per_knot)[0]
+
+
+#: Tolerance on a uniform knot interval in a dense stretch: the knots divide the segment's
+#: density integral into round(integral) equal parts, so a spacing differs from the interval
+#: by at most half a part over the segment's whole integral (here < 1e-3), plus rounding.
+UNIFORM_RTOL = 2e-3
+
+
+def test_uniform_knots_keep_the_interval_where_the_data_are_dense_and_the_count_where_they_are_sparse():
+    # knot_rule='uniform' (AGIS's uniform knots, lengthened only where too few epochs fall):
+    # against the closed forms of its two regimes on a stretch of 20 epochs per interval
+    # followed by one of 1 per interval, K = 5.
+    rng = np.random.default_rng(3)
+    D, K = 1.0, 5.0
+    dense = np.sort(rng.uniform(0.0, 1000.0, 20000))
+    sparse = np.sort(rng.uniform(1000.0, 3000.0, 2000))
+    t = np.concatenate([dense, sparse])
+    spline = AttitudeSpline(0.0, 3000.0, D, epochs=t, transits_per_knot=K, knot_rule="uniform")
+    knots = spline.segment_knots[0][3:-3]
+    step = np.diff(knots)
+    in_dense = knots[1:] <= 999.0
+    in_sparse = knots[:-1] >= 1001.0
+    # dense: one knot per interval D, whatever the epochs do inside it
+    np.testing.assert_allclose(step[in_dense], D, rtol=UNIFORM_RTOL)
+    # sparse: the density is the epochs' rate / K, so each interval holds K epochs on average
+    # (binned per D: the mean over ~400 intervals, Poisson, 68 % within 0.11 of K)
+    counts = np.histogram(t, knots)[0][in_sparse]
+    assert abs(counts.mean() - K) < 4 * np.sqrt(K / counts.size)
+    assert abs(step[in_sparse].mean() - K * D) < 0.05 * K * D
+    # never much finer than D: a spacing is D times the part over the bins' density <= 1
+    assert step.min() > D * (1 - UNIFORM_RTOL)
+    # the count rule on the same epochs: K per interval everywhere, so a fifth of D where dense
+    counted = np.diff(AttitudeSpline(0.0, 3000.0, D, epochs=t, transits_per_knot=K).segment_knots[0][3:-3])
+    assert np.median(counted[:3000]) < 0.3 * D
+    # epochs in pieces give the same bits (a cluster's workers, primary_knots.ClusterEpochs)
+    split = AttitudeSpline(0.0, 3000.0, D, epochs=_Split(np.array_split(rng.permutation(t), 5)),
+                           transits_per_knot=K, knot_rule="uniform")
+    np.testing.assert_array_equal(split.segment_knots[0], spline.segment_knots[0])
+
+
+def test_the_config_accepts_the_spline_s_knot_rules():
+    from mcsweep.solver.attitude_spline import KNOT_RULES
+    from mcsweep.sweep.schema import KNOT_RULES as accepted
+
+    assert accepted == KNOT_RULES
+    with pytest.raises(ValueError, match="knot_rule"):
+        AttitudeSpline(0.0, 10.0, 1.0, epochs=np.linspace(0, 10, 50), transits_per_knot=5, knot_rule="agis")

@@ -83,6 +83,28 @@ def test_subsets_of_live_transits_keep_the_hash_of_configs_made_before_the_optio
     assert _hash(["experiment=primary", "experiment.primary.subset_transits=scheduled"]) != config_hash(cfg)
 
 
+def test_knots_by_equal_counts_keep_the_hash_of_configs_made_before_the_knot_rule():
+    # Runs with knot_transits made before experiment.primary.knot_rule placed knots by equal
+    # counts: they resume under knot_rule=counts and are refused under the default 'uniform'.
+    cfg = OmegaConf.to_container(compose_config(["experiment=primary", "experiment.primary.knot_transits=25",
+                                                 "experiment.primary.knot_rule=counts"]), resolve=True)
+    primary = cfg["experiment"]["primary"]
+    before = {**cfg, "experiment": {**cfg["experiment"], "primary": {
+        k: v for k, v in primary.items() if k != "knot_rule"}}}
+    assert config_hash(cfg) == config_hash(before)
+    assert _hash(["experiment=primary", "experiment.primary.knot_transits=25"]) != config_hash(cfg)
+
+
+def test_the_knot_rule_does_not_move_the_hash_of_runs_without_knot_transits():
+    # 3 h knots (the default) never read the knot rule: any value, or none, is one config.
+    cfg = OmegaConf.to_container(compose_config(["experiment=primary"]), resolve=True)
+    primary = cfg["experiment"]["primary"]
+    assert primary["knot_transits"] is None and primary["knot_rule"] == "uniform"
+    before = {**cfg, "experiment": {**cfg["experiment"], "primary": {
+        k: v for k, v in primary.items() if k != "knot_rule"}}}
+    assert config_hash(before) == config_hash(cfg) == _hash(["experiment=primary", "experiment.primary.knot_rule=counts"])
+
+
 def test_ignored_settings_get_one_warning_line_per_experiment():
     argv = ["experiment=secondary", *IGNORED, "confidence=0.8"]
     lines = ignored_settings(argv, preflight(argv))

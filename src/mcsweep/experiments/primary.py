@@ -138,6 +138,7 @@ class PrimarySettings(GlobalSettings):
     priors: tuple
     knot_interval_days: float
     knot_transits: float | None
+    knot_rule: str = "uniform"
     attitude_amplitude_mas: float
     attitude_timescale_days: float
     rtol: float
@@ -195,7 +196,7 @@ def build_settings(config) -> PrimarySettings:
         **fields,
         dead_time_fraction=float(pri.dead_time_fraction), dead_time_block_days=float(pri.dead_time_block_days),
         priors=priors, knot_interval_days=float(pri.knot_interval_hours) / 24.0,
-        knot_transits=None if pri.knot_transits is None else float(pri.knot_transits),
+        knot_transits=None if pri.knot_transits is None else float(pri.knot_transits), knot_rule=str(pri.knot_rule),
         attitude_amplitude_mas=float(pri.attitude_amplitude_mas),
         attitude_timescale_days=float(pri.attitude_timescale_hours) / 24.0,
         rtol=float(pri.solver_rtol), update_tol_uas=float(pri.solver_update_tol_uas),
@@ -481,7 +482,7 @@ def attitude_spline(settings: PrimarySettings, dead: DeadTime, epochs=None) -> A
         return AttitudeSpline(settings.start_jd, settings.end_jd, settings.knot_interval_days, gaps=gaps)
     epochs = sorted_epochs(epochs)
     return AttitudeSpline(settings.start_jd, settings.end_jd, knot_interval_days(settings, epochs.size, dead),
-                          gaps=gaps, epochs=epochs, transits_per_knot=settings.knot_transits)
+                          gaps=gaps, epochs=epochs, transits_per_knot=settings.knot_transits, knot_rule=settings.knot_rule)
 
 
 def prepare(settings: PrimarySettings, stars: pd.DataFrame, transits: dict, *,

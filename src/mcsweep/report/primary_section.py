@@ -72,6 +72,8 @@ def _knots_text(run_dir: Path, pri) -> str:
     if s is None or "fov_transits_per_knot" not in s:
         return f"with a {plain(pri.get('knot_interval_hours'))} h knot interval"
     rule = (f"`knot_transits` = {plain(pri.get('knot_transits'))}, knots placed by the data"
+            + (", `knot_rule` = uniform: at the mean interval of that many FoV transits, longer where fewer "
+               "fall" if pri.get("knot_rule") == "uniform" else "")
             if pri.get("knot_transits") is not None else
             f"`knot_interval_hours` = {plain(pri.get('knot_interval_hours'))}")
     return (f"in {plain(int(s['attitude_segments']))} segments between the dead-time gaps ({rule}: mean knot "

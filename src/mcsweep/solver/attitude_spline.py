@@ -36,8 +36,18 @@ then fall on the segment's ends instead of reaching into the gap). Or, with
 of the given epochs (FoV transits). Uniform knots at a mean of ~25 transits per knot leave
 intervals with almost none where the stars are sparse: measured in the primary experiment
 (3 x 30000 galaxy-model stars, one year, 0.19 h knots), the attitude error reached 5 arcsec
-in such intervals and its RMS over the measurements was 1.5-3.5 mas per axis. Each epoch
-touches 4 consecutive coefficients; coefficients are numbered segment after segment.
+in such intervals and its RMS over the measurements was 1.5-3.5 mas per axis. Equal counts
+go wrong the other way where the stars are dense: at the paper's sizes (25 per knot) a knot
+in the Galactic plane lasts a few seconds, far finer than AGIS's 30 s, and holds mostly faint
+stars whose across-scan data barely fix the in-plane rotations. Measured (primary experiment,
+3 x 1e5 stars, 1000 mas): at every crossing of the plane the attitude error reached 0.1-0.3
+arcsec, and PCG took 4382 iterations. ``knot_rule='uniform'`` is AGIS's rule with a floor:
+knots at the interval ``knot_interval_days`` (the mean interval of ``transits_per_knot``
+epochs: AGIS's 30 s at the paper's sizes), lengthened only where fewer than
+``transits_per_knot`` epochs fall in it; the same problem then took 353 iterations, its
+attitude error RMS 0.09-0.18 mas per axis instead of 1-7.7 (docs/table3.md, "Knots no finer
+than AGIS's"). Each epoch touches 4 consecutive coefficients; coefficients are numbered
+segment after segment.
 """
 
 from __future__ import annotations
@@ -49,10 +59,13 @@ from scipy.interpolate import BSpline
 
 from .selection import quantile_from_neighbours, quantile_ranks
 
-__all__ = ["AttitudeSpline", "DEGREE", "SortedEpochs", "live_segments", "sorted_epochs"]
+__all__ = ["AttitudeSpline", "DEGREE", "KNOT_RULES", "SortedEpochs", "live_segments", "sorted_epochs"]
 
 #: Cubic splines, as AGIS (Lindegren et al. 2012, Sect. 3.3).
 DEGREE = 3
+#: How knots are placed by the data (``transits_per_knot``): equal counts per interval, or
+#: uniform at the knot interval with a floor of ``transits_per_knot`` (module notes).
+KNOT_RULES = ("counts", "uniform")
 
 
 def live_segments(start_jd: float, end_jd: float, gap_starts=(), gap_stops=(), *,
@@ -174,7 +187,9 @@ class AttitudeSpline:
         Knots placed by the data (module notes): the FoV transit epochs [TCB JD] (an array, or
         a :class:`SortedEpochs`-like object answering its questions) and how
         many of them each knot interval holds (``knot_interval_days`` then only sets
-        ``min_gap_days``' default; give the mean interval). A segment with fewer than
+        ``min_gap_days``' default; give the mean interval). ``knot_rule``: ``'counts'``, that
+        many epochs in every interval; ``'uniform'``, knots ``knot_interval_days`` apart, further
+        apart where fewer than ``transits_per_knot`` epochs fall (module notes). A segment with fewer than
         ``transits_per_knot`` epochs is first joined to a neighbour across the shorter gap
         (:func:`_merge_sparse_segments`). Each segment then shrinks to
         the span of its ``epochs`` (``segments`` says so), so ``epochs`` must hold every
@@ -182,7 +197,8 @@ class AttitudeSpline:
     """
 
     def __init__(self, start_jd: float, end_jd: float, knot_interval_days: float, *, gaps=None,
-                 min_gap_days: float | None = None, epochs=None, transits_per_knot: float | None = None):
+                 min_gap_days: float | None = None, epochs=None, transits_per_knot: float | None = None,
+                 knot_rule: str = "counts"):
         if not (end_jd > start_jd and knot_interval_days > 0):
             raise ValueError(f"need end_jd > start_jd and knot_interval_days > 0, got {start_jd}, {end_jd}, "
                              f"{knot_interval_days}")
@@ -198,8 +214,10 @@ class AttitudeSpline:
             if self.segments.shape[0] == 0:
                 raise ValueError("the gaps cover the whole interval: no attitude segment")
             n_ints = [max(1, math.ceil((b - a) / knot_interval_days - 1e-9)) for a, b in self.segments]
+        if knot_rule not in KNOT_RULES:
+            raise ValueError(f"knot_rule must be one of {KNOT_RULES}, got {knot_rule!r}")
         if transits_per_knot is not None:
-            inners = self._data_knots(epochs, float(transits_per_knot))
+            inners = self._data_knots(epochs, float(transits_per_knot), knot_rule)
             n_ints = [k.size - 1 for k in inners]
         else:
             inners = [np.linspace(a, b, n + 1) for (a, b), n in zip(self.segments, n_ints)]
@@ -211,13 +229,16 @@ class AttitudeSpline:
         self.n_coef = int(self.segment_first[-1])
         self.segment_first = self.segment_first[:-1]
 
-    def _data_knots(self, epochs, per_knot: float) -> list:
-        """Per segment: its ends and inner knots at equal counts of ``epochs`` in between
-        (:func:`numpy.quantile` of the segment's epochs, from the order statistics it needs)."""
+    def _data_knots(self, epochs, per_knot: float, rule: str = "counts") -> list:
+        """Per segment: its ends and inner knots in between, at equal counts of ``epochs``
+        (:func:`numpy.quantile` of the segment's epochs, from the order statistics it needs)
+        or by :func:`_uniform_floor_knots` (``rule='uniform'``)."""
         if not per_knot >= 1:
             raise ValueError(f"transits_per_knot must be >= 1, got {per_knot}")
         epochs = sorted_epochs(epochs)
         self.segments, lo, hi = _merge_sparse_segments(self.segments, epochs, per_knot)
+        if rule == "uniform":
+            return self._uniform_floor_knots(epochs, per_knot, lo, hi)
         # one request for every order statistic: each segment's first and last epoch and the
         # neighbours of its quantiles (a loop over segments, each a vector operation)
         plans, ranks = [], []
@@ -250,6 +271,39 @@ class AttitudeSpline:
                 inner = quantile_from_neighbours(values[at + 2:at + 2 + k], values[at + 2 + k:at + 2 + 2 * k], gamma)
             knots = np.unique(np.concatenate([[a], inner[(inner > a) & (inner < b)], [b]]))
             out.append(knots)
+        return out
+
+    def _uniform_floor_knots(self, epochs, per_knot: float, lo, hi) -> list:
+        """Per segment (shrunk to the span of its epochs): knots ``knot_interval_days`` apart
+        where at least ``per_knot`` epochs fall in that time, further apart where fewer do.
+
+        The knot density is ``min(1 / D, r / K)`` for the interval ``D``, the epochs' rate ``r``
+        and ``K = per_knot``, from the epochs counted in bins of ``D``: each segment's knots
+        divide the integral of that density into equal parts, linear within a bin. So a knot
+        is never shorter than about ``D`` (AGIS's uniform knots where the data are dense) nor
+        holds fewer than about ``K`` epochs (where they are sparse)."""
+        D = self.knot_interval_days
+        has = np.flatnonzero(hi > lo)
+        if has.size:  # each segment shrinks to its data, as with 'counts'
+            ends = epochs.values(np.ravel(np.column_stack([lo[has], hi[has] - 1]))).reshape(-1, 2)
+            grow = ends[:, 1] > ends[:, 0]
+            self.segments[has[grow]] = ends[grow]
+        a, b = self.segments[:, 0], self.segments[:, 1]
+        n_bins = np.maximum(1, np.ceil((b - a) / D - 1e-9).astype(np.int64))
+        first_edge = np.r_[0, np.cumsum(n_bins + 1)]
+        seg = np.repeat(np.arange(a.size), n_bins + 1)
+        k = np.arange(first_edge[-1]) - first_edge[seg]
+        edges = np.where(k == n_bins[seg], b[seg], np.minimum(a[seg] + D * k, b[seg]))
+        ranks = epochs.searchsorted(edges, "right")
+        ranks[first_edge[:-1]] = epochs.searchsorted(a, "left")  # the epochs at a segment's start count too
+        out = []
+        for i in range(a.size):  # a loop over segments (hundreds), each a vector operation
+            e, r = edges[first_edge[i]:first_edge[i + 1]], ranks[first_edge[i]:first_edge[i + 1]]
+            density = np.minimum(np.diff(e) / D, np.diff(r) / per_knot)  # knots per bin
+            M = np.r_[0.0, np.cumsum(density)]
+            n_int = max(1, int(round(M[-1])))
+            inner = np.interp(M[-1] * np.arange(1, n_int) / n_int, M, e)
+            out.append(np.unique(np.concatenate([[a[i]], inner[(inner > a[i]) & (inner < b[i])], [b[i]]])))
         return out
 
     @property

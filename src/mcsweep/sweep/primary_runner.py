@@ -114,6 +114,9 @@ def knot_rule(pri) -> str:
     """How the knot interval was chosen, as the notes of Table 3 say it."""
     if pri.knot_transits is None:
         return f"at most knot_interval_hours = {pri.knot_interval_hours:g} h"
+    if pri.knot_rule == "uniform":
+        return (f"knot_transits = {pri.knot_transits:g}, knot_rule = uniform: knots at the mean interval of "
+                f"{pri.knot_transits:g} FoV transits, longer where fewer fall")
     return f"knot_transits = {pri.knot_transits:g} FoV transits per knot"
 
 

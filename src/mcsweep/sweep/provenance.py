@@ -68,7 +68,18 @@ def _science_part(cfg: dict) -> dict:
     # value so run directories made before it keep their hash (and can be resumed).
     for dotted, before in _DEFAULTS_FROM_BEFORE.items():
         _drop(out, dotted, only_if=before)
+    for dotted, needs in _ONLY_WITH.items():
+        if _value(cfg, needs) is None:
+            _drop(out, dotted)
     return out
+
+
+def _value(cfg: dict, dotted: str):
+    """The value at a dotted key, None where it or a section on its path is missing."""
+    node = cfg
+    for k in dotted.split("."):
+        node = node.get(k) if isinstance(node, dict) else None
+    return node
 
 
 #: dotted key -> the value that reproduces the model from before the option existed.
@@ -81,7 +92,12 @@ _DEFAULTS_FROM_BEFORE = {
     "population.params.giant_thickness_factor": 0.45,  # exposed in issue 25 (besancon-r03-4)
     "experiment.primary.solver_start": "zero",  # issue 23: every solution from zero before
     "population.params.subgiants": False,  # issue 25: no subgiants before the option
+    "experiment.primary.knot_rule": "counts",  # issue 23: knots by equal counts before the option
 }
+
+#: dotted key -> the key without which it has no effect (left out of the hash while that is null):
+#: the knot rule places knots only by ``knot_transits``; 3 h knots (the default) ignore it.
+_ONLY_WITH = {"experiment.primary.knot_rule": "experiment.primary.knot_transits"}
 
 
 def config_hash(cfg: dict) -> str:

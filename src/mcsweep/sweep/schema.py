@@ -363,6 +363,9 @@ class RealSkyConf:
 #: solution: each adds two unknowns bordering its normal equations (mcsweep.solver.calibration),
 #: each 8 bytes per measurement on the driver.
 MAX_BASIC_ANGLE_HARMONICS = 8
+#: ``experiment.primary.knot_rule``'s values: those of :data:`mcsweep.solver.attitude_spline.KNOT_RULES`
+#: (not imported: the solver's compiled kernels would load with every config; a test keeps them equal).
+KNOT_RULES = ("counts", "uniform")
 
 
 @dataclass
@@ -383,6 +386,7 @@ class PrimaryConf:
     reference_epoch: str = "dataset_mean"
     knot_interval_hours: float = 3.0
     knot_transits: Optional[float] = None
+    knot_rule: str = "uniform"
     attitude_amplitude_mas: float = 10.0
     attitude_timescale_hours: float = 24.0
     solver_error_tol: Optional[float] = 0.01
@@ -416,6 +420,9 @@ class PrimaryConf:
         _require(self.knot_transits is None or (math.isfinite(self.knot_transits) and self.knot_transits >= 1),
                  "experiment.primary.knot_transits", self.knot_transits,
                  "null (use knot_interval_hours) or a number of FoV transits per knot interval >= 1")
+        _require(self.knot_rule in KNOT_RULES, "experiment.primary.knot_rule", self.knot_rule,
+                 "'counts' (knot_transits FoV transits in every knot interval) or 'uniform' (knots at the "
+                 "mean interval of knot_transits transits, as AGIS's uniform 30 s knots, longer where fewer fall)")
         _require(self.frame_fit in ("precision", "equal"), "experiment.primary.frame_fit", self.frame_fit,
                  "'precision' (the frame rotator weighted by formal precision) or 'equal'")
         _require(self.factor_resamples >= 0, "experiment.primary.factor_resamples", self.factor_resamples,

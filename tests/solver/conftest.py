@@ -21,14 +21,15 @@ LAW = ScanningLaw(name="one_segment", segments=(), ref_epoch_tcb="2015-01-01T00:
 
 
 def make_problem(n_stars=20000, days=10.0, knot_days=0.5, seed=5, min_transits=4, use_ac=True, keep_fraction=1.0,
-                 dead_fraction=0.0, dead_block_days=0.25, transits_per_knot=None):
+                 dead_fraction=0.0, dead_block_days=0.25, transits_per_knot=None, knot_rule="counts"):
     """Random stars over the sky, their FoV transits, and the partials; truth drawn separately.
 
     ``keep_fraction < 1`` keeps that random fraction of the transits (dilution).
     ``dead_fraction > 0``: dead time in blocks of ``dead_block_days`` (the primary
     experiment's model), and the attitude spline broken at those gaps.
-    ``transits_per_knot``: knots placed by the kept transits, that many per interval, instead
-    of ``knot_days``.
+    ``transits_per_knot``: knots placed by the kept transits, that many per interval (or, with
+    ``knot_rule='uniform'``, at their mean interval with that many as a floor), instead of
+    ``knot_days``.
     """
     rng = np.random.default_rng(seed)
     ra = rng.uniform(0.0, 360.0, n_stars)
@@ -59,7 +60,8 @@ def make_problem(n_stars=20000, days=10.0, knot_days=0.5, seed=5, min_transits=4
         knot_days = live_days * transits_per_knot / len(tr)
     spline = AttitudeSpline(START_JD, START_JD + days, knot_days,
                             gaps=None if dead is None else (dead.starts, dead.stops),
-                            epochs=tr["tcb_jd"].to_numpy(), transits_per_knot=transits_per_knot)
+                            epochs=tr["tcb_jd"].to_numpy(), transits_per_knot=transits_per_knot,
+                            knot_rule=knot_rule)
     t_ref = START_JD + 0.5 * days
     obs = build_observations(ra, dec, star, t, tr["scan_angle_deg"].to_numpy(), gaia_position_au(t),
                              t_ref_jd=t_ref, sigma_al_mas=s_al, sigma_ac_mas=s_ac, spline=spline)
@@ -91,15 +93,21 @@ def gapped_problem():
 
 
 @pytest.fixture(scope="session")
-def gapped_system(gapped_problem):
-    """``system(sigma_mas)``: the gapped problem under a prior of ``sigma_mas`` (parallax; proper
+def gapped_uniform_problem():
+    """The gapped problem's stars and dead time with knots by the 'uniform' rule (AGIS's uniform
+    knots at the mean interval of 12 transits, longer where fewer fall)."""
+    return make_problem(n_stars=800, days=365.0, seed=11, min_transits=1, keep_fraction=0.6, dead_fraction=0.2,
+                        dead_block_days=2.0, transits_per_knot=12.0, knot_rule="uniform")
+
+
+def _system(P):
+    """``system(sigma_mas)``: problem ``P`` under a prior of ``sigma_mas`` (parallax; proper
     motion R = 10 /yr) and noisy measurements of a random truth and attitude (unit noise):
     ``(problem, h)``."""
     from mcsweep.astrometry.solve import prior_diagonal
     from mcsweep.solver import GlobalProblem
 
     def system(sigma_mas):
-        P = gapped_problem
         obs, rng = P["obs"], np.random.default_rng(3)
         n = obs.n_stars
         x_true = np.column_stack([rng.normal(0, 5, n), rng.normal(0, 5, n), rng.uniform(0.2, 3.0, n),
@@ -109,4 +117,16 @@ def gapped_system(gapped_problem):
         return problem, problem.forward(problem.join(x_true, a_true)) + rng.normal(size=obs.size)
 
     return system
+
+
+@pytest.fixture(scope="session")
+def gapped_system(gapped_problem):
+    """:func:`_system` of the gapped problem (knots by equal counts)."""
+    return _system(gapped_problem)
+
+
+@pytest.fixture(scope="session")
+def gapped_uniform_system(gapped_uniform_problem):
+    """:func:`_system` of the gapped problem with uniform knots."""
+    return _system(gapped_uniform_problem)
 

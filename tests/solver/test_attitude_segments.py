@@ -132,13 +132,15 @@ def test_knots_placed_by_the_data_hold_the_asked_transits(gapped_problem):
     assert u.min() < counts.min()
 
 
+@pytest.mark.parametrize("rule", ["counts", "uniform"])
 @pytest.mark.parametrize("sigma_mas", [0.01, 1.0, 1000.0])
-def test_iterative_equals_direct_with_gaps_and_few_transits_per_knot(gapped_problem, gapped_system, sigma_mas):
+def test_iterative_equals_direct_with_gaps_and_few_transits_per_knot(request, rule, sigma_mas):
     # The case: before the segments, PCG did not converge on such problems (400
     # iterations at 25 and 10 transits per knot, 1 h knots, 6 h dead blocks; the primary
-    # experiment at 0.18 h knots: 703 iterations and an attitude error of 1e9 uas).
-    P = gapped_problem
-    problem, h = gapped_system(sigma_mas)
+    # experiment at 0.18 h knots: 703 iterations and an attitude error of 1e9 uas). Knots by
+    # equal counts and by the uniform rule with its floor (knot_rule).
+    P = request.getfixturevalue("gapped_problem" if rule == "counts" else "gapped_uniform_problem")
+    problem, h = request.getfixturevalue("gapped_system" if rule == "counts" else "gapped_uniform_system")(sigma_mas)
     sol = solve_global(problem, h, rtol=1e-10, update_tol_uas=1e-3, max_iter=500)
     direct, free, _ = solve_direct(problem, h)
     rel = np.linalg.norm(problem.join(sol.x, sol.attitude)[free] - direct) / np.linalg.norm(direct)

@@ -12,7 +12,9 @@ measurements are prepared), then, for the sigma_F90 prior:
    (:data:`mcsweep.solver.blocks.SCHUR_WINDOW`).
 
 Run: ``python benchmarks/primary_slow_modes.py [--stars 10000] [--classes 19,19.2,19.4]
-[--knot-transits 25] [--stop 100] [--windows 4,8]`` (3 x 10000 faint stars: ~3 min).
+[--knot-transits 25] [--knot-rule counts] [--stop 100] [--windows 4,8]`` (3 x 10000 faint
+stars: ~3 min). The diagnosis in docs/table3.md used knots by equal counts (``counts``, the
+default here; the experiment's default is ``uniform`` since 2026-11-27).
 """
 
 from __future__ import annotations
@@ -32,7 +34,7 @@ class _Prepared(Exception):
     """Raised by the hooked ``prepare`` to stop the CLI run once the data exist."""
 
 
-def experiment_problem(stars: int, classes: str, knot_transits: float):
+def experiment_problem(stars: int, classes: str, knot_transits: float, knot_rule: str = "counts"):
     """(settings, prepared data) of ``mcsweep experiment=primary`` with these sizes."""
     import mcsweep.sweep.primary_runner as runner
     from mcsweep.cli import main
@@ -48,7 +50,8 @@ def experiment_problem(stars: int, classes: str, knot_transits: float):
     argv = sys.argv
     with tempfile.TemporaryDirectory() as tmp:
         sys.argv = ["mcsweep", "experiment=primary", f"experiment.primary.class_size={stars}",
-                    f"experiment.primary.knot_transits={knot_transits}", "experiment.primary.priors=[F90]",
+                    f"experiment.primary.knot_transits={knot_transits}", f"experiment.primary.knot_rule={knot_rule}",
+                    "experiment.primary.priors=[F90]",
                     f"experiment.primary.g_classes=[{classes}]", f"hydra.run.dir={tmp}/run"]
         try:
             main()
@@ -77,6 +80,7 @@ def main():
     ap.add_argument("--stars", type=int, default=10000)
     ap.add_argument("--classes", default="19.0,19.2,19.4")
     ap.add_argument("--knot-transits", type=float, default=25.0)
+    ap.add_argument("--knot-rule", default="counts", choices=["counts", "uniform"])
     ap.add_argument("--stop", type=int, default=100)
     ap.add_argument("--windows", default="")
     args = ap.parse_args()
@@ -86,7 +90,7 @@ def main():
     from mcsweep.solver import blocks as B
     from mcsweep.solver import solve_global
 
-    settings, data = experiment_problem(args.stars, args.classes, args.knot_transits)
+    settings, data = experiment_problem(args.stars, args.classes, args.knot_transits, args.knot_rule)
     st, s = data.stars, data.solved
     sig = prior_sigma_mas("F90", settings.sigma_f90_mas(st["l"].to_numpy()[s], st["b"].to_numpy()[s],
                                                         st["phot_g_mean_mag"].to_numpy()[s]))

@@ -49,7 +49,7 @@ def table3_cause(cell: pd.Series, table: pd.DataFrame) -> str:
                 "candidates, each run at the paper's sizes (`docs/table3.md`, 'Where issue 24 stands'), reproduce "
                 "neither that collapse nor the paper's honest 10 sigma_F90 and 1000 mas rows together: AGIS's "
                 "attitude freedom (`experiment.primary.knot_transits=25`) lets the prior's bias reach weakly "
-                "determined knots and costs sigma_F90 13 points more than 10 sigma_F90 at G ~ 11, a quarter of the "
+                "determined knots and costs sigma_F90 13-15 points more than 10 sigma_F90 at G ~ 11, a quarter of the "
                 "paper's gap, but through an attitude error common to every prior that the paper's own rows rule "
                 "out, while a bright-star floor, dead time in longer blocks, an equal-weight frame fit, each star's own "
                 "epoch and a basic-angle "

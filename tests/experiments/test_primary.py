@@ -489,17 +489,19 @@ def test_uniform_knots_keep_agis_s_interval_and_at_least_knot_transits_per_knot(
     data = P.prepare(settings, stars, tr, with_noise=False)
     t = np.sort(tr["t"][~data.dead.is_dead(tr["t"])])
     sp = data.spline
-    D = P.knot_interval_days(settings, t.size, data.dead)
-    assert sp.knot_interval_days == D
+    D = ((settings.end_jd - settings.start_jd) - data.dead.total_days) * 25 / t.size  # live days per 25
+    np.testing.assert_allclose(sp.knot_interval_days, D, rtol=1e-12)
     inner = [k[3:-3] for k in sp.segment_knots]
     steps = np.concatenate([np.diff(k) for k in inner])
     counts = np.concatenate([np.histogram(t, bins=k)[0] for k in inner])
     assert counts.sum() == t.size and counts.mean() > 25.0
     # a segment's knots divide its density integral into round(integral) parts: a step may
-    # fall short of D by half a part over the segment's parts (>= 3 here), no more
+    # fall short of D by half a part over the segment's parts (1 to many here), no more
     n_parts = np.concatenate([np.full(k.size - 1, k.size - 1) for k in inner])
     assert np.all(steps >= D * (1 - 0.5 / n_parts) * (1 - 1e-12))
-    longer = steps > 1.01 * D  # lengthened for lack of transits: they hold about 25 on average
+    # lengthened for lack of transits: about 25 each, off by the transits of the bins their
+    # ends fall in (a knot is placed linearly within a bin); measured 27.7 on average
+    longer = steps > 1.01 * D
     assert 0 < longer.sum() < steps.size and abs(counts[longer].mean() - 25.0) < 3.0
     assert data.coefficients_with_data() == sp.n_coef
 

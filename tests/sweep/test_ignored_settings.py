@@ -161,3 +161,24 @@ def test_a_refusal_names_both_values_of_a_changed_default(tmp_path):
     with pytest.raises(UserInputError, match="extinction_model: 'disc' -> 'arenou1992'; "
                                              "population.params.subgiants: False -> True"):
         Provenance(tmp_path, new, kind="f90_sweep").check_compatible()
+
+
+def test_a_refusal_names_the_knot_rule_only_where_it_has_an_effect(tmp_path):
+    # 3 h knots (no knot_transits) resumed with knot_transits=25: the line names knot_transits
+    # and the rule now in effect, not a rule the old run never used
+    import json
+
+    import pytest
+
+    from mcsweep.errors import UserInputError
+    from mcsweep.sweep.provenance import Provenance
+
+    old = OmegaConf.to_container(compose_config(["experiment=primary"]), resolve=True)
+    del old["experiment"]["primary"]["knot_rule"]  # a run made before the option
+    (tmp_path / "provenance.json").write_text(json.dumps({"config_hash": config_hash(old), "config": old}))
+    new = OmegaConf.to_container(compose_config(["experiment=primary", "experiment.primary.knot_transits=25"]),
+                                 resolve=True)
+    with pytest.raises(UserInputError) as refused:
+        Provenance(tmp_path, new, kind="primary").check_compatible()
+    assert "knot_transits: None -> 25" in str(refused.value)
+    assert "knot_rule: None -> 'uniform'" in str(refused.value) and "'counts'" not in str(refused.value)

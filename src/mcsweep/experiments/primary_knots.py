@@ -2,8 +2,9 @@
 Dask cluster's workers (issue 27).
 
 With ``knot_transits`` the solver's knots are placed by the solution's live FoV transits: in
-each attitude segment, its first and last epoch and the quantiles of its epochs at equal
-counts (:class:`~mcsweep.solver.attitude_spline.AttitudeSpline`). On one machine those come
+each attitude segment, its first and last epoch, and the quantiles of its epochs at equal
+counts (``knot_rule='counts'``) or its epochs counted in bins of the knot interval
+(``'uniform'``; :class:`~mcsweep.solver.attitude_spline.AttitudeSpline`). On one machine those come
 from one sorted array (8 bytes per transit, 2e7 transits at the paper's sizes); on a cluster
 the epochs stay sorted per partition of the table of stars where they were found, and
 :class:`ClusterEpochs` answers what the spline asks
@@ -67,9 +68,17 @@ class ClusterEpochs:
         return int(self.counts.sum())
 
     def searchsorted(self, x, side: str) -> np.ndarray:
+        from distributed import as_completed
+
+        # summed as the partitions answer (integers: the order does not matter), so the driver
+        # holds one answer at a time: with knot_rule='uniform' an answer is a count per bin of
+        # the knot interval, ~1e6 at the paper's sizes
         x = np.asarray(x, dtype=float)
-        return sum(self.client.gather([self.client.submit(_count_below, f, x, side, pure=False) for f in self.futures]),
-                   np.zeros(x.shape, dtype=np.int64))
+        total = np.zeros(x.shape, dtype=np.int64)
+        for fut in as_completed([self.client.submit(_count_below, f, x, side, pure=False) for f in self.futures]):
+            total += fut.result()
+            fut.release()
+        return total
 
     def values(self, ranks) -> np.ndarray:
         ranks = np.asarray(ranks, dtype=np.int64)

@@ -40,7 +40,7 @@ in such intervals and its RMS over the measurements was 1.5-3.5 mas per axis. Eq
 go wrong the other way where the stars are dense: at the paper's sizes (25 per knot) a knot
 in the Galactic plane lasts a few seconds, far finer than AGIS's 30 s, and holds mostly faint
 stars whose across-scan data barely fix the in-plane rotations. Measured (primary experiment,
-3 x 1e5 stars, 1000 mas): at every crossing of the plane the attitude error reached 0.1-0.3
+3 x 1e5 stars, 1000 mas): at crossings of the plane the attitude error reached up to 0.28
 arcsec, and PCG took 4382 iterations. ``knot_rule='uniform'`` is AGIS's rule with a floor:
 knots at the interval ``knot_interval_days`` (the mean interval of ``transits_per_knot``
 epochs: AGIS's 30 s at the paper's sizes), lengthened only where fewer than
@@ -172,7 +172,8 @@ class AttitudeSpline:
     start_jd, end_jd : float
         Interval covered (TCB JD) [day].
     knot_interval_days : float
-        Largest knot interval [day] (module notes).
+        Largest knot interval [day] (module notes); with ``knot_rule='uniform'`` the interval of
+        the knots where the epochs are dense, and about the shortest.
     gaps : tuple of array_like, optional, keyword-only
         ``(starts, stops)`` of data gaps ``[start, stop)`` [TCB JD], e.g. the dead time
         (``(dead.starts, dead.stops)``). Default: one segment over the whole interval.
@@ -186,10 +187,10 @@ class AttitudeSpline:
     epochs, transits_per_knot : optional, keyword-only
         Knots placed by the data (module notes): the FoV transit epochs [TCB JD] (an array, or
         a :class:`SortedEpochs`-like object answering its questions) and how
-        many of them each knot interval holds (``knot_interval_days`` then only sets
-        ``min_gap_days``' default; give the mean interval). ``knot_rule``: ``'counts'``, that
-        many epochs in every interval; ``'uniform'``, knots ``knot_interval_days`` apart, further
-        apart where fewer than ``transits_per_knot`` epochs fall (module notes). A segment with fewer than
+        many of them each knot interval holds. ``knot_rule``: ``'counts'``, that many epochs in
+        every interval (``knot_interval_days`` then only sets ``min_gap_days``' default; give the
+        mean interval); ``'uniform'``, knots ``knot_interval_days`` apart, further apart where
+        fewer than ``transits_per_knot`` epochs fall (module notes). A segment with fewer than
         ``transits_per_knot`` epochs is first joined to a neighbour across the shorter gap
         (:func:`_merge_sparse_segments`). Each segment then shrinks to
         the span of its ``epochs`` (``segments`` says so), so ``epochs`` must hold every
@@ -280,8 +281,9 @@ class AttitudeSpline:
         The knot density is ``min(1 / D, r / K)`` for the interval ``D``, the epochs' rate ``r``
         and ``K = per_knot``, from the epochs counted in bins of ``D``: each segment's knots
         divide the integral of that density into equal parts, linear within a bin. So a knot
-        is never shorter than about ``D`` (AGIS's uniform knots where the data are dense) nor
-        holds fewer than about ``K`` epochs (where they are sparse)."""
+        is about ``D`` or longer (AGIS's uniform knots where the data are dense) and holds about
+        ``K`` epochs or more (where they are sparse); a segment whose integral is below one part
+        (shorter than ``D``, or with fewer epochs than ``K``) is one interval."""
         D = self.knot_interval_days
         has = np.flatnonzero(hi > lo)
         if has.size:  # each segment shrinks to its data, as with 'counts'

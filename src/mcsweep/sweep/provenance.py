@@ -118,6 +118,9 @@ def _with_defaults_from_before(science: dict) -> dict:
             node = node.get(k) if isinstance(node, dict) else None
         if isinstance(node, dict) and leaf not in node:
             node[leaf] = before
+    for dotted, needs in _ONLY_WITH.items():  # not where it has no effect (left out of the hash)
+        if _value(out, needs) is None:
+            _drop(out, dotted)
     return out
 
 

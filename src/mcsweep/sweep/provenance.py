@@ -112,10 +112,8 @@ def _with_defaults_from_before(science: dict) -> dict:
     ``extinction_model: 'disc' -> 'arenou1992'``) rather than ``None`` for one of them."""
     out = copy.deepcopy(science)
     for dotted, before in _DEFAULTS_FROM_BEFORE.items():
-        *parents, leaf = dotted.split(".")
-        node = out
-        for k in parents:
-            node = node.get(k) if isinstance(node, dict) else None
+        parent, leaf = dotted.rsplit(".", 1)
+        node = _value(out, parent)
         if isinstance(node, dict) and leaf not in node:
             node[leaf] = before
     for dotted, needs in _ONLY_WITH.items():  # not where it has no effect (left out of the hash)

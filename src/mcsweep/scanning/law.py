@@ -84,8 +84,8 @@ class ScanningLaw:
     solar_aspect_deg: float = 45.0
     precession_S: float = 4.220747
     # The flown law's phases are per segment (mcsweep.scanning.segments.FLOWN_SEGMENTS);
-    # its 2014-09-25 - 2017-01-27 segment holds the values fitted before issue 28
-    # (2015-01-01: nu = 323.3708 deg, Omega = 95.1324 deg).
+    # its 2014-09-25 - 2017-01-27 segment holds the values fitted when the flown law was a
+    # single NSL segment (2015-01-01: nu = 323.3708 deg, Omega = 95.1324 deg).
     ref_epoch_tcb: str | None = None
     nu_ref_deg: float | None = None
     omega_ref_deg: float | None = None

@@ -14,11 +14,11 @@ File format: ``b'GDR3'``, a little-endian uint32 version (1), a uint64 number of
 then 36 bytes per star: int64 source_id, float64 ra, float64 dec [deg, ICRS, epoch J2016.0],
 then three float32: G, and two that the package's documentation calls ``pmra, pmdec`` but
 that are BP and RP magnitudes in the file of version 0.1.2 (0 where missing, as for every
-Hipparcos gap-fill row). Measured against Hipparcos 2 stars of G = 6-8 matched within 2
-arcsec: the first float is G (median G - our Hipparcos-derived G +0.009 mag, MAD 0.02); the
-other two lie +0.44 and -0.63 mag from it, their difference follows B - V (correlation
-0.93) and none is negative. They are read as BP and RP here: the counts use G only; BP - RP
-sorts the stars Hipparcos lacks into colour classes (:func:`match_hipparcos`, issue 25).
+Hipparcos gap-fill row): compared with Hipparcos 2 stars matched to them, the first float
+agrees with G and the other two behave as BP and RP (their difference follows B - V; the
+comparison is in docs/research_notes_moved.md). They are read as BP and RP here: the counts
+use G only; BP - RP sorts the stars Hipparcos lacks into colour classes for the real-sky
+validation (:func:`match_hipparcos`, :mod:`mcsweep.experiments.real_sky_complete`).
 """
 
 from __future__ import annotations

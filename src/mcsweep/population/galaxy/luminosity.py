@@ -2,7 +2,8 @@
 
 Method (a justified simplification of the Besancon population synthesis):
 
-1. The local luminosity function at the Sun, in three parts (issue #14):
+1. The local luminosity function at the Sun, in three parts, each calibrated to published
+   local densities (docs/galaxy_model.md):
 
    * giants: the Wielen (1974) bins with M_V <= 1 (as tabulated in Allen's Astrophysical
      Quantities; ``data/lf_wielen_allen.ecsv``; :data:`.parameters.GIANT_MV_MAX`) scaled
@@ -40,8 +41,8 @@ Method (a justified simplification of the Besancon population synthesis):
    they live in the giant-only companions, so ``giant_thickness_factor`` sets their
    heights and velocities too) with G - V of G5V (:data:`.parameters.SUBGIANT_G_MINUS_V`).
    Without them the model has no stars between the main sequence and the giants' bins,
-   where Hipparcos holds a fifth of its G = 6-7 stars at M_G = 1-4 (docs/galaxy_model.md,
-   issue 25).
+   where Hipparcos (van Leeuwen 2007) holds a fifth of its G = 6-7 stars at M_G = 1-4
+   (docs/galaxy_model.md).
 
 Data files are read lazily on first use via :mod:`importlib.resources`.
 """

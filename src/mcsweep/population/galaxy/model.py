@@ -170,8 +170,8 @@ class GalaxyModel:
 
     The model counts *sources* (an unresolved multiple system counts once, as in Gaia
     and GUMS): its local luminosity function is calibrated to source counts (Bovy 2017
-    for giants and main-sequence stars above 1 Msun, the GCNS for the fainter dwarfs;
-    issue #14). ``multiplicity_frequency`` other than its default (0.27) rescales every
+    for giants and main-sequence stars above 1 Msun, the GCNS of Smart et al. 2021 for the
+    fainter dwarfs). ``multiplicity_frequency`` other than its default (0.27) rescales every
     magnitude by 1.27 / (1 + f), uniformly: ``multiplicity_frequency=0`` counts
     component stars (a simplification: companions are mostly faint M dwarfs).
     """

@@ -51,18 +51,19 @@ __all__ = [
 
 #: Version of the built-in model's parameter set, recorded in every run's provenance
 #: (``galaxy_model_version``). Bump it whenever a number below or a default in
-#: :data:`.model.DEFAULT_PARAMS` changes. History (docs/galaxy_model.md):
-#: ``besancon-r03-1`` issue #4 model; ``besancon-r03-2`` issue #14 calibration (local
-#: giant density of Bovy 2017; local density scaled to the GCNS; thin-disc thickness
-#: x 1.15 to keep the Table 1 beam); ``besancon-r03-3`` issue #14 bright end: giants
-#: and main-sequence stars above 1 Msun at the local densities of Bovy (2017) as sources,
-#: only the fainter dwarfs scaled to the GCNS, giants in a thinner disc
-#: (:data:`GIANT_THICKNESS_FACTOR`); ``besancon-r03-4`` issue #14: the giants' velocity
-#: ellipsoids scaled to their thinner discs (:data:`GIANT_VELOCITY_FACTOR`); ``besancon-r03-5``
-#: issue 25: the defaults become the Arenou et al. (1992) dust near the Sun and the
-#: subgiants (both options of r03-4), which hold the all-sky counts within 8 % of Gaia DR3's
-#: own G counts at G = 4-13 (7 % high at 13-14, known to +-10 %), where the r03-4 defaults are
-#: 3-24 % high (30 % at 13-14).
+#: :data:`.model.DEFAULT_PARAMS` changes. The versions (docs/galaxy_model.md):
+#: ``besancon-r03-1`` the first version, R03's components with the Wielen/Allen
+#: luminosity function; ``besancon-r03-2`` calibrated to published local densities
+#: (local giant density of Bovy 2017; local density scaled to the GCNS, Smart et al.
+#: 2021; thin-disc thickness x 1.15 to keep the paper's Table 1 beam); ``besancon-r03-3``
+#: giants and main-sequence stars above 1 Msun at the local densities of Bovy (2017) as
+#: sources, only the fainter dwarfs scaled to the GCNS, giants in a thinner disc
+#: (:data:`GIANT_THICKNESS_FACTOR`); ``besancon-r03-4`` the giants' velocity ellipsoids
+#: scaled to their thinner discs (:data:`GIANT_VELOCITY_FACTOR`); ``besancon-r03-5`` the
+#: defaults become the Arenou et al. (1992) dust near the Sun and the subgiants (both
+#: options of r03-4), which hold the all-sky counts within 8 % of Gaia DR3's own G counts
+#: at G = 4-13 (Gaia Collaboration, Vallenari et al. 2023, as quoted in
+#: docs/galaxy_model.md).
 MODEL_VERSION = "besancon-r03-5"
 
 # --- Sun and rotation ------------------------------------------------------------------
@@ -128,7 +129,7 @@ GCNS_MG_LIMIT = 15.5
 #: Thickness of the giants' discs relative to the dwarfs' of the same age (multiplies
 #: the Einasto axis ratios of the giant-only thin-disc components, :data:`THIN_DISC_GIANTS`,
 #: which also hold the optional subgiants).
-#: Calibrated (issue #14): with giants at Bovy's local density, the all-sky counts of
+#: Calibrated: with giants at Bovy's local density, the all-sky counts of
 #: Tycho-2 at G = 4-10 (report/published_counts.py) are met only if the giants' density
 #: falls off faster with height than R03's age laws give (x 1.0: G = 4-10 counts 1.25-1.6
 #: times Tycho-2; x 0.45: within 8 %). The giants' density then halves at |z| = 126 pc
@@ -137,12 +138,11 @@ GCNS_MG_LIMIT = 15.5
 #: at 0.88 h = 132 pc); with the convention sech^2(z / 2h) it would be 264 pc. The
 #: abstract does not say which; the counts decide (docs/galaxy_model.md). User-adjustable as
 #: ``population.params.giant_thickness_factor`` (:func:`thin_disc_giants`). With the
-#: Arenou et al. (1992) dust, issue 25 repeated the calibration (report/thickness_grid.py):
-#: x 0.60 (thin disc x 1.18) meets G = 4-10, the beam and the DR3 total, but G = 11-13 stay
-#: 13-17 % low for every factor the beam and the published scale heights allow.
+#: Arenou et al. (1992) dust the calibration was repeated (report/thickness_grid.py; the
+#: grid's results are in docs/research_notes_moved.md and docs/galaxy_model.md).
 GIANT_THICKNESS_FACTOR = 0.45
 #: Factor on the velocity dispersions (U, V and W) of the giant-only thin-disc components,
-#: so that their kinematics match their thinner discs (issue #14). The thickness of an
+#: so that their kinematics match their thinner discs. The thickness of an
 #: isothermal disc scales with sigma_W^2 at a given surface density: the self-gravitating
 #: isothermal sheet rho = rho0 sech^2(z / z0) has z0 = sigma_W^2 / (pi G Sigma) (Spitzer
 #: 1942, ApJ 95, 329; Binney & Tremaine 2008, Sect. 4.10 problems) [M], and a tracer far
@@ -156,12 +156,10 @@ GIANT_THICKNESS_FACTOR = 0.45
 #: population, e.g. 2.2 for the thin disc in Bensby et al. 2003 Table 1 [V]).
 #: R03's own age bins give eps ~ sigma_W^1.37 (a least-squares fit to the six older bins of
 #: the table below), which would mean x 0.56; the sigma^2 rule is the milder of the two.
-#: Effect (docs/galaxy_model.md): median total proper motion of G = 6-7 stars per |b| band
-#: 0-10/10-30/30-60/60-90 deg 17.8/26.1/40.1/51.8 -> 14.1/20.5/31.9/42.1 mas/yr; parallaxes,
-#: counts and the Table 1 beam unchanged.
+#: Its effect on the bright stars' proper motions: docs/galaxy_model.md.
 GIANT_VELOCITY_FACTOR = GIANT_THICKNESS_FACTOR ** 0.5
 #: Default thickness factor of the thin disc (multiplies the seven Einasto axis ratios of
-#: R03). Chosen (issue #14) so the paper's Table 1 beam keeps its 458 GUMS stars after the
+#: R03). Chosen so the paper's Table 1 beam keeps its 458 GUMS stars after the
 #: GCNS scaling (r03-3: 470 expected; 1.0 gives 379): the R03 old-disc Einasto
 #: laws have an exponential-equivalent scale height of about 250 pc, Juric et al. (2008,
 #: ApJ 673, 864) find 300 pc [V]; x 1.15 stays between the two.
@@ -272,7 +270,7 @@ THIN_DISC = tuple(
 )
 #: The giants of each thin-disc age bin, a component of their own: same age, mass
 #: density (which sets their share of the local giants) and IMF, but axis ratio
-#: x GIANT_THICKNESS_FACTOR and velocity dispersions x GIANT_VELOCITY_FACTOR (issue #14).
+#: x GIANT_THICKNESS_FACTOR and velocity dispersions x GIANT_VELOCITY_FACTOR.
 
 
 def thin_disc_giants(thickness_factor=GIANT_THICKNESS_FACTOR):

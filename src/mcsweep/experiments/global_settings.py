@@ -1,13 +1,14 @@
 """What every global experiment is given: mission, scanning law, noise, priors, epoch, seeds.
 
 The global experiments (the secondary solution of paper Sect. 4.1, the primary solution
-of Sect. 4.2, and the real-sky validation of issue 25) observe whole-sky classes of stars
-over a mission interval with one scanning law and one noise model, refer the astrometry
-to one reference epoch (Sect. 2.1, :mod:`mcsweep.experiments.epoch`), and set priors
-from sigma_F90 (Eqs. 14-17 or a sweep's fitted coefficients) with R = sigma_mu /
-sigma_plx (Eq. 18). :class:`GlobalSettings` holds exactly that; an experiment's own
-settings subclass it with what is specific to it, and :func:`global_fields` reads the
-shared part of the experiment's config section (``experiment.<name>``).
+of Sect. 4.2, and the real-sky validation with Hipparcos stars, :mod:`.real_sky`) observe
+whole-sky classes of stars over a mission interval with one scanning law and one noise
+model, refer the astrometry to one reference epoch (Sect. 2.1,
+:mod:`mcsweep.experiments.epoch`), and set priors from sigma_F90 (Eqs. 14-17 or a sweep's
+fitted coefficients) with R = sigma_mu / sigma_plx (Eq. 18). :class:`GlobalSettings` holds
+exactly that; an experiment's own settings subclass it with what is specific to it, and
+:func:`global_fields` reads the shared part of the experiment's config section
+(``experiment.<name>``).
 
 Every random stream of an experiment is ``SeedSequence(seed, spawn_key=(tag, stream,
 ...))`` with the experiment's ``tag`` (41 for Sect. 4.1, 42 for Sect. 4.2), so no two

@@ -66,7 +66,7 @@ CURVE_COLUMNS = [
 INTERVAL_QUANTILES = (0.16, 0.84)
 #: A cell is ill-determined when its fraction curve stays within ILL_BAND_SIGMAS
 #: binomial standard deviations of P (sqrt(P(1-P)/n)) over at least ILL_RANGE_DEX of
-#: prior widths: the crossing is then set by noise, not by the stars (issue 13).
+#: prior widths: the crossing is then set by noise, not by the stars.
 ILL_BAND_SIGMAS = 2.0
 ILL_RANGE_DEX = 1.0
 

@@ -1,5 +1,5 @@
 """Table 3's cells, the factor search's curves and the notes' counts, reduced from per-star
-results read part by part (issue 27).
+results read part by part.
 
 A primary solution's per-star results are written in parts of :data:`PART_STARS` stars
 (:func:`parts_of`); the run reduces them to its tables in two passes over the parts, so no

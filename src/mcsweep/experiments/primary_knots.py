@@ -1,5 +1,5 @@
 """The epochs that place the attitude knots (``experiment.primary.knot_transits``), kept on a
-Dask cluster's workers (issue 27).
+Dask cluster's workers.
 
 With ``knot_transits`` the solver's knots are placed by the solution's live FoV transits: in
 each attitude segment, its first and last epoch, and the quantiles of its epochs at equal

@@ -1,4 +1,4 @@
-"""A primary solution's per-star results: their columns, and their parts (issue 27).
+"""A primary solution's per-star results: their columns, and their parts.
 
 The results of one solution (one row per star of the solution's table, solved or not) are
 made, written and read in parts of :data:`PART_STARS` stars (:func:`parts_of`), so neither

@@ -1,4 +1,4 @@
-"""The table of a global solution's stars kept on a Dask cluster, in sky order (issue 27).
+"""The table of a global solution's stars kept on a Dask cluster, in sky order.
 
 A primary solution holds every class in one sky order (:func:`~.global_classes.sky_order`:
 by HEALPix level-12 nested pixel, a pixel's stars in the classes' order, each class in its

@@ -52,7 +52,7 @@ TABLE3_COLUMNS = ("subset", "prior", "g_class", "n_stars", "n_valid", "n_inside"
 
 #: ``experiment.primary.subset_transits`` -> the per-star column that counts a star's FoV
 #: transits for the <= 4 / > 4 subsets: those observed (after the dead time, the default) or
-#: those the scanning law scheduled (issue 24, candidate 5: the paper does not say which).
+#: those the scanning law scheduled (the paper's Sect. 4.2 and Table 3 do not say which).
 SUBSET_COUNTS: Mapping[str, str] = MappingProxyType({"live": "n_fov", "scheduled": "n_fov_scheduled"})
 
 

@@ -1,4 +1,4 @@
-"""Real-sky validation of the prior: Hipparcos stars as truth (issue 25).
+"""Real-sky validation of the prior: Hipparcos stars as truth.
 
 The F90 prior (paper Sect. 3, Eqs. 14-17, or a sweep's refit) is meant for real stars.
 This experiment takes the Hipparcos 2 catalogue (van Leeuwen 2007, CDS I/311;
@@ -70,7 +70,8 @@ OUTPUTS = (CHUNKS_DIR, "real_sky.csv", "real_sky.md", "real_sky_errors.csv", "re
            "report.md", "report.html", "provenance.json")
 #: Stars per noise block (the unit of randomness).
 BLOCK_STARS = 1024
-#: |b| bands [deg] of the issue's numbers (0-15, 15-35, above 35).
+#: |b| bands [deg] in which the validation's targets are stated (0-15, 15-35, above 35;
+#: docs/galaxy_model.md).
 B_BANDS = ((0.0, 15.0), (15.0, 35.0), (35.0, 90.0))
 #: Truth variants (step 3 of the module notes).
 TRUTHS = ("hipparcos", "perturbed")

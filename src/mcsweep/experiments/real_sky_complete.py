@@ -1,14 +1,14 @@
-"""The real-sky fractions carried over to the complete sky (issue 25).
+"""The real-sky fractions carried over to the complete sky.
 
 Hipparcos 2 is complete only to its Survey limit, V = 7.9 + 1.1 sin|b| for spectral types
 earlier than G5 and 7.3 + 1.1 sin|b| for later ones (ESA 1997, The Hipparcos and Tycho
 Catalogues, ESA SP-1200, Vol. 1, Sect. 1.2); fainter stars are there only if an observing
 proposal asked for them. Against Gaia DR3's own stars (:mod:`mcsweep.population.gaia_bright`)
-it holds 86-97 % of the sky's G = 6-7 stars per |b| band and 60-87 % of the G = 7-8 ones;
-those it lacks are mostly red (docs/galaxy_model.md), i.e. distant giants. Kinds of star
-differ in how often their errors fall inside the P ellipse (measured with the fitted prior,
-two visits, G = 7-8: Hipparcos' red giants 96 %, its other stars 82-85 %), so the
-catalogue's mix of kinds sets a cell's fraction, not only the prior.
+it lacks part of the sky's G = 6-8 stars, more at G = 7-8 than at G = 6-7, mostly red ones
+(docs/galaxy_model.md), i.e. distant giants. Kinds of star differ in how often their errors
+fall inside the P ellipse (red giants more often than other stars; the measured fractions
+are in docs/research_notes_moved.md), so the catalogue's mix of kinds sets a cell's
+fraction, not only the prior.
 
 Here each cell's fraction is carried over to the complete sky by colour and magnitude: the
 stars of the cell, Hipparcos' and the Gaia stars it lacks

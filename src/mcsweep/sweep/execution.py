@@ -168,9 +168,9 @@ def release_free_memory() -> None:
 
     Numpy arrays below glibc's mmap threshold (up to 32 MB) live in the heap; a stage that
     builds many such arrays and keeps some of them (the primary experiment's blocks of
-    stars) leaves free holes between them that the allocator keeps. Measured after the
-    primary experiment's observations stage, 3 x 1e5 stars: resident memory 1.47 -> 1.02 GB.
-    A no-op where glibc is not the C library.
+    stars) leaves free holes between them that the allocator keeps, and trimming returns them
+    (the measured saving is in docs/research_notes_moved.md). A no-op where glibc is not the
+    C library.
     """
     import ctypes
     import ctypes.util

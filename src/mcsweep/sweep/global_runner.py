@@ -1,8 +1,9 @@
 """The one path every global experiment runs along (paper Sect. 4: Tables 2 and 3).
 
 A global experiment (the secondary solution, Sect. 4.1; the primary solution, Sect.
-4.2; the real-sky validation of issue 25) is a :class:`GlobalExperiment`: what is specific
-to it. :func:`run_global` owns the rest, in this order:
+4.2; the real-sky validation with Hipparcos stars, :mod:`mcsweep.experiments.real_sky`) is
+a :class:`GlobalExperiment`: what is specific to it. :func:`run_global` owns the rest, in
+this order:
 
 1. provenance: refuse a run directory of another config; record the resolved reference
    epoch under ``derived.<kind>``;
@@ -78,7 +79,7 @@ class GlobalExperiment:
     #: stars); None: :attr:`groups` drawn from ``config.population``.
     draw: Callable | None = None
     #: config -> whether :attr:`compute` draws the classes itself, on a cluster's workers (the
-    #: primary solution with ``execution=dask``, issue 27: the stars never reach the driver);
+    #: primary solution with ``execution=dask``, so that the stars never reach the driver);
     #: :func:`run_global` then only checks the population config and leaves ``classes`` empty.
     draws_on_workers: Callable = lambda config: False
 

@@ -97,9 +97,9 @@ def solution_line(label: str, extra: dict) -> str:
 
 
 def few_transit_spans(cells: CellReduction) -> str:
-    """The note on the <= 4 transit subset's time spans (issue 24, candidate 5): whether its
-    stars were seen in one visit or in several months apart decides their errors. From the
-    solutions' cells (the subset as the table counts it, of the stars with live transits)."""
+    """The note on the <= 4 transit subset's time spans: whether its stars were seen in one
+    visit or in several months apart decides their errors. From the solutions' cells (the
+    subset as the table counts it, of the stars with live transits)."""
     parts = []
     for g in cells.g_classes:
         got = cells.span_summary(g)
@@ -185,9 +185,7 @@ def _solve(run: GlobalRun, data, label: str, client: Callable, start: tuple | No
         except AttitudeNotDetermined as exc:
             # The knots are closer than these stars' transits can fix under this prior: found
             # only when the prior's Schur block is factorised, after the solutions before it
-            # (the 1000 mas solution at the paper's sizes with knot_transits = 25 ended here,
-            # 90 min in, until the Schur absorption of ill-conditioned stars took its orthogonal
-            # form: docs/table3.md). Not a bad value as such (the same setting works for the
+            # (docs/table3.md). Not a bad value as such (the same setting works for the
             # other priors and on other data), so like a solution that did not converge: one
             # line, exit status 3, no table3, and the finished solutions kept for a rerun.
             raise NotConvergedError(
@@ -395,7 +393,9 @@ def _started(extra: dict) -> str:
 
 
 def calibration_note(pri, extras: dict) -> str | None:
-    """The calibration solved with the stars and attitude (issue 24, candidate 3), per prior."""
+    """The calibration solved with the stars and attitude, per prior: a basic-angle variation
+    (``basic_angle_harmonics``; Sect. 5 of the paper names geometric calibration parameters as
+    part of a primary solution)."""
     if not pri.basic_angle_harmonics:
         return None
     per = "; ".join(f"{k}: " + ", ".join(f"{n} {1e3 * v:.2f}" for n, v in e.get("basic_angle_mas", {}).items())

@@ -1,4 +1,4 @@
-"""The real-sky validation (issue 25) on the global path.
+"""The real-sky validation (Hipparcos stars as truth) on the global path.
 
 The science lives in :mod:`mcsweep.experiments.real_sky`; the shared path (provenance,
 chunk store and resume, aggregation, atomic tables) in :mod:`mcsweep.sweep.global_runner`.

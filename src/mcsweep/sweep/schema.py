@@ -333,7 +333,7 @@ class SecondaryConf:
 
 @dataclass
 class RealSkyConf:
-    """Real-sky validation with Hipparcos stars as truth (issue 25); documented in
+    """Real-sky validation with Hipparcos stars as truth; documented in
     conf/experiment/real_sky.yaml and :mod:`mcsweep.experiments.real_sky`."""
 
     #: G range of the Hipparcos stars (G derived from Hp and the colours).
@@ -456,7 +456,7 @@ class PrimaryConf:
 @dataclass
 class ExperimentConf:
     #: 'f90_sweep' (Sect. 3, main job), 'secondary' (Sect. 4.1), 'primary' (Sect. 4.2) or
-    #: 'real_sky' (Hipparcos stars as truth, issue 25).
+    #: 'real_sky' (Hipparcos stars as truth).
     name: str = "f90_sweep"
     showcase: ShowcaseConf = field(default_factory=ShowcaseConf)
     secondary: SecondaryConf = field(default_factory=SecondaryConf)
@@ -541,7 +541,7 @@ class Config:
 #: left out of the config hash (:func:`mcsweep.sweep.provenance.config_hash`), and a
 #: command line setting them gets a one-line warning (:func:`mcsweep.sweep.validate.ignored_settings`).
 #: ``observations.reference_epoch`` is not listed: the global experiments take their
-#: reference epoch from the config (issue 11).
+#: reference epoch from the config (a mean epoch of observation, paper Sect. 2.1, or a date).
 IGNORED_BY_EXPERIMENT: Dict[str, tuple] = {
     # experiment.primary (added later) is ignored by the others so their config hashes stay as they were.
     # experiment.real_sky likewise (added after primary).

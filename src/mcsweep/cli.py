@@ -34,8 +34,8 @@ from .sweep.schema import register_configs
 from .sweep.validate import ignored_settings, preflight, to_config
 
 # The experiments, their runners and the report are imported by the job that needs them
-# (run_job): a mistyped override ends in 1.8 s instead of waiting 3.7 s for scipy.stats,
-# matplotlib and astropy to load.
+# (run_job): a mistyped override ends before scipy.stats, matplotlib and astropy are loaded,
+# which take seconds.
 
 __all__ = ["main"]
 

@@ -67,7 +67,7 @@ def chi2_threshold(P, dof: int = 2) -> float:
 @lru_cache(maxsize=64)
 def _chi2_ppf(p: float, dof: int) -> float:
     # Memoised: a sweep asks for the same quantile ~10^5 times, and scipy's ppf costs
-    # ~0.2 ms per call (a fifth of a pencil-beam cell's time before this cache).
+    # ~0.2 ms per call.
     return float(stats.chi2.ppf(p, dof))
 
 

@@ -26,6 +26,7 @@ from .document import FIG_DIR, Document, counts_text, plain
 from .fit import PAPER_COEFFICIENTS, evaluate_formula, fit_all
 from .primary_section import primary_section
 from .real_sky_section import real_sky_section
+from .scanning_note import extrapolation_para
 from .secondary_section import secondary_section
 
 __all__ = ["build_report", "SECTION_BUILDERS", "REQUIRED_RESULTS", "sweep_section", "provenance_section",
@@ -50,13 +51,6 @@ def _f90_table(cells: pd.DataFrame) -> pd.DataFrame:
     at = cells[cells["at_f90"]].pivot_table(index="cell_id", columns="case", values="fraction_inside")
     at.columns = [f"fraction_at_f90_{c}" for c in at.columns]
     return base.merge(at, left_on="cell_id", right_index=True, how="left").reset_index(drop=True)
-
-
-def extrapolation_para(doc: Document, prov: dict) -> None:
-    """One paragraph when the run's interval reaches outside the scanning law's validity (issue 28)."""
-    note = (prov.get("derived", {}).get("scanning") or {}).get("extrapolated")
-    if note:
-        doc.para(f"Scanning law: {note}.")
 
 
 def sweep_section(doc: Document, run_dir: Path, prov: dict) -> None:

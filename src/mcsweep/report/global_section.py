@@ -30,6 +30,7 @@ from ..errors import UserInputError
 from ..experiments.global_priors import parse_prior
 from ..experiments.global_table import FRACTION_INTERVAL, SUBSET_TITLES, g_label, subset_counts, table_cell
 from .document import Document, plain
+from .scanning_note import extrapolation_para
 
 __all__ = ["section_config", "global_section", "key_numbers", "difference_sentence", "largest_difference",
            "find_row", "readable_table"]
@@ -173,8 +174,6 @@ def global_section(doc: Document, run_dir: Path, prov: dict, *, kind: str, headi
     doc.para(lead)
     doc.bullets(items)
     doc.para(difference_sentence(table, label, cause))
-    from .build import extrapolation_para
-
     extrapolation_para(doc, prov)
 
     doc.heading(f"{table_name} in the paper's layout", level=3)

@@ -25,6 +25,7 @@ import pandas as pd  # noqa: E402
 from ..experiments.global_table import FRACTION_INTERVAL  # noqa: E402
 from .document import Document, plain  # noqa: E402
 from .global_section import readable_table, section_config  # noqa: E402
+from .scanning_note import extrapolation_para  # noqa: E402
 
 __all__ = ["real_sky_section", "plot_fraction_by_band", "FIGURE"]
 
@@ -113,6 +114,8 @@ def real_sky_section(doc: Document, run_dir: Path, prov: dict) -> None:
                      f"x the median sigma_F90 of the paper's prior over the |b| band x G bin cells "
                      f"(median e_Plx {plain(np.nanmedian(errors['median_parallax_error_mas']), '.2g')} mas).")
     doc.bullets(items)
+    # Where every global section says it (the real-sky run is one, run_global records the note).
+    extrapolation_para(doc, prov)
     fig = plot_fraction_by_band(table, case, p, run_dir / FIGURE)
     doc.figure(fig.name, f"Fraction inside the {100 * p:g} % ellipse per |b| band and prior, case '{case}', "
                          f"with {100 * FRACTION_INTERVAL:g} % Clopper-Pearson intervals.")

@@ -147,6 +147,6 @@ def test_table1_beam_with_agg92(agg_model):
                    "DR3's at G = 4-14 (G = 6-10: 0.88-0.90): the subgiants are missing (the default has "
                    "them; issue 25, docs/galaxy_model.md)")
 def test_all_sky_counts_with_agg92_within_8_percent(agg_model):
-    from mcsweep.report import published_counts as pc
+    from mcsweep.validation import published_counts as pc
     ratios = pc.count_comparison(agg_model, list(range(4, 14))).ratio_gaia
     assert np.all(np.abs(ratios - 1.0) <= 0.08)

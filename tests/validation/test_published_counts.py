@@ -1,6 +1,6 @@
 """The built-in galaxy model against published facts about the real sky (issue #14).
 
-References and their uncertainties: :mod:`mcsweep.report.published_counts` and
+References and their uncertainties: :mod:`mcsweep.validation.published_counts` and
 docs/galaxy_model.md. Tolerances are the issue's targets; each comparison also prints
 the published number's own uncertainty (Poisson and systematic).
 """
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from mcsweep.population import GalaxyModel
-from mcsweep.report import published_counts as pc
+from mcsweep.validation import published_counts as pc
 
 #: Issue #14 targets.
 COUNT_TOL = 0.10        # all-sky counts per G magnitude

@@ -3,7 +3,7 @@
 import numpy as np
 
 from mcsweep.population import GalaxyModel
-from mcsweep.report.population_validation import healpix48_centres, ratio_table
+from mcsweep.validation.population_validation import healpix48_centres, ratio_table
 
 #: Issue #4: sigma_F90 is 0.5-0.8 x p90(parallax) in GUMS; accept 0.4-1.0 in most cells.
 MIN_FRACTION_IN_RANGE = 0.8
@@ -23,7 +23,7 @@ def test_footnote_ratio_at_g15():
 
 
 def test_issue14_section_writes_its_tables_and_figures(tmp_path):
-    from mcsweep.report.population_validation import _published_section
+    from mcsweep.validation.population_validation import _published_section
 
     lines = _published_section(tmp_path, GalaxyModel(), np.random.default_rng(14))
     for name in ("published_counts.csv", "published_counts.png", "local_lf.csv", "local_lf.png",

@@ -33,7 +33,7 @@ holds): ``plx90_hip_carried``, ``pm50_hip_carried`` and their ratios.
 
 Usage::
 
-    python -m mcsweep.report.hipparcos_population [--extinction-model arenou1992]
+    python -m mcsweep.validation.hipparcos_population [--extinction-model arenou1992]
         [--giant-thickness-factor 0.6] [--thin-disc-factor 1.18] [--[no-]subgiants]
         [--by-absolute-magnitude | --gaia-counts] [--out FILE.csv]
 
@@ -251,7 +251,7 @@ def gaia_band_counts(model, g_bins=((6.0, 7.0), (7.0, 8.0), (8.0, 9.0), (9.0, 10
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(prog="python -m mcsweep.report.hipparcos_population",
+    ap = argparse.ArgumentParser(prog="python -m mcsweep.validation.hipparcos_population",
                                  description=__doc__.split("\n\n")[0])
     ap.add_argument("--extinction-model", default=None, help="galaxy model extinction_model")
     ap.add_argument("--giant-thickness-factor", type=float, default=None,

@@ -1,4 +1,4 @@
-"""report.hipparcos_population on a small draw (issue 25): the Hipparcos side is the
+"""validation.hipparcos_population on a small draw (issue 25): the Hipparcos side is the
 bundled catalogue, the model side its expectation and a seeded sample."""
 
 import numpy as np
@@ -6,7 +6,7 @@ import pandas as pd
 import pytest
 
 from mcsweep.population import GalaxyModel
-from mcsweep.report import hipparcos_population as hp
+from mcsweep.validation import hipparcos_population as hp
 
 #: Hipparcos 2 stars with 6 <= G < 7 per |b| band 0-15 / 15-35 / 35-90 deg (the real-sky
 #: validation's counts of the same catalogue, docs/galaxy_model.md).

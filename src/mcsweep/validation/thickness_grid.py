@@ -21,7 +21,7 @@ profiles the factors imply, to set against the published scale heights:
 
 Usage::
 
-    python -m mcsweep.report.thickness_grid --extinction-model arenou1992 \\
+    python -m mcsweep.validation.thickness_grid --extinction-model arenou1992 \\
         --giant 0.45,0.6,0.8,1.0 --thin 1.0,1.15,1.3,1.45 [--[no-]subgiants] [--out FILE.csv]
 """
 
@@ -111,7 +111,7 @@ def _floats(text, name):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(prog="python -m mcsweep.report.thickness_grid",
+    ap = argparse.ArgumentParser(prog="python -m mcsweep.validation.thickness_grid",
                                  description=__doc__.split("\n\n")[0])
     ap.add_argument("--extinction-model", default="arenou1992")
     ap.add_argument("--giant", default="0.45,0.6,0.8,1.0", help="giants' thickness factors")

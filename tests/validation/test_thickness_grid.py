@@ -1,9 +1,9 @@
-"""report.thickness_grid: the vertical heights the thickness factors imply (issue 25)."""
+"""validation.thickness_grid: the vertical heights the thickness factors imply (issue 25)."""
 
 import pytest
 
 from mcsweep.population import GalaxyModel
-from mcsweep.report import thickness_grid as tg
+from mcsweep.validation import thickness_grid as tg
 
 #: Relative agreement of heights that scale with a factor: approximate, as the Einasto law
 #: (a^2 = R^2 + z^2 / eps^2) is not self-similar in z alone (measured: 1.00-1.05 x for the

@@ -155,3 +155,46 @@ def test_command_writes_every_output_format(tmp_path, suffix):
     if suffix in (".fits", ".vot", ".ecsv", ".parquet"):
         assert got["sigma_f90_parallax"].unit == u.mas
     assert [p.name for p in tmp_path.iterdir()] and not list(tmp_path.glob(".*.tmp"))
+
+
+#: ``mcsweep-prior annotate`` whose write stops after the annotated rows are on disk (name of the
+#: temporary to READY, then asleep), so that the test can SIGKILL it mid-write.
+_STALLED_ANNOTATE = """
+import sys, time
+from pathlib import Path
+import mcsweep.prior.annotate as annotate
+from mcsweep import prior_cli
+real, ready = annotate.annotate_file, Path(sys.argv[1])
+def stalled(src, dst, *a, **k):
+    real(src, dst, *a, **k)
+    ready.write_text(str(dst))
+    time.sleep(600)
+annotate.annotate_file = stalled
+prior_cli.main(sys.argv[2:])
+"""
+
+
+def test_a_killed_annotate_leaves_a_temporary_that_the_next_one_removes(tmp_path):
+    import signal
+    import time
+
+    src, out, side = tmp_path / "in.csv", tmp_path / "out.csv", tmp_path / "side"
+    side.mkdir()
+    _stars().to_pandas().to_csv(src, index=False)
+    ready = side / "ready"
+    proc = subprocess.Popen([sys.executable, "-c", _STALLED_ANNOTATE, str(ready), "annotate", str(src),
+                             "--out", str(out), "--paper"])
+    deadline = time.monotonic() + 120
+    while not ready.exists() or not ready.read_text():
+        assert proc.poll() is None and time.monotonic() < deadline, "annotate did not start its write"
+        time.sleep(0.02)
+    proc.send_signal(signal.SIGKILL)
+    assert proc.wait(timeout=60) == -signal.SIGKILL
+    stale = Path(ready.read_text())
+    assert stale.parent == tmp_path and stale.name.startswith(".out.csv.") and stale.stat().st_size > 0
+    other = tmp_path / ".out.parquet.k1ll3d00.tmp"  # another output's, left by another killed run
+    other.write_bytes(b"partial")
+    r = run("annotate", src, "--out", out, "--paper")
+    assert r.returncode == 0, r.stderr
+    assert not stale.exists() and other.exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([other.name, "in.csv", "out.csv", "side"])

@@ -4,6 +4,7 @@ import pandas as pd
 import pytest
 
 import os
+from pathlib import Path
 
 from mcsweep.sweep.store import CellStore, atomic_write_bytes, current_umask
 
@@ -86,3 +87,81 @@ def test_finished_counts_only_whole_results_of_this_config(tmp_path):
     CellStore(tmp_path, "other").write("c4", pd.DataFrame({"a": [1.0]}))
     (tmp_path / ".c5.parquet.x1.tmp").write_bytes((tmp_path / "c1.parquet").read_bytes())  # a killed write's temporary
     assert CellStore(tmp_path, "h1", version="a later version").finished() == ["c1", "c3"]
+
+
+#: Writes OUT atomically and stops mid-write: the temporary's name goes to READY, then it sleeps.
+_WRITER = """
+import sys, time
+from pathlib import Path
+from mcsweep.sweep.store import atomic_write_via
+out, ready = Path(sys.argv[1]), Path(sys.argv[2])
+def write(tmp):
+    tmp.write_bytes(b"partial")
+    ready.write_text(str(tmp))
+    time.sleep(600)
+atomic_write_via(out, write)
+"""
+
+
+def _writer_mid_write(out, tmp_path):
+    """(the process, its temporary) once it is inside ``write``."""
+    import subprocess
+    import sys
+    import time
+
+    ready = tmp_path / f"ready-{out.name}-{time.monotonic_ns()}"
+    proc = subprocess.Popen([sys.executable, "-c", _WRITER, str(out), str(ready)])
+    deadline = time.monotonic() + 120
+    while not ready.exists() or not ready.read_text():
+        assert proc.poll() is None and time.monotonic() < deadline, "the writer did not start its write"
+        time.sleep(0.02)
+    return proc, Path(ready.read_text())
+
+
+def _killed_mid_write(out, tmp_path):
+    import signal
+
+    proc, tmp = _writer_mid_write(out, tmp_path)
+    proc.send_signal(signal.SIGKILL)
+    assert proc.wait(timeout=60) == -signal.SIGKILL
+    assert tmp.exists()  # what a SIGKILLed write leaves: no handler of its own ran
+    return tmp
+
+
+def test_a_write_removes_what_a_killed_write_of_the_same_output_left(tmp_path):
+    import signal
+
+    d = tmp_path / "out"
+    d.mkdir()
+    stale = _killed_mid_write(d / "cat.csv", tmp_path)
+    other = _killed_mid_write(d / "other.csv", tmp_path)
+    longer = _killed_mid_write(d / "cat.csv.gz", tmp_path)  # its name starts with the output's
+    live, held = _writer_mid_write(d / "cat.csv", tmp_path)
+    try:
+        atomic_write_bytes(d / "cat.csv", b"whole")
+        assert (d / "cat.csv").read_bytes() == b"whole"
+        assert not stale.exists()
+        assert other.exists() and longer.exists()  # another output's temporaries are not its own
+        assert held.exists() and held.read_bytes() == b"partial"  # a live write's is left alone
+    finally:
+        live.send_signal(signal.SIGKILL)
+        live.wait(timeout=60)
+    # Once its writer is dead the kernel has released its lock: the next write takes it.
+    atomic_write_bytes(d / "cat.csv", b"again")
+    assert not held.exists() and other.exists() and longer.exists()
+    assert sorted(p.name for p in d.iterdir()) == sorted([longer.name, other.name, "cat.csv"])
+
+
+def test_a_cell_store_clears_only_unheld_temporaries(tmp_path):
+    import signal
+
+    d = tmp_path / "cells"
+    proc, held = _writer_mid_write(d / "c1.parquet", tmp_path)
+    try:
+        stale = d / ".c2.parquet.abc123.tmp"  # no process holds it: a killed write's
+        stale.write_bytes(b"partial")
+        assert CellStore(d, "h1").remove_stale_temporaries() == 1
+        assert not stale.exists() and held.exists()
+    finally:
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(timeout=60)

@@ -2,7 +2,9 @@
 
 A cell file is written to a temporary name in the same directory, flushed and
 renamed over the final name (``os.replace`` is atomic on POSIX), so a killed worker
-leaves either no file or a whole one. A file counts as finished only if it parses as
+leaves either no file or a whole one, and at most a temporary, which the next write of
+the same file removes (:func:`atomic_write_via`: the writer's ``flock`` on it tells a
+live write's from a killed one's). A file counts as finished only if it parses as
 Parquet, carries this run's config hash and the cell's identity in its metadata, and
 its table checksum matches; anything else (truncated, foreign, from another config)
 is recomputed with a warning.
@@ -16,9 +18,11 @@ resumed run after an upgrade must not mix results of two codes silently.
 
 from __future__ import annotations
 
+import fcntl
 import hashlib
 import json
 import os
+import stat
 import tempfile
 import warnings
 from collections import Counter
@@ -59,6 +63,36 @@ def current_umask() -> int:
     return mask
 
 
+def _held_temporary(path: Path) -> tuple[int, str]:
+    """A new temporary for ``path`` (``.NAME.XXXX.tmp`` beside it) and an open descriptor
+    holding an exclusive ``flock`` on it, kept until the write ends.
+
+    The lock is what tells a live write from a killed one (:func:`remove_temporaries`):
+    the kernel drops it when the process ends, SIGKILL included, and it belongs to this
+    open file, so ``write`` opening and closing the name does not release it (flock(2);
+    on NFS, where Linux emulates flock with POSIX record locks, that close does release
+    it, so there two processes writing the same output at once could take each other's
+    temporary for a killed write's). A process id in the name could not tell so safely:
+    a dead writer's id may be a live process's by now, and a writer on another host
+    sharing the file system has an id that means nothing here.
+    """
+    while True:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX)
+            # Between mkstemp and the lock a clean-up may have taken the unheld file for a
+            # killed write's and removed it: then the name is no longer this file.
+            if os.path.samestat(os.fstat(fd), os.stat(tmp)):
+                return fd, tmp
+        except FileNotFoundError:
+            pass
+        except BaseException:
+            os.close(fd)
+            Path(tmp).unlink(missing_ok=True)
+            raise
+        os.close(fd)
+
+
 def atomic_write_via(path: Path, write) -> None:
     """Call ``write(tmp_path)`` and move the finished file to ``path`` in one step.
 
@@ -67,13 +101,18 @@ def atomic_write_via(path: Path, write) -> None:
     normally (``0o666 & ~umask``: 0644 under the usual 022), not the 0600 of its
     private temporary name, so colleagues sharing the run directory on a cluster file
     system can read it; it is flushed to disk before it replaces ``path``.
+
+    A process killed during ``write`` (SIGKILL, the out-of-memory killer) cannot remove
+    its temporary; this write first removes those a killed write of the same ``path``
+    left (``remove_temporaries(path.parent, of=path.name)``: one listing of the
+    directory), never one a live write holds.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    remove_temporaries(path.parent, of=path.name)
+    lock_fd, tmp = _held_temporary(path)
     try:
-        os.fchmod(fd, 0o666 & ~current_umask())
-        os.close(fd)
+        os.fchmod(lock_fd, 0o666 & ~current_umask())
         write(Path(tmp))
         # A writer may have replaced the file (then it has the normal mode already).
         fd = os.open(tmp, os.O_RDONLY)
@@ -92,20 +131,61 @@ def atomic_write_via(path: Path, write) -> None:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+    finally:
+        os.close(lock_fd)
 
 
-def remove_temporaries(directory, *, recursive: bool = False) -> int:
+def _is_temporary(name: str, of: str | None) -> bool:
+    """Whether ``name`` is a temporary of :func:`atomic_write_via`; with ``of``, one of the
+    output named so only: ``.OF.XXXX.tmp`` with no dot in XXXX (mkstemp's random part has
+    none), so ``.a.csv.gz.XXXX.tmp`` of the output ``a.csv.gz`` is not one of ``a.csv``."""
+    if of is None:
+        return name.startswith(".") and name.endswith(".tmp")
+    prefix = f".{of}."
+    middle = name[len(prefix):-len(".tmp")]
+    return name.startswith(prefix) and name.endswith(".tmp") and bool(middle) and "." not in middle
+
+
+def _remove_if_unheld(p: Path) -> bool:
+    """Delete the temporary ``p`` unless a live write holds its lock (:func:`_held_temporary`)."""
+    try:
+        fd = os.open(p, os.O_RDONLY | os.O_NOFOLLOW)
+    except OSError:  # gone meanwhile, a symbolic link, or not ours to read
+        return False
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            return False
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:  # held: its writer is alive
+            return False
+        # Deleted while held, and only if the name is still this file: a writer that has
+        # just created it and not yet locked it finds its name gone and makes another.
+        try:
+            if not os.path.samestat(os.fstat(fd), os.stat(p)):
+                return False
+        except FileNotFoundError:
+            return False
+        p.unlink(missing_ok=True)
+        return True
+    finally:
+        os.close(fd)
+
+
+def remove_temporaries(directory, *, recursive: bool = False, of: str | None = None) -> int:
     """Delete the temporaries of :func:`atomic_write_via` (``.NAME.XXXX.tmp``) in ``directory``
-    (and below it with ``recursive``); their number. Call only when no write is running:
-    a killed writer never removes its own, and they are never valid results."""
+    (and below it with ``recursive``) that no live write holds; their number. With ``of``,
+    only those of the output of that name. A killed writer never removes its own, and they
+    are never valid results; a live writer's lock keeps its own (:func:`_held_temporary`)."""
     directory = Path(directory)
     if not directory.is_dir():
         return 0
-    n = 0
-    for p in (directory.rglob if recursive else directory.glob)(".*.tmp"):
-        p.unlink(missing_ok=True)
-        n += 1
-    return n
+    if recursive:
+        found = directory.rglob(".*.tmp")
+    else:
+        with os.scandir(directory) as entries:
+            found = [Path(e.path) for e in entries if _is_temporary(e.name, of)]
+    return sum(_remove_if_unheld(p) for p in found if _is_temporary(p.name, of))
 
 
 def atomic_write_bytes(path: Path, data: bytes) -> None:

@@ -1,4 +1,4 @@
-"""validation.hipparcos_population on a small draw (issue 25): the Hipparcos side is the
+"""validation.hipparcos_population on a small draw: the Hipparcos side is the
 bundled catalogue, the model side its expectation and a seeded sample."""
 
 import numpy as np

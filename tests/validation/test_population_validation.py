@@ -5,7 +5,7 @@ import numpy as np
 from mcsweep.population import GalaxyModel
 from mcsweep.validation.population_validation import healpix48_centres, ratio_table
 
-#: Issue #4: sigma_F90 is 0.5-0.8 x p90(parallax) in GUMS; accept 0.4-1.0 in most cells.
+#: The paper's footnote (Sect. 3.4): sigma_F90 is 0.5-0.8 x p90(parallax) in GUMS; accept 0.4-1.0 in most cells.
 MIN_FRACTION_IN_RANGE = 0.8
 
 
@@ -22,7 +22,7 @@ def test_footnote_ratio_at_g15():
     assert inside >= MIN_FRACTION_IN_RANGE, cells.sort_values("ratio")
 
 
-def test_issue14_section_writes_its_tables_and_figures(tmp_path):
+def test_the_calibration_section_writes_its_tables_and_figures(tmp_path):
     from mcsweep.validation.population_validation import _published_section
 
     lines = _published_section(tmp_path, GalaxyModel(), np.random.default_rng(14))
@@ -33,3 +33,14 @@ def test_issue14_section_writes_its_tables_and_figures(tmp_path):
     text = "\n".join(lines)
     assert "Bovy 2017 MS" in text and "GCNS 60 pc" in text and "CNS5 25 pc" in text
     assert "Local density per spectral class" in text and "M + white dwarfs (CNS5)" in text
+
+
+def test_an_out_that_is_a_file_is_one_line_and_exit_2(tmp_path, capsys):
+    from mcsweep.validation.population_validation import main
+
+    taken = tmp_path / "a_file"
+    taken.write_text("x")
+    assert main(["--out", str(taken)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("population_validation: --out=") and "a_file" in err[0]
+    assert taken.read_text() == "x"

@@ -1,7 +1,7 @@
-"""The built-in galaxy model against published facts about the real sky (issue #14).
+"""The built-in galaxy model against published facts about the real sky (its calibration targets).
 
 References and their uncertainties: :mod:`mcsweep.validation.published_counts` and
-docs/galaxy_model.md. Tolerances are the issue's targets; each comparison also prints
+docs/galaxy_model.md. Tolerances are the calibration's targets; each comparison also prints
 the published number's own uncertainty (Poisson and systematic).
 """
 
@@ -19,7 +19,8 @@ GUMS_BEAM_COUNT = 458
 LF_TOL = 0.20           # local luminosity function per 1-mag bin
 #: Relative rounding of a density published with 3 significant digits (CNS5: 7.99e-2, 4.03e-3).
 CNS5_ROUNDING = 0.005 / 4.03
-#: The issue's target against the real sky's counts (issue 25: "within 8 % as today").
+#: The target against the real sky's counts: within 8 %, what the model met when Gaia DR3's
+#: counts became the reference (docs/galaxy_model.md).
 GAIA_COUNT_TOL = 0.08
 #: G bins compared with Tycho-2 (V < 10.25 with G - V = -0.25: the Tycho-2 part of the
 #: compilation, its magnitudes V-like and complete).
@@ -98,7 +99,7 @@ def test_faint_total_at_least_gaia_dr3(model):
 
 
 def test_faint_total_against_gums(model):
-    # GUMS-10 is a model itself (issue #14's 10 % target); 1.05 x with besancon-r03-5, 1.23 x with
+    # GUMS-10 is a model itself (a 10 % target); 1.05 x with besancon-r03-5, 1.23 x with
     # r03-4's disc dust
     assert model.expected_count(0, 90, 180, -5, 20) == pytest.approx(pc.GUMS_G20, rel=COUNT_TOL)
 
@@ -137,13 +138,13 @@ def test_table1_beam_within_target(model):
 @pytest.mark.parametrize("cls", [
     pytest.param("A", marks=pytest.mark.xfail(
         strict=True, reason="A stars: model 3.5e-4 sources pc^-3 (Bovy 2017 PDMF) = 0.72 x "
-        "Mamajek's 4.9e-4 +- 0.66e-4 (Hipparcos-2, 30 pc), 2.1 sigma low (issue #14)")),
+        "Mamajek's 4.9e-4 +- 0.66e-4 (Hipparcos-2, 30 pc), 2.1 sigma low (docs/galaxy_model.md)")),
     "F", "G", "K", "M", "M + white dwarfs",
     pytest.param("M + white dwarfs (CNS5)", marks=pytest.mark.xfail(
         strict=True, reason="model 7.98e-2 stars pc^-3 in the M range (sources x 1.27) = 1.30 x "
         "CNS5's M dwarfs + white dwarfs, 6.16e-2 +- 0.09e-2 (Golovin et al. 2023: about 72 % of "
         "7.99e-2, + 4.03e-3); 1.02 x with one star per source; RECONS + Holberg: 1.10 x "
-        "(issue #14)"))])
+        "(docs/galaxy_model.md)"))])
 def test_local_density_per_spectral_class(model, cls):
     row = pc.local_density_by_class(model).set_index("cls").loc[cls]
     print(f"{cls} (M_G {row.M_G_lo:.2f}-{row.M_G_hi:.2f}, {row.counts}): model {row.model:.3g}, "

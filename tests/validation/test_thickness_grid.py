@@ -1,4 +1,4 @@
-"""validation.thickness_grid: the vertical heights the thickness factors imply (issue 25)."""
+"""validation.thickness_grid: the vertical heights the thickness factors imply."""
 
 import pytest
 

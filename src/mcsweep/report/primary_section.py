@@ -44,9 +44,10 @@ def table3_cause(cell: pd.Series, table: pd.DataFrame) -> str:
         ten = find_row(table, cell["subset"], "10F90", cell["g_class"])
         contrast = (f" (ours with 10 sigma_F90 in the same cell: {100 * ten['fraction_inside']:.1f} %, paper "
                     f"{100 * ten['paper_fraction_inside']:.1f} %)" if ten is not None else "")
-        # The conclusion of issue 24 in two sentences (docs/table3.md, "Where issue 24 stands").
-        return ("the paper's sigma_F90 row falls further than ours" + contrast + ". Issue 24's six "
-                "candidates, each run at the paper's sizes (`docs/table3.md`, 'Where issue 24 stands'), reproduce "
+        # The conclusion of the search for the cause in two sentences (docs/table3.md, its
+        # candidates and the summary after them).
+        return ("the paper's sigma_F90 row falls further than ours" + contrast + ". Six candidate "
+                "causes, each run at the paper's sizes (`docs/table3.md`, the candidates and their summary), reproduce "
                 "neither that collapse nor the paper's honest 10 sigma_F90 and 1000 mas rows together: AGIS's "
                 "attitude freedom (`experiment.primary.knot_transits=25`) lets the prior's bias reach weakly "
                 "determined knots and costs sigma_F90 13-15 points more than 10 sigma_F90 at G ~ 11, a quarter of the "

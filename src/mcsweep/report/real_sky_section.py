@@ -1,4 +1,4 @@
-"""Report section of the real-sky validation (issue 25): Hipparcos stars as truth.
+"""Report section of the real-sky validation: Hipparcos stars as truth.
 
 Reads ``real_sky.csv``, ``real_sky_errors.csv`` and, where the run wrote it,
 ``real_sky_complete.csv`` (written by :func:`mcsweep.sweep.real_sky_runner.run_real_sky`).
@@ -77,7 +77,7 @@ def real_sky_section(doc: Document, run_dir: Path, prov: dict) -> None:
     priors = list(dict.fromkeys(table["prior"]))
     base = table[(table["truth"] == "hipparcos") & (table["g_bin"] == "all")]
 
-    doc.heading("Real-sky validation: Hipparcos stars as truth (issue 25)")
+    doc.heading("Real-sky validation: Hipparcos stars as truth")
     doc.para(f"Fraction of actual position errors inside the {100 * p:g} % confidence ellipse, ours "
              f"[{100 * FRACTION_INTERVAL:g} % Clopper-Pearson interval], case '{case}' (the case that defines "
              "sigma_F90, Sect. 3.3), all G, per |b| band:")

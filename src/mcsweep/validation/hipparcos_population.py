@@ -1,4 +1,4 @@
-"""The galaxy model's bright stars against Hipparcos 2 per |b| band (issue 25, items 2-3).
+"""The galaxy model's bright stars against Hipparcos 2 per |b| band: counts, parallaxes, proper motions.
 
 For G = 6-7 and 7-8 (Hipparcos is nearly complete at G = 6-7 away from the plane; in the plane
 Gaia DR3 holds 17 % more, red stars beyond its Survey limit: :func:`gaia_band_counts`) and the

@@ -3,10 +3,11 @@
 Run ``python -m mcsweep.validation.population_validation --out results/population_validation``.
 Writes ``report.md``, ``ratio_cells.csv``, ``counts.csv`` and three PNG figures.
 
-Checks (issue #4):
+Checks:
 
 1. Table 1 beam: 1 deg around (l, b) = (245.7, 46.5) deg, G = 15 +- 0.5 holds 458 GUMS
-   stars; the model should give 458 within +-10 % (issue #14).
+   stars; the model should give 458 within +-10 % (the target the model is calibrated to,
+   docs/galaxy_model.md).
 2. Median proper motion / parallax at G = 15: about 10 /yr in GUMS (paper Sect. 3.1);
    accepted range 6-15 /yr.
 3. The paper's footnote (Sect. 3.4): sigma_F90(l, b, G) of Eqs. 14-17 is about 0.5-0.8
@@ -17,7 +18,7 @@ Checks (issue #4):
    most 20 deg) with the sweep's own rule (:func:`mcsweep.experiments.pencil_beam.beam_radius`);
    up to 2000 stars are drawn per cell.
 4. All-sky counts per G magnitude against the published totals cited in the report.
-5. Issue #14 calibration facts (:mod:`.published_counts`): all-sky counts per 1-mag G
+5. The published facts the model is calibrated to (:mod:`.published_counts`): all-sky counts per 1-mag G
    bin against Tycho-2/UCAC4 and, with the optional extra ``realsky``, Gaia DR3's own
    counts at G < 10 (``published_counts.csv``, ``published_counts.png``), the
    sources within 100 pc against the Gaia Catalogue of Nearby Stars, the local
@@ -28,14 +29,17 @@ Checks (issue #4):
    CNS5 (``local_density_by_class.csv``/``.png``), the 90th percentile of parallax at G = 6-7 per
    |b| band (``bright_parallax.csv``), and the model version.
 
-It lives in the report stage because it uses the stages after the population: the prior
-(Eqs. 14-17), the sweep's directions and the pencil-beam widening.
+It uses the stages after the population (the prior's Eqs. 14-17, the sweep's directions and
+the pencil-beam widening), so it sits with the other validation tools, not in the population
+stage.
 """
 
 from __future__ import annotations
 
 import argparse
+import errno
 import os
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -56,7 +60,7 @@ BEAM = dict(l_deg=245.7, b_deg=46.5, radius_deg=1.0, g_min=14.5, g_max=15.5)
 GUMS_BEAM_COUNT = 458
 BEAM_TOLERANCE = 0.10
 MU_PLX_RANGE = (6.0, 15.0)       # 1/yr
-RATIO_RANGE = (0.4, 1.0)         # accepted range of sigma_F90 / p90 (issue)
+RATIO_RANGE = (0.4, 1.0)         # accepted range of sigma_F90 / p90, wider than the footnote's
 FOOTNOTE_RANGE = (0.5, 0.8)      # the paper's footnote
 MIN_STARS, MAX_STARS, MAX_RADIUS_DEG = 1000, 2000, 20.0
 #: Published all-sky numbers, each read in the cited place [V].
@@ -189,7 +193,7 @@ def _figures(out, cells, counts, published, model):
 
 def _bright_parallax(model, rng, n=300_000):
     """90th percentile and median of parallax and median total proper motion at G = 6-7
-    per |b| band (issue #14)."""
+    per |b| band, against Hipparcos' (docs/galaxy_model.md)."""
     # more draws from the density than one realisation holds, for stable percentiles
     df = model.sample_cone(0.0, 90.0, 180.0, 6.0, 7.0, rng, max_stars=n, min_draw=n)
     b = np.abs(df["b"].to_numpy())
@@ -235,8 +239,9 @@ def _fixed(value, digits: int) -> str:
 
 
 def _published_section(out, model, rng):
-    """Issue #14 facts: counts per G vs Tycho-2/UCAC4 and Gaia DR3 (the reference from G = 10 on,
-    issue 25), the local LF and censuses (CSV + PNG)."""
+    """The calibration facts: counts per G vs Tycho-2/UCAC4 and Gaia DR3 (the reference from
+    G = 10 on, where the compilation's UCAC4 part is too bright: :mod:`.published_counts`), the
+    local LF and censuses (CSV + PNG)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -285,7 +290,7 @@ def _published_section(out, model, rng):
     _class_figure(out / "local_density_by_class.png", by_class)
     fmt = lambda v: "" if not np.isfinite(v) else f"{v:.3g}"  # noqa: E731
     return [
-        "## 5. Calibration facts (issue #14; docs/galaxy_model.md)", "",
+        "## 5. Calibration facts (docs/galaxy_model.md)", "",
         f"Model version `{MODEL_VERSION}`.", "",
         "| G bin | model | published (Tycho-2/UCAC4, G - V = -0.25) | +- | model / published | Gaia DR3 "
         "| +- | model / Gaia DR3 |",
@@ -337,8 +342,8 @@ def _published_section(out, model, rng):
         "White dwarfs are not a separate population in the model (they sit in the Wielen/Allen "
         f"bins at M_V = 11-16); GCNS 60 pc holds {pc.GCNS60_WHITE_DWARFS}, CNS5 25 pc "
         f"{pc.CNS5_25PC['white_dwarfs']}.", "",
-        "### Parallaxes of the bright stars, G = 6-7 (issue #14: the model's 90th percentile was "
-        "0.71-0.82 of the real one in each band)", "",
+        "### Parallaxes of the bright stars, G = 6-7 (before the calibration the model's 90th "
+        "percentile was 0.71-0.82 of the real one in each band)", "",
         "| abs(b) [deg] | stars drawn (from the density) | 90th percentile parallax [mas] "
         "| median parallax [mas] | median total proper motion [mas/yr] |",
         "|---|---|---|---|---|",
@@ -407,7 +412,15 @@ def main(argv=None):
     args = ap.parse_args(argv)
     os.environ.setdefault("MPLBACKEND", "Agg")
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        if not os.access(out, os.W_OK):
+            raise PermissionError(errno.EACCES, "not writable")
+    except OSError as exc:
+        # before the model is built and drawn from, not in a traceback after it
+        print(f"population_validation: --out={args.out!r} is not accepted ({exc.strerror}); expected a "
+              "writable directory", file=sys.stderr)
+        return 2
     rng = np.random.default_rng(args.seed)
     model = GalaxyModel()
     beam = _beam_section(model, rng)

@@ -1,6 +1,6 @@
 """Published facts about the real sky that the built-in galaxy model is calibrated to.
 
-Issue #14; the table with sources and the before/after comparison is in
+The table with sources and the model before and after its calibration is in
 ``docs/galaxy_model.md``. Tags: [V] read in the cited place; [S] read in a secondary
 compilation of the cited catalogue; [M] standard value, not re-checked here.
 
@@ -73,7 +73,7 @@ compilation of the cited catalogue; [M] standard value, not re-checked here.
   samples are not corrected for unresolved multiplicity (sources). White dwarfs:
   5.0e-3 +- 0.7e-3 pc^-3 (Holberg, Oswalt & Sion 2002, ApJ 571, 512, abstract in the
   CDS ReadMe J/ApJ/571/512 [V]); the model has no white-dwarf population.
-* Not found in the sources searched for issue #14 (list in docs/galaxy_model.md): the
+* Not found in the sources searched for the calibration (list in docs/galaxy_model.md): the
   GCNS or CNS5 luminosity function per 1-mag M_G bin (both papers show it as a figure;
   no table, CDS file or repository holds the values), and published all-sky counts per
   G (or V) magnitude at G = 15-19 or per Galactic-latitude band.

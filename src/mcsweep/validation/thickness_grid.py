@@ -1,10 +1,10 @@
-"""The thin-disc and giants' thickness factors against published facts, on a grid (issue 25).
+"""The thin-disc and giants' thickness factors against published facts, on a grid.
 
-Repeats issue #14's calibration of ``thin_disc_scale_height_factor`` and
-``giant_thickness_factor`` (docs/galaxy_model.md) for a given extinction model, from the
+Calibrates ``thin_disc_scale_height_factor`` and ``giant_thickness_factor``
+(docs/galaxy_model.md) for a given extinction model, from the
 model's expected counts (no sampling): per (giants' factor, thin-disc factor) the all-sky
 counts per 1-mag G bin over Tycho-2/UCAC4 (``G4`` ...) and over Gaia DR3 (``gaia_G4`` ...;
-the reference from G = 10 on, where the compilation is too bright; issue 25) from
+the reference from G = 10 on, where the compilation is too bright) from
 :func:`.published_counts.count_comparison`,
 the paper's Table 1 beam (458 GUMS stars), N(G < 20) and N(G < 21), and the vertical
 profiles the factors imply, to set against the published scale heights:

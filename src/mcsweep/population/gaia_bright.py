@@ -37,7 +37,7 @@ from astropy.time import Time
 from erfa import ErfaWarning  # pyerfa comes with astropy
 
 from ..errors import UserInputError
-from ..prior.frames import galactic_from_icrs
+from ..galactic import galactic_from_icrs
 from .hipparcos import load_hipparcos
 
 __all__ = ["EXTRA_MESSAGE", "G_LIMIT", "PACKAGE_VERSION", "have_catalogue", "load_gaia_bright", "parse_records",

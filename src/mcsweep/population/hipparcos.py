@@ -37,7 +37,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import UserInputError
-from ..prior.frames import galactic_from_icrs
+from ..galactic import galactic_from_icrs
 
 __all__ = ["EXTRA_MESSAGE", "HIP2_ROWS", "HIP2_COLUMNS", "have_catalogue", "read_hip2", "load_hipparcos",
            "g_minus_v_jordi2010", "v_minus_hp_bessell2000", "g_from_hipparcos", "BESSELL2000_TABLE2"]

@@ -7,8 +7,6 @@ formula
 model
     :class:`Prior`: the paper's prior or a run's fit, queried with SkyCoord or (l, b)
     and G; :func:`sigma_f90` (the paper's formula as plain numbers).
-frames
-    Fast ICRS -> galactic conversion with astropy's rotation (catalogue annotation).
 """
 
 from ..lazy_exports import attach
@@ -18,6 +16,5 @@ from ..lazy_exports import attach
 __getattr__, __dir__, __all__ = attach(__name__, {
     "formula": ["BRIGHT_CHOICES", "G_FIT_MAX", "G_FIT_MIN", "PAPER_COEFFICIENTS", "s_coefficients",
                 "sigma_from_coefficients"],
-    "frames": ["galactic_from_icrs"],
     "model": ["COEFFICIENTS_FILE", "PAPER_CONFIDENCE", "PAPER_RATIO_R", "Prior", "sigma_f90"],
 })

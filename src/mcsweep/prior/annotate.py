@@ -18,7 +18,7 @@ import numpy as np
 
 from ..errors import UserInputError
 from .columns import finite_column, unit_scale
-from .frames import galactic_from_icrs
+from ..galactic import galactic_from_icrs
 from .model import Prior
 
 __all__ = ["FORMATS", "PARALLAX_COLUMN", "PM_COLUMN", "detect_format", "prior_columns", "annotate_file"]

@@ -19,7 +19,7 @@ from ..astrometry.design import design_matrix, reference_epoch, years_since
 from ..astrometry.measurements import simulate
 from ..astrometry.noise import NoiseModel
 from ..scanning import find_transits
-from .frames import galactic_from_icrs
+from ..galactic import galactic_from_icrs
 from .model import Prior
 
 __all__ = ["simulate_example"]

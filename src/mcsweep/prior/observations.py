@@ -43,7 +43,7 @@ from ..errors import UserInputError
 from ..scanning.ephemeris import gaia_position_au
 from .annotate import _ASTROPY_FORMAT, detect_format
 from .columns import finite_column
-from .frames import galactic_from_icrs
+from ..galactic import galactic_from_icrs
 from .model import Prior
 
 __all__ = ["OBSERVATION_COLUMNS", "OPTIONAL_AC", "OBSERVER_COLUMNS", "SOURCE_COLUMNS", "read_table",

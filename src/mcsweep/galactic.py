@@ -1,10 +1,13 @@
 """ICRS (ra, dec) to galactic (l, b) for large arrays, with astropy's own rotation.
 
+Below every stage: the population draws and matches stars by galactic direction and the
+prior is a function of it (Eq. 14).
+
 astropy's ICRS -> Galactic transformation is a fixed rotation (through FK5 J2000 and
 the frame bias; no epoch dependence), so the matrix is taken once from astropy by
 transforming the three ICRS basis vectors and then applied with numpy. This keeps
 catalogue annotation at millions of rows per second while agreeing with
-``SkyCoord(...).galactic`` to rounding (tests/prior/test_frames.py).
+``SkyCoord(...).galactic`` to rounding (tests/test_galactic.py).
 """
 
 from __future__ import annotations

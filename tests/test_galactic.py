@@ -4,7 +4,7 @@ import numpy as np
 from astropy import units as u
 from astropy.coordinates import SkyCoord
 
-from mcsweep.prior.frames import galactic_from_icrs, icrs_to_galactic_matrix
+from mcsweep.galactic import galactic_from_icrs, icrs_to_galactic_matrix
 
 #: Agreement with SkyCoord(...).galactic: both apply the same rotation; rounding only.
 FRAME_TOL_MAS = 1e-5  # mas

@@ -12,9 +12,9 @@ from mcsweep.scanning.timeline import draw_dead_time
 from mcsweep.solver import AttitudeSpline, build_observations
 
 START_JD = 2456863.9375  # 2014-07-25 10:30 TCB, start of routine operations (Prusti et al. 2016)
-# The solver's tests need a realistic NSL geometry, not the flown law's first weeks (since
-# issue 28 the Ecliptic Pole Scanning Law until 2014-08-23, whose pole-crossing scans change
-# the conditioning these tolerances were set on): the flown law before issue 28, one NSL
+# The solver's tests need a realistic NSL geometry, not the flown law's first weeks (now
+# the Ecliptic Pole Scanning Law until 2014-08-23, whose pole-crossing scans change the
+# conditioning these tolerances were set on): the flown law as it was before, one NSL
 # segment with the 2014-09-25 - 2017-01-27 phases (conf/scanning/flown.yaml), extrapolated.
 LAW = ScanningLaw(name="one_segment", segments=(), ref_epoch_tcb="2015-01-01T00:00:00",
                   nu_ref_deg=323.3708, omega_ref_deg=95.1324)

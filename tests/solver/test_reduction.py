@@ -75,7 +75,7 @@ def test_chunks_of_leaves_keep_both_trees(n_blocks, leaf):
 def test_leaf_size_follows_the_attitude_unknowns_per_block():
     # 3 h knots at the paper's sizes: 46 blocks of ~8.4e5 measurements, 9e3 attitude unknowns
     assert leaf_blocks(46, 46 * 840_000, 9_000) == 1
-    # 30 s knots (issue 23): 2.3e6 unknowns; LEAF_RATIO * 2.3e6 needs 8 blocks, but 46 blocks
+    # 30 s knots (AGIS's, at the paper's sizes): 2.3e6 unknowns; LEAF_RATIO * 2.3e6 needs 8 blocks, but 46 blocks
     # must keep MIN_LEAVES leaves: 4 (12 leaves)
     assert LEAF_RATIO * 2_300_000 > 4 * 840_000 and MIN_LEAVES == 8
     assert leaf_blocks(46, 46 * 840_000, 2_300_000) == 4

@@ -32,6 +32,7 @@ import numpy as np  # noqa: E402
 from mcsweep.astrometry.solve import prior_diagonal  # noqa: E402
 from mcsweep.solver import GlobalProblem, solve_global  # noqa: E402
 from mcsweep.solver.dask_resident import DaskChunks  # noqa: E402
+from mcsweep.solver.tasks import back_task, direction_task, forward_task  # noqa: E402
 
 from bench_primary import data_for, make_obs  # noqa: E402
 
@@ -75,7 +76,7 @@ def main():
         same = np.array_equal(sol.x, ref.x) and np.array_equal(sol.attitude, ref.attitude)
         # per iteration = the iteration passes' bytes / iterations (one-off setup and residual passes apart)
         rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
-        sent, received = (v / len(sol.history) / 2**20 for v in res.bytes_per_call("_forward_task", "_back_task", "_direction_task"))
+        sent, received = (v / len(sol.history) / 2**20 for v in res.bytes_per_call(forward_task, back_task, direction_task))
         print(f"{problem.n_stars:8d}  {problem.n_measurements:12d}  {problem.n_att:8d}  {once / 2**20:13.1f} MiB"
               f"  {sent:6.2f} MiB  {received:9.2f} MiB"
               f"  {dask_s:11.3f}  {local:12.3f}  {str(same):>9}  {rss:10.0f} MiB   ({it_passes} iteration passes)")

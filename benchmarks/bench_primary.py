@@ -58,7 +58,7 @@ from mcsweep.scanning.ephemeris import gaia_position_au  # noqa: E402
 from mcsweep.solver import AttitudeSpline, GlobalProblem, build_observations, solve_global  # noqa: E402
 from mcsweep.solver import kernels  # noqa: E402
 from mcsweep.solver.attitude_update import BandedAttitudeSolver, attitude_band  # noqa: E402
-from mcsweep.solver.cg import BLOCK_STARS, make_blocks  # noqa: E402
+from mcsweep.solver.problem import BLOCK_STARS, make_blocks  # noqa: E402
 from mcsweep.solver.direct import solve_direct  # noqa: E402
 
 START_JD = 2456863.9375  # 2014-07-25 10:30 TCB, start of routine operations (Prusti et al. 2016)

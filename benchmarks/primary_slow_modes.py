@@ -114,13 +114,13 @@ def main():
               f"error {1e3 * mag[c]:.0f} uas, information eigenvalues {np.round(attitude_information(data, c), 4)}")
     for c in np.linspace(0, problem.n_coef - 1, 4).astype(int):
         print(f"  typical coefficient {c}: information eigenvalues {np.round(attitude_information(data, c), 4)}")
-    original = B._schur_absorption
+    original = B.schur_absorption
     for w in [int(x) for x in args.windows.split(",") if x]:
-        B._schur_absorption = functools.partial(original, window=w)
+        B.schur_absorption = functools.partial(original, window=w)
         try:
             sol = solve_global(problem, data.h, **kw)
         finally:
-            B._schur_absorption = original
+            B.schur_absorption = original
         print(f"Schur window {w}: {len(sol.history)} iterations (window {B.SCHUR_WINDOW}: {len(ref.history)})")
 
 

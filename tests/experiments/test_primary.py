@@ -667,7 +667,7 @@ def test_a_solution_started_from_the_previous_priors_attitude_stops_within_the_t
     # 1000 mas from the 10 sigma_F90 attitude, where the two priors' attitudes nearly agree. The
     # first step of a started solution also sets the stars from zero; an error estimate whose
     # window held that step stopped such a solution at iteration 11, 1.45 times over the
-    # tolerance (the default run, 3 h knots; mcsweep.solver.cg, "Starting attitude").
+    # tolerance (the default run, 3 h knots; mcsweep.solver.pcg, "Starting attitude").
     from mcsweep.astrometry.solve import prior_diagonal
     from mcsweep.experiments.global_priors import prior_sigma_mas
     from mcsweep.solver import solve_global

@@ -110,7 +110,7 @@ def test_outcome_lost_before_the_parts_are_read_solves_again(both, client, monke
     # rebuilding the chunks; here raised once in place of a worker's death) solves the prior
     # again; the same bits.
     from mcsweep.experiments import primary_cluster as PC
-    from mcsweep.solver.cg import ChunksLost
+    from mcsweep.solver.executors import ChunksLost
 
     settings, local, remote = both
     ref = P.solve_prior(settings, local, "F90").results.frame()

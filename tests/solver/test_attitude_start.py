@@ -11,7 +11,7 @@ import pytest
 
 from mcsweep.astrometry.solve import prior_diagonal
 from mcsweep.solver import GlobalProblem, solve_global
-from mcsweep.solver.cg import ERROR_WINDOW
+from mcsweep.solver.stopping import ERROR_WINDOW
 from mcsweep.solver.direct import normal_norm, solve_direct
 
 #: The solutions' stopping rule: error below this fraction of the formal uncertainties.

@@ -76,7 +76,7 @@ def test_a_shift_of_every_parallax_is_a_basic_angle_variation():
 def test_the_calibrated_solution_is_the_direct_solution(gapped_problem, sigma_mas, harmonics):
     # The gapped one-year problem (dead time, ~12 FoV transits per knot) with a true
     # variation in the data; reference: the bordered normal equations solved directly. The
-    # calibration borders the one PCG solution (module notes of mcsweep.solver.cg): its
+    # calibration borders the one PCG solution (module notes of mcsweep.solver.pcg): its
     # rank-2k change of the preconditioned matrix costs at most 2k more iterations than the
     # same data without it (exact arithmetic; measured: 0-2).
     P = gapped_problem

@@ -1,4 +1,4 @@
-"""The solver's passes on a Dask LocalCluster whose workers keep the chunks (issue 27)."""
+"""The solver's passes on a Dask LocalCluster whose workers keep the chunks."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ import pytest
 
 from mcsweep.astrometry.solve import prior_diagonal
 from mcsweep.solver import GlobalProblem, solve_global
+from mcsweep.solver.tasks import absorption_task, back_task, direction_task, forward_task, residual_task, setup_task
 
 distributed = pytest.importorskip("distributed")
 
@@ -63,7 +64,7 @@ def test_dask_resident_solution_is_bit_identical_to_in_process_and_forked(proble
 
 
 def test_dask_passes_send_attitude_vectors_only(problem_and_h, client):
-    # After the chunks are on the workers, the star vectors stay there too (issue 27): an
+    # After the chunks are on the workers, the star vectors stay there too: an
     # iteration sends the attitude vector once to every worker (a small one, as here, with
     # every task), plus a few numbers per chunk, and gets back two attitude-sized sums per
     # aligned run of a worker's chunks (DaskChunks.reduced: at most one per bit of the number
@@ -78,7 +79,7 @@ def test_dask_passes_send_attitude_vectors_only(problem_and_h, client):
     k = len(sol.history)
     att_vector = 8 * problem.n_att
     workers = len(client.nthreads())
-    sent, received = res.bytes_per_call("_forward_task", "_back_task", "_direction_task")
+    sent, received = res.bytes_per_call(forward_task, back_task, direction_task)
     assert sent / k <= max(workers, len(chunks)) * att_vector + 1024 * len(chunks)
     assert len(chunks) >= 6 * workers
     _same(sol, solve_global(problem, h, **KW))
@@ -151,27 +152,25 @@ def test_chunks_kept_for_another_prior_give_that_priors_solution(problem_and_h, 
 def test_an_error_of_the_task_is_raised_at_once_not_repeated(problem_and_h, client):
     # A task that fails by itself (here the solver's setup task given too few arguments, a
     # function the workers can import) is an error to raise, not a lost worker to recover from.
-    from mcsweep.solver.cg import _setup_task
-
     client.wait_for_workers(2, timeout=60)
     problem, h = problem_and_h
     ranges, res = _scattered(client, problem, h)
     with pytest.raises(ValueError, match="values to unpack"):
-        list(res.run(_setup_task, [(ci,) for ci in range(len(ranges))]))
+        list(res.run(setup_task, [(ci,) for ci in range(len(ranges))]))
     assert res.repeated == 0 and res.passes == 0
 
 
 def test_bytes_per_iteration_pass_are_tallied_apart_from_the_one_off_passes(problem_and_h, client):
-    # The per-iteration figure the primary experiment prints (issue 27) counts the iteration
+    # The per-iteration figure the primary experiment prints counts the iteration
     # passes only; together with the setup and residual passes it is every byte sent.
     client.wait_for_workers(2, timeout=60)
     problem, h = problem_and_h
     ranges, res = _scattered(client, problem, h)
     solve_global(problem, h, resident_chunks=res, chunk_stars=256, **KW)
-    it = res.bytes_per_call("_forward_task", "_back_task", "_direction_task")
-    once = res.bytes_per_call("_setup_task", "_absorption_task", "_residual_task")
-    assert set(res.bytes_by_task) == {"_setup_task", "_absorption_task", "_forward_task", "_back_task",
-                                      "_direction_task", "_residual_task"}
+    it = res.bytes_per_call(forward_task, back_task, direction_task)
+    once = res.bytes_per_call(setup_task, absorption_task, residual_task)
+    assert set(res.bytes_by_task) == {"setup_task", "absorption_task", "forward_task", "back_task",
+                                      "direction_task", "residual_task"}
     assert it[0] + once[0] == res.bytes_sent and it[1] + once[1] == res.bytes_received
     assert it[0] > 0 and once[0] > 0
 

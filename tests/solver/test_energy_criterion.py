@@ -1,4 +1,4 @@
-"""The energy criterion of the global solver (module notes of :mod:`mcsweep.solver.cg`):
+"""The energy criterion of the global solver (module notes of :mod:`mcsweep.solver.stopping`):
 PCG stops when the error in the norm of the normal matrix is estimated below a fraction of
 the formal uncertainties. Checked against a direct sparse solve of the same normal
 equations, on the few-transits-per-knot problem with data gaps (conftest ``gapped_system``)."""
@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from mcsweep.solver import solve_global
-from mcsweep.solver.cg import ERROR_SAFETY, ERROR_WINDOW, remaining_error
 from mcsweep.solver.direct import normal_norm, solve_direct
+from mcsweep.solver.stopping import ERROR_SAFETY, ERROR_WINDOW, remaining_error
 
 
 @pytest.mark.parametrize("sigma_mas", [0.01, 1.0, 1000.0])

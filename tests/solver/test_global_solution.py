@@ -1,4 +1,4 @@
-"""The global solver against independent references (issue 12's list of tests)."""
+"""The global solver against independent references."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from mcsweep.solver import (GlobalProblem, attitude_band, band_to_dense, fit_fra
                             frame_offsets, solve_global)
 from mcsweep.solver.direct import solve_direct, sparse_design
 from mcsweep.solver.blocks import schur_bandwidth
-from mcsweep.solver.cg import BLOCK_STARS
+from mcsweep.solver.problem import BLOCK_STARS
 from mcsweep.solver.source_update import solve_sources, source_normals, source_rhs
 from mcsweep.solver.attitude_update import attitude_rhs
 from mcsweep.scanning.ephemeris import gaia_position_au
@@ -31,7 +31,7 @@ RECOVERY_UAS = 1.0
 
 
 def _sparse_design(P, problem=None):
-    """The full design matrix built element by element from the partials (independent of cg.py):
+    """The full design matrix built element by element from the partials (independent of the solver):
     those of the observations, or the ones a problem stores (float32 when compact)."""
     obs = P["obs"]
     parts = (obs.star, obs.src, obs.att, obs.j0, obs.bval) if problem is None else problem.design()
@@ -191,7 +191,7 @@ def test_solution_is_bit_identical_for_any_chunking_and_workers(weak_problem, mo
     # The promise of mcsweep.solver.reduction: fixed blocks summed in a fixed tree, so the
     # chunk size, the backend, the number of workers and the slabs in which the setup sums
     # the banded Schur block cannot change a bit.
-    from mcsweep.solver import cg
+    from mcsweep.solver import schur_preconditioner
     P = weak_problem
     rng = np.random.default_rng(31)
     problem = GlobalProblem(P["obs"], prior_diagonal(1000.0, 10.0), P["ra"], P["dec"], block_stars=128)
@@ -203,7 +203,7 @@ def test_solution_is_bit_identical_for_any_chunking_and_workers(weak_problem, mo
     runs = [solve_global(problem, h, chunk_stars=c, **kw) for c in (128, 512, 100000)]
     runs += [solve_global(problem, h, workers=w, chunk_stars=c, **kw) for w, c in ((2, 128), (3, 256))]  # forked
     band_bytes = 8 * (schur_bandwidth() + 1) * 3 * problem.n_coef
-    monkeypatch.setattr(cg, "SETUP_SLAB_BYTES", band_bytes // 7)  # the band in 8 slabs
+    monkeypatch.setattr(schur_preconditioner, "SETUP_SLAB_BYTES", band_bytes // 7)  # the band in 8 slabs
     runs += [solve_global(problem, h, chunk_stars=128, **kw), solve_global(problem, h, workers=2, chunk_stars=256, **kw)]
     from mcsweep.solver import resident
     monkeypatch.setattr(resident, "ARENA_MIN_BYTES", 0)  # every buffer through the workers' shared arenas,
@@ -258,12 +258,12 @@ def test_banded_schur_preconditioner_equals_its_dense_definition(weak_problem, w
     # star with dense matrices (independent of blocks.py's cluster sums), and it is positive
     # semi-definite. A 1 mas prior: under 1000 mas the 5 x 5 blocks have condition ~1e10
     # and the two subtractions agree only to ~1e-8.
-    from mcsweep.solver.blocks import _schur_absorption
+    from mcsweep.solver.blocks import schur_absorption
 
     P = weak_problem
     obs = P["obs"]
     problem = GlobalProblem(obs, prior_diagonal(1.0, 10.0), P["ra"], P["dec"])
-    band = -sum(_schur_absorption(b, problem.prior[b.first:b.first + b.n], window=window) for b in problem.blocks)
+    band = -sum(schur_absorption(b, problem.prior[b.first:b.first + b.n], window=window) for b in problem.blocks)
     band[-problem.naa_band.shape[0]:] += problem.naa_band  # N_aa: once per problem
     A = _sparse_design(P).toarray()
     As, G = A[:, :5 * obs.n_stars], A[:, 5 * obs.n_stars:]
@@ -340,7 +340,7 @@ def test_banded_schur_block_stays_exact_and_positive_under_a_1000_mas_prior(monk
 
     def band(kappa):
         monkeypatch.setattr(B, "STABLE_ABSORPTION_KAPPA", kappa)
-        ab = -sum(B._schur_absorption(b, prior[b.first:b.first + b.n], batch_stars=7, window=window)
+        ab = -sum(B.schur_absorption(b, prior[b.first:b.first + b.n], batch_stars=7, window=window)
                   for b in problem.blocks)  # batches of 7 stars: several per block
         ab[-problem.naa_band.shape[0]:] += problem.naa_band
         return band_to_dense(ab)
@@ -375,10 +375,10 @@ def test_slabs_of_the_schur_absorption_side_by_side_are_the_whole_band_bit_for_b
     n_att = 3 * problem.n_coef
     for b in problem.blocks:
         pr = prior[b.first:b.first + b.n]
-        assert 0 < B._ill_conditioned(b).sum() < b.n  # both forms present
-        whole = B._schur_absorption(b, pr, batch_stars=7, window=window)
+        assert 0 < B.ill_conditioned(b).sum() < b.n  # both forms present
+        whole = B.schur_absorption(b, pr, batch_stars=7, window=window)
         for cuts in ([0, n_att], [0, 1, 5, 17, n_att // 2 + 1, n_att], list(range(0, n_att, 7)) + [n_att]):
-            slabs = [B._schur_absorption(b, pr, batch_stars=7, window=window, columns=c) for c in zip(cuts[:-1], cuts[1:])]
+            slabs = [B.schur_absorption(b, pr, batch_stars=7, window=window, columns=c) for c in zip(cuts[:-1], cuts[1:])]
             assert np.concatenate(slabs, axis=1).tobytes() == whole.tobytes()
 
 

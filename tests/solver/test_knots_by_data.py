@@ -63,9 +63,9 @@ def test_knots_are_numpys_quantiles_of_each_segments_epochs(per_knot):
 def _merged(start, end, gaps, t, per_knot):
     """The segments after the sparse ones are joined (the spline's own rule, with the epochs
     as one array): the reference's input."""
-    from mcsweep.solver.attitude_spline import _merge_sparse_segments, live_segments
+    from mcsweep.solver.attitude_spline import merge_sparse_segments, live_segments
 
-    return _merge_sparse_segments(live_segments(start, end, *gaps, min_gap_days=0.5), SortedEpochs(t), per_knot)[0]
+    return merge_sparse_segments(live_segments(start, end, *gaps, min_gap_days=0.5), SortedEpochs(t), per_knot)[0]
 
 
 #: Tolerance on a uniform knot interval in a dense stretch: the knots divide the segment's

@@ -60,8 +60,8 @@ Reproducibility: SeedSequence(seed, spawn_key=(42, stream, ...)): population of 
 measurement noise (3, key: the block of ``BLOCK_STARS`` solved stars, drawn in the block's
 order). So results do not depend on n_jobs, chunking or where a block is built (the driver,
 or a Dask worker: :mod:`~mcsweep.experiments.primary_cluster`); the transit search is
-chunked over stars and re-assembled in star order. (Until issue 27 the noise was one stream
-over all blocks: the same statistics, other draws.)
+chunked over stars and re-assembled in star order. (Before the stars were kept on the
+workers the noise was one stream over all blocks: the same statistics, other draws.)
 """
 
 from __future__ import annotations
@@ -87,7 +87,8 @@ from ..solver.blocks import att_rows, spline_values, src_forward
 from ..solver import (BLOCK_STARS, AttitudeSpline, GlobalProblem, build_observations, frame_attitude,
                       in_block_order, make_blocks, precision_weights, solve_global, source_normals)
 from ..solver.calibration import BasicAngleColumns, basic_angle_columns, calibration_design
-from ..solver.cg import chunk_values
+from ..solver.executors import chunk_values
+from ..solver.tasks import back_task, direction_task, forward_task
 from ..solver.frame import frame_fit_sums, frame_from_sums, offsets_of
 from .global_classes import dead_time, star_transits
 from .global_priors import parse_prior, prior_sigma_mas
@@ -210,7 +211,7 @@ def build_settings(config) -> PrimarySettings:
 def transits_of(job) -> tuple[int, dict]:
     """FoV transits of one chunk of stars (executor task): (chunk index, arrays)."""
     index, first, ra, dec, start_jd, end_jd, law = job
-    # the field of view (1 byte per transit) for the basic-angle calibration (issue 24)
+    # the field of view (1 byte per transit) for the basic-angle calibration (mcsweep.solver.calibration)
     return index, star_transits(ra, dec, start_jd, end_jd, law, first=first, with_fov=True)
 
 
@@ -755,7 +756,7 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
     # astrometry sets the removed rotation (docs/table3.md, the candidate for the paper's
     # collapse); not the default.
     equal = settings.frame_fit != "precision"
-    if data.on_cluster:  # everything per star stays on the workers (issue 27)
+    if data.on_cluster:  # everything per star stays on the workers (nothing per star to the driver)
         if dask_client is None:
             raise ValueError("these data live on a cluster's workers: solve them with its dask_client")
         from .primary_cluster import solve_on_cluster
@@ -779,7 +780,7 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
             stars = [slice(data.blocks[lo].first, data.blocks[hi - 1].first + data.blocks[hi - 1].n)
                      for lo, hi in ranges]
             resident = data.resident(dask_client, ranges).with_inverses([problem.src_inv[sl] for sl in stars])
-        # with the basic-angle calibration (issue 24, candidate 3) its unknowns border the
+        # with the basic-angle calibration (mcsweep.solver.calibration) its unknowns border the
         # system (mcsweep.solver.calibration)
         sol = solve_global(problem, data.h, **settings.criterion, log=log, chunk_stars=chunk_stars,
                            residuals=False, workers=workers, resident_chunks=resident,
@@ -802,8 +803,8 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
              "seconds": float(sol.history[-1].seconds) if sol.history else 0.0}
     if data.calibration is not None:
         extra["basic_angle_mas"] = dict(zip(data.calibration.names(), sol.border.tolist()))
-    if resident is not None and sol.history:  # what travelled per iteration (issue 27), measured:
+    if resident is not None and sol.history:  # what travelled per iteration, measured:
         # the iterations' passes only (the one-off setup and residual passes apart)
-        sent, received = resident.bytes_per_call("_forward_task", "_back_task", "_direction_task")
+        sent, received = resident.bytes_per_call(forward_task, back_task, direction_task)
         extra["dask_mib_per_iteration"] = [sent / len(sol.history) / 2**20, received / len(sol.history) / 2**20]
     return PriorSolution(results, hist, extra, attitude_error_series(data, sol.attitude, eps, omega), sol.attitude)

@@ -1,4 +1,4 @@
-"""The primary experiment built, kept and solved on the workers of a Dask cluster (issue 27).
+"""The primary experiment built, kept and solved on the workers of a Dask cluster.
 
 With ``execution=dask`` the driver holds nothing per star: the table of stars
 (:mod:`~.primary_sky`: partitions in sky order), the transits, the solver's blocks, the
@@ -20,7 +20,7 @@ unless said otherwise:
    block (a few numbers per block), from which the driver has each block's first
    measurement.
 3. Each solver chunk (aligned runs of leaves of blocks of ``BLOCK_STARS`` solved stars,
-   :func:`~mcsweep.solver.cg.solver_chunks`) is built by one task from the partitions, their
+   :func:`~mcsweep.solver.problem.solver_chunks`) is built by one task from the partitions, their
    summaries and transits it overlaps (worker to worker), block by block with
    :func:`~.primary.build_block`, the function the driver uses without a cluster, and each
    block's noise from its own seed: the same bits as :func:`~.primary.prepare` of the whole
@@ -30,7 +30,7 @@ unless said otherwise:
 
 Per prior (``solve_on_cluster``): the prior's label is sent; the prior sigma of each star,
 the inverses, frame weights, solution, the frame rotator's sums and each star's outcome are
-made on the workers (:func:`~mcsweep.solver.cg.star_arrays`, :func:`~.primary.block_frame_sums`,
+made on the workers (:func:`~mcsweep.solver.problem.star_arrays`, :func:`~.primary.block_frame_sums`,
 :func:`~.primary.block_outcome`: the functions of the local path, summed in the same tree, so
 the same bits as a forked or in-process run). The per-star results come to the driver one
 part (:data:`~.primary_results.PART_STARS` stars) at a time (:class:`~.primary_results.StarParts`).
@@ -38,7 +38,7 @@ part (:data:`~.primary_results.PART_STARS` stars) at a time (:class:`~.primary_r
 A lost worker takes its chunks and the state of a solution: its chunks are built again from
 the partitions (transit search included; a lost partition is made again by the scheduler
 from its lineage, :mod:`~.primary_sky`) and the solution restarts from its first pass
-(:class:`~mcsweep.solver.cg.ChunksLost`), with the same bits (tested by killing a worker
+(:class:`~mcsweep.solver.executors.ChunksLost`), with the same bits (tested by killing a worker
 mid-solve); a loss while the parts are written solves the prior again (same bits).
 """
 
@@ -54,10 +54,10 @@ import pandas as pd
 from ..astrometry.solve import prior_diagonal
 from ..solver import BLOCK_STARS, solve_global
 from ..solver.blocks import BlockSpan, att_band
-from ..solver.cg import (MAX_RESTARTS, ChunksLost, ResidentProblem, chunk_values, penalty_weights, solver_chunks,
-                         star_arrays, typical_weights, weight_sums)
-from ..solver.dask_resident import DaskChunks, _is_loss, live_workers
-from ..solver.frame import frame_from_sums
+from ..solver.dask_resident import DaskChunks, is_loss, live_workers
+from ..solver.executors import MAX_RESTARTS, ChunksLost, chunk_values
+from ..solver.frame import frame_from_sums, penalty_weights, typical_weights, weight_sums
+from ..solver.problem import ResidentProblem, solver_chunks, star_arrays
 from ..solver.reduction import AlignedPartials, pairwise_sum, run_level, share_of, sum_partials
 from ..solver.selection import digit_counts, median
 from .global_classes import STAR_COLUMNS, star_transits
@@ -73,7 +73,7 @@ __all__ = ["prepare_on_cluster", "solve_on_cluster"]
 
 
 def _retried(action: Callable, retry_if: Callable, between: Callable = lambda: None):
-    """``action()``, repeated up to :data:`~mcsweep.solver.cg.MAX_RESTARTS` times when it
+    """``action()``, repeated up to :data:`~mcsweep.solver.executors.MAX_RESTARTS` times when it
     raises an exception ``retry_if`` accepts (a loss), ``between()`` first; any other raised
     at once."""
     for attempt in range(MAX_RESTARTS + 1):
@@ -189,7 +189,7 @@ def _part_columns(part: pd.DataFrame, summary: dict, lo: int, hi: int) -> dict:
 def _attach_prior(chunk: tuple, arg: tuple) -> tuple:
     """The solver's chunk ``(blocks, measurements, state)`` for one prior, made on its worker:
     each star's prior sigma from its (l, b, G) (``settings.sigma_f90_mas``, the prior
-    ``label``) and the stars' arrays of that prior (:func:`~mcsweep.solver.cg.star_arrays`);
+    ``label``) and the stars' arrays of that prior (:func:`~mcsweep.solver.problem.star_arrays`);
     ``arg = (settings, label)`` is all that is sent per prior."""
     blocks, hs, kept = chunk
     settings, label = arg
@@ -220,7 +220,7 @@ def _prior_task(item):
 def _weight_digits(item):
     """A round of the selection of the medians that set the frame penalty
     (:mod:`mcsweep.solver.selection`): ``queries[w]`` for the stars' weights ``w`` (0 position,
-    1 proper motion, :func:`~mcsweep.solver.cg.typical_weights`)."""
+    1 proper motion, :func:`~mcsweep.solver.frame.typical_weights`)."""
     ci, _, _, st, queries = item
     S = st["stars"]
     weights = typical_weights(S["normals"], S["prior"])
@@ -270,7 +270,7 @@ def _cluster_part(data: PreparedData, resident: DaskChunks, ranges, rows: slice)
                                             max(rows.start - sky.first[p], 0), min(rows.stop, ends[p]) - sky.first[p],
                                             pure=False) for p in overlap])
 
-    got = _retried(columns, _is_loss, lambda: time.sleep(1.0))  # (a moment for the scheduler's news of the loss)
+    got = _retried(columns, is_loss, lambda: time.sleep(1.0))  # (a moment for the scheduler's news of the loss)
     cols = {c: np.concatenate([g[c] for g in got]) for c in ("class_key", "n_fov", "n_fov_scheduled", "span_days",
                                                           "solved")}
     solved = cols.pop("solved")
@@ -334,7 +334,7 @@ def _solve_once(settings, data, resident, ranges, *, chunk_stars, log, equal, at
         return lambda queries: chunk_values(resident.run, _weight_digits,
                                             [(ci, [(which, q) for q in queries]) for ci in range(len(ranges))])
 
-    # the medians by selection, not by gathering every star's weights (issue 27)
+    # the medians by selection, not by gathering every star's weights (mcsweep.solver.selection)
     w_pos, w_pm = penalty_weights(median(counts_of(0), n), median(counts_of(1), n), n)
     problem = ResidentProblem(data.blocks, n_coef=data.spline.n_coef, n_measurements=data.n_measurements,
                               naa_band=data.naa_band, frame_means=pairwise_sum((g[1] for g in got), None, levels) / n,
@@ -410,7 +410,7 @@ def prepare_on_cluster(settings: PrimarySettings, sky: SkyPartitions, client, *,
     ``resident(client, ranges)`` for the solver's chunks of ``chunk_stars`` stars are the
     chunks already there. A worker lost while they are made makes them again from the start."""
     return _retried(lambda: _prepare_once(settings, sky, client, chunk_stars=chunk_stars, block_stars=block_stars,
-                                          with_noise=with_noise), _is_loss)
+                                          with_noise=with_noise), is_loss)
 
 
 def _prepare_once(settings, sky, client, *, chunk_stars, block_stars, with_noise) -> PreparedData:

@@ -23,10 +23,26 @@ blocks
     Fixed blocks of stars in compact storage and the per-block (chunk task) work.
 reduction
     Sums over blocks in a fixed pairwise tree: bit-identical for any chunking.
-cg
-    The normal equations in blocks and the preconditioned conjugate-gradient iteration.
+problem
+    The normal equations in blocks of stars (GlobalProblem, ResidentProblem) and their chunks.
+tasks
+    The chunk tasks of the solver's passes (setup, absorption, the sweeps, residuals).
+executors
+    Running a pass on the chunks and summing its outputs in the fixed tree; lost chunks.
+schur_preconditioner
+    The banded attitude Schur block of the preconditioner and its Cholesky factor.
+stopping
+    The stopping rule (the energy criterion) and the per-iteration record.
+pcg
+    The preconditioned conjugate-gradient iteration (setup pass, one iteration's steps, loop).
+solve
+    solve_global: the PCG solution on chunks in-process, on forked workers or on Dask.
 resident
     Forked chunk workers that keep their blocks (the passes on one machine's cores).
+dask_resident
+    Chunks kept on the workers of a Dask cluster (the passes beyond one machine).
+selection
+    Medians and quantiles of values spread over chunks, by selection (the frame penalty).
 direct
     The same normal equations by sparse LU (tests' and benchmarks' reference).
 calibration
@@ -37,7 +53,10 @@ Only :mod:`mcsweep.astrometry` and :mod:`mcsweep.scanning` are imported.
 
 from .attitude_spline import AttitudeSpline
 from .attitude_update import attitude_band, band_to_dense
-from .cg import BLOCK_STARS, AttitudeNotDetermined, ConvergenceRecord, GlobalProblem, in_block_order, make_blocks, solve_global
+from .problem import BLOCK_STARS, GlobalProblem, in_block_order, make_blocks
+from .schur_preconditioner import AttitudeNotDetermined
+from .solve import solve_global
+from .stopping import ConvergenceRecord
 from .frame import fit_frame, frame_attitude, frame_offsets, precision_weights
 from .observations import Observations, attitude_partials, build_observations
 from .source_update import solve_sources, source_normals

@@ -22,9 +22,8 @@ few iterations only when the gaps are handled). A spline run through a gap has
 coefficients that no measurement constrains (held at zero) and, at each edge, coefficients
 whose support reaches the data only in the last sliver of a knot interval, where a cubic
 B-spline is ``u^3 / 6`` small: weights of order ``(u^3 / 6)^2 ~ 1e-8`` of the others, so the
-attitude block is nearly singular there. Measured (12000 stars, one year, 20 % dead time in
-6 h blocks, 1 h knots, ~25 FoV transits per knot): PCG stopped at 400 iterations without
-converging for priors 0.01, 1 and 1000 mas; 2400 of the 25401 attitude unknowns had no data.
+attitude block is nearly singular there. Such a spline kept PCG from converging
+(measured: docs/solver_design.md, "Attitude knots").
 With ``gaps`` each live stretch gets its own clamped knot sequence (end knots repeated four
 times), so every coefficient's support lies inside the data; gaps shorter than a knot
 interval are bridged (``min_gap_days``): no coefficient is weak there.
@@ -34,19 +33,14 @@ divided by ``ceil(length / knot_interval_days)`` (at most ``knot_interval_days``
 then fall on the segment's ends instead of reaching into the gap). Or, with
 ``transits_per_knot``, placed by the data: each interval of a segment holds the same number
 of the given epochs (FoV transits). Uniform knots at a mean of ~25 transits per knot leave
-intervals with almost none where the stars are sparse: measured in the primary experiment
-(3 x 30000 galaxy-model stars, one year, 0.19 h knots), the attitude error reached 5 arcsec
-in such intervals and its RMS over the measurements was 1.5-3.5 mas per axis. Equal counts
-go wrong the other way where the stars are dense: at the paper's sizes (25 per knot) a knot
-in the Galactic plane lasts a few seconds, far finer than AGIS's 30 s, and holds mostly faint
-stars whose across-scan data barely fix the in-plane rotations. Measured (primary experiment,
-3 x 1e5 stars, 1000 mas): at crossings of the plane the attitude error reached up to 0.28
-arcsec, and PCG took 4382 iterations. ``knot_rule='uniform'`` is AGIS's rule with a floor:
-knots at the interval ``knot_interval_days`` (the mean interval of ``transits_per_knot``
-epochs: AGIS's 30 s at the paper's sizes), lengthened only where fewer than
-``transits_per_knot`` epochs fall in it; the same problem then took 353 iterations, its
-attitude error RMS 0.09-0.18 mas per axis instead of 1-7.7 (docs/table3.md, "Knots no finer
-than AGIS's"). Each epoch touches 4 consecutive coefficients; coefficients are numbered
+intervals with almost none where the stars are sparse, and the attitude error grows there;
+equal counts go wrong the other way where the stars are dense: in the Galactic plane a knot
+lasts a few seconds, far finer than AGIS's 30 s, and holds mostly faint stars whose
+across-scan data barely fix the in-plane rotations. ``knot_rule='uniform'`` is AGIS's rule
+with a floor: knots at the interval ``knot_interval_days`` (the mean interval of
+``transits_per_knot`` epochs: AGIS's 30 s at the paper's sizes), lengthened only where fewer
+than ``transits_per_knot`` epochs fall in it (measured: docs/solver_design.md, "Attitude
+knots"). Each epoch touches 4 consecutive coefficients; coefficients are numbered
 segment after segment.
 """
 
@@ -59,7 +53,8 @@ from scipy.interpolate import BSpline
 
 from .selection import quantile_from_neighbours, quantile_ranks
 
-__all__ = ["AttitudeSpline", "DEGREE", "KNOT_RULES", "SortedEpochs", "live_segments", "sorted_epochs"]
+__all__ = ["AttitudeSpline", "DEGREE", "KNOT_RULES", "SortedEpochs", "live_segments", "sorted_epochs",
+           "merge_sparse_segments"]
 
 #: Cubic splines, as AGIS (Lindegren et al. 2012, Sect. 3.3).
 DEGREE = 3
@@ -129,7 +124,7 @@ def sorted_epochs(epochs) -> "SortedEpochs":
     return epochs if callable(getattr(epochs, "values", None)) else SortedEpochs(epochs)
 
 
-def _merge_sparse_segments(segments: np.ndarray, sorted_epochs: "SortedEpochs", per_knot: float):
+def merge_sparse_segments(segments: np.ndarray, sorted_epochs: "SortedEpochs", per_knot: float):
     """Segments joined across their gaps until each holds at least ``per_knot`` epochs.
 
     A segment needs one knot interval (4 coefficients per axis) however little data it
@@ -192,7 +187,7 @@ class AttitudeSpline:
         mean interval); ``'uniform'``, knots ``knot_interval_days`` apart, further apart where
         fewer than ``transits_per_knot`` epochs fall (module notes). A segment with fewer than
         ``transits_per_knot`` epochs is first joined to a neighbour across the shorter gap
-        (:func:`_merge_sparse_segments`). Each segment then shrinks to
+        (:func:`merge_sparse_segments`). Each segment then shrinks to
         the span of its ``epochs`` (``segments`` says so), so ``epochs`` must hold every
         epoch later passed to :meth:`basis`.
     """
@@ -237,7 +232,7 @@ class AttitudeSpline:
         if not per_knot >= 1:
             raise ValueError(f"transits_per_knot must be >= 1, got {per_knot}")
         epochs = sorted_epochs(epochs)
-        self.segments, lo, hi = _merge_sparse_segments(self.segments, epochs, per_knot)
+        self.segments, lo, hi = merge_sparse_segments(self.segments, epochs, per_knot)
         if rule == "uniform":
             return self._uniform_floor_knots(epochs, per_knot, lo, hi)
         # one request for every order statistic: each segment's first and last epoch and the

@@ -12,9 +12,9 @@ partials w.r.t. ``alpha*, delta`` are ``s_a, s_d``) changes under a small rotati
 ``delta`` of the instrument by ``-(u x a) . delta = (s_d p - s_a q) . delta``
 (:mod:`~mcsweep.solver.observations`), so they follow from the position partials and the
 star's ``p, q`` (they agree with the explicit ones to 2.5e-16 relative; the problem solved
-is the one with these partials, :meth:`~mcsweep.solver.cg.GlobalProblem.design`).
+is the one with these partials, :meth:`~mcsweep.solver.problem.GlobalProblem.design`).
 
-The functions here are the chunk tasks of :mod:`mcsweep.solver.cg`: module-level,
+The functions here are the per-block work of the chunk tasks of :mod:`mcsweep.solver.tasks`: module-level,
 picklable, pure (arguments in, results out), so any executor (joblib processes, a Dask
 cluster) can run them. Each returns the block's contribution to the global sums; the
 caller adds contributions in the fixed order of :mod:`~mcsweep.solver.reduction`.
@@ -35,7 +35,7 @@ from .attitude_update import band_of_rows
 
 __all__ = ["StarBlock", "BlockSpan", "gather", "spline_values", "att_rows", "src_rows", "att_forward", "att_adjoint", "att_band", "src_forward",
            "src_adjoint", "block_setup", "block_precondition_forward", "block_precondition_back", "block_residuals",
-           "block_normal_apply"]
+           "block_normal_apply", "schur_absorption", "ill_conditioned", "schur_bandwidth"]
 
 _AX, _NB, _NP = 3, 4, 5
 
@@ -50,7 +50,7 @@ class StarBlock:
         First star (index into the solution's stars) and number of stars.
     rows : ndarray (m,) int or slice
         Index of each measurement in the problem's observation order (a slice when the
-        block's measurements are contiguous in it, :func:`~mcsweep.solver.cg.in_block_order`).
+        block's measurements are contiguous in it, :func:`~mcsweep.solver.problem.in_block_order`).
     star : ndarray (m,) int16 or int32
         Star of each measurement within the block (0 .. n - 1).
     src : ndarray (3, m)
@@ -108,7 +108,7 @@ class BlockSpan:
     """Where a :class:`StarBlock` that lives elsewhere (on a Dask worker, built there) sits in
     the problem: its stars ``first .. first + n - 1``, its measurements ``rows`` (a slice of
     the observation order), and the per-star inverses the driver sets for a prior. What the
-    driver's side of the solver reads of a block (:mod:`~mcsweep.solver.cg`)."""
+    driver's side of the solver reads of a block (:mod:`~mcsweep.solver.problem`)."""
 
     first: int
     n: int
@@ -211,7 +211,7 @@ def _binv(blk: StarBlock, x) -> np.ndarray:
 
 # ------------------------------------------------------------------ setup
 #: Consecutive first coefficients ``j0`` whose measurements of one star form one cluster
-#: of :func:`_schur_absorption` (its band then has ``3 (SCHUR_WINDOW + 3) - 1`` super-diagonals).
+#: of :func:`schur_absorption` (its band then has ``3 (SCHUR_WINDOW + 3) - 1`` super-diagonals).
 #: Wider windows keep more of each star's absorption but barely pay: measured (4000 stars,
 #: one year, 1-day knots, priors 1 / 10 / 1000 mas) 36 / 43 / 51 iterations with 1, 36 / 39 /
 #: 46 with 2, 33 / 36 / 45 with 4, at a costlier setup.
@@ -219,13 +219,13 @@ SCHUR_WINDOW = 1
 
 
 def schur_bandwidth(window: int = SCHUR_WINDOW) -> int:
-    """Super-diagonals of :func:`_schur_absorption` for clusters of ``window`` first coefficients."""
+    """Super-diagonals of :func:`schur_absorption` for clusters of ``window`` first coefficients."""
     return _AX * (window + _NB - 1) - 1
 
 
 #: Stars whose ``kappa = tr(N_i) tr(B_i^-1)`` (data information times prior-limited variance,
 #: a bound on the condition of ``B_i`` that matters here) exceeds this get the orthogonal form
-#: of :func:`_schur_absorption`: the normal-equation form ``G'G - H' B^-1 H`` loses about
+#: of :func:`schur_absorption`: the normal-equation form ``G'G - H' B^-1 H`` loses about
 #: ``kappa x 2e-16`` of the star's information to rounding. Under a 1000 mas prior a star
 #: seen once or twice has kappa ~ 1e10-1e12 (its parallax and proper motion are known only
 #: from the prior), so the loss, ~1e-6 of its ``G'G``, swamps what the knot keeps: at the
@@ -237,7 +237,7 @@ def schur_bandwidth(window: int = SCHUR_WINDOW) -> int:
 STABLE_ABSORPTION_KAPPA = 1e6
 
 
-def _schur_absorption(blk: StarBlock, prior, batch_stars: int = 4096, window: int = SCHUR_WINDOW,
+def schur_absorption(blk: StarBlock, prior, batch_stars: int = 4096, window: int = SCHUR_WINDOW,
                       columns: tuple[int, int] | None = None) -> np.ndarray:
     """The in-band part of ``N_as B^-1 N_sa`` (upper band storage, ``L = schur_bandwidth + 1``
     rows): the banded Schur block is ``N_aa`` (:func:`att_band`, prior-independent) minus this.
@@ -265,7 +265,7 @@ def _schur_absorption(blk: StarBlock, prior, batch_stars: int = 4096, window: in
     lo)`` slab, from the clusters that touch them; each element is the same sum, in the same
     order, as in the whole band (the stars' batches and their clusters' order are kept), so
     slabs put side by side are the whole band bit for bit, and the solver can sum the blocks'
-    absorption slab by slab (:mod:`~mcsweep.solver.cg`, the setup) without ever holding more
+    absorption slab by slab (:mod:`~mcsweep.solver.schur_preconditioner`) without ever holding more
     than one band.
     """
     n_att = _AX * blk.n_coef
@@ -274,19 +274,8 @@ def _schur_absorption(blk: StarBlock, prior, batch_stars: int = 4096, window: in
     ab = np.zeros((L, c_hi - c_lo))
     scratch = np.zeros(c_hi - c_lo)  # band_scatter's, zero between calls
     prior = np.broadcast_to(np.asarray(prior, dtype=float), (blk.n, _NP))
-    ill = _ill_conditioned(blk)
-    # the rows to visit: those of clusters touching the columns, and every row of an
-    # ill-conditioned star with such a cluster (its other rows enter the orthogonal form)
-    base_row = _AX * (blk.j0.astype(np.int64) // window) * window
-    touch = (base_row + L > c_lo) & (base_row < c_hi)
-    ill_star = ill[blk.star]
-    take = touch & ~ill_star
-    if ill.any():
-        ill_touching = np.zeros(blk.n, dtype=bool)
-        ill_touching[blk.star[touch & ill_star]] = True
-        take |= ill_touching[blk.star]
-    visit = np.flatnonzero(take)
-    order = visit[np.argsort(blk.star[visit], kind="stable")]  # star by star, each in time order
+    ill = ill_conditioned(blk)
+    order = _absorption_rows(blk, ill, window, L, c_lo, c_hi)
     star_sorted = blk.star[order]
     for lo in range(0, blk.n, batch_stars):  # bounds temporary memory; fixed order
         hi = min(lo + batch_stars, blk.n)
@@ -298,41 +287,64 @@ def _schur_absorption(blk: StarBlock, prior, batch_stars: int = 4096, window: in
         a_all = src_rows(blk, sel)
         jb = (j0 // window) * window
         ill_row = ill[star]
-        # H[i, c, k] = sum of a_i G_r over cluster k's rows, c = 3 (j0 - jb) + r; structure
-        # of arrays (one contiguous vector over clusters per element), as in
-        # mcsweep.astrometry.linalg, so every step below is a vector operation. Clusters are
-        # runs of equal (star, jb) (``sel`` is in star order, each star's rows in time order).
         rows = np.flatnonzero(~ill_row)
         if rows.size:
-            key = star[rows] * blk.n_coef + jb[rows]
-            new_cluster = np.r_[True, key[1:] != key[:-1]]
-            uniq, cl = key[new_cluster], np.cumsum(new_cluster) - 1
-            nc = uniq.size
-            H = np.zeros((_NP, L, nc))
-            for o in range(window):  # rows by offset of their j0 within the window
-                at = slice(None) if window == 1 else np.flatnonzero(j0[rows] - jb[rows] == o)
-                for i in range(_NP):
-                    a = a_all[i][rows][at]
-                    for r in range(_AX * _NB):
-                        H[i, _AX * o + r] += np.bincount(cl[at], a * G[r][rows][at], minlength=nc)
-            Bc = np.ascontiguousarray(blk.binv[uniq // blk.n_coef].transpose(1, 2, 0))  # (5, 5, clusters)
-            BH = np.empty_like(H)  # B^-1 H
-            for i in range(_NP):
-                BH[i] = Bc[i, 0] * H[0]
-                for k in range(1, _NP):
-                    BH[i] += Bc[i, k] * H[k]
-            # H' B^-1 H, upper band only, straight into the band storage (compiled: a bincount over
-            # all n_att unknowns per element of the band cost ~3 s per block with AGIS's 30 s knots)
-            kernels.band_scatter(ab, H, BH, _AX * (uniq % blk.n_coef) - c_lo, scratch)
+            _normal_absorption(ab, blk, rows, star, j0, jb, a_all, G, window, L, c_lo, scratch)
         if ill_row.any():
             _orthogonal_absorption(ab, a_all, G, j0 - jb, star - lo, star * blk.n_coef + jb, jb, ill_row,
                                    prior[lo:hi], L, c_lo)
     return ab
 
 
-def _ill_conditioned(blk: StarBlock) -> np.ndarray:
+def _absorption_rows(blk: StarBlock, ill, window: int, L: int, c_lo: int, c_hi: int) -> np.ndarray:
+    """The rows :func:`schur_absorption` visits for the band's columns ``c_lo .. c_hi - 1``, star
+    by star, each in time order: those of clusters touching the columns, and every row of an
+    ill-conditioned star with such a cluster (its other rows enter the orthogonal form)."""
+    base_row = _AX * (blk.j0.astype(np.int64) // window) * window
+    touch = (base_row + L > c_lo) & (base_row < c_hi)
+    ill_star = ill[blk.star]
+    take = touch & ~ill_star
+    if ill.any():
+        ill_touching = np.zeros(blk.n, dtype=bool)
+        ill_touching[blk.star[touch & ill_star]] = True
+        take |= ill_touching[blk.star]
+    visit = np.flatnonzero(take)
+    return visit[np.argsort(blk.star[visit], kind="stable")]  # star by star, each in time order
+
+
+def _normal_absorption(ab, blk: StarBlock, rows, star, j0, jb, a_all, G, window: int, L: int, c_lo: int,
+                       scratch) -> None:
+    """The normal-equation form ``H' B^-1 H`` of the absorption of the clusters of a batch's
+    ``rows`` (well-conditioned stars), added into the band ``ab`` (:func:`schur_absorption`)."""
+    # H[i, c, k] = sum of a_i G_r over cluster k's rows, c = 3 (j0 - jb) + r; structure
+    # of arrays (one contiguous vector over clusters per element), as in
+    # mcsweep.astrometry.linalg, so every step below is a vector operation. Clusters are
+    # runs of equal (star, jb) (``sel`` is in star order, each star's rows in time order).
+    key = star[rows] * blk.n_coef + jb[rows]
+    new_cluster = np.r_[True, key[1:] != key[:-1]]
+    uniq, cl = key[new_cluster], np.cumsum(new_cluster) - 1
+    nc = uniq.size
+    H = np.zeros((_NP, L, nc))
+    for o in range(window):  # rows by offset of their j0 within the window
+        at = slice(None) if window == 1 else np.flatnonzero(j0[rows] - jb[rows] == o)
+        for i in range(_NP):
+            a = a_all[i][rows][at]
+            for r in range(_AX * _NB):
+                H[i, _AX * o + r] += np.bincount(cl[at], a * G[r][rows][at], minlength=nc)
+    Bc = np.ascontiguousarray(blk.binv[uniq // blk.n_coef].transpose(1, 2, 0))  # (5, 5, clusters)
+    BH = np.empty_like(H)  # B^-1 H
+    for i in range(_NP):
+        BH[i] = Bc[i, 0] * H[0]
+        for k in range(1, _NP):
+            BH[i] += Bc[i, k] * H[k]
+    # H' B^-1 H, upper band only, straight into the band storage (compiled: a bincount over
+    # all n_att unknowns per element of the band cost ~3 s per block with AGIS's 30 s knots)
+    kernels.band_scatter(ab, H, BH, _AX * (uniq % blk.n_coef) - c_lo, scratch)
+
+
+def ill_conditioned(blk: StarBlock) -> np.ndarray:
     """Per star, whether ``kappa = tr(N_i) tr(B_i^-1)`` exceeds :data:`STABLE_ABSORPTION_KAPPA`
-    (then :func:`_schur_absorption` takes its orthogonal form)."""
+    (then :func:`schur_absorption` takes its orthogonal form)."""
     m = blk.t.shape[0]
     w = np.empty(m)  # each row's squared partials, in runs of rows (bounded temporaries)
     for lo in range(0, m, 1 << 16):
@@ -344,7 +356,7 @@ def _ill_conditioned(blk: StarBlock) -> np.ndarray:
 
 def _orthogonal_absorption(ab, a_all, G, offset, star, key, jb, ill_row, prior, L, c_lo) -> None:
     """Add the absorption ``G_c'G_c - R22'R22`` of the clusters of rows ``ill_row`` (all of a
-    star's rows or none) into ``ab`` (:func:`_schur_absorption`, the orthogonal form; compiled:
+    star's rows or none) into ``ab`` (:func:`schur_absorption`, the orthogonal form; compiled:
     :func:`~mcsweep.solver.kernels.orthogonal_absorption`). ``offset``: each row's ``j0``
     within its window; ``star``: within the batch; ``key``: each row's cluster (star x
     n_coef + ``jb``, the first coefficient of its window); ``c_lo``: the unknown of ``ab``'s
@@ -362,7 +374,7 @@ def _orthogonal_absorption(ab, a_all, G, offset, star, key, jb, ill_row, prior, 
 def block_setup(blk: StarBlock, h, start=None) -> dict:
     """What the solver needs once per prior from a block, for the measurements ``h (m,)``
     less what the starting attitude ``start (n_coef, 3)`` explains, if given, besides its
-    Schur absorption (:func:`_schur_absorption`, summed slab by slab).
+    Schur absorption (:func:`schur_absorption`, summed slab by slab).
 
     Returns a dict of global contributions, ``b_a = A_a' h``, ``hh = h' h``, and per star
     ``b_s = A_s' h`` (n, 5). ``hh`` by numpy's pairwise add-reduce, not ``h @ h``: BLAS

@@ -1,4 +1,4 @@
-"""A basic-angle variation solved with the stars and the attitude (issue 24, candidate 3).
+"""A basic-angle variation solved with the stars and the attitude (a calibration AGIS solves).
 
 AGIS solves calibration unknowns together with the sources and the attitude (its C block:
 Lindegren et al. 2012, A&A 538, A78); the paper's global solutions came from AGISLab, the
@@ -22,14 +22,14 @@ whatever else the near-degenerate mode holds takes the bias with it. The test
 scanning law's own geometry.
 
 How it is solved. The ``n_cal = 2 K`` calibration unknowns ``c`` couple to every
-measurement, so they are not put into the banded blocks of :mod:`.cg`: with ``A`` the
+measurement, so they are not put into the banded blocks of :mod:`.problem`: with ``A`` the
 design of the stars and the attitude, ``A_c`` that of the calibration (normalised like the
-measurements) and ``N`` the normal matrix of :mod:`.cg` (prior and frame included), the
+measurements) and ``N`` the normal matrix of :mod:`.problem` (prior and frame included), the
 bordered system
 
     [[N, G], [G', D]] [x; c] = [A' h; A_c' h],   G = A' A_c,  D = A_c' A_c,
 
-is solved by the one PCG of :func:`.cg.solve_global` with ``border=A_c``: ``G`` is made
+is solved by the one PCG of :func:`.solve.solve_global` with ``border=A_c``: ``G`` is made
 once, in the setup pass, as the right-hand side the columns would give as measurements
 (its stars' rows stay with their chunks), so an iteration costs no further pass over the
 measurements, only ``n_cal`` dot products and vector updates; the preconditioner treats
@@ -37,17 +37,13 @@ measurements, only ``n_cal`` dot products and vector updates; the preconditioner
 a matrix of rank at most ``2 n_cal``, so CG needs at most that many more iterations (in exact
 arithmetic) to deal with it, however nearly degenerate the calibration is: measured, the
 same iteration counts as without the calibration (``tests/solver/test_calibration.py``;
-docs/table3.md). The energy rule of :mod:`.cg` then bounds the error of every estimated
+docs/table3.md). The energy rule of :mod:`.stopping` then bounds the error of every estimated
 quantity, the calibration and its correlations with the stars included, by the asked
 fraction of its formal uncertainty in the bordered system.
 
-Before (2026-11-25, the same normal equations): the calibration's Schur complement from
-``n_cal + 1`` solutions of the unbordered system (the data and each column as measurements),
-with the data solved more tightly by the error amplification ``1 / sin theta`` of the
-bordered system (``theta`` the smallest principal angle between the columns and the rest of
-the design in the metric of ``N``): 3-7 times the iterations at 25 FoV transits per knot,
-where ``1 / sin theta`` reached 29-134. The per-star covariances stay those of :mod:`.cg`
-(attitude and calibration as known), as the paper's Table 3 evaluates them.
+The per-star covariances stay those of :mod:`.problem` (attitude and calibration as known),
+as the paper's Table 3 evaluates them. How it was solved before the border:
+docs/solver_design.md, "Calibration".
 """
 
 from __future__ import annotations
@@ -108,7 +104,7 @@ def basic_angle_columns(tcb_jd, following, sigma_al_mas, is_ac, law, harmonics: 
 
 
 def calibration_design(columns: BasicAngleColumns) -> np.ndarray:
-    """The calibration's normalised partials ``A_c (m, n_cal)`` (:func:`.cg.solve_global`'s
+    """The calibration's normalised partials ``A_c (m, n_cal)`` (:func:`.solve.solve_global`'s
     ``border``), checked to be determined by the measurements at all (module notes)."""
     C = np.column_stack([columns.column(k) for k in range(columns.n_cal)])
     eig = np.linalg.eigvalsh(C.T @ C)

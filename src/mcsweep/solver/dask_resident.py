@@ -8,12 +8,12 @@ per worker), or any future of a task that built it on a worker (the primary expe
 :mod:`mcsweep.experiments.primary_cluster`). Every pass then runs the chunk task on the
 worker that holds the chunk, which reads and updates the chunk's star vectors in place:
 only attitude-sized vectors and a few numbers are sent and come back
-(:mod:`~mcsweep.solver.cg`, "Where the vectors live"). The solver's passes whose outputs
+(:mod:`~mcsweep.solver.pcg`, "Where the vectors live"). The solver's passes whose outputs
 are summed (:meth:`DaskChunks.reduced`) are one task per worker over the chunks it holds,
 which adds their outputs where the fixed tree adds them
 (:class:`~mcsweep.solver.reduction.AlignedPartials`): a few attitude-sized sums per worker
 reach the driver, not one per chunk, so what travels and what the driver holds do not grow
-with the number of chunks (issue 27); :meth:`DaskChunks.run` (one task per chunk, every
+with the number of chunks; :meth:`DaskChunks.run` (one task per chunk, every
 output back) serves the others.
 
 Results are bit-identical to in-process ones: the chunk tasks are the solver's own
@@ -24,7 +24,7 @@ in its fixed order (:mod:`~mcsweep.solver.reduction`).
 A worker lost in the middle of a solution takes the star vectors of its chunks with it:
 its scattered chunks (no task to recompute them from) are scattered again from the
 driver by ``rebuild`` and the solution restarts from its first pass
-(:class:`~mcsweep.solver.cg.ChunksLost`); every task is deterministic, so the restarted
+(:class:`~mcsweep.solver.executors.ChunksLost`); every task is deterministic, so the restarted
 solution has the same bits (tested by killing a worker process of a LocalCluster
 mid-solve). Only a loss restarts (a chunk's data lost, a cancelled result, a closed
 connection, a time-out, a killed worker); an error of the task itself is raised at once.
@@ -42,9 +42,10 @@ import uuid
 import numpy as np
 from typing import Callable, Sequence
 
+from .executors import ChunksLost, fresh_arrays
 from .reduction import AlignedPartials, share_of, sum_partials
 
-__all__ = ["DaskChunks"]
+__all__ = ["DaskChunks", "is_loss", "live_workers"]
 
 
 def _call(fn: Callable, ci: int, chunk: tuple, rest: tuple):
@@ -81,7 +82,7 @@ def _attach(chunk: tuple, binv) -> tuple:
 _LOSS = (concurrent.futures.CancelledError, OSError, TimeoutError)
 
 
-def _is_loss(exc: BaseException) -> bool:
+def is_loss(exc: BaseException) -> bool:
     return isinstance(exc, _LOSS) or type(exc).__name__ == "KilledWorker"
 
 
@@ -241,9 +242,10 @@ class DaskChunks:
             self._homes[ci] = holders[:1]
         return self._homes[ci]
 
-    def bytes_per_call(self, *names: str) -> tuple[float, float]:
-        """Bytes (sent, received) of the passes of task functions ``names``, summed."""
-        got = [self.bytes_by_task.get(n, [0, 0]) for n in names]
+    def bytes_per_call(self, *tasks: Callable) -> tuple[float, float]:
+        """Bytes (sent, received) of the passes of the chunk task functions ``tasks``
+        (:mod:`~mcsweep.solver.tasks`), summed."""
+        got = [self.bytes_by_task.get(getattr(t, "__name__", "task"), [0, 0]) for t in tasks]
         return float(sum(g[0] for g in got)), float(sum(g[1] for g in got))
 
     def run(self, fn: Callable, items):
@@ -256,7 +258,7 @@ class DaskChunks:
         in between. Smaller ones and other objects travel with the task.
 
         A lost worker takes the chunk states it held: its chunks are sent again (``rebuild``)
-        and :class:`~mcsweep.solver.cg.ChunksLost` is raised, so the solution restarts.
+        and :class:`~mcsweep.solver.executors.ChunksLost` is raised, so the solution restarts.
         """
 
         items, counts, sent = self._start_pass(items)
@@ -297,9 +299,7 @@ class DaskChunks:
         fails, before or after the scheduler marks its data lost. Give the scheduler a moment,
         send the lost chunks again and have the solution restart (raises ChunksLost). An error
         of the task itself is raised at once."""
-        from .cg import ChunksLost
-
-        if not (self._lost() or _is_loss(exc)):
+        if not (self._lost() or is_loss(exc)):
             raise exc
         time.sleep(1.0)
         lost = self._lost()
@@ -335,11 +335,9 @@ class DaskChunks:
         chunks one after the other: the clusters this project starts have one thread per
         worker (a worker process per core), where nothing is lost; a worker of several threads
         would run its chunks in turn. ``fresh``: received
-        arrays copied (:func:`~mcsweep.solver.cg._fresh`; not needed for sums only added
+        arrays copied (:func:`~mcsweep.solver.executors.fresh_arrays`; not needed for sums only added
         element by element). Losses as in :meth:`run`.
         """
-        from .cg import _fresh
-
         items, counts, sent = self._start_pass(items)
         name = getattr(fn, "__name__", "task")
         try:
@@ -362,7 +360,7 @@ class DaskChunks:
         result = []
         for k, spec in enumerate(specs):
             if spec[0] == "tree":
-                result.append(sum_partials((o[k] for o in out), spec[3], _fresh if fresh else None))
+                result.append(sum_partials((o[k] for o in out), spec[3], fresh_arrays if fresh else None))
             else:
                 result.append(max(o[k] for o in out))
         return result

@@ -1,9 +1,9 @@
 """The global normal equations solved directly: the reference for the iterative solver.
 
-Independent of the PCG machinery (:mod:`.cg`, :mod:`.blocks`, :mod:`.reduction`): the
+Independent of the PCG machinery (:mod:`.pcg`, :mod:`.blocks`, :mod:`.reduction`): the
 design matrix is assembled element by element as a scipy.sparse matrix from the partials,
-the prior (Eq. 18) added on the source diagonal, and the frame constraint (module notes of
-:mod:`.cg`, "Frame") appended as a bordered (KKT) system, so the rank-6 penalty is never
+the prior (Eq. 18) added on the source diagonal, and the frame constraint (:mod:`.problem`,
+:mod:`.frame`) appended as a bordered (KKT) system, so the rank-6 penalty is never
 formed densely. The bordered matrix is equilibrated, factorised once (SuperLU through
 :func:`scipy.sparse.linalg.splu`) and the solution refined by two steps of iterative
 refinement. Memory grows with the fill-in of the factorisation: tests and benchmarks only.
@@ -40,7 +40,7 @@ def sparse_design(star, src, att, j0, bval, n_stars: int, n_coef: int) -> sp.csr
 
 
 def solve_direct(problem, h, extra_columns=None) -> tuple[np.ndarray, np.ndarray, sp.csr_matrix]:
-    """Direct solution of ``problem`` (a :class:`~.cg.GlobalProblem`) for measurements ``h``.
+    """Direct solution of ``problem`` (a :class:`~.problem.GlobalProblem`) for measurements ``h``.
 
     ``extra_columns`` (m, k): further unknowns without prior or frame constraint, their
     normalised partials (the calibration of :mod:`.calibration`), solved with the rest and

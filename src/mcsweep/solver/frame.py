@@ -10,8 +10,8 @@ reference epoch ``t_ref``). The data therefore leave 6 degrees of freedom undete
   corrections and of the proper-motion corrections over all sources,
   ``sum_i g_i K_i' dpos_i = 0`` and ``sum_i g'_i K_i' dmu_i = 0`` with ``g_i`` (``g'_i``)
   the star's formal position (proper-motion) precision normalised to mean 1
-  (:class:`mcsweep.solver.cg.GlobalProblem`), added to the normal equations as a
-  penalty (exact for the orientation, whose direction the data do not see at all).
+  (:func:`normalised_weights`, :class:`mcsweep.solver.problem.GlobalProblem`), added to the
+  normal equations as a penalty whose weights are a typical star's (:func:`penalty_weights`) (exact for the orientation, whose direction the data do not see at all).
 * Evaluation: as the frame rotator does after AGIS, the rotation and spin fitted by
   (weighted) least squares to (estimated - true) over all sources are removed before
   errors are computed (:func:`fit_frame`, :func:`frame_offsets`).
@@ -27,7 +27,8 @@ import numpy as np
 from ..astrometry.design import tangent_triad
 
 __all__ = ["rotation_matrices", "frame_offsets", "fit_frame", "frame_attitude", "precision_weights",
-           "frame_fit_sums", "frame_from_sums", "offsets_of"]
+           "frame_fit_sums", "frame_from_sums", "offsets_of", "weight_sums", "normalised_weights", "typical_weights",
+           "penalty_weights"]
 
 
 def rotation_matrices(ra_deg, dec_deg) -> np.ndarray:
@@ -120,3 +121,30 @@ def frame_attitude(eps_mas, omega_mas_yr, tcb_jd, t_ref_jd: float) -> np.ndarray
     """Attitude rotation (m, 3) [mas] matching a frame rotation ``eps`` and spin ``omega``."""
     t_yr = (np.asarray(tcb_jd, dtype=float) - t_ref_jd) / 365.25
     return np.asarray(eps_mas, dtype=float) + t_yr[:, None] * np.asarray(omega_mas_yr, dtype=float)
+
+
+def weight_sums(g) -> np.ndarray:
+    """Column sums (2,) of one block's frame weights ``g (n, 2)`` (summed over blocks in the
+    fixed tree, so the means are the same bits wherever the blocks are)."""
+    return np.array([np.sum(g[:, 0]), np.sum(g[:, 1])])
+
+
+def normalised_weights(g, means) -> np.ndarray:
+    """Frame constraint weights (module notes): each star's formal precision of position and
+    proper motion (attitude as known, :func:`precision_weights`), normalised to mean 1."""
+    return np.column_stack([g[:, 0] / means[0], g[:, 1] / means[1]])
+
+
+def typical_weights(N_src, prior) -> tuple[np.ndarray, np.ndarray]:
+    """Per star, its position and proper-motion weights (data and prior) whose medians set the
+    frame penalty (:func:`penalty_weights`)."""
+    return N_src[:, 0, 0] + N_src[:, 1, 1], N_src[:, 3, 3] + N_src[:, 4, 4] + 2 * prior[:, 3]
+
+
+def penalty_weights(pos, pm, n: int) -> tuple[float, float]:
+    """Frame penalty weights: one typical star's position (proper-motion) weight per unit of
+    mean rotation, so the constrained directions are as well conditioned as a star (any
+    positive weight gives the same stars for the orientation). ``pos``, ``pm``: the stars'
+    weights' medians (of :func:`typical_weights`; on a cluster found by
+    :mod:`mcsweep.solver.selection`)."""
+    return float(pos) / (2.0 * n), float(pm) / (2.0 * n)

@@ -1,7 +1,7 @@
 """Compiled passes over a block's measurements: the two preconditioner sweeps of every PCG iteration.
 
-These are the solver's hot path (issue 23: every iteration reads every measurement
-three times). In numpy each product of :mod:`~mcsweep.solver.blocks` is a vector
+These are the solver's hot path (every iteration reads every measurement three
+times, and at AGIS's 30 s knots there are many iterations). In numpy each product of :mod:`~mcsweep.solver.blocks` is a vector
 operation with its own temporaries, so one pass streams some 30 measurement-length
 arrays through memory; here one loop reads each measurement's 70 stored bytes once and
 keeps everything else in registers. Measured with ``benchmarks/bench_primary.py``
@@ -226,7 +226,7 @@ def band_scatter(ab, H, BH, base, scratch=None) -> None:
     upper band storage, ``H, BH (5, L, clusters)``, ``base (clusters,)``; columns outside
     ``0 .. width - 1`` dropped, so ``ab`` may be a slab of a longer band with ``base`` counted
     from its first column): the Schur absorption's scatter of
-    :func:`~mcsweep.solver.blocks._schur_absorption`, touching only the clusters' unknowns.
+    :func:`~mcsweep.solver.blocks.schur_absorption`, touching only the clusters' unknowns.
     The same bits as ``ab[row] += np.bincount(base + c, w, minlength=width)`` per ``(r, c)``:
     each unknown's sum in cluster order from zero, then added once (a bin is never -0.0, so
     adding a zero bin or the later repeats' zeros changes nothing). ``scratch``: zeros of
@@ -316,7 +316,7 @@ def orthogonal_absorption(ab, A, Gt, prior, s_bounds, c_bounds, base) -> None:
     """Add clusters' Schur absorption ``G_c'G_c - T'T`` into the upper band storage ``ab (L,
     width)`` (``ab[L - 1 + r - c, base + c]``, ``c >= r``; columns outside ``ab`` dropped), ``T``
     what Householder reflections of the five source columns leave of ``[[A_c, G_c], [A_other, 0],
-    [N_p^1/2, 0]]`` (:func:`~mcsweep.solver.blocks._schur_absorption`, its orthogonal form).
+    [N_p^1/2, 0]]`` (:func:`~mcsweep.solver.blocks.schur_absorption`, its orthogonal form).
 
     ``A (m, 5)``, ``Gt (m, L)``: source partials and attitude partials (placed in the cluster's
     window) of the rows, star by star and cluster by cluster; star ``s`` holds rows

@@ -1,13 +1,13 @@
 """Chunk workers that keep their blocks: the solver's passes on the cores of one machine.
 
-Every PCG iteration makes two passes over all measurements (:mod:`~mcsweep.solver.cg`).
+Every PCG iteration makes two passes over all measurements (:mod:`~mcsweep.solver.pcg`).
 A map-like executor (joblib's loky processes) re-sends each chunk's measurements with
 every call, which costs more than the pass itself (measured 5.8x the in-process wall
-time; :func:`~mcsweep.solver.cg.solve_global`). Here the workers are *forked* once per
+time; :func:`~mcsweep.solver.solve.solve_global`). Here the workers are *forked* once per
 solution, after the problem is built: each inherits the blocks and the measurements
 copy-on-write (nothing is copied or sent; the solver only reads them) and owns a fixed,
 contiguous share of the chunks, and with them the star vectors of the iteration (kept
-in each chunk's state, :mod:`~mcsweep.solver.cg`). A pass then sends each worker only
+in each chunk's state, :mod:`~mcsweep.solver.pcg`). A pass then sends each worker only
 attitude-sized vectors and a few numbers, and receives the same.
 
 Results are bit-identical to in-process ones: a child computes on the very arrays (same
@@ -25,14 +25,11 @@ Large buffers (at least ``ARENA_MIN_BYTES``) do not go through the pipe but thro
 *arenas* per worker, anonymous shared mappings made before the fork: the sender copies the
 buffer into its arena, the pipe carries where it lies, and the receiver copies it out at once
 into an array of its own. With AGIS's 30 s knots every pass returns attitude vectors of
-2.3e6 doubles (18.5 MB); through the pipe each cost 52 ms of wall time and 24 ms of the
-parent's CPU, through an arena 12 ms and 4.5 ms (measured 2026-11-26 on the 2-core machine).
+2.3e6 doubles (18.5 MB), which an arena passes in a fraction of the pipe's time and of the
+parent's CPU (measured: docs/solver_design.md, "Forked workers' arenas").
 An arena is reused message after message (the parent sends a worker's next message only once
 it has read every result of the last, and each side copies out what it receives at once);
-what does not fit in it goes through the pipe. The bytes are the same either way. At the
-paper's sizes with 25 FoV transits per knot (2 workers, 2 cores) an iteration went from 1.36
-to 1.24 s and the parent from 0.65 to 0.27 of a core, the two workers from 0.65-0.72 to
-0.73-0.83 (with ``cg._ordered`` no longer copying these results a second time).
+what does not fit in it goes through the pipe. The bytes are the same either way.
 
 Only where the ``fork`` start method exists (Linux, macOS); elsewhere :func:`forked_chunks`
 yields ``None`` and the caller runs in-process. On a Dask cluster
@@ -123,7 +120,7 @@ def _send(conn: Connection, obj, arena: _Arena | None = None) -> None:
 def _recv(conn: Connection, arena: _Arena | None = None):
     """What :func:`_send` sent, its arrays on new allocations of this process (copied out of
     ``arena`` or of the pipe's bytes): they behave as arrays computed here (the solver's
-    ``cg._fresh`` rule), whatever the sender's memory alignment."""
+    ``executors.fresh_arrays`` rule), whatever the sender's memory alignment."""
     places = np.frombuffer(conn.recv_bytes(), dtype=np.int64).reshape(-1, 2)
     head = conn.recv_bytes()
     return pickle.loads(head, buffers=[_from_pipe(conn, int(n)) if at < 0 else arena.take(int(at), int(n))
@@ -222,7 +219,7 @@ class _Pool:
             raise error
         return (r for w in busy for r in got[w])
 
-    #: What :func:`_recv` gives: the solver need not copy the results again (``cg._ordered``).
+    #: What :func:`_recv` gives: the solver need not copy the results again (``executors.ordered``).
     run.fresh_results = True
 
     def close(self, *, kill: bool = False) -> None:

@@ -1,7 +1,7 @@
 """Exact order statistics of float64 values spread over chunks, without gathering them.
 
-The frame penalty (:func:`~mcsweep.solver.cg.penalty_weights`) is set by the medians of two
-per-star weights. On a cluster the stars stay with their chunks (issue 27), so the medians
+The frame penalty (:func:`~mcsweep.solver.frame.penalty_weights`) is set by the medians of two
+per-star weights. On a cluster the stars stay with their chunks (nothing per star reaches the driver), so the medians
 are found by radix selection on an order-preserving 64-bit key of each value: four rounds,
 each one task per chunk returning how many of its values fall under each 16-bit digit
 below the prefix fixed so far (:func:`digit_counts`, sparse), after which the driver knows

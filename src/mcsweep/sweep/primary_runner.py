@@ -164,7 +164,7 @@ def _solve(run: GlobalRun, data, label: str, client: Callable, start: tuple | No
         # one is needed). On this machine the n_jobs workers are forked per solution and keep
         # their share of the blocks (mcsweep.solver.resident). A map-like executor would
         # re-send every chunk's measurements per pass, which costs more than the work
-        # (mcsweep.solver.cg.solve_global). Results are the same bits either way.
+        # (mcsweep.solver.solve.solve_global). Results are the same bits either way.
         # A line a minute while it runs: at the paper's sizes with AGIS's knots one solution
         # takes up to an hour (docs/table3.md), with nothing else to show it is getting there.
         log = SolveLines(f"mcsweep: primary: prior {label}", lambda r: settings.describe_state(dataclasses.asdict(r)),

@@ -1,0 +1,156 @@
+"""The global solution: :func:`solve_global`, PCG on chunks of the problem wherever they run.
+
+:func:`solve_global` checks its arguments, cuts the problem's blocks into chunks
+(:meth:`~mcsweep.solver.problem.GlobalProblem.chunks`), puts each chunk with its
+measurements and a state of its own on an executor (in this process, forked workers of
+:mod:`~mcsweep.solver.resident`, or a Dask cluster's workers of
+:mod:`~mcsweep.solver.dask_resident`) and runs the iteration of :mod:`~mcsweep.solver.pcg`
+there; a solution whose chunks were lost with a worker is restarted
+(:class:`~mcsweep.solver.executors.ChunksLost`). Results do not depend on the executor, the
+chunking or the number of workers: every sum is taken in the fixed tree of
+:mod:`~mcsweep.solver.reduction`.
+
+The unknowns, preconditioner and stopping rule: :mod:`~mcsweep.solver.problem`,
+:mod:`~mcsweep.solver.schur_preconditioner` and :mod:`~mcsweep.solver.stopping`; "module
+notes" below means those of :mod:`~mcsweep.solver.pcg` ("Bordered unknowns", "Starting
+attitude") and of :mod:`~mcsweep.solver.stopping` (the convergence criterion).
+"""
+
+from __future__ import annotations
+
+from functools import partial
+
+import numpy as np
+
+from .dask_resident import DaskChunks
+from .executors import MAX_RESTARTS, ChunksLost, in_process
+from .pcg import GlobalSolution, pcg
+from .problem import GlobalProblem
+from .reduction import pairwise_dot, share_of
+from .resident import forked_chunks
+
+__all__ = ["solve_global"]
+
+
+def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_uas: float = 1e-3,
+                 error_tol: float | None = None, max_iter: int = 500,
+                 min_iter: int = 2, log=None, chunk_stars: int | None = None,
+                 residuals: bool = True, workers: int = 1, dask_client=None,
+                 resident_chunks=None, border=None, attitude_start=None) -> GlobalSolution:
+    """Solve ``N x = A' h`` by PCG from ``x = 0``, or from the attitude ``attitude_start`` (module notes).
+
+    Parameters
+    ----------
+    problem : GlobalProblem
+    h : array_like (m,) or None
+        Normalised measurements (observed minus computed from the starting values:
+        the scanning-law attitude and zero corrections), in observation order; None when
+        they are kept with ``resident_chunks`` (built on the workers).
+    rtol, update_tol_uas, error_tol, max_iter, min_iter : keyword-only
+        Convergence criterion (module notes): with ``error_tol`` (in units of the formal
+        uncertainty of every estimated quantity) the energy criterion, and ``rtol`` and
+        ``update_tol_uas`` are not used.
+    log : callable, optional
+        Called with each :class:`~mcsweep.solver.stopping.ConvergenceRecord` (after a restart, from iteration 1 again).
+    chunk_stars : int, optional, keyword-only
+        Most stars per chunk task (rounded down to a power of two of blocks); default: as
+        many as the workers' equal shares of the blocks allow (a few chunks per worker, so a
+        pass returns a few attitude-sized vectors per worker, not one per block). Results do
+        not depend on it.
+    residuals : bool, keyword-only
+        Return the residual of every measurement (``GlobalSolution.residuals``, 8 bytes
+        per measurement); ``False`` keeps only their RMS.
+    workers : int, keyword-only
+        Forked processes that keep their share of the chunks and of the star vectors
+        (:mod:`~mcsweep.solver.resident`); 1 (default) or no ``fork``: in-process. Results
+        do not depend on it. (A map-like executor, one that sends a task's data with every
+        call, cannot keep the star vectors between passes and is not accepted.)
+    dask_client : distributed.Client, optional, keyword-only
+        Every pass on a Dask cluster whose workers keep the chunks and their star vectors
+        (:class:`~mcsweep.solver.dask_resident.DaskChunks`: scattered once, then only
+        attitude-sized vectors travel); overrides ``workers``. Results do not depend on it.
+    resident_chunks : DaskChunks, optional, keyword-only
+        As ``dask_client``, with the chunks already on the workers; its chunk ``ci`` must be
+        the problem's blocks of ``problem.chunks(chunk_stars)[ci]`` with their measurements.
+    border : array_like (m, k), optional, keyword-only
+        Normalised partials of ``k`` further unknowns that every measurement may depend on
+        (a calibration, :mod:`~mcsweep.solver.calibration`), in observation order, without
+        prior or frame constraint: the bordered system is solved (module notes, "Bordered
+        unknowns") and they are returned as ``GlobalSolution.border``. In-process and forked
+        workers only.
+    attitude_start : array_like (n_coef, 3), optional, keyword-only
+        Attitude coefficients [mas] PCG starts from (module notes, "Starting attitude"), e.g.
+        the solution of the same data under another prior; coefficients without data are
+        ignored (held at zero). The solution, residuals and stopping rule are those of the
+        whole solution, the start included.
+    """
+    if h is None and resident_chunks is None:
+        raise ValueError("the measurements h are needed unless they are on the workers (resident_chunks)")
+    if h is not None:
+        h = np.asarray(h, dtype=float)
+        if h.size != problem.n_measurements:
+            raise ValueError(f"h has {h.size} measurements, the problem {problem.n_measurements}")
+    shares = max(1, int(workers)) if resident_chunks is None and dask_client is None else 1
+    ranges = problem.chunks(chunk_stars, shares=shares)
+    chunks = [problem.blocks[lo:hi] for lo, hi in ranges]
+    # views when the rows are slices (in_block_order); None: kept with the resident chunks
+    hs = None if h is None else [[h[b.rows] for b in bl] for bl in chunks]
+    if resident_chunks is None and dask_client is not None:
+        resident_chunks = DaskChunks.scatter(dask_client, list(zip(chunks, hs)))
+    if error_tol is not None and not error_tol > 0:
+        raise ValueError(f"error_tol={error_tol}: expected a positive fraction of the formal uncertainties")
+    kw = dict(rtol=rtol, update_tol_uas=update_tol_uas, error_tol=error_tol,
+              max_iter=max_iter, min_iter=min_iter, log=log, residuals=residuals)
+    if attitude_start is not None:
+        kw["start"] = _attitude_start(problem, attitude_start)
+    states = [{} for _ in chunks]
+    if border is not None:
+        if h is None or resident_chunks is not None:
+            raise ValueError("border unknowns are solved in-process or with forked workers, with h given")
+        kw["border_normals"] = _border(border, h, chunks, states)
+    if resident_chunks is not None:
+        return _solve_resident(problem, chunks, resident_chunks, kw)
+    owners = [share_of(lo, len(problem.blocks), shares) for lo, _ in ranges]
+    return _solve_here(problem, chunks, hs, states, workers, owners, kw)
+
+
+def _solve_here(problem, chunks, hs, states, workers, owners, kw) -> GlobalSolution:
+    """The solution on chunks in this process or on forked workers (``owners[ci]``: the worker
+    of chunk ``ci``), which keep them and their ``states``."""
+    with forked_chunks(list(zip(chunks, hs, states)), workers, owners=owners) as pool:
+        if pool is None:  # in-process: the chunks and their states are these very objects
+            items = {ci: (chunks[ci], hs[ci], states[ci]) for ci in range(len(chunks))}
+            return pcg(problem, chunks, partial(in_process, items), **kw)
+        return pcg(problem, chunks, pool, **kw)
+
+
+def _attitude_start(problem, attitude_start) -> np.ndarray:
+    """The starting attitude, checked, with the coefficients without data at zero."""
+    start = np.asarray(attitude_start, dtype=float)
+    if start.shape != (problem.n_coef, 3) or not np.isfinite(start).all():
+        raise ValueError(f"attitude_start has shape {start.shape}: expected ({problem.n_coef}, 3), finite")
+    return np.where(problem.free, start, 0.0)
+
+
+def _border(border, h, chunks, states) -> tuple[np.ndarray, np.ndarray]:
+    """The bordered unknowns' partials put in the chunks' ``states`` block by block; returned
+    ``(C'h, C'C)``."""
+    border = np.asarray(border, dtype=float).reshape(h.size, -1)
+    for st, bl in zip(states, chunks):
+        st["border"] = [np.ascontiguousarray(border[b.rows]) for b in bl]
+    # C' h and C' C by numpy's pairwise sums (pairwise_dot): the same bits for any chunking
+    return (np.array([pairwise_dot(c, h) for c in border.T]),
+            np.array([[pairwise_dot(a, c) for c in border.T] for a in border.T]))
+
+
+def _solve_resident(problem, chunks, resident_chunks, kw) -> GlobalSolution:
+    """The solution on chunks kept on a cluster's workers, restarted from its first pass after
+    lost chunks (:class:`~mcsweep.solver.executors.ChunksLost`) up to
+    :data:`~mcsweep.solver.executors.MAX_RESTARTS` times."""
+    for attempt in range(MAX_RESTARTS + 1):
+        try:
+            return pcg(problem, chunks, resident_chunks.run, reduced=getattr(resident_chunks, "reduced", None),
+                       **kw)
+        except ChunksLost:
+            if attempt == MAX_RESTARTS:
+                raise

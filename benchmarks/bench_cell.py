@@ -60,9 +60,9 @@ def old_curve(n0, b0, priors, s):
 def new_curve(n0, b0, priors, s):
     # Grid fractions without statistics, then the statistics at the crossing (as run_cell).
     scan = pb.prior_scan(n0, b0, s.ratio_R)
-    table = pb._scan_arrays(scan, priors, s, statistics=False)[0]
+    table = pb.scan_arrays(scan, priors, s, statistics=False)[0]
     f90 = pb.sigma_f90_from_curve(priors, table["fraction_inside"], s.confidence)[0]
-    pb._scan_arrays(scan, [f90 if np.isfinite(f90) else priors[-1]], s, statistics=True)
+    pb.scan_arrays(scan, [f90 if np.isfinite(f90) else priors[-1]], s, statistics=True)
     return table
 
 
@@ -104,7 +104,7 @@ def main(argv=None):
         normals = []
         for groups in s.cases.values():
             geom = pb.case_geometry(transits, tuple(groups))
-            normals.append(pb._normal_equations(geom, d.ra_deg, d.dec_deg, stars, s, np.random.default_rng(2)))
+            normals.append(pb.cell_normal_equations(geom, d.ra_deg, d.dec_deg, stars, s, np.random.default_rng(2)))
         t_old, m_old = _measure(old_curve, normals, priors, s, args.repeat)
         t_new, m_new = _measure(new_curve, normals, priors, s, args.repeat)
         t_all, m_all = _measure(new_curve_stats, normals, priors, s, args.repeat)

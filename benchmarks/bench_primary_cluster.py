@@ -64,6 +64,7 @@ def one(mode: str, n: int, iterations: int, workers: int, part_stars: int, chunk
     from distributed import Client, LocalCluster
 
     from mcsweep.experiments import primary as P
+    from mcsweep.experiments.primary_solution import solve_prior
     from mcsweep.experiments import primary_results
     from mcsweep.experiments.global_classes import class_table, sky_order
     from mcsweep.experiments.primary_cluster import prepare_on_cluster
@@ -91,7 +92,7 @@ def one(mode: str, n: int, iterations: int, workers: int, part_stars: int, chunk
         else:
             sky, _ = sky_partitions(client, [(1500, functools.partial(client.submit, _stars, n, pure=False))], chunk)
             data = prepare_on_cluster(settings, sky, client, chunk_stars=chunk)
-        res, _, extra, *_ = P.solve_prior(settings, data, "F90", dask_client=client, chunk_stars=chunk)
+        res, _, extra, *_ = solve_prior(settings, data, "F90", dask_client=client, chunk_stars=chunk)
         for part in res.parts():  # part by part, as the run writes them
             for column in part.columns:
                 digest.update(part[column].to_numpy().tobytes())

@@ -72,7 +72,7 @@ def test_bootstrap_fractions_leave_invalid_stars_out():
 
 
 def test_vectorised_crossings_follow_the_one_curve_rule():
-    from mcsweep.experiments.pencil_beam import _crossings
+    from mcsweep.experiments.pencil_beam import prior_crossings
 
     rng = np.random.default_rng(5)
     curves = np.clip(0.5 + 0.2 * np.log10(GRID / 0.1) + rng.normal(0, 0.05, (300, 41)), 0, 1)
@@ -80,7 +80,7 @@ def test_vectorised_crossings_follow_the_one_curve_rule():
     curves[20:40] = 0.5  # never reached
     curves[40, 5] = np.nan
     for interp in ("log", "none"):
-        values, _ = _crossings(GRID, curves, 0.9, interp)
+        values, _ = prior_crossings(GRID, curves, 0.9, interp)
         np.testing.assert_allclose(values, [_one_crossing(c, 0.9, interp) for c in curves], rtol=1e-12)
 
 

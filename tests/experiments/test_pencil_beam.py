@@ -157,7 +157,7 @@ def test_prior_scan_leaves_the_cell_statistics_unchanged(table1):
                                       max_stars=N_STARS)
     for case, groups in s.cases.items():
         geom = pb.case_geometry(transits, tuple(groups))
-        n0, b0 = pb._normal_equations(geom, d.ra_deg, d.dec_deg, stars, s, np.random.default_rng(2))
+        n0, b0 = pb.cell_normal_equations(geom, d.ra_deg, d.dec_deg, stars, s, np.random.default_rng(2))
         direct = pb.prior_curve(n0, b0, s.prior_grid_mas, s, method="direct")
         scan = pb.prior_curve(n0, b0, s.prior_grid_mas, s)
         np.testing.assert_array_equal(scan["n_inside"], direct["n_inside"])
@@ -219,7 +219,7 @@ def test_shared_geometry_normals_equal_the_general_path(table1, use_ac):
     stars = stars.iloc[:300]
     for groups in s.cases.values():
         geom = pb.case_geometry(transits, tuple(groups))
-        n0, b0 = pb._normal_equations(geom, d.ra_deg, d.dec_deg, stars, s, np.random.default_rng(9))
+        n0, b0 = pb.cell_normal_equations(geom, d.ra_deg, d.dec_deg, stars, s, np.random.default_rng(9))
         n, k = len(stars), len(geom.tcb_jd)
         tcb = np.broadcast_to(geom.tcb_jd, (n, k))
         t_yr = (tcb - reference_epoch(tcb, np.ones((n, k), bool))[:, None]) / JULIAN_YEAR_DAYS

@@ -13,6 +13,7 @@ from omegaconf import OmegaConf
 
 from mcsweep.errors import UserInputError
 from mcsweep.experiments import primary as P
+from mcsweep.experiments.primary_solution import solve_prior
 from mcsweep.experiments.global_priors import parse_prior
 from mcsweep.experiments.primary_table import PAPER_TABLE3, TABLE3_COLUMNS, cell_statistics, paper_value3
 from mcsweep.solver.attitude_spline import live_segments
@@ -30,12 +31,12 @@ SHORT = ["experiment.primary.mission_years=0.25", "experiment.primary.knot_inter
 RECOVERY_UAS = 1.0
 
 
-def _config(overrides):
+def primary_config(overrides):
     cfg = compose_config([*TINY, *SHORT, *overrides])
     return to_config(cfg), OmegaConf.to_container(cfg, resolve=True)
 
 
-def _synthetic_stars(n, seed):
+def synthetic_stars(n, seed):
     rng = np.random.default_rng(seed)
     ra = rng.uniform(0.0, 360.0, n)
     dec = np.degrees(np.arcsin(rng.uniform(-1.0, 1.0, n)))
@@ -46,7 +47,7 @@ def _synthetic_stars(n, seed):
 
 def _catalogue(path, n=8000, seed=3):
     """A whole-sky catalogue (G 10.5-20.5) so the run does not spend its time in the galaxy model."""
-    stars = _synthetic_stars(n, seed)
+    stars = synthetic_stars(n, seed)
     stars["phot_g_mean_mag"] = np.random.default_rng(seed + 1).uniform(10.5, 20.5, n)
     stars.drop(columns="class_key").to_csv(path, index=False)
     return path
@@ -176,12 +177,12 @@ def test_bad_prior_through_cli_exits_2_in_one_line_and_leaves_no_output(tmp_path
 ])
 def test_bad_settings_are_user_errors(override, key):
     with pytest.raises(UserInputError, match=key):
-        P.build_settings(_config([override])[0])
+        P.build_settings(primary_config([override])[0])
 
 
 def test_basic_angle_calibration_is_not_offered_on_a_dask_cluster():
     with pytest.raises(UserInputError, match="basic_angle_harmonics=1 .*execution=dask"):
-        P.build_settings(_config(["experiment.primary.basic_angle_harmonics=1", "execution=dask"])[0])
+        P.build_settings(primary_config(["experiment.primary.basic_angle_harmonics=1", "execution=dask"])[0])
 
 
 def test_the_basic_angle_design_of_the_blocks_takes_a_shift_of_every_parallax():
@@ -196,10 +197,10 @@ def test_the_basic_angle_design_of_the_blocks_takes_a_shift_of_every_parallax():
     from mcsweep.astrometry.solve import prior_diagonal
     from mcsweep.solver.direct import sparse_design
 
-    config, _ = _config(["experiment.primary.knot_interval_hours=0.5", "experiment.primary.basic_angle_harmonics=1",
+    config, _ = primary_config(["experiment.primary.knot_interval_hours=0.5", "experiment.primary.basic_angle_harmonics=1",
                          "experiment.primary.mission_years=0.08"])
     settings = P.build_settings(config)
-    stars = _synthetic_stars(1500, 9)
+    stars = synthetic_stars(1500, 9)
     _, tr = P.transits_of((0, 0, stars["ra"].to_numpy(), stars["dec"].to_numpy(), settings.start_jd,
                            settings.end_jd, settings.law))
     data = P.prepare(settings, stars, tr, with_noise=False, block_stars=256)
@@ -314,18 +315,18 @@ def test_noiseless_data_recover_the_truth_and_the_attitude():
     # solver's (this seed's did, within 0.005 d, while the solver's knots were 0.5 d apart
     # exactly from the start of the mission). An absolute tolerance, so the absolute stopping
     # rule: the energy rule's 1 % of a G ~ 19 star's formal uncertainty would be microarcseconds.
-    config, _ = _config(["experiment.primary.solver_error_tol=null",
+    config, _ = primary_config(["experiment.primary.solver_error_tol=null",
                          "experiment.primary.solver_rtol=1e-10", "experiment.primary.solver_update_tol_uas=1e-3",
                          "experiment.primary.solver_max_iter=3000",
                          "experiment.primary.attitude_timescale_hours=384"])
     settings = P.build_settings(config)
-    stars = _synthetic_stars(3000, 7)
+    stars = synthetic_stars(3000, 7)
     stars[["parallax", "pmra", "pmdec"]] = 0.0
     _, tr = P.transits_of((0, 0, stars["ra"].to_numpy(), stars["dec"].to_numpy(), settings.start_jd,
                            settings.end_jd, settings.law))
     data = P.prepare(settings, stars, tr, with_noise=False)
     assert 1e3 * np.sqrt(np.mean(data.true_attitude_at(data.epochs()) ** 2)) > 1000 * RECOVERY_UAS  # a real one
-    res, _, extra, *_ = P.solve_prior(settings, data, "F90")
+    res, _, extra, *_ = solve_prior(settings, data, "F90")
     assert extra["converged"]
     solved = res.frame()["inside"].to_numpy() >= 0
     assert solved.sum() == data.solved.size > 2000
@@ -344,11 +345,11 @@ def test_noiseless_data_with_a_basic_angle_variation_recover_it_and_the_truth():
     overrides = ["experiment.primary.solver_error_tol=null", "experiment.primary.solver_rtol=1e-10",
                  "experiment.primary.solver_update_tol_uas=1e-3", "experiment.primary.solver_max_iter=3000",
                  "experiment.primary.attitude_timescale_hours=384"]
-    stars = _synthetic_stars(2000, 7)
+    stars = synthetic_stars(2000, 7)
     stars[["parallax", "pmra", "pmdec"]] = 0.0
     worst = {}
     for harmonics in (1, 0):
-        settings = P.build_settings(_config([*overrides, f"experiment.primary.basic_angle_harmonics={harmonics}"])[0])
+        settings = P.build_settings(primary_config([*overrides, f"experiment.primary.basic_angle_harmonics={harmonics}"])[0])
         _, tr = P.transits_of((0, 0, stars["ra"].to_numpy(), stars["dec"].to_numpy(), settings.start_jd,
                                settings.end_jd, settings.law))
         data = P.prepare(settings, stars, tr, with_noise=False)
@@ -356,7 +357,7 @@ def test_noiseless_data_with_a_basic_angle_variation_recover_it_and_the_truth():
             true = np.array([0.5, -0.3])
             signal = true[0] * data.calibration.column(0) + true[1] * data.calibration.column(1)
         data.h += signal
-        res, _, extra, *_ = P.solve_prior(settings, data, "F90")
+        res, _, extra, *_ = solve_prior(settings, data, "F90")
         assert extra["converged"]
         solved = res.frame()["inside"].to_numpy() >= 0
         worst[harmonics] = 1e3 * np.nanmax(res.frame()["err_mas"].to_numpy()[solved])
@@ -385,9 +386,9 @@ def test_block_by_block_build_is_the_one_observations_problem():
     from mcsweep.scanning.ephemeris import gaia_position_au
     from mcsweep.solver import GlobalProblem, build_observations, solve_global
 
-    config, _ = _config([])
+    config, _ = primary_config([])
     settings = P.build_settings(config)
-    stars = _synthetic_stars(2000, 3)
+    stars = synthetic_stars(2000, 3)
     _, tr = P.transits_of((0, 0, stars["ra"].to_numpy(), stars["dec"].to_numpy(), settings.start_jd,
                            settings.end_jd, settings.law))
     data = P.prepare(settings, stars, tr, with_noise=False, block_stars=256)
@@ -430,7 +431,7 @@ def test_sky_order_puts_a_block_of_stars_into_few_stretches_of_the_scan():
     # year, so its passes read a small part of the attitude vector.
     from mcsweep.experiments.global_classes import sky_order, star_transits
 
-    stars = _synthetic_stars(30000, 11)
+    stars = synthetic_stars(30000, 11)
     ra, dec = stars["ra"].to_numpy(), stars["dec"].to_numpy()
     order = sky_order(ra, dec)
     assert np.array_equal(np.sort(order), np.arange(ra.size))
@@ -449,9 +450,9 @@ def test_knot_transits_places_the_knots_by_the_data_between_the_gaps():
     # knot_transits with knot_rule=counts: every knot interval holds about that many of the
     # solution's live FoV transits, and the spline has no segment in the dead time (AGIS
     # breaks it at gaps).
-    config, _ = _config(["experiment.primary.knot_transits=25", "experiment.primary.knot_rule=counts"])
+    config, _ = primary_config(["experiment.primary.knot_transits=25", "experiment.primary.knot_rule=counts"])
     settings = P.build_settings(config)
-    stars = _synthetic_stars(2000, 5)
+    stars = synthetic_stars(2000, 5)
     _, tr = P.transits_of((0, 0, stars["ra"].to_numpy(), stars["dec"].to_numpy(), settings.start_jd,
                            settings.end_jd, settings.law))
     data = P.prepare(settings, stars, tr, with_noise=False)
@@ -480,10 +481,10 @@ def test_uniform_knots_keep_agis_s_interval_and_at_least_knot_transits_per_knot(
     # knot_rule=uniform (the default): no knot interval shorter than the mean interval of
     # knot_transits live FoV transits (AGIS's 30 s at the paper's sizes), and where fewer fall
     # in it the knots hold about knot_transits each; so more than knot_transits on average.
-    config, _ = _config(["experiment.primary.knot_transits=25"])
+    config, _ = primary_config(["experiment.primary.knot_transits=25"])
     settings = P.build_settings(config)
     assert settings.knot_rule == "uniform"
-    stars = _synthetic_stars(2000, 5)
+    stars = synthetic_stars(2000, 5)
     _, tr = P.transits_of((0, 0, stars["ra"].to_numpy(), stars["dec"].to_numpy(), settings.start_jd,
                            settings.end_jd, settings.law))
     data = P.prepare(settings, stars, tr, with_noise=False)
@@ -672,9 +673,9 @@ def test_a_solution_started_from_the_previous_priors_attitude_stops_within_the_t
     from mcsweep.experiments.global_priors import prior_sigma_mas
     from mcsweep.solver import solve_global
 
-    settings = P.build_settings(_config(["experiment.primary.mission_years=1", "experiment.primary.knot_interval_hours=3",
+    settings = P.build_settings(primary_config(["experiment.primary.mission_years=1", "experiment.primary.knot_interval_hours=3",
                                          "experiment.primary.attitude_timescale_hours=24"])[0])
-    stars = _synthetic_stars(3000, 11)
+    stars = synthetic_stars(3000, 11)
     _, tr = P.transits_of((0, 0, stars["ra"].to_numpy(), stars["dec"].to_numpy(), settings.start_jd,
                            settings.end_jd, settings.law))
     data = P.prepare(settings, stars, tr)

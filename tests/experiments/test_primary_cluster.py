@@ -13,9 +13,10 @@ import pytest
 
 from mcsweep.astrometry.design import JULIAN_YEAR_DAYS
 from mcsweep.experiments import primary as P
+from mcsweep.experiments.primary_solution import solve_prior
 from mcsweep.experiments import primary_results
 
-from .test_primary import _config, _synthetic_stars
+from .test_primary import primary_config, synthetic_stars
 
 distributed = pytest.importorskip("distributed")
 
@@ -35,10 +36,10 @@ def both(client):
     from mcsweep.experiments.primary_cluster import prepare_on_cluster
     from mcsweep.experiments.primary_sky import table_partitions
 
-    config, _ = _config(["experiment.primary.knot_transits=25", "experiment.primary.solver_max_iter=15",
+    config, _ = primary_config(["experiment.primary.knot_transits=25", "experiment.primary.solver_max_iter=15",
                          "experiment.primary.allow_unconverged=true"])
     settings = P.build_settings(config)
-    stars = _synthetic_stars(2500, 11)
+    stars = synthetic_stars(2500, 11)
     _, tr = P.transits_of((0, 0, stars["ra"].to_numpy(), stars["dec"].to_numpy(), settings.start_jd,
                            settings.end_jd, settings.law))
     local = P.prepare(settings, stars, tr, block_stars=BLOCK)
@@ -63,8 +64,8 @@ def test_sky_partitions_are_the_driver_sort(client):
 
     frames = []
     for i, key in enumerate((1100, 1500, 1900)):
-        df = _synthetic_stars(3000, 20 + i).drop(columns="class_key")
-        df.loc[:199, ["ra", "dec"]] = _synthetic_stars(200, 99)[["ra", "dec"]].to_numpy()  # shared positions
+        df = synthetic_stars(3000, 20 + i).drop(columns="class_key")
+        df.loc[:199, ["ra", "dec"]] = synthetic_stars(200, 99)[["ra", "dec"]].to_numpy()  # shared positions
         df.loc[200:299, ["ra", "dec"]] = df.loc[:99, ["ra", "dec"]].to_numpy()  # and within the class
         frames.append((key, df))
     whole = pd.concat([class_table(df, key) for key, df in frames], ignore_index=True)
@@ -113,19 +114,19 @@ def test_outcome_lost_before_the_parts_are_read_solves_again(both, client, monke
     from mcsweep.solver.executors import ChunksLost
 
     settings, local, remote = both
-    ref = P.solve_prior(settings, local, "F90").results.frame()
+    ref = solve_prior(settings, local, "F90").results.frame()
     real_solve, solves = PC.solve_global, []
     monkeypatch.setattr(PC, "solve_global", lambda *a, **k: solves.append(1) or real_solve(*a, **k))
     real_values, lost = PC.chunk_values, []
 
     def once_lost(run, fn, items):
-        if fn is PC._outcome_slice and not lost:
+        if fn is PC.outcome_slice and not lost:
             lost.append(1)
             raise ChunksLost("lost (simulated)")
         return real_values(run, fn, items)
 
     monkeypatch.setattr(PC, "chunk_values", once_lost)
-    got = P.solve_prior(settings, remote, "F90", dask_client=client, chunk_stars=2 * BLOCK)
+    got = solve_prior(settings, remote, "F90", dask_client=client, chunk_stars=2 * BLOCK)
     frame = got.results.frame()
     assert lost and len(solves) == 2  # solved again after the loss
     np.testing.assert_array_equal(ref.to_numpy(), frame.to_numpy())
@@ -167,18 +168,18 @@ def test_cluster_built_data_are_the_driver_built_bits(both, client):
 
 def test_cluster_built_solution_is_the_forked_one(both, client, monkeypatch):
     settings, local, remote = both
-    ref = P.solve_prior(settings, local, "F90", workers=2)
-    got = P.solve_prior(settings, remote, "F90", dask_client=client, chunk_stars=2 * BLOCK)
+    ref = solve_prior(settings, local, "F90", workers=2)
+    got = solve_prior(settings, remote, "F90", dask_client=client, chunk_stars=2 * BLOCK)
     assert ref[2]["iterations"] == got[2]["iterations"] > 5
     assert ref[2]["attitude_rms_uas"] == got[2]["attitude_rms_uas"]
     np.testing.assert_array_equal(ref[0].frame().to_numpy(), got[0].frame().to_numpy())
     np.testing.assert_array_equal(ref[3].to_numpy(), got[3].to_numpy())
     np.testing.assert_array_equal(ref.attitude, got.attitude)
     with pytest.raises(ValueError, match="dask_client"):
-        P.solve_prior(settings, remote, "F90")
+        solve_prior(settings, remote, "F90")
     # the next prior from this one's attitude (solver_start='previous'), sent to the workers' setup
-    ref = P.solve_prior(settings, local, "10F90", workers=2, attitude_start=ref.attitude)
-    got = P.solve_prior(settings, remote, "10F90", dask_client=client, chunk_stars=2 * BLOCK,
+    ref = solve_prior(settings, local, "10F90", workers=2, attitude_start=ref.attitude)
+    got = solve_prior(settings, remote, "10F90", dask_client=client, chunk_stars=2 * BLOCK,
                         attitude_start=got.attitude)
     assert ref.extra["iterations"] == got.extra["iterations"]
     np.testing.assert_array_equal(ref.results.frame().to_numpy(), got.results.frame().to_numpy())
@@ -195,10 +196,10 @@ def test_positions_at_each_stars_own_epoch_on_the_cluster_are_the_forked_ones(bo
     # epoch offset on its worker; the local path reads it from the driver's table
     settings, local, remote = both
     own = dataclasses.replace(settings, evaluation_epoch="star_mean")
-    ref = P.solve_prior(own, local, "F90", workers=2)
-    got = P.solve_prior(own, remote, "F90", dask_client=client, chunk_stars=2 * BLOCK)
+    ref = solve_prior(own, local, "F90", workers=2)
+    got = solve_prior(own, remote, "F90", dask_client=client, chunk_stars=2 * BLOCK)
     np.testing.assert_array_equal(ref.results.frame().to_numpy(), got.results.frame().to_numpy())
-    common = P.solve_prior(settings, remote, "F90", dask_client=client, chunk_stars=2 * BLOCK)
+    common = solve_prior(settings, remote, "F90", dask_client=client, chunk_stars=2 * BLOCK)
     np.testing.assert_array_equal(common.attitude, got.attitude)  # the solution is the same ...
     moved = got.results.frame()["err_mas"].to_numpy() != common.results.frame()["err_mas"].to_numpy()
     assert np.count_nonzero(moved) > len(moved) // 2  # ... its positions are referred elsewhere
@@ -208,10 +209,10 @@ def test_cluster_built_solution_survives_a_killed_worker(both, client, kill_work
     # A worker killed mid-solve takes its chunks and the inputs scattered to it: the chunks
     # are built again from the driver's per-star arrays and the solution restarts, same bits.
     settings, local, remote = both
-    ref = P.solve_prior(settings, local, "10F90")
+    ref = solve_prior(settings, local, "10F90")
     client.wait_for_workers(2, timeout=60)
     log = kill_worker_at(3)
-    got = P.solve_prior(settings, remote, "10F90", dask_client=client, chunk_stars=2 * BLOCK, log=log)
+    got = solve_prior(settings, remote, "10F90", dask_client=client, chunk_stars=2 * BLOCK, log=log)
     client.wait_for_workers(2, timeout=60)  # the nanny restarts it for the next test
     assert log.killed
     assert ref[2]["iterations"] == got[2]["iterations"]
@@ -228,7 +229,7 @@ def test_worker_lost_after_the_solution_restarts_it(both, client, monkeypatch):
     from mcsweep.experiments import primary_cluster as PC
 
     settings, local, remote = both
-    ref = P.solve_prior(settings, local, "F90")
+    ref = solve_prior(settings, local, "F90")
     client.wait_for_workers(2, timeout=60)
     victim = sorted(client.run(os.getpid).values())[0]
     real, calls = PC.solve_global, []
@@ -241,7 +242,7 @@ def test_worker_lost_after_the_solution_restarts_it(both, client, monkeypatch):
         return sol
 
     monkeypatch.setattr(PC, "solve_global", solve_then_kill)
-    got = P.solve_prior(settings, remote, "F90", dask_client=client, chunk_stars=2 * BLOCK)
+    got = solve_prior(settings, remote, "F90", dask_client=client, chunk_stars=2 * BLOCK)
     client.wait_for_workers(2, timeout=60)
     assert len(calls) == 2  # solved again after the loss
     np.testing.assert_array_equal(ref[0].frame().to_numpy(), got[0].frame().to_numpy())

@@ -60,10 +60,10 @@ def test_case_rows_pick_each_stars_groups_as_the_beams_do():
     # Star 0: groups 0,0,1,2; star 1: group 0 only.
     src = np.array([0, 0, 0, 0, 1])
     group = np.array([0, 0, 1, 2, 0])
-    keep, has = real_sky._case_rows(src, group, 2, (0, -1))  # first and last visit
+    keep, has = real_sky.case_rows(src, group, 2, (0, -1))  # first and last visit
     assert has.tolist() == [True, False]
     assert keep.tolist() == [True, True, False, True, False]
-    keep, has = real_sky._case_rows(src, group, 2, (0,))
+    keep, has = real_sky.case_rows(src, group, 2, (0,))
     assert has.tolist() == [True, True] and keep.tolist() == [True, True, False, False, True]
 
 

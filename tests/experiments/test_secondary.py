@@ -312,7 +312,7 @@ def _one_star_rows(settings, days):
 
 def _normals(settings, setting, st, rows):
     s = dataclasses.replace(settings, reference_epoch=setting)
-    return S._block_normals(st, np.array([0]), rows, rows["t"].size, s, np.random.default_rng(3))
+    return S.block_normals(st, np.array([0]), rows, rows["t"].size, s, np.random.default_rng(3))
 
 
 def _times_seen_by_design(settings, setting, st, rows, monkeypatch):

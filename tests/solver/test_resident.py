@@ -20,13 +20,13 @@ def test_large_arrays_travel_through_the_arenas_unchanged_and_past_a_full_arena_
     n = 3 * resident.ARENA_MIN_BYTES // 8  # 3 MiB of doubles: each result goes to an arena if it fits
     chunks = [(rng.standard_normal(n), {}) for _ in range(4)]
     taken = []
-    original = resident._Arena.take
+    original = resident.Arena.take
 
     def counted(self, at, nbytes):  # called in this process for what the workers send up
         taken.append(nbytes)
         return original(self, at, nbytes)
 
-    monkeypatch.setattr(resident._Arena, "take", counted)
+    monkeypatch.setattr(resident.Arena, "take", counted)
     # two results of 3 MiB per worker and message; an arena of 4 MiB holds one of them
     monkeypatch.setattr(resident, "ARENA_BYTES", 4 * resident.ARENA_MIN_BYTES)
     with resident.forked_chunks(chunks, 2) as run:

@@ -50,7 +50,7 @@ import numpy as np
 
 from .confidence import inside_components
 from .linalg import PIVOT_TOLERANCE
-from .solve import DEFAULT_RATIO_R, _check_normal, prior_diagonal
+from .solve import DEFAULT_RATIO_R, check_normal, prior_diagonal
 
 __all__ = ["JACOBI_SWEEPS", "JACOBI_NEGLIGIBLE", "BLOCK_STARS", "REDUCE_BLOCK", "PriorScan", "prior_scan"]
 
@@ -261,7 +261,7 @@ def prior_scan(N0, b0, ratio_R: float = DEFAULT_RATIO_R) -> PriorScan:
     -------
     PriorScan
     """
-    N0, b0 = _check_normal(N0, b0)
+    N0, b0 = check_normal(N0, b0)
     prior_diagonal(1.0, ratio_R)  # validates ratio_R
     r_ = float(ratio_R)
     n = N0.shape[0]

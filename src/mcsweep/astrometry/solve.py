@@ -189,7 +189,7 @@ def solve_with_prior(N0, b0, sigma_plx_prior_mas, ratio_R=DEFAULT_RATIO_R, *,
     -------
     Solution
     """
-    N0, b0 = _check_normal(N0, b0)
+    N0, b0 = check_normal(N0, b0)
     diag = prior_diagonal(sigma_plx_prior_mas, ratio_R)
     if diag.ndim == 2 and diag.shape[0] != N0.shape[0]:
         raise ValueError(f"{diag.shape[0]} prior values for {N0.shape[0]} stars")
@@ -204,7 +204,7 @@ def solve_position_only(N0, b0) -> Solution:
     (2 parameters)" row of the paper's Table 2. The returned ``x`` and ``cov`` keep
     the five-parameter shape, with zeros for the three fixed parameters.
     """
-    N0, b0 = _check_normal(N0, b0)
+    N0, b0 = check_normal(N0, b0)
     x2, cov2, ok, cond = spd_solve(N0[:, :2, :2], b0[:, :2], with_condition=True)
     n = N0.shape[0]
     x = np.zeros((5, n)).T
@@ -232,7 +232,7 @@ def solve_no_prior(N0, b0, max_condition=DEFAULT_MAX_CONDITION) -> Solution:
     """
     if not (np.isscalar(max_condition) and max_condition >= 1.0):
         raise UserInputError(f"max_condition={max_condition!r} is not accepted; expected a number >= 1")
-    N0, b0 = _check_normal(N0, b0)
+    N0, b0 = check_normal(N0, b0)
     x, cov, ok, cond = spd_solve(N0, b0, with_condition=True)
     ill = ok & ~(cond <= max_condition)
     if ill.any():
@@ -242,7 +242,7 @@ def solve_no_prior(N0, b0, max_condition=DEFAULT_MAX_CONDITION) -> Solution:
     return Solution(x=x, cov=cov, ok=ok, condition=cond)
 
 
-def _check_normal(N0, b0):
+def check_normal(N0, b0):
     N0 = np.asarray(N0, dtype=float)
     b0 = np.asarray(b0, dtype=float)
     if N0.ndim != 3 or N0.shape[1:] != (5, 5):

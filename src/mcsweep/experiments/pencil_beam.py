@@ -181,7 +181,7 @@ def case_geometry(transits: pd.DataFrame | dict, groups: tuple[int, ...]) -> Cas
     return CaseGeometry(tcb_jd=tcb[order], psi_deg=cols["scan_angle_deg"][idx], obs_au=cols["obs_au"][idx])
 
 
-def _normal_equations(geom: CaseGeometry, ra_deg, dec_deg, stars: pd.DataFrame,
+def cell_normal_equations(geom: CaseGeometry, ra_deg, dec_deg, stars: pd.DataFrame,
                       s: CellSettings, rng: np.random.Generator):
     """Normal equations (Eqs. 2-3) of every star of the cell, star-last (n, 5, 5), (n, 5).
 
@@ -252,11 +252,11 @@ def scan_curve(scan: PriorScan, priors_mas, s: CellSettings, *, statistics: bool
     table : pandas.DataFrame
     inside, valid : ndarray of bool, shape (n_priors, n_stars)
     """
-    arrays, inside_flags, valid_flags = _scan_arrays(scan, priors_mas, s, statistics=statistics)
+    arrays, inside_flags, valid_flags = scan_arrays(scan, priors_mas, s, statistics=statistics)
     return pd.DataFrame(arrays), inside_flags, valid_flags
 
 
-def _scan_arrays(scan: PriorScan, priors_mas, s: CellSettings, *, statistics: bool):
+def scan_arrays(scan: PriorScan, priors_mas, s: CellSettings, *, statistics: bool):
     priors = np.atleast_1d(np.asarray(priors_mas, float))
     inside_flags, valid_flags = scan.inside_flags(priors, s.confidence)
     err = semi = None
@@ -338,7 +338,7 @@ def prior_curve(n0, b0, priors_mas, s: CellSettings, *, method: str = "scan", re
     return (table, inside_flags, valid_flags) if return_inside else table
 
 
-def _crossings(priors, fraction, p: float, interpolation: str) -> tuple[np.ndarray, np.ndarray]:
+def prior_crossings(priors, fraction, p: float, interpolation: str) -> tuple[np.ndarray, np.ndarray]:
     """Rule of :func:`sigma_f90_from_curve` for many curves at once, ``fraction (r, m)``.
 
     Returns the values (r,) and the index of the first grid point that reaches ``p``
@@ -375,7 +375,7 @@ def sigma_f90_from_curve(priors_mas, fraction, p: float, interpolation: str = "l
     grid's lower end, an upper limit); 'never_reached' (NaN).
     """
     priors = np.asarray(priors_mas, float)
-    values, first = _crossings(priors, np.asarray(fraction, float)[None, :], p, interpolation)
+    values, first = prior_crossings(priors, np.asarray(fraction, float)[None, :], p, interpolation)
     if first[0] < 0:
         return float("nan"), "never_reached"
     return float(values[0]), "below_grid" if first[0] == 0 else "ok"
@@ -461,7 +461,7 @@ def pattern_interval(priors_mas, patterns: dict[bytes, int], p: float, interpola
     if n_resamples <= 0 or not patterns:
         return float("nan"), float("nan")
     frac = pattern_fractions(patterns, priors.size, n_resamples, rng)
-    values = _crossings(priors, frac, p, interpolation)[0]
+    values = prior_crossings(priors, frac, p, interpolation)[0]
     values[np.isnan(values)] = np.inf
     lo, hi = np.quantile(values, INTERVAL_QUANTILES, method="inverted_cdf")
     return float(lo), float(hi)
@@ -530,13 +530,13 @@ def run_cell(cell, transits: pd.DataFrame, source, s: CellSettings,
         if geom is not None and len(stars) > 0:
             case_ss = np.random.SeedSequence(s.seed, spawn_key=(*cell.key, _NOISE_STREAM,
                                                                 zlib.crc32(case.encode())))
-            normals[case] = _normal_equations(geom, d.ra_deg, d.dec_deg, stars, s,
+            normals[case] = cell_normal_equations(geom, d.ra_deg, d.dec_deg, stars, s,
                                               np.random.default_rng(case_ss))
             scans[case] = prior_scan(*normals[case], s.ratio_R)
 
     curves, f90_flags = {}, None
     for case, scan in scans.items():
-        curves[case], *flags = _scan_arrays(scan, grid, s, statistics=stats_on_grid)
+        curves[case], *flags = scan_arrays(scan, grid, s, statistics=stats_on_grid)
         if case == s.f90_case:
             f90_flags = flags
     f90_lo = f90_hi = float("nan")
@@ -566,7 +566,7 @@ def run_cell(cell, transits: pd.DataFrame, source, s: CellSettings,
         if case in curves:
             add(curves[case], case, False)
             if math.isfinite(f90):
-                add(_scan_arrays(scans[case], [f90], s, statistics=True)[0], case, True)
+                add(scan_arrays(scans[case], [f90], s, statistics=True)[0], case, True)
         else:
             add(empty, case, False)
     cols = {k: np.concatenate([p[k] for p in parts]) for k in empty}

@@ -68,8 +68,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from typing import NamedTuple
-
 import numpy as np
 import pandas as pd
 
@@ -88,7 +86,6 @@ from ..solver import (BLOCK_STARS, AttitudeSpline, GlobalProblem, build_observat
                       in_block_order, make_blocks, precision_weights, solve_global, source_normals)
 from ..solver.calibration import BasicAngleColumns, basic_angle_columns, calibration_design
 from ..solver.executors import chunk_values
-from ..solver.tasks import back_task, direction_task, forward_task
 from ..solver.frame import frame_fit_sums, frame_from_sums, offsets_of
 from .global_classes import dead_time, star_transits
 from .global_priors import parse_prior, prior_sigma_mas
@@ -108,8 +105,7 @@ __all__ = [
     "positions_at",
     "prepare",
     "evaluate_solution",
-    "solve_prior",
-    "PriorSolution",
+    "solve_in_process",
     "attitude_error",
     "attitude_error_series",
 ]
@@ -385,7 +381,7 @@ def _rotation(true_attitude: tuple, tcb_jd) -> np.ndarray:
     return spline.evaluate(coef, tcb_jd)
 
 
-def _true_attitude(settings: PrimarySettings) -> tuple[AttitudeSpline, np.ndarray]:
+def true_attitude(settings: PrimarySettings) -> tuple[AttitudeSpline, np.ndarray]:
     """The smooth random rotation (module notes, step 3): its spline and coefficients [mas]."""
     rng = np.random.default_rng(stream_seed(settings.seed, ATTITUDE_STREAM))
     tau = settings.attitude_timescale_days
@@ -519,7 +515,7 @@ def prepare(settings: PrimarySettings, stars: pd.DataFrame, transits: dict, *,
     t_ref = settings.t_ref_jd
     ra, dec = stars["ra"].to_numpy()[solved], stars["dec"].to_numpy()[solved]
     x_true = true_parameters(stars, solved)
-    true_att = _true_attitude(settings)
+    true_att = true_attitude(settings)
     counts = measurements_per_star(n_fov[solved], s_ac_star)
     h_all = np.empty(int(counts.sum()))
     cal_omega, cal_weight = (np.zeros(h_all.size), np.zeros(h_all.size)) if harmonics else (None, None)
@@ -722,89 +718,39 @@ def evaluate_solution(K, cov, dx, views, *, equal: bool, tau, confidence: float)
     return eps, omega, tuple(np.concatenate([p[i] for p in parts]) if parts else np.zeros(0) for i in range(3))
 
 
-class PriorSolution(NamedTuple):
-    """What :func:`solve_prior` gives: per-star results (:class:`~.primary_results.StarParts`,
-    read part by part), PCG history, summary (``extra``),
-    attitude error on a grid, and the attitude spline coefficients solved (``n_coef, 3``,
-    mas), from which the next prior's solution may start (``solver_start='previous'``)."""
-
-    results: StarParts
-    history: pd.DataFrame
-    extra: dict
-    attitude_error: pd.DataFrame
-    attitude: np.ndarray
-
-
-def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=None, *,
-                chunk_stars=None, workers: int = 1, dask_client=None, attitude_start=None) -> PriorSolution:
-    """One global solution for the prior ``label`` (:class:`PriorSolution`).
-
-    Per-star results (all stars of the solution's table, part by part:
-    :class:`~.primary_results.StarParts`): ``inside`` (1/0, -1 not solved),
-    ``err_mas`` (position error after the frame correction), ``err_parallax_mas``
-    (estimated - true parallax), ``sigma_prior_mas``. ``extra``: iterations, convergence,
-    attitude error RMS per axis [uas] over the measurement epochs, fitted frame rotation and
-    spin; ``attitude_error`` on a grid (:func:`attitude_error_series`).
-    ``chunk_stars``, ``workers``, ``dask_client``: the chunk size, forked workers or Dask
-    cluster (whose workers keep the chunks and their star vectors) for the solver's per-chunk
-    work (:func:`mcsweep.solver.solve_global`); results do not depend on them.
-    ``attitude_start``: attitude coefficients PCG starts from (None: zero corrections to the
-    scanning law); any start gives the least-squares solution to ``solver_error_tol``, a good
-    one in fewer iterations (:func:`~mcsweep.solver.solve_global`).
-    """
-    # frame_fit='equal' weights every star alike: then the faint stars' prior-biased
-    # astrometry sets the removed rotation (docs/table3.md, the candidate for the paper's
-    # collapse); not the default.
-    equal = settings.frame_fit != "precision"
-    if data.on_cluster:  # everything per star stays on the workers (nothing per star to the driver)
-        if dask_client is None:
-            raise ValueError("these data live on a cluster's workers: solve them with its dask_client")
-        from .primary_cluster import solve_on_cluster
-
-        sol, resident, eps, omega, results, sq = solve_on_cluster(
-            settings, data, label, dask_client, chunk_stars=chunk_stars, log=log, equal=equal,
-            attitude_start=attitude_start)
-    else:
-        st = data.stars
-        s = data.solved
-        sig = prior_sigmas(settings, label, st["l"].to_numpy()[s], st["b"].to_numpy()[s],
-                           st["phot_g_mean_mag"].to_numpy()[s])
-        tau = st["epoch_offset_yr"].to_numpy()[s] if settings.evaluation_epoch == "star_mean" else None
-        prior = prior_diagonal(sig, settings.ratio_R)
-        # Raises if a star's block is singular: every solved star has >= 1 AL+AC or 2 AL
-        # measurements, so it cannot be under a positive prior.
-        problem = data.problem(prior)
-        resident = None
-        if dask_client is not None:  # the measurements stay on the workers from prior to prior
-            ranges = problem.chunks(chunk_stars)
-            stars = [slice(data.blocks[lo].first, data.blocks[hi - 1].first + data.blocks[hi - 1].n)
-                     for lo, hi in ranges]
-            resident = data.resident(dask_client, ranges).with_inverses([problem.src_inv[sl] for sl in stars])
-        # with the basic-angle calibration (mcsweep.solver.calibration) its unknowns border the
-        # system (mcsweep.solver.calibration)
-        sol = solve_global(problem, data.h, **settings.criterion, log=log, chunk_stars=chunk_stars,
-                           residuals=False, workers=workers, resident_chunks=resident,
-                           border=None if data.calibration is None else calibration_design(data.calibration),
-                           attitude_start=attitude_start)
-        eps, omega, (inside_s, err_s, plx_s) = evaluate_solution(
-            problem.K, sol.cov, sol.x - data.x_true, [slice(b.first, b.first + b.n) for b in data.blocks],
-            equal=equal, tau=tau, confidence=settings.confidence)
-        sq = data.attitude_sq(sol.attitude, eps, omega)
-        results = StarParts.of_frame(solved_results(0, st["class_key"].to_numpy(), st["n_fov"].to_numpy(),
-                                                    st["n_fov_scheduled"].to_numpy(), st["span_days"].to_numpy(),
-                                                    s, (inside_s, err_s, plx_s, sig)))
-    m = data.n_measurements
-    hist = pd.DataFrame([dataclasses.asdict(r) for r in sol.history])
-    hist.insert(0, "prior", label)
-    extra = {"converged": bool(sol.converged), "iterations": len(sol.history),
-             "attitude_rms_uas": (1e3 * np.sqrt(sq / m)).tolist() if m else [],
-             "frame_rotation_mas": eps.tolist(), "frame_spin_mas_yr": omega.tolist(),
-             "residual_rms": sol.residual_rms,
-             "seconds": float(sol.history[-1].seconds) if sol.history else 0.0}
-    if data.calibration is not None:
-        extra["basic_angle_mas"] = dict(zip(data.calibration.names(), sol.border.tolist()))
-    if resident is not None and sol.history:  # what travelled per iteration, measured:
-        # the iterations' passes only (the one-off setup and residual passes apart)
-        sent, received = resident.bytes_per_call(forward_task, back_task, direction_task)
-        extra["dask_mib_per_iteration"] = [sent / len(sol.history) / 2**20, received / len(sol.history) / 2**20]
-    return PriorSolution(results, hist, extra, attitude_error_series(data, sol.attitude, eps, omega), sol.attitude)
+def solve_in_process(settings: PrimarySettings, data: PreparedData, label: str, log=None, *, chunk_stars=None,
+                     workers: int = 1, dask_client=None, attitude_start=None, equal: bool = False) -> tuple:
+    """One global solution of data held in this process (the driver holds every star's
+    arrays; ``dask_client``: the measurements' chunks are kept on its workers from prior to
+    prior): ``(solution, resident chunks or None, eps, omega, StarParts, attitude error
+    sums)``, the same as :func:`~.primary_cluster.solve_on_cluster` gives for data on a
+    cluster. Arguments as :func:`~.primary_solution.solve_prior`."""
+    st = data.stars
+    s = data.solved
+    sig = prior_sigmas(settings, label, st["l"].to_numpy()[s], st["b"].to_numpy()[s],
+                       st["phot_g_mean_mag"].to_numpy()[s])
+    tau = st["epoch_offset_yr"].to_numpy()[s] if settings.evaluation_epoch == "star_mean" else None
+    prior = prior_diagonal(sig, settings.ratio_R)
+    # Raises if a star's block is singular: every solved star has >= 1 AL+AC or 2 AL
+    # measurements, so it cannot be under a positive prior.
+    problem = data.problem(prior)
+    resident = None
+    if dask_client is not None:  # the measurements stay on the workers from prior to prior
+        ranges = problem.chunks(chunk_stars)
+        stars = [slice(data.blocks[lo].first, data.blocks[hi - 1].first + data.blocks[hi - 1].n)
+                 for lo, hi in ranges]
+        resident = data.resident(dask_client, ranges).with_inverses([problem.src_inv[sl] for sl in stars])
+    # with the basic-angle calibration (mcsweep.solver.calibration) its unknowns border the
+    # system (mcsweep.solver.calibration)
+    sol = solve_global(problem, data.h, **settings.criterion, log=log, chunk_stars=chunk_stars,
+                       residuals=False, workers=workers, resident_chunks=resident,
+                       border=None if data.calibration is None else calibration_design(data.calibration),
+                       attitude_start=attitude_start)
+    eps, omega, (inside_s, err_s, plx_s) = evaluate_solution(
+        problem.K, sol.cov, sol.x - data.x_true, [slice(b.first, b.first + b.n) for b in data.blocks],
+        equal=equal, tau=tau, confidence=settings.confidence)
+    sq = data.attitude_sq(sol.attitude, eps, omega)
+    results = StarParts.of_frame(solved_results(0, st["class_key"].to_numpy(), st["n_fov"].to_numpy(),
+                                                st["n_fov_scheduled"].to_numpy(), st["span_days"].to_numpy(),
+                                                s, (inside_s, err_s, plx_s, sig)))
+    return sol, resident, eps, omega, results, sq

@@ -61,7 +61,7 @@ from ..solver.problem import ResidentProblem, solver_chunks, star_arrays
 from ..solver.reduction import AlignedPartials, pairwise_sum, run_level, share_of, sum_partials
 from ..solver.selection import digit_counts, median
 from .global_classes import STAR_COLUMNS, star_transits
-from .primary import (NOISE_STREAM, BlockJob, PreparedData, PrimarySettings, _true_attitude, attitude_spline,
+from .primary import (NOISE_STREAM, BlockJob, PreparedData, PrimarySettings, true_attitude, attitude_spline,
                       block_frame_sums, block_outcome, block_transits, build_block, covered_coefficients,
                       dead_time_of, epoch_offset_yr, first_rows, measurements_per_star, min_transits,
                       prior_sigmas, star_sigmas, stream_seed, transit_summary, true_parameters)
@@ -235,7 +235,7 @@ def _fit_task(item):
 
 
 def _outcome_task(item):
-    """Each star's outcome, kept in the chunk's state for :func:`_outcome_slice`."""
+    """Each star's outcome, kept in the chunk's state for :func:`outcome_slice`."""
     ci, blocks, _, st, eps, omega, confidence = item
     S = st["stars"]
     dx = st["x"] - S["x_true"]
@@ -246,7 +246,7 @@ def _outcome_task(item):
     return ci, None
 
 
-def _outcome_slice(item):
+def outcome_slice(item):
     """The outcome (inside, position and parallax errors) and prior sigma of the chunk's
     solved stars ``lo:hi`` (solved-star indices of the whole solution)."""
     ci, blocks, _, st, lo, hi = item
@@ -282,7 +282,7 @@ def _cluster_part(data: PreparedData, resident: DaskChunks, ranges, rows: slice)
         firsts = np.array([spans[a].first for a, _ in ranges])
         lasts = np.array([spans[b - 1].first + spans[b - 1].n for _, b in ranges])
         cis = np.flatnonzero((firsts < hi) & (lasts > lo))
-        out = chunk_values(resident.run, _outcome_slice, [(int(ci), lo, hi) for ci in cis])
+        out = chunk_values(resident.run, outcome_slice, [(int(ci), lo, hi) for ci in cis])
         outcome = tuple(np.concatenate([o[i] for o in out]) for i in range(4))
     return solved_results(rows.start, cols["class_key"], cols["n_fov"], cols["n_fov_scheduled"], cols["span_days"],
                           solved, outcome)
@@ -445,7 +445,7 @@ def _prepare_once(settings, sky, client, *, chunk_stars, block_stars, with_noise
                                          for p in range(n_parts)], settings.start_jd, settings.end_jd)
     spline = attitude_spline(settings, dead, epochs)
     del epochs
-    true_att = _true_attitude(settings)
+    true_att = true_attitude(settings)
     n_blocks = -(-n_solved // block_stars)
     per_block = np.zeros(n_blocks, dtype=np.int64)
     for k0, sums in client.gather([client.submit(_block_counts, summaries[p], sky.futures[p], int(solved_first[p]),

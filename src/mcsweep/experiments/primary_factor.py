@@ -71,7 +71,7 @@ def factor_rows(results: Mapping[float, pd.DataFrame], g_classes: Sequence[float
     Parameters
     ----------
     results : mapping of factor k -> per-star results of that solution
-        (:func:`mcsweep.experiments.primary.solve_prior`, prior ``k sigma_F90``).
+        (:func:`mcsweep.experiments.primary_solution.solve_prior`, prior ``k sigma_F90``).
     g_classes : the magnitude classes.
     confidence : P.
     n_resamples : bootstrap resamples (0: no interval).

@@ -85,7 +85,7 @@ def table3_rows(results: Mapping[str, pd.DataFrame], g_classes: Sequence[float],
     """``table3.csv``: one row per subset x prior x class (extra primary sources are not tabulated).
 
     ``results[prior]`` holds the per-star results of one solution (columns ``class_key``,
-    ``n_fov``, ``inside``, ``err_mas``; :func:`mcsweep.experiments.primary.solve_prior`).
+    ``n_fov``, ``inside``, ``err_mas``; :func:`mcsweep.experiments.primary_solution.solve_prior`).
     ``converged[prior]``: whether its solution met the PCG criterion (column ``converged``;
     only with ``experiment.primary.allow_unconverged`` can a False reach the table).
     ``count``: the column counting transits for the subsets (:data:`SUBSET_COUNTS`).

@@ -166,7 +166,7 @@ def prior_sigmas(settings: RealSkySettings, stars: pd.DataFrame) -> dict[str, np
 
 
 # --------------------------------------------------------------------------- solutions
-def _case_rows(src: np.ndarray, group: np.ndarray, n: int, groups: tuple) -> tuple[np.ndarray, np.ndarray]:
+def case_rows(src: np.ndarray, group: np.ndarray, n: int, groups: tuple) -> tuple[np.ndarray, np.ndarray]:
     """(rows kept, stars having the case) for one case: per star the distinct-transit groups
     ``groups`` (negative = from the last), as :func:`pencil_beam.case_geometry` picks them."""
     n_groups = np.zeros(n, dtype=np.int64)
@@ -233,7 +233,7 @@ def solve_chunk(settings: RealSkySettings, first: int, stars: dict) -> pd.DataFr
     x_truth = {"hipparcos": np.stack([st["parallax"], st["pmra"], st["pmdec"]], axis=1),
                "perturbed": np.concatenate(truths["perturbed"]) if n else np.empty((0, 3))}
     for case, groups in settings.cases:
-        keep, has = _case_rows(src, group, n, groups)
+        keep, has = case_rows(src, group, n, groups)
         out[f"n_fov_{case}"] = np.bincount(src[keep], minlength=n).astype(np.int16)
         res = {(truth, p): (np.full(n, -1, np.int8), np.full(n, np.nan, np.float32))
                for truth in TRUTHS for p, _ in settings.priors}

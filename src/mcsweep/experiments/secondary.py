@@ -113,7 +113,7 @@ def build_settings(config) -> SecondarySettings:
 
 
 # --------------------------------------------------------------------------- solutions
-def _block_normals(st: dict, sel: np.ndarray, rows: dict, k: int, settings: SecondarySettings, rng):
+def block_normals(st: dict, sel: np.ndarray, rows: dict, k: int, settings: SecondarySettings, rng):
     """Normal equations of the stars ``sel`` (all with >= 1 transit) of one noise block."""
     nb = sel.size
     shape = (nb, k)
@@ -190,7 +190,7 @@ def solve_chunk(settings: SecondarySettings, g_class: float, first: int, stars: 
         rows = {"star": compact[star - lo], "col": np.arange(row0[lo], row0[hi]) - row0[star],
                 "t": t[rs], "psi": psi[rs], "obs": obs[rs]}
         rng = np.random.default_rng(stream_seed(settings.seed, NOISE_STREAM, ckey, (first + lo) // BLOCK_STARS))
-        normals.append(_block_normals(st, sel, rows, int(n_fov[sel].max()), settings, rng))
+        normals.append(block_normals(st, sel, rows, int(n_fov[sel].max()), settings, rng))
         solved.append(sel)
 
     sig = settings.sigma_f90_mas(st["l"], st["b"], st["phot_g_mean_mag"])

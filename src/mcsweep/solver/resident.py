@@ -68,7 +68,7 @@ def fork_available() -> bool:
     return "fork" in mp.get_all_start_methods()
 
 
-class _Arena:
+class Arena:
     """One direction's shared buffer between the parent and a worker (module notes): a shared
     anonymous mapping made before the fork, written from ``cursor`` on, rewound per message."""
 
@@ -102,7 +102,7 @@ class _Arena:
             self.map = None
 
 
-def _send(conn: Connection, obj, arena: _Arena | None = None) -> None:
+def _send(conn: Connection, obj, arena: Arena | None = None) -> None:
     """``obj`` pickled with its buffers out of band: the places of the buffers (an offset in
     ``arena``, or -1: in the pipe) and their sizes, the pickle, then each pipe buffer written
     from where it lies (module notes)."""
@@ -117,7 +117,7 @@ def _send(conn: Connection, obj, arena: _Arena | None = None) -> None:
             conn.send_bytes(r)
 
 
-def _recv(conn: Connection, arena: _Arena | None = None):
+def _recv(conn: Connection, arena: Arena | None = None):
     """What :func:`_send` sent, its arrays on new allocations of this process (copied out of
     ``arena`` or of the pipe's bytes): they behave as arrays computed here (the solver's
     ``executors.fresh_arrays`` rule), whatever the sender's memory alignment."""
@@ -134,7 +134,7 @@ def _from_pipe(conn: Connection, n: int) -> np.ndarray:
     return out
 
 
-def _serve(conn: Connection, chunks: dict, down: _Arena, up: _Arena) -> None:
+def _serve(conn: Connection, chunks: dict, down: Arena, up: Arena) -> None:
     """Worker loop: run ``fn((ci, *chunks[ci], *rest))`` for every task of a message, each
     result sent when made; after an error, the error and nothing more for that message.
     ``down``, ``up``: the arenas of the messages and of the results (module notes)."""
@@ -177,7 +177,7 @@ class _Pool:
                 for ci in own:
                     self.owner[ci] = w
                 parent, child = ctx.Pipe()
-                down, up = _Arena(ARENA_BYTES), _Arena(ARENA_BYTES)  # mapped before the fork: shared
+                down, up = Arena(ARENA_BYTES), Arena(ARENA_BYTES)  # mapped before the fork: shared
                 p = ctx.Process(target=_serve, args=(child, own, down, up), daemon=True)
                 p.start()
                 child.close()

@@ -29,8 +29,9 @@ from ..errors import NotConvergedError
 from ..experiments.global_classes import POPULATION_STREAM, class_key, class_table, draw_class, sky_order
 from ..experiments.global_settings import spawn
 from ..experiments.primary_sky import sky_partitions
-from ..experiments.primary import (CHUNKS_DIR, FACTOR_STREAM, PRIMARY_KEY, TAG, build_settings, prepare, solve_prior,
-                                   stream_seed, transits_of)
+from ..experiments.primary import (CHUNKS_DIR, FACTOR_STREAM, PRIMARY_KEY, TAG, build_settings, prepare, stream_seed,
+                                   transits_of)
+from ..experiments.primary_solution import solve_prior
 from ..experiments.primary_cluster import prepare_on_cluster
 from ..experiments.primary_cells import CellReduction, reduce_parts
 from ..experiments.primary_results import parts_of

@@ -23,9 +23,9 @@ def test_footnote_ratio_at_g15():
 
 
 def test_the_calibration_section_writes_its_tables_and_figures(tmp_path):
-    from mcsweep.validation.population_validation import _published_section
+    from mcsweep.validation.population_validation import published_section
 
-    lines = _published_section(tmp_path, GalaxyModel(), np.random.default_rng(14))
+    lines = published_section(tmp_path, GalaxyModel(), np.random.default_rng(14))
     for name in ("published_counts.csv", "published_counts.png", "local_lf.csv", "local_lf.png",
                  "local_census.csv", "bright_parallax.csv", "local_density_by_class.csv",
                  "local_density_by_class.png"):

@@ -83,7 +83,7 @@ def test_cns5_published_densities_match_its_counts():
 def test_published_bright_counts_agree_with_hipparcos():
     # the two published sources of the bright end agree (Hipparcos N(V<6), N(V<7))
     for v, n_hip in ((6, 4968), (7, 15328)):
-        assert pc._cum(v) == pytest.approx(n_hip, rel=COUNT_TOL)
+        assert pc.cumulative_count(v) == pytest.approx(n_hip, rel=COUNT_TOL)
 
 
 def test_local_density_matches_gcns(model):

@@ -33,7 +33,7 @@ FORMATS = {
     "csv": (".csv",),
     "parquet": (".parquet", ".pq"),
 }
-_ASTROPY_FORMAT = {"fits": "fits", "votable": "votable", "ecsv": "ascii.ecsv", "csv": "ascii.csv",
+ASTROPY_FORMAT = {"fits": "fits", "votable": "votable", "ecsv": "ascii.ecsv", "csv": "ascii.csv",
                    "parquet": "parquet"}
 #: Rows per batch when streaming (about 25 MB of float64 columns at 12 columns).
 BATCH_ROWS = 262_144
@@ -179,7 +179,7 @@ def _astropy_whole(src, dst, prior, source, fmt_in, fmt_out) -> int:
     from astropy.table import Table
 
     try:
-        t = Table.read(src, format=_ASTROPY_FORMAT[fmt_in])
+        t = Table.read(src, format=ASTROPY_FORMAT[fmt_in])
     except Exception as exc:  # the readers raise many types; report them on one line
         raise UserInputError(f"{source}: cannot be read as {fmt_in} ({type(exc).__name__}); "
                              f"expected a {fmt_in} table") from None
@@ -196,5 +196,5 @@ def _astropy_whole(src, dst, prior, source, fmt_in, fmt_out) -> int:
     t[PM_COLUMN].description = f"proper-motion prior R sigma_F90, R = {prior.ratio_R:g}/yr (Eq. 18)"
     # dst is the command's own temporary file (created empty by mkstemp), so overwrite it.
     # astropy's Parquet writer keeps the units in the file's table metadata by itself.
-    t.write(dst, format=_ASTROPY_FORMAT[fmt_out], overwrite=True)
+    t.write(dst, format=ASTROPY_FORMAT[fmt_out], overwrite=True)
     return len(t)

@@ -41,7 +41,7 @@ from ..astrometry.design import PARAMETER_NAMES, design_matrix, reference_epoch,
 from ..astrometry.solve import normal_equations, solve_no_prior, solve_position_only, solve_with_prior
 from ..errors import UserInputError
 from ..scanning.ephemeris import gaia_position_au
-from .annotate import _ASTROPY_FORMAT, detect_format
+from .annotate import ASTROPY_FORMAT, detect_format
 from .columns import finite_column
 from ..galactic import galactic_from_icrs
 from .model import Prior
@@ -70,7 +70,7 @@ def read_table(path) -> pd.DataFrame:
             return pd.read_parquet(path)
         from astropy.table import Table
 
-        return Table.read(path, format=_ASTROPY_FORMAT[fmt]).to_pandas()
+        return Table.read(path, format=ASTROPY_FORMAT[fmt]).to_pandas()
     except Exception as exc:  # readers raise many types; one line for the user
         raise UserInputError(f"{path.name}: cannot be read as {fmt} ({type(exc).__name__}); "
                              f"expected a {fmt} table") from None
@@ -277,7 +277,7 @@ def write_solutions(table: pd.DataFrame, path, fmt: str) -> None:
                 t[c].unit = "mas"
             elif c.endswith("_deg") or c in ("ra", "dec"):
                 t[c].unit = "deg"
-        t.write(path, format=_ASTROPY_FORMAT[fmt])
+        t.write(path, format=ASTROPY_FORMAT[fmt])
 
 
 # The parameter order of the astrometry stage is the one used above.

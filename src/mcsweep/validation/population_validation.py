@@ -238,7 +238,7 @@ def _fixed(value, digits: int) -> str:
     return f"{value:.{digits}f}" if np.isfinite(value) else ""
 
 
-def _published_section(out, model, rng):
+def published_section(out, model, rng):
     """The calibration facts: counts per G vs Tycho-2/UCAC4 and Gaia DR3 (the reference from
     G = 10 on, where the compilation's UCAC4 part is too bright: :mod:`.published_counts`), the
     local LF and censuses (CSV + PNG)."""
@@ -429,7 +429,7 @@ def main(argv=None):
     cells.to_csv(out / "ratio_cells.csv", index=False)
     counts.to_csv(out / "counts.csv", index=False)
     _figures(out, cells, counts, published, model)
-    extra = _published_section(out, model, rng)
+    extra = published_section(out, model, rng)
     frac, frac_fn = _report(out, beam, mu_plx_sky, cells, counts, published, extra)
     print(f"Table 1 beam: {beam[0]:.0f} expected (GUMS {GUMS_BEAM_COUNT}); "
           f"median mu/plx beam {beam[3]:.1f}, sky {mu_plx_sky:.1f} /yr; "

@@ -152,7 +152,9 @@ GUMS_G20 = 1.1e9
 DR3_TOTAL = 1_811_709_771
 
 
-def _cum(m):
+def cumulative_count(m):
+    """N(< m) over the whole sky from the Tycho-2 + UCAC4 compilation, log-interpolated
+    between the magnitudes of :data:`TYCHO_UCAC4_CUMULATIVE`."""
     mag, n = np.array(TYCHO_UCAC4_CUMULATIVE, float).T
     return 10.0 ** np.interp(m, mag, np.log10(n))
 
@@ -174,7 +176,7 @@ def published_counts_per_g(g_lo, g_minus_v=G_MINUS_V):
     """
     g_lo = np.asarray(g_lo, float)
     hi = g_lo + 1.0 - g_minus_v
-    out = _cum(hi) - _cum(g_lo - g_minus_v)
+    out = cumulative_count(hi) - cumulative_count(g_lo - g_minus_v)
     return np.where(hi <= TYCHO_UCAC4_CUMULATIVE[-1][0], out, np.nan)
 
 

@@ -22,7 +22,7 @@ only 1-4 transits), AL + AC, noisy measurements, the prior of Eq. 18 (R = 10 /yr
    measured in the same run (two plain numpy streaming reads of the solver's stored bytes
    per iteration) with the ratio of the solver's time to it;
 6. an extrapolation to the issue's full scale;
-7. AGIS's knot density (30 s knots, issue 23): the two compiled passes over one solver block of
+7. AGIS's knot density (30 s knots): the two compiled passes over one solver block of
    32768 stars out of a 1.5e6-star sky, the block's stars taken in random order (every block a
    sample of the whole sky) and in sky order (HEALPix level-12 nested, the primary experiment's
    order: :func:`mcsweep.experiments.global_classes.sky_order`): ns per measurement of each.
@@ -58,7 +58,7 @@ from mcsweep.scanning.ephemeris import gaia_position_au  # noqa: E402
 from mcsweep.solver import AttitudeSpline, GlobalProblem, build_observations, solve_global  # noqa: E402
 from mcsweep.solver import kernels  # noqa: E402
 from mcsweep.solver.attitude_update import BandedAttitudeSolver, attitude_band  # noqa: E402
-from mcsweep.solver.problem import BLOCK_STARS, make_blocks  # noqa: E402
+from mcsweep.solver.problem import SOLVER_BLOCK_STARS, make_blocks  # noqa: E402
 from mcsweep.solver.direct import solve_direct  # noqa: E402
 
 START_JD = 2456863.9375  # 2014-07-25 10:30 TCB, start of routine operations (Prusti et al. 2016)
@@ -188,15 +188,15 @@ def pass_ns(blk, rng, repeats: int = 3) -> tuple[float, float]:
 
 
 def sky_order_section(n_sky: int, days: float):
-    print(f"\n7. AGIS's knot density (30 s knots, issue 23): one block of {BLOCK_STARS} stars of a {n_sky:.2g}-star "
+    print(f"\n7. AGIS's knot density (30 s knots): one block of {SOLVER_BLOCK_STARS} stars of a {n_sky:.2g}-star "
           f"sky over {days:g} days, its stars in random order and in sky order")
     rng = np.random.default_rng(17)
     ra = rng.uniform(0.0, 360.0, n_sky)
     dec = np.degrees(np.arcsin(rng.uniform(-1.0, 1.0, n_sky)))
-    mid = (n_sky // BLOCK_STARS // 2) * BLOCK_STARS  # a block from the middle of the order
+    mid = (n_sky // SOLVER_BLOCK_STARS // 2) * SOLVER_BLOCK_STARS  # a block from the middle of the order
     res = {}
     for name, order in (("random order", rng.permutation(n_sky)), ("sky order", sky_order(ra, dec))):
-        blk = block_in_order(ra, dec, order[mid:mid + BLOCK_STARS], days, 30.0, seed=3)
+        blk = block_in_order(ra, dec, order[mid:mid + SOLVER_BLOCK_STARS], days, 30.0, seed=3)
         fwd, back = pass_ns(blk, rng)
         res[name] = fwd + back
         print(f"  {name:12s}: {blk.t.size} measurements, {blk.seg.size} runs of equal first coefficient "

@@ -127,13 +127,13 @@ def test_inside_flags_equal_the_confidence_rule_on_the_direct_solution(rows):
     n0[:5] = 0.0  # no position: no confidence region at any prior
     b0[:5] = 0.0
     priors = np.geomspace(0.01, 1000.0, 17)
-    for block in (ps.BLOCK_STARS, 97):  # a block size that does not divide n
-        old = ps.BLOCK_STARS
-        ps.BLOCK_STARS = block
+    for block in (ps.INSIDE_FLAGS_BLOCK_STARS, 97):  # a block size that does not divide n
+        old = ps.INSIDE_FLAGS_BLOCK_STARS
+        ps.INSIDE_FLAGS_BLOCK_STARS = block
         try:
             ins, val = prior_scan(n0, b0, 10.0).inside_flags(priors, 0.9)
         finally:
-            ps.BLOCK_STARS = old
+            ps.INSIDE_FLAGS_BLOCK_STARS = old
         for i, sigma in enumerate(priors):
             sol = solve_with_prior(n0, b0, sigma, 10.0)
             dpos, cov = np.ascontiguousarray(sol.x[:, :2]), np.ascontiguousarray(sol.cov[:, :2, :2])

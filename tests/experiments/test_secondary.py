@@ -134,7 +134,7 @@ def test_chunk_results_do_not_depend_on_how_stars_are_split(settings, rng):
     parts = [S.solve_chunk(settings, 15.0, lo, {k: v[lo:lo + 1024] for k, v in stars.items()})
              for lo in (0, 1024, 2048)]
     pd.testing.assert_frame_equal(pd.concat(parts, ignore_index=True), whole, check_exact=True)
-    with pytest.raises(ValueError, match="multiple of BLOCK_STARS"):
+    with pytest.raises(ValueError, match="multiple of SECONDARY_NOISE_BLOCK_STARS"):
         S.solve_chunk(settings, 15.0, 1000, stars)
 
 

@@ -7,7 +7,7 @@ from scipy import stats
 
 from mcsweep.errors import UserInputError
 from mcsweep.population import COLUMNS, GalaxyModel
-from mcsweep.population.galaxy.model import BLOCK_STARS
+from mcsweep.population.galaxy.model import DRAW_BLOCK_STARS
 
 BEAM = (245.7, 46.5, 1.0)               # paper Table 1: (l, b, radius) in deg
 EXPECTATION_REL_TOL = 1e-9               # sums of the same tabulated weights
@@ -88,8 +88,8 @@ def test_cap_keeps_an_unbiased_subsample(model):
 
 def test_reproducible_and_independent_of_chunking():
     a, b = GalaxyModel(), GalaxyModel()
-    b.chunk_stars = BLOCK_STARS          # one block per chunk instead of four
-    n = 2 * BLOCK_STARS + 123
+    b.chunk_stars = DRAW_BLOCK_STARS          # one block per chunk instead of four
+    n = 2 * DRAW_BLOCK_STARS + 123
     da = a.sample_cone(0, 3, 2.0, 14, 18, np.random.default_rng(6), max_stars=n)
     db = b.sample_cone(0, 3, 2.0, 14, 18, np.random.default_rng(6), max_stars=n)
     assert len(da) == n

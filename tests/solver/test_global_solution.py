@@ -12,7 +12,7 @@ from mcsweep.solver import (GlobalProblem, attitude_band, band_to_dense, fit_fra
                             frame_offsets, solve_global)
 from mcsweep.solver.direct import solve_direct, sparse_design
 from mcsweep.solver.blocks import schur_bandwidth
-from mcsweep.solver.problem import BLOCK_STARS
+from mcsweep.solver.problem import SOLVER_BLOCK_STARS
 from mcsweep.solver.source_update import solve_sources, source_normals, source_rhs
 from mcsweep.solver.attitude_update import attitude_rhs
 from mcsweep.scanning.ephemeris import gaia_position_au
@@ -459,7 +459,7 @@ def test_the_design_of_a_problem_of_several_blocks_names_every_measurement_s_own
 
     P = make_problem(n_stars=200000, days=10.0, knot_days=0.5, min_transits=1)
     obs = P["obs"]
-    assert obs.n_stars > BLOCK_STARS
+    assert obs.n_stars > SOLVER_BLOCK_STARS
     problem = GlobalProblem(obs, prior_diagonal(np.full(obs.n_stars, 1.0), 10.0), P["ra"], P["dec"])
     assert len(problem.blocks) == 2
     star, src, att, j0, bval = problem.design()

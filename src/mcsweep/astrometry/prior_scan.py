@@ -52,7 +52,7 @@ from .confidence import inside_components
 from .linalg import PIVOT_TOLERANCE
 from .solve import DEFAULT_RATIO_R, check_normal, prior_diagonal
 
-__all__ = ["JACOBI_SWEEPS", "JACOBI_NEGLIGIBLE", "BLOCK_STARS", "REDUCE_BLOCK", "PriorScan", "prior_scan"]
+__all__ = ["JACOBI_SWEEPS", "JACOBI_NEGLIGIBLE", "INSIDE_FLAGS_BLOCK_STARS", "REDUCE_BLOCK", "PriorScan", "prior_scan"]
 
 #: Most cyclic Jacobi sweeps for a 3 x 3 symmetric matrix. Convergence is quadratic
 #: after the first sweep (Golub & Van Loan, Sect. 8.5.4); 3 x 3 matrices reach the
@@ -62,10 +62,12 @@ JACOBI_SWEEPS = 8
 #: two orders of magnitude below the rounding of the diagonal elements, so skipping it
 #: changes no eigenvalue or eigenvector beyond rounding.
 JACOBI_NEGLIGIBLE = 1e-18
-#: Stars per block of :meth:`PriorScan.inside_flags` (one prior at a time): ~30
-#: vectors of BLOCK_STARS doubles per block, about a core's L2 cache; measured fastest
-#: among 2048-32768 (per-call overhead against cache size).
-BLOCK_STARS = 8192
+#: Stars per vectorised block of :meth:`PriorScan.inside_flags` (one prior at a time).
+#: Why this size: a block's ~30 work vectors of this many doubles fit about a core's L2
+#: cache, while the per-block NumPy call overhead stays small; larger blocks spill the
+#: cache, smaller ones pay the overhead more often. Speed only: every flag is computed per
+#: star, so any block size gives the same flags (tests/astrometry/test_prior_scan.py).
+INSIDE_FLAGS_BLOCK_STARS = 8192
 #: Stars per block of the reduction (:func:`prior_scan`): its temporaries (vectors of
 #: REDUCE_BLOCK doubles) stay in cache.
 REDUCE_BLOCK = 4096
@@ -198,7 +200,7 @@ class PriorScan:
         # where min(lam) + t <= 0 or the star is not ok (then -inf).
         lam_min = np.min(self.lam, axis=0)
         worst = np.where(self.ok, lam_min, -np.inf)
-        bs = max(1, min(BLOCK_STARS, n))
+        bs = max(1, min(INSIDE_FLAGS_BLOCK_STARS, n))
         # Work arrays allocated once (a fresh array per block would be an mmap each time).
         X_all = np.empty((3, 5, bs))
         base_all = np.empty((5, bs))

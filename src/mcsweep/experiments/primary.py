@@ -57,7 +57,7 @@ interval), the attitude error the prior's bias causes does not (docs/table3.md).
 
 Reproducibility: SeedSequence(seed, spawn_key=(42, stream, ...)): population of a class
 (stream 0, class key round(100 G0); primaries key 0), dead time (1), true attitude (2),
-measurement noise (3, key: the block of ``BLOCK_STARS`` solved stars, drawn in the block's
+measurement noise (3, key: the block of ``SOLVER_BLOCK_STARS`` solved stars, drawn in the block's
 order). So results do not depend on n_jobs, chunking or where a block is built (the driver,
 or a Dask worker: :mod:`~mcsweep.experiments.primary_cluster`); the transit search is
 chunked over stars and re-assembled in star order. (Before the stars were kept on the
@@ -82,7 +82,7 @@ from ..scanning.timeline import DeadTime
 from ..solver.attitude_spline import DEGREE, sorted_epochs
 from ..solver.reduction import pairwise_sum, run_level
 from ..solver.blocks import att_rows, spline_values, src_forward
-from ..solver import (BLOCK_STARS, AttitudeSpline, GlobalProblem, build_observations, frame_attitude,
+from ..solver import (SOLVER_BLOCK_STARS, AttitudeSpline, GlobalProblem, build_observations, frame_attitude,
                       in_block_order, make_blocks, precision_weights, solve_global, source_normals)
 from ..solver.calibration import BasicAngleColumns, basic_angle_columns, calibration_design
 from ..solver.executors import chunk_values
@@ -483,7 +483,7 @@ def attitude_spline(settings: PrimarySettings, dead: DeadTime, epochs=None) -> A
 
 
 def prepare(settings: PrimarySettings, stars: pd.DataFrame, transits: dict, *,
-            with_noise: bool = True, block_stars: int = BLOCK_STARS) -> PreparedData:
+            with_noise: bool = True, block_stars: int = SOLVER_BLOCK_STARS) -> PreparedData:
     """Dead time, observations of the stars with >= 1 transit, truth and noisy measurements.
 
     ``transits`` sorted by star (as :func:`transits_of` gives them). The solver's blocks

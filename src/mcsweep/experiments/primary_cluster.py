@@ -19,7 +19,7 @@ unless said otherwise:
 2. Per partition, given its first solved star: its stars' measurements summed by solver
    block (a few numbers per block), from which the driver has each block's first
    measurement.
-3. Each solver chunk (aligned runs of leaves of blocks of ``BLOCK_STARS`` solved stars,
+3. Each solver chunk (aligned runs of leaves of blocks of ``SOLVER_BLOCK_STARS`` solved stars,
    :func:`~mcsweep.solver.problem.solver_chunks`) is built by one task from the partitions, their
    summaries and transits it overlaps (worker to worker), block by block with
    :func:`~.primary.build_block`, the function the driver uses without a cluster, and each
@@ -52,7 +52,7 @@ import numpy as np
 import pandas as pd
 
 from ..astrometry.solve import prior_diagonal
-from ..solver import BLOCK_STARS, solve_global
+from ..solver import SOLVER_BLOCK_STARS, solve_global
 from ..solver.blocks import BlockSpan, att_band
 from ..solver.dask_resident import DaskChunks, is_loss, live_workers
 from ..solver.executors import MAX_RESTARTS, ChunksLost, chunk_values
@@ -403,7 +403,7 @@ class _Shared:
 
 
 def prepare_on_cluster(settings: PrimarySettings, sky: SkyPartitions, client, *, chunk_stars: int | None,
-                       block_stars: int = BLOCK_STARS, with_noise: bool = True) -> PreparedData:
+                       block_stars: int = SOLVER_BLOCK_STARS, with_noise: bool = True) -> PreparedData:
     """:func:`~.primary.prepare` of the table ``sky`` (partitions on the workers of the Dask
     ``client``) with the transits, blocks and measurements made and kept there (module notes):
     the same data, bit for bit, as of the whole table in the same order, whose

@@ -33,7 +33,7 @@ This experiment takes the Hipparcos 2 catalogue (van Leeuwen 2007, CDS I/311;
    complete sky by colour (:mod:`mcsweep.experiments.real_sky_complete`).
 
 Reproducibility: noise and perturbations are drawn per fixed block of
-:data:`BLOCK_STARS` stars, so chunking, workers and completion order change nothing.
+:data:`REAL_SKY_NOISE_BLOCK_STARS` stars, so chunking, workers and completion order change nothing.
 """
 
 from __future__ import annotations
@@ -58,7 +58,7 @@ from ..scanning.timescale import tcb_jd
 from .global_settings import GlobalSettings, spawn
 from .global_table import FRACTION_INTERVAL, error_percentile, fraction_statistics
 
-__all__ = ["TAG", "CHUNKS_DIR", "OUTPUTS", "BLOCK_STARS", "B_BANDS", "G_BINS", "TRUTHS", "RealSkySettings",
+__all__ = ["TAG", "CHUNKS_DIR", "OUTPUTS", "REAL_SKY_NOISE_BLOCK_STARS", "B_BANDS", "G_BINS", "TRUTHS", "RealSkySettings",
            "build_settings", "load_prior", "draw_stars", "prior_sigmas", "solve_chunk", "table_rows", "error_rows",
            "table_markdown", "band_of", "gbin_of"]
 
@@ -68,8 +68,15 @@ CHUNKS_DIR = "real_sky_chunks"
 OUTPUTS = (CHUNKS_DIR, "real_sky.csv", "real_sky.md", "real_sky_errors.csv", "real_sky_complete.csv",
            "real_sky_fraction.png",
            "report.md", "report.html", "provenance.json")
-#: Stars per noise block (the unit of randomness).
-BLOCK_STARS = 1024
+#: Stars per noise block of the real-sky validation: the unit of randomness (noise and
+#: perturbed truths) and of the per-star result store's chunks.
+#: Why this size: a block's design arrays are padded to its most-observed star (stars x
+#: most transits), so small blocks keep them small and waste little on padding, while
+#: 1024 stars amortise the per-block seeding and NumPy call overhead. The value is part of
+#: the results: it defines the noise streams (one per block) and the chunk boundaries
+#: (chunks hold whole blocks), so a resumed run's finished chunks stay valid only with it;
+#: it is fixed.
+REAL_SKY_NOISE_BLOCK_STARS = 1024
 #: |b| bands [deg] in which the validation's targets are stated (0-15, 15-35, above 35;
 #: docs/galaxy_model.md).
 B_BANDS = ((0.0, 15.0), (15.0, 35.0), (35.0, 90.0))
@@ -207,8 +214,8 @@ def solve_chunk(settings: RealSkySettings, first: int, stars: dict) -> pd.DataFr
     and prior ``inside_<case>_<truth>_<prior>`` (1/0, -1 = not in the case or no region)
     and ``err_<case>_<truth>_<prior>_mas``.
     """
-    if first % BLOCK_STARS:
-        raise ValueError(f"first={first} must be a multiple of BLOCK_STARS={BLOCK_STARS}")
+    if first % REAL_SKY_NOISE_BLOCK_STARS:
+        raise ValueError(f"first={first} must be a multiple of REAL_SKY_NOISE_BLOCK_STARS={REAL_SKY_NOISE_BLOCK_STARS}")
     st = {c: np.asarray(v) for c, v in stars.items()}
     n = st["ra"].size
     tr = find_transits(st["ra"], st["dec"], settings.start_jd, settings.end_jd, law=settings.law)
@@ -222,9 +229,9 @@ def solve_chunk(settings: RealSkySettings, first: int, stars: dict) -> pd.DataFr
     out = {"star": (first + np.arange(n)).astype(np.int32), "hip": st["hip"].astype(np.int64),
            "n_groups": n_groups.astype(np.int16)}
     truths = {}
-    for lo in range(0, n, BLOCK_STARS):
-        hi = min(lo + BLOCK_STARS, n)
-        rng = np.random.default_rng(spawn(settings.seed, TAG, PERTURB_STREAM, (first + lo) // BLOCK_STARS))
+    for lo in range(0, n, REAL_SKY_NOISE_BLOCK_STARS):
+        hi = min(lo + REAL_SKY_NOISE_BLOCK_STARS, n)
+        rng = np.random.default_rng(spawn(settings.seed, TAG, PERTURB_STREAM, (first + lo) // REAL_SKY_NOISE_BLOCK_STARS))
         z = rng.standard_normal((3, hi - lo))
         truths.setdefault("perturbed", []).append(np.stack(
             [st["parallax"][lo:hi] + z[0] * st["parallax_error"][lo:hi],
@@ -237,8 +244,8 @@ def solve_chunk(settings: RealSkySettings, first: int, stars: dict) -> pd.DataFr
         out[f"n_fov_{case}"] = np.bincount(src[keep], minlength=n).astype(np.int16)
         res = {(truth, p): (np.full(n, -1, np.int8), np.full(n, np.nan, np.float32))
                for truth in TRUTHS for p, _ in settings.priors}
-        for lo in range(0, n, BLOCK_STARS):
-            hi = min(lo + BLOCK_STARS, n)
+        for lo in range(0, n, REAL_SKY_NOISE_BLOCK_STARS):
+            hi = min(lo + REAL_SKY_NOISE_BLOCK_STARS, n)
             sel = lo + np.flatnonzero(has[lo:hi])
             if sel.size == 0:
                 continue
@@ -247,7 +254,7 @@ def solve_chunk(settings: RealSkySettings, first: int, stars: dict) -> pd.DataFr
             s_al, s_ac = settings.noise.design_sigmas(st["phot_g_mean_mag"][sel])
             A = design_matrix(st["ra"][sel], st["dec"][sel], t_yr, psi, obs, sigma_al_mas=s_al,
                               sigma_ac_mas=s_ac, mask=mask)
-            seed = spawn(settings.seed, TAG, NOISE_STREAM, zlib.crc32(case.encode()), (first + lo) // BLOCK_STARS)
+            seed = spawn(settings.seed, TAG, NOISE_STREAM, zlib.crc32(case.encode()), (first + lo) // REAL_SKY_NOISE_BLOCK_STARS)
             noise = np.random.default_rng(seed)
             # One noise realisation per block and case, shared by both truths and all priors.
             zeros = np.zeros((sel.size, 5))

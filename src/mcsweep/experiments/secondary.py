@@ -31,7 +31,7 @@ The attitude is known from an earlier solution, so each star is solved on its ow
 
 Reproducibility: the stars of a class come from ``SeedSequence(seed, spawn_key=(41, 0,
 class key))``, its dilution key from ``(41, 1, class key)``, and the measurement noise
-of each fixed block of :data:`BLOCK_STARS` consecutive stars from ``(41, 2, class key,
+of each fixed block of :data:`SECONDARY_NOISE_BLOCK_STARS` consecutive stars from ``(41, 2, class key,
 block index)`` (class key = round(100 G0); :mod:`mcsweep.experiments.global_settings`).
 Chunks of ``chunk_stars`` (rounded up to a whole number of blocks) only group blocks, so
 results are identical for any chunk size, number of workers, backend or completion
@@ -62,7 +62,7 @@ from .global_table import g_label
 from .secondary_table import PRIORS, SOLUTION_COLUMNS
 
 __all__ = [
-    "BLOCK_STARS",
+    "SECONDARY_NOISE_BLOCK_STARS",
     "CHUNKS_DIR",
     "OUTPUTS",
     "TAG",
@@ -73,8 +73,15 @@ __all__ = [
     "class_summary",
 ]
 
-#: Stars per noise block: the unit of randomness, so chunking never changes results.
-BLOCK_STARS = 1024
+#: Stars per noise block of the secondary experiment (Sect. 4.1): the unit of randomness
+#: and of the per-star result store's chunks, so chunking never changes results.
+#: Why this size: a block's design arrays are padded to its most-observed star (stars x
+#: most transits), so small blocks keep them small and waste little on padding, while
+#: 1024 stars amortise the per-block seeding and NumPy call overhead. The value is part of
+#: the results: it defines the noise streams (one per block) and the chunk boundaries
+#: (chunks hold whole blocks), so a resumed run's finished chunks stay valid only with it;
+#: it is fixed.
+SECONDARY_NOISE_BLOCK_STARS = 1024
 #: Sub-directory of the run directory holding the finished chunks.
 CHUNKS_DIR = "secondary_chunks"
 #: Everything this experiment and its report write into a run directory (removed again
@@ -149,7 +156,7 @@ def solve_chunk(settings: SecondarySettings, g_class: float, first: int, stars: 
     g_class : float
         The class's G0 (its identity in the seeds).
     first : int
-        Index in the class of the first star; a multiple of :data:`BLOCK_STARS`.
+        Index in the class of the first star; a multiple of :data:`SECONDARY_NOISE_BLOCK_STARS`.
     stars : mapping of str -> ndarray
         ``ra, dec, l, b`` [deg], ``parallax`` [mas], ``pmra, pmdec`` [mas/yr],
         ``phot_g_mean_mag`` of the chunk's stars.
@@ -162,8 +169,8 @@ def solve_chunk(settings: SecondarySettings, g_class: float, first: int, stars: 
         :data:`~mcsweep.experiments.secondary_table.SOLUTION_COLUMNS`) ``inside_<stem>``
         (1/0, -1 = not solved or no transit) and ``err_<stem>_mas``.
     """
-    if first % BLOCK_STARS:
-        raise ValueError(f"first={first} must be a multiple of BLOCK_STARS={BLOCK_STARS}")
+    if first % SECONDARY_NOISE_BLOCK_STARS:
+        raise ValueError(f"first={first} must be a multiple of SECONDARY_NOISE_BLOCK_STARS={SECONDARY_NOISE_BLOCK_STARS}")
     st = {c: np.asarray(stars[c], dtype=float) for c in STAR_COLUMNS}
     n = st["ra"].size
     ckey = class_key(g_class)
@@ -179,8 +186,8 @@ def solve_chunk(settings: SecondarySettings, g_class: float, first: int, stars: 
     row0 = np.concatenate([[0], np.cumsum(n_fov)])  # rows sorted by (star, time)
 
     normals, solved = [], []
-    for lo in range(0, n, BLOCK_STARS):
-        hi = min(lo + BLOCK_STARS, n)
+    for lo in range(0, n, SECONDARY_NOISE_BLOCK_STARS):
+        hi = min(lo + SECONDARY_NOISE_BLOCK_STARS, n)
         sel = lo + np.flatnonzero(n_fov[lo:hi] > 0)
         if sel.size == 0:
             continue
@@ -189,7 +196,7 @@ def solve_chunk(settings: SecondarySettings, g_class: float, first: int, stars: 
         compact = np.cumsum(n_fov[lo:hi] > 0) - 1
         rows = {"star": compact[star - lo], "col": np.arange(row0[lo], row0[hi]) - row0[star],
                 "t": t[rs], "psi": psi[rs], "obs": obs[rs]}
-        rng = np.random.default_rng(stream_seed(settings.seed, NOISE_STREAM, ckey, (first + lo) // BLOCK_STARS))
+        rng = np.random.default_rng(stream_seed(settings.seed, NOISE_STREAM, ckey, (first + lo) // SECONDARY_NOISE_BLOCK_STARS))
         normals.append(block_normals(st, sel, rows, int(n_fov[sel].max()), settings, rng))
         solved.append(sel)
 

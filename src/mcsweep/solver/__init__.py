@@ -53,7 +53,7 @@ Only :mod:`mcsweep.astrometry` and :mod:`mcsweep.scanning` are imported.
 
 from .attitude_spline import AttitudeSpline
 from .attitude_update import attitude_band, band_to_dense
-from .problem import BLOCK_STARS, GlobalProblem, in_block_order, make_blocks
+from .problem import SOLVER_BLOCK_STARS, GlobalProblem, in_block_order, make_blocks
 from .schur_preconditioner import AttitudeNotDetermined
 from .solve import solve_global
 from .stopping import ConvergenceRecord
@@ -75,7 +75,7 @@ __all__ = [
     "frame_attitude",
     "precision_weights",
     "GlobalProblem",
-    "BLOCK_STARS",
+    "SOLVER_BLOCK_STARS",
     "make_blocks",
     "in_block_order",
     "ConvergenceRecord",

@@ -42,16 +42,19 @@ from .reduction import chunk_ranges, leaf_blocks, pairwise_sum
 from .source_update import solve_sources, source_normals
 
 __all__ = ["GlobalProblem", "ResidentProblem", "make_blocks", "in_block_order", "solver_chunks", "star_arrays",
-           "BLOCK_STARS"]
+           "SOLVER_BLOCK_STARS"]
 
-#: Stars per reduction block (module notes of :mod:`~mcsweep.solver.reduction`). Every
-#: block adds one attitude-sized vector per pass; where a block holds fewer measurements
+#: Stars per solver block: the unit of the solver's reductions (module notes of
+#: :mod:`~mcsweep.solver.reduction`). Why this size: every block adds one attitude-sized
+#: vector per pass, so blocks hold many stars; where a block holds fewer measurements
 #: than there are attitude unknowns (AGIS's 30 s knots), blocks are summed in leaves
 #: (:func:`~mcsweep.solver.reduction.leaf_blocks`) so that this overhead stays small.
-BLOCK_STARS = 32768
+#: The value is part of the problem, not of the execution: the rounding of the sums, and
+#: the primary experiment's noise streams (one per block), depend on it, so it is fixed.
+SOLVER_BLOCK_STARS = 32768
 
 
-def make_blocks(obs: Observations, ra_deg, dec_deg, *, block_stars: int = BLOCK_STARS, compact: bool = False,
+def make_blocks(obs: Observations, ra_deg, dec_deg, *, block_stars: int = SOLVER_BLOCK_STARS, compact: bool = False,
                 first_star: int = 0) -> list:
     """The :class:`~mcsweep.solver.blocks.StarBlock` s of ``obs`` (without per-star inverses).
 
@@ -120,7 +123,7 @@ class GlobalProblem:
     ra_deg, dec_deg : array_like (n,)
         Star directions (for the frame constraint).
     block_stars : int, keyword-only
-        Stars per reduction block (:data:`BLOCK_STARS`); part of the problem, not of the
+        Stars per reduction block (:data:`SOLVER_BLOCK_STARS`); part of the problem, not of the
         execution: the rounding of the sums depends on it, not on the chunking.
     compact : bool, keyword-only
         Store the spline values as float32 (54 instead of 70 bytes per measurement;
@@ -133,7 +136,7 @@ class GlobalProblem:
         one with the stored partials (:meth:`design` gives them).
     """
 
-    def __init__(self, obs: Observations, prior_diagonal, ra_deg, dec_deg, *, block_stars: int = BLOCK_STARS,
+    def __init__(self, obs: Observations, prior_diagonal, ra_deg, dec_deg, *, block_stars: int = SOLVER_BLOCK_STARS,
                  compact: bool = False):
         self._assemble(make_blocks(obs, ra_deg, dec_deg, block_stars=int(block_stars), compact=bool(compact)),
                        source_normals(obs), prior_diagonal, ra_deg, dec_deg, n_coef=obs.n_coef,

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from ..experiments.real_sky import (BLOCK_STARS, CHUNKS_DIR, TAG, build_settings, draw_stars, error_rows,
+from ..experiments.real_sky import (REAL_SKY_NOISE_BLOCK_STARS, CHUNKS_DIR, TAG, build_settings, draw_stars, error_rows,
                                     prior_sigmas, solve_chunk, table_markdown, table_rows)
 from ..experiments.real_sky_complete import complete_markdown, complete_rows
 from .global_runner import GlobalExperiment, GlobalRun, run_global
@@ -44,7 +44,7 @@ def _chunk_task(job):
 
 def _plan(run: GlobalRun) -> list[tuple]:
     """(chunk id, first, last): whole noise blocks, so chunking never changes a result."""
-    chunk = BLOCK_STARS * math.ceil(run.config.execution.chunk_stars / BLOCK_STARS)
+    chunk = REAL_SKY_NOISE_BLOCK_STARS * math.ceil(run.config.execution.chunk_stars / REAL_SKY_NOISE_BLOCK_STARS)
     n = len(run.classes[0][2])
     return [(f"stars{lo:07d}-{min(lo + chunk, n):07d}", lo, min(lo + chunk, n)) for lo in range(0, n, chunk)]
 
@@ -84,8 +84,8 @@ REAL_SKY = GlobalExperiment(
     groups=lambda sec: [], draw=_draw, compute=_compute, aggregate=_aggregate, result="real_sky.csv",
     kept=lambda section, done, run_dir: f"{len(done)} solved chunk{'s' * (len(done) != 1)} of Hipparcos stars kept in {run_dir}",
     seeds={"population": "SeedSequence(seed, spawn_key=(43, 0, 0)) (subset with max_stars)",
-           "noise": f"SeedSequence(seed, spawn_key=(43, 2, crc32(case), star index // {BLOCK_STARS}))",
-           "perturbed_truth": f"SeedSequence(seed, spawn_key=(43, 3, star index // {BLOCK_STARS}))"})
+           "noise": f"SeedSequence(seed, spawn_key=(43, 2, crc32(case), star index // {REAL_SKY_NOISE_BLOCK_STARS}))",
+           "perturbed_truth": f"SeedSequence(seed, spawn_key=(43, 3, star index // {REAL_SKY_NOISE_BLOCK_STARS}))"})
 
 
 def run_real_sky(config, raw_cfg: dict, run_dir, *, prov=None) -> Path:

@@ -17,7 +17,7 @@ from pathlib import Path
 import pandas as pd
 
 from ..experiments.global_classes import STAR_COLUMNS, class_key
-from ..experiments.secondary import (BLOCK_STARS, CHUNKS_DIR, TAG, build_settings, class_summary, solve_chunk)
+from ..experiments.secondary import (SECONDARY_NOISE_BLOCK_STARS, CHUNKS_DIR, TAG, build_settings, class_summary, solve_chunk)
 from ..experiments.secondary_table import no_prior_rows, table2_markdown, table2_rows
 from .global_runner import GlobalExperiment, GlobalRun, run_global
 
@@ -36,8 +36,8 @@ def _chunk_id(g_class: float, lo: int, hi: int) -> str:
 
 def _plan(run: GlobalRun) -> list[tuple]:
     """(G0, chunk id, first, last) of every chunk: whole noise blocks, so chunking never
-    changes a result (:data:`~mcsweep.experiments.secondary.BLOCK_STARS`)."""
-    chunk = BLOCK_STARS * math.ceil(run.config.execution.chunk_stars / BLOCK_STARS)
+    changes a result (:data:`~mcsweep.experiments.secondary.SECONDARY_NOISE_BLOCK_STARS`)."""
+    chunk = SECONDARY_NOISE_BLOCK_STARS * math.ceil(run.config.execution.chunk_stars / SECONDARY_NOISE_BLOCK_STARS)
     return [(g, _chunk_id(g, lo, min(lo + chunk, len(stars))), lo, min(lo + chunk, len(stars)))
             for g, _, stars in run.classes for lo in range(0, len(stars), chunk)]
 
@@ -78,7 +78,7 @@ SECONDARY = GlobalExperiment(
     kept=lambda section, done, run_dir: f"{len(done)} solved chunk{'s' * (len(done) != 1)} of stars kept in {run_dir}",
     seeds={"population": "SeedSequence(seed, spawn_key=(41, 0, round(100*G0)))",
            "dilution": "key from SeedSequence(seed, spawn_key=(41, 1, round(100*G0))), hashed with the star index",
-           "noise": f"SeedSequence(seed, spawn_key=(41, 2, round(100*G0), star index // {BLOCK_STARS}))"})
+           "noise": f"SeedSequence(seed, spawn_key=(41, 2, round(100*G0), star index // {SECONDARY_NOISE_BLOCK_STARS}))"})
 
 
 def run_secondary(config, raw_cfg: dict, run_dir, *, prov=None) -> Path:

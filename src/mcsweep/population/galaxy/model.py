@@ -15,7 +15,7 @@ the sky cell, and a velocity from the component's ellipsoid. Capping the number 
 (``max_stars``) therefore keeps the sample unbiased.
 
 Randomness comes only from the ``rng`` passed in: it gives the count and one root seed;
-stars are drawn in fixed blocks of :data:`BLOCK_STARS`, block ``i`` from
+stars are drawn in fixed blocks of :data:`DRAW_BLOCK_STARS`, block ``i`` from
 ``SeedSequence(root, spawn_key=(i,))``, so the result does not depend on how blocks are
 grouped into chunks (``chunk_stars``) and memory stays flat.
 """
@@ -39,10 +39,14 @@ from .extinction_arenou import ArenouDust
 from .kinematics import AstrometryTransform, draw_velocities, mean_lag_kms
 from .luminosity import build_luminosity_table
 
-__all__ = ["GalaxyModel", "DEFAULT_PARAMS", "BLOCK_STARS", "gcns_faint_scale", "local_sources_per_pc3"]
+__all__ = ["GalaxyModel", "DEFAULT_PARAMS", "DRAW_BLOCK_STARS", "gcns_faint_scale", "local_sources_per_pc3"]
 
-#: Stars per independently seeded block.
-BLOCK_STARS = 65536
+#: Stars drawn per independently seeded block (block ``i`` from ``SeedSequence(root,
+#: spawn_key=(i,))``, module notes). Why this size: a block's arrays (~80 bytes per star,
+#: ~5 MB) stay small while the per-block seeding and table look-ups are amortised over
+#: many stars. The value defines which stars share a random stream: changing it changes
+#: every sample drawn with a given seed, so it is fixed.
+DRAW_BLOCK_STARS = 65536
 #: Distance-modulus grid: 2.5 pc to 79 kpc in steps of 0.05 mag (2.3 % in distance).
 MU_MIN, MU_MAX, MU_STEP = -3.0, 19.5, 0.05
 #: Largest number of stars drawn in one call (memory: ~80 bytes per star).
@@ -184,7 +188,7 @@ class GalaxyModel:
             p["components"] = list(p["components"])
         _check_params(p)
         self.params = p
-        self.chunk_stars = 4 * BLOCK_STARS
+        self.chunk_stars = 4 * DRAW_BLOCK_STARS
         keep = set(p["components"])
         # the giants' discs at this model's thickness factor (velocities follow, parameters.py)
         comps = (P.THIN_DISC + P.thin_disc_giants(float(p["giant_thickness_factor"]))
@@ -370,16 +374,16 @@ class GalaxyModel:
     def _draw(self, los, shape, cum, g_min, g_max, n, root):
         cols = {c: np.empty(n) for c in COLUMNS[:-1]}
         codes = np.empty(n, dtype=np.int64)
-        n_blocks = -(-n // BLOCK_STARS)
-        per_chunk = max(1, self.chunk_stars // BLOCK_STARS)
+        n_blocks = -(-n // DRAW_BLOCK_STARS)
+        per_chunk = max(1, self.chunk_stars // DRAW_BLOCK_STARS)
         for first in range(0, n_blocks, per_chunk):
-            start = first * BLOCK_STARS
-            stop = min(n, (first + per_chunk) * BLOCK_STARS)
+            start = first * DRAW_BLOCK_STARS
+            stop = min(n, (first + per_chunk) * DRAW_BLOCK_STARS)
             uni = np.empty((5, stop - start))
             nor = np.empty((3, stop - start))
             for i in range(first, min(first + per_chunk, n_blocks)):
-                a = i * BLOCK_STARS - start
-                m = min(BLOCK_STARS, n - i * BLOCK_STARS)
+                a = i * DRAW_BLOCK_STARS - start
+                m = min(DRAW_BLOCK_STARS, n - i * DRAW_BLOCK_STARS)
                 gen = np.random.default_rng(np.random.SeedSequence(root, spawn_key=(i,)))
                 uni[:, a:a + m] = gen.random((5, m))
                 nor[:, a:a + m] = gen.standard_normal((3, m))

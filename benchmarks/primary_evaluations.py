@@ -53,7 +53,7 @@ def evaluations(settings, data, problem, sol, run_result: pd.DataFrame, label: s
         equal = settings.frame_fit != "precision" if equal is None else equal
         star_mean = settings.evaluation_epoch == "star_mean" if star_mean is None else star_mean
         _, _, (inside, err, _) = evaluate_solution(problem.K, sol.cov, dx, views, equal=equal,
-                                                   tau=epoch_offset if star_mean else None,
+                                                   tau_yr=epoch_offset if star_mean else None,
                                                    confidence=settings.confidence)
         res = run_result.copy()
         res.loc[s, "inside"] = inside

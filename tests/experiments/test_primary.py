@@ -465,7 +465,7 @@ def test_knot_transits_places_the_knots_by_the_data_between_the_gaps():
     assert abs(data.transits_per_knot - counts.mean()) < 1e-9
     # A segment runs through a dead interval longer than a knot interval only where a live
     # stretch next to that gap holds fewer than knot_transits transits (joined for lack of data).
-    assert data.knot_interval_hours / 24 < 0.25
+    assert data.mean_knot_interval_hours / 24 < 0.25
     stretches = live_segments(settings.start_jd, settings.end_jd, data.dead.starts, data.dead.stops,
                               min_gap_days=sp.knot_interval_days)
     n_in = np.searchsorted(np.sort(t), stretches[:, 1], "right") - np.searchsorted(np.sort(t), stretches[:, 0], "left")
@@ -546,13 +546,13 @@ def test_positions_at_a_stars_own_epoch_equal_a_solution_referred_to_it():
     t = np.sort(rng.uniform(-0.5, 0.5, (n, k)), axis=1)  # years from the reference epoch
     psi = rng.uniform(0, 360, (n, k))
     obs = rng.normal(0, 1, (n, k, 3))
-    tau = t.mean(axis=1)
+    tau_yr = t.mean(axis=1)
     kw = dict(sigma_al_mas=0.3, sigma_ac_mas=1.0)
     A0 = design_matrix(ra, dec, t, psi, obs, **kw)
-    A1 = design_matrix(ra, dec, t - tau[:, None], psi, obs, **kw)
+    A1 = design_matrix(ra, dec, t - tau_yr[:, None], psi, obs, **kw)
     h = rng.normal(0, 1, A0.shape[:2])
     sols = [solve_with_prior(*normal_equations(A, h), 1000.0) for A in (A0, A1)]
-    pos, cov = P.positions_at(sols[0].x, sols[0].cov, tau)
+    pos, cov = P.positions_at(sols[0].x, sols[0].cov, tau_yr)
     scale = np.abs(sols[1].cov[:, :2, :2]).max()
     np.testing.assert_allclose(pos, sols[1].x[:, :2], rtol=0, atol=PROPAGATION_RTOL * np.abs(sols[1].x).max())
     np.testing.assert_allclose(cov, sols[1].cov[:, :2, :2], rtol=0, atol=PROPAGATION_RTOL * scale)
@@ -705,7 +705,7 @@ def test_transit_summary_counts_the_live_and_the_scheduled_transits():
     out = P.transit_summary(star, t, DeadTime(np.array([5.0]), np.array([7.0])), 10, 4)
     assert out["n_scheduled"].tolist() == [3, 0, 2, 1]
     assert out["n_fov"].tolist() == [2, 0, 0, 1]
-    assert out["mean_t"][0] == 5.0 and out["span"][0] == 8.0
+    assert out["mean_tcb_jd"][0] == 5.0 and out["span_days"][0] == 8.0
 
 
 #: Tolerance on the fraction of FoV transits the 20 % dead time removes: ~1500 blocks of 0.25 d

@@ -158,7 +158,7 @@ def test_cluster_built_data_are_the_driver_built_bits(both, client):
         np.testing.assert_array_equal(kept["x_true"], local.x_true[stars])
         np.testing.assert_array_equal(kept["star"], local.solved[stars])
         # each star's mean live epoch (evaluation_epoch='star_mean'), by the driver's formula
-        np.testing.assert_array_equal((kept["mean_t"] - local.t_ref_jd) / JULIAN_YEAR_DAYS,
+        np.testing.assert_array_equal((kept["mean_tcb_jd"] - local.t_ref_jd) / JULIAN_YEAR_DAYS,
                                       local.stars["epoch_offset_yr"].to_numpy()[local.solved[stars]])
         for blk, h, ref in zip(blocks, hs, local.blocks[lo:hi], strict=True):
             np.testing.assert_array_equal(h, local.h[ref.rows])

@@ -19,7 +19,7 @@ The attitude is now *not* known: stars and attitude are solved together
    measurement per FoV transit and one AC measurement where the noise config uses AC,
    with the uncertainties of :class:`~mcsweep.astrometry.noise.NoiseModel`.
 3. *True attitude.* The scanning law plus a smooth random rotation about all three axes:
-   a cubic spline with knot interval ``attitude_timescale_hours`` whose knots are
+   a cubic spline with knot interval ``experiment.primary.attitude_timescale_hours`` whose knots are
    shifted by a random fraction of an interval (so it is *not* inside the solver's spline
    space), coefficients ``N(0, attitude_amplitude_mas^2)`` per axis. Only the part the
    solver's spline cannot follow matters (the model is linear in the small correction:
@@ -37,7 +37,7 @@ The attitude is now *not* known: stars and attitude are solved together
    (:func:`~mcsweep.experiments.epoch.resolve_reference_epoch`, default the mid-point
    of the data set, Sect. 2.1) with the prior of Eq. 18 (same prior rule for every
    star, extra stars included), and cubic-spline attitude corrections (Lindegren et al.
-   2012, Sect. 3.3) with ``knot_interval_hours``. No instrument calibration (none is
+   2012, Sect. 3.3) with ``experiment.primary.knot_interval_hours``. No instrument calibration (none is
    simulated). Frame: zero mean rotation and spin of the corrections over all sources
    (:mod:`mcsweep.solver.frame`). One PCG solution per prior of ``priors``
    (``'<k>F90'`` = k sigma_F90, ``'<s>mas'`` = a fixed sigma,
@@ -282,8 +282,9 @@ class PreparedData:
         return self.n_fov_transits / max(self.n_knot_intervals, 1)
 
     @property
-    def knot_interval_hours(self) -> float:
-        """Realised mean knot interval over the live time [h]."""
+    def mean_knot_interval_hours(self) -> float:
+        """Realised mean knot interval over the live time [h] (the configured one is
+        ``experiment.primary.knot_interval_hours``, or none with ``knot_transits``)."""
         live = float(np.sum(self.spline.segments[:, 1] - self.spline.segments[:, 0]))
         return 24.0 * live / max(self.n_knot_intervals, 1)
 
@@ -384,14 +385,15 @@ def _rotation(true_attitude: tuple, tcb_jd) -> np.ndarray:
 def true_attitude(settings: PrimarySettings) -> tuple[AttitudeSpline, np.ndarray]:
     """The smooth random rotation (module notes, step 3): its spline and coefficients [mas]."""
     rng = np.random.default_rng(stream_seed(settings.seed, ATTITUDE_STREAM))
-    tau = settings.attitude_timescale_days
-    shift = rng.uniform(0.0, tau)  # knots off the solver's grid
-    spline = AttitudeSpline(settings.start_jd - shift, settings.end_jd + tau, tau)
+    timescale_days = settings.attitude_timescale_days
+    shift_days = rng.uniform(0.0, timescale_days)  # knots off the solver's grid
+    spline = AttitudeSpline(settings.start_jd - shift_days, settings.end_jd + timescale_days, timescale_days)
     return spline, rng.normal(0.0, settings.attitude_amplitude_mas, (spline.n_coef, 3))
 
 
-def knot_interval_days(settings: PrimarySettings, n_fov_transits: int, dead: DeadTime) -> float:
-    """The solver's knot interval [day]: ``knot_interval_hours``, or with ``knot_transits`` the
+def solver_knot_interval_days(settings: PrimarySettings, n_fov_transits: int, dead: DeadTime) -> float:
+    """The solver's knot interval [day]: the configured one (``settings.knot_interval_days``,
+    from ``experiment.primary.knot_interval_hours``), or with ``knot_transits`` the
     mean live time per ``knot_transits`` FoV transits (the density of AGIS's 30 s knots at the
     paper's 1.5e6 stars: ~25 per knot; Lindegren et al. 2016, A&A 595, A4, Fig. D.4); the
     knots themselves are then placed by the data (:class:`~mcsweep.solver.AttitudeSpline`)."""
@@ -410,22 +412,24 @@ def dead_time_of(settings: PrimarySettings) -> DeadTime:
 def transit_summary(star, t, dead: DeadTime, first: int, n: int) -> dict:
     """Per star ``first .. first + n - 1`` from its transits (``star``, TCB JD ``t``, sorted by
     star): ``n_fov`` (live FoV transits), ``n_scheduled`` (FoV transits before the dead time),
-    ``mean_t`` (mean live epoch), ``span`` (days between the first and last live transit); and
+    ``mean_tcb_jd`` (mean live epoch, TCB JD), ``span_days`` (days between the first and last
+    live transit); and
     ``live`` per transit. Each star's numbers are sums
     over its own transits in their order, so a chunk's equal the whole set's, bit for bit."""
     live = ~dead.is_dead(t)
     local = np.asarray(star, dtype=np.int64) - first
     n_fov = np.bincount(local, weights=live, minlength=n).astype(np.int64)
     with np.errstate(invalid="ignore", divide="ignore"):
-        mean_t = np.bincount(local, weights=np.where(live, t, 0.0), minlength=n) / n_fov
+        mean_tcb_jd = np.bincount(local, weights=np.where(live, t, 0.0), minlength=n) / n_fov
     t_live = np.where(live, t, np.nan)
-    span = np.full(n, np.nan)
+    span_days = np.full(n, np.nan)
     if local.size:
         starts = np.flatnonzero(np.r_[True, local[1:] != local[:-1]])
         with np.errstate(invalid="ignore"):
-            span[local[starts]] = (np.fmax.reduceat(t_live, starts) - np.fmin.reduceat(t_live, starts))
+            span_days[local[starts]] = (np.fmax.reduceat(t_live, starts) - np.fmin.reduceat(t_live, starts))
     n_scheduled = np.bincount(local, minlength=n).astype(np.int64)
-    return {"n_fov": n_fov, "n_scheduled": n_scheduled, "mean_t": mean_t, "span": span, "live": live}
+    return {"n_fov": n_fov, "n_scheduled": n_scheduled, "mean_tcb_jd": mean_tcb_jd, "span_days": span_days,
+            "live": live}
 
 
 def with_transit_columns(settings: PrimarySettings, stars: pd.DataFrame, summary: dict) -> pd.DataFrame:
@@ -435,15 +439,15 @@ def with_transit_columns(settings: PrimarySettings, stars: pd.DataFrame, summary
     stars = stars.copy()
     stars["n_fov"] = summary["n_fov"]
     stars["n_fov_scheduled"] = summary["n_scheduled"]
-    stars["epoch_offset_yr"] = epoch_offset_yr(settings, summary["mean_t"])
-    stars["span_days"] = summary["span"]
+    stars["epoch_offset_yr"] = epoch_offset_yr(settings, summary["mean_tcb_jd"])
+    stars["span_days"] = summary["span_days"]
     return stars
 
 
-def epoch_offset_yr(settings: PrimarySettings, mean_t) -> np.ndarray:
+def epoch_offset_yr(settings: PrimarySettings, mean_tcb_jd) -> np.ndarray:
     """Each star's mean live epoch [TCB JD] relative to the reference epoch [yr]
     (``evaluation_epoch='star_mean'``)."""
-    return (np.asarray(mean_t) - settings.t_ref_jd) / JULIAN_YEAR_DAYS
+    return (np.asarray(mean_tcb_jd) - settings.t_ref_jd) / JULIAN_YEAR_DAYS
 
 
 def prior_sigmas(settings: PrimarySettings, label: str, l_deg, b_deg, g_mag) -> np.ndarray:
@@ -478,7 +482,7 @@ def attitude_spline(settings: PrimarySettings, dead: DeadTime, epochs=None) -> A
     if settings.knot_transits is None:
         return AttitudeSpline(settings.start_jd, settings.end_jd, settings.knot_interval_days, gaps=gaps)
     epochs = sorted_epochs(epochs)
-    return AttitudeSpline(settings.start_jd, settings.end_jd, knot_interval_days(settings, epochs.size, dead),
+    return AttitudeSpline(settings.start_jd, settings.end_jd, solver_knot_interval_days(settings, epochs.size, dead),
                           gaps=gaps, epochs=epochs, transits_per_knot=settings.knot_transits, knot_rule=settings.knot_rule)
 
 
@@ -672,14 +676,14 @@ def attitude_error_series(data: PreparedData, coef, eps, omega, *, per_knot: int
 def positions_at(x, cov, tau_yr) -> tuple[np.ndarray, np.ndarray]:
     """Position offsets (n, 2) [mas] and their covariances (n, 2, 2) at ``tau_yr`` Julian years
     from the reference epoch, from five-parameter offsets ``x (n, 5)`` and covariances
-    ``cov (n, 5, 5)`` there: ``position + tau * proper motion`` (Eq. 1's linear motion),
+    ``cov (n, 5, 5)`` there: ``position + tau_yr * proper motion`` (Eq. 1's linear motion),
     exactly. The prior of Eq. 18 constrains only parallax and proper motion, so this equals a
-    solution referred to the epoch ``tau`` itself (tests)."""
-    tau = np.asarray(tau_yr, dtype=float)
+    solution referred to the epoch ``tau_yr`` itself (tests)."""
+    tau_yr = np.asarray(tau_yr, dtype=float)
     C = np.asarray(cov, dtype=float)
-    pos = x[:, :2] + tau[:, None] * x[:, 3:5]
-    cov_pos = (C[:, :2, :2] + tau[:, None, None] * (C[:, :2, 3:5] + C[:, 3:5, :2])
-               + (tau ** 2)[:, None, None] * C[:, 3:5, 3:5])
+    pos = x[:, :2] + tau_yr[:, None] * x[:, 3:5]
+    cov_pos = (C[:, :2, :2] + tau_yr[:, None, None] * (C[:, :2, 3:5] + C[:, 3:5, :2])
+               + (tau_yr ** 2)[:, None, None] * C[:, 3:5, 3:5])
     return pos, cov_pos
 
 
@@ -690,30 +694,30 @@ def block_frame_sums(K, binv, dx, equal: bool) -> np.ndarray:
     return frame_fit_sums(K, np.ones((len(dx), 2)) if equal else precision_weights(binv), dx)
 
 
-def block_outcome(K, binv, dx, eps, omega, tau, confidence: float):
+def block_outcome(K, binv, dx, eps, omega, tau_yr, confidence: float):
     """Per star of one block, after removing the fitted rotation ``eps`` and spin ``omega``:
     inside the P ellipse (1/0; -1 without a confidence region: the project's one inside rule),
-    the position error [mas] (at ``tau`` Julian years from the reference epoch if given) and
+    the position error [mas] (at ``tau_yr`` Julian years from the reference epoch if given) and
     the parallax error [mas]."""
     dx = dx - offsets_of(K, eps, omega)
     pos, cov_pos = dx[:, :2], binv[:, :2, :2]
-    if tau is not None:
-        pos, cov_pos = positions_at(dx, binv, tau)
+    if tau_yr is not None:
+        pos, cov_pos = positions_at(dx, binv, tau_yr)
     good = np.isfinite(mahalanobis_sq(pos, cov_pos))
     inside = np.full(len(dx), -1, dtype=np.int8)
     inside[good] = inside_ellipse(pos[good], cov_pos[good], confidence)
     return inside, np.hypot(pos[:, 0], pos[:, 1]), dx[:, 2].copy()
 
 
-def evaluate_solution(K, cov, dx, views, *, equal: bool, tau, confidence: float):
+def evaluate_solution(K, cov, dx, views, *, equal: bool, tau_yr, confidence: float):
     """``(eps, omega, (inside, err_mas, err_parallax_mas))`` of a solution held in this process:
     the frame rotator fitted to its errors ``dx (n, 5)`` block by block (``views``: the blocks'
     slices, summed in the fixed tree as on a cluster; ``equal``: every star alike) and each
-    star's outcome after removing it (:func:`block_outcome`; ``tau``: epochs of evaluation,
-    None for the reference epoch)."""
+    star's outcome after removing it (:func:`block_outcome`; ``tau_yr``: epochs of evaluation,
+    Julian years from the reference epoch, None for the reference epoch)."""
     eps, omega = frame_from_sums(pairwise_sum(block_frame_sums(K[v], cov[v], dx[v], equal) for v in views)
                                  if views else np.zeros(24))
-    parts = [block_outcome(K[v], cov[v], dx[v], eps, omega, None if tau is None else tau[v], confidence)
+    parts = [block_outcome(K[v], cov[v], dx[v], eps, omega, None if tau_yr is None else tau_yr[v], confidence)
              for v in views]
     return eps, omega, tuple(np.concatenate([p[i] for p in parts]) if parts else np.zeros(0) for i in range(3))
 
@@ -729,7 +733,7 @@ def solve_in_process(settings: PrimarySettings, data: PreparedData, label: str, 
     s = data.solved
     sig = prior_sigmas(settings, label, st["l"].to_numpy()[s], st["b"].to_numpy()[s],
                        st["phot_g_mean_mag"].to_numpy()[s])
-    tau = st["epoch_offset_yr"].to_numpy()[s] if settings.evaluation_epoch == "star_mean" else None
+    tau_yr = st["epoch_offset_yr"].to_numpy()[s] if settings.evaluation_epoch == "star_mean" else None
     prior = prior_diagonal(sig, settings.ratio_R)
     # Raises if a star's block is singular: every solved star has >= 1 AL+AC or 2 AL
     # measurements, so it cannot be under a positive prior.
@@ -748,7 +752,7 @@ def solve_in_process(settings: PrimarySettings, data: PreparedData, label: str, 
                        attitude_start=attitude_start)
     eps, omega, (inside_s, err_s, plx_s) = evaluate_solution(
         problem.K, sol.cov, sol.x - data.x_true, [slice(b.first, b.first + b.n) for b in data.blocks],
-        equal=equal, tau=tau, confidence=settings.confidence)
+        equal=equal, tau_yr=tau_yr, confidence=settings.confidence)
     sq = data.attitude_sq(sol.attitude, eps, omega)
     results = StarParts.of_frame(solved_results(0, st["class_key"].to_numpy(), st["n_fov"].to_numpy(),
                                                 st["n_fov_scheduled"].to_numpy(), st["span_days"].to_numpy(),

@@ -124,7 +124,7 @@ def _solved_columns(part: pd.DataFrame, summary: dict, first: int) -> dict:
     idx = np.flatnonzero(summary["solved"])
     out = {c: part[c].to_numpy()[idx] for c in STAR_COLUMNS}
     out["star"] = first + idx
-    out["mean_t"] = summary["mean_t"][idx]
+    out["mean_tcb_jd"] = summary["mean_tcb_jd"][idx]
     return out
 
 
@@ -158,7 +158,7 @@ def _build_chunk(spec: dict, settings: PrimarySettings, spline, true_attitude, d
         rows.append((blk.rows.start, blk.rows.stop))
     lo, hi = spec["blocks"][0][1] - spec["offset"], spec["blocks"][-1][1] + spec["blocks"][-1][2] - spec["offset"]
     kept = {"normals": np.concatenate(normals), "x_true": np.concatenate(x_true),
-            **{c: solved[c][lo:hi] for c in ("star", "l", "b", "phot_g_mean_mag", "mean_t")}}
+            **{c: solved[c][lo:hi] for c in ("star", "l", "b", "phot_g_mean_mag", "mean_tcb_jd")}}
     info = {"band": pairwise_sum(att_band(b) for b in blocks),
             "covered": np.flatnonzero(covered_coefficients(blocks, spline.n_coef)), "rows": rows}
     return (blocks, hs, kept), info
@@ -181,7 +181,7 @@ def _part_columns(part: pd.DataFrame, summary: dict, lo: int, hi: int) -> dict:
     (with the number of solved stars before row ``lo``)."""
     solvable = summary["solved"]
     return {"class_key": part["class_key"].to_numpy()[lo:hi], "n_fov": summary["n_fov"][lo:hi],
-            "n_fov_scheduled": summary["n_scheduled"][lo:hi], "span_days": summary["span"][lo:hi],
+            "n_fov_scheduled": summary["n_scheduled"][lo:hi], "span_days": summary["span_days"][lo:hi],
             "solved": solvable[lo:hi], "solved_before": int(np.count_nonzero(solvable[:lo]))}
 
 
@@ -198,7 +198,7 @@ def _attach_prior(chunk: tuple, arg: tuple) -> tuple:
     stars.update(kept)
     stars["sigma_prior"] = sig
     if settings.evaluation_epoch == "star_mean":
-        stars["tau"] = epoch_offset_yr(settings, kept["mean_t"])
+        stars["tau_yr"] = epoch_offset_yr(settings, kept["mean_tcb_jd"])
     first, binv = blocks[0].first, stars["binv"]
     return ([dataclasses.replace(b, binv=binv[b.first - first:b.first - first + b.n]) for b in blocks], hs,
             {"stars": stars})
@@ -239,8 +239,9 @@ def _outcome_task(item):
     ci, blocks, _, st, eps, omega, confidence = item
     S = st["stars"]
     dx = st["x"] - S["x_true"]
-    tau = S.get("tau")
-    parts = [block_outcome(S["K"][v], S["binv"][v], dx[v], eps, omega, None if tau is None else tau[v], confidence)
+    tau_yr = S.get("tau_yr")
+    parts = [block_outcome(S["K"][v], S["binv"][v], dx[v], eps, omega, None if tau_yr is None else tau_yr[v],
+                           confidence)
              for v in _slices(blocks)]
     st["outcome"] = tuple(np.concatenate([p[i] for p in parts]) for i in range(3))
     return ci, None

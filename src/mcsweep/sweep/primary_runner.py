@@ -299,7 +299,7 @@ def _observations_on_cluster(run: GlobalRun, client):
 def _record_attitude(run: GlobalRun, data) -> None:
     with run.prov.stage("observations"):
         run.prov.derived.setdefault("primary", {}).update(
-            {"attitude_segments": data.spline.n_segments, "knot_interval_hours": data.knot_interval_hours,
+            {"attitude_segments": data.spline.n_segments, "knot_interval_hours": data.mean_knot_interval_hours,
              "fov_transits_per_knot": data.transits_per_knot, "attitude_coefficients": 3 * data.spline.n_coef,
              "attitude_coefficients_without_data": 3 * (data.spline.n_coef - data.coefficients_with_data())})
 
@@ -353,7 +353,7 @@ def _aggregate(run: GlobalRun, computed: _Computed) -> dict[str, str]:
     summary["n_stars_solved"] = data.n_solved
     summary["n_measurements"] = n_obs
     summary["n_attitude_coefficients"] = 3 * data.spline.n_coef
-    summary["knot_interval_hours"] = data.knot_interval_hours  # realised mean over the live time
+    summary["knot_interval_hours"] = data.mean_knot_interval_hours  # realised mean over the live time
     summary["fov_transits_per_knot"] = data.transits_per_knot
     summary["attitude_segments"] = data.spline.n_segments
     summary["dead_fraction"] = data.dead_days / (settings.end_jd - settings.start_jd)
@@ -363,7 +363,7 @@ def _aggregate(run: GlobalRun, computed: _Computed) -> dict[str, str]:
              f"Stars: {pri.class_size} per class (paper 5e5), {counts.get(PRIMARY_KEY, 0)} primary sources "
              f"(G >= {pri.primary_g_min:g}); {data.n_solved} with >= 1 transit, {n_obs} measurements; "
              f"attitude: cubic spline in {data.spline.n_segments} segments between the dead-time gaps, "
-             f"knot interval {data.knot_interval_hours:.3g} h ({knot_rule(pri)}), "
+             f"knot interval {data.mean_knot_interval_hours:.3g} h ({knot_rule(pri)}), "
              f"{data.transits_per_knot:.1f} FoV transits per knot, {3 * data.spline.n_coef} coefficients; "
              f"true attitude = law + {pri.attitude_amplitude_mas:g} mas "
              f"random spline rotation on a {pri.attitude_timescale_hours:g} h time scale."

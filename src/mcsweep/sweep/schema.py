@@ -384,10 +384,12 @@ class PrimaryConf:
     priors: List[str] = field(default_factory=lambda: ["F90", "10F90", "1000mas"])
     f90_formula: str = "paper"
     reference_epoch: str = "dataset_mean"
+    # [h] in the config; the code holds days (experiments.primary.PrimarySettings.knot_interval_days)
     knot_interval_hours: float = 3.0
     knot_transits: Optional[float] = None
     knot_rule: str = "uniform"
     attitude_amplitude_mas: float = 10.0
+    # [h] in the config; the code holds days (PrimarySettings.attitude_timescale_days)
     attitude_timescale_hours: float = 24.0
     solver_error_tol: Optional[float] = 0.01
     solver_rtol: float = 1e-8

@@ -22,7 +22,7 @@ from mcsweep.errors import UserInputError  # noqa: E402
 from mcsweep.experiments import real_sky  # noqa: E402
 from mcsweep.population import hipparcos  # noqa: E402
 from mcsweep.prior import PAPER_COEFFICIENTS  # noqa: E402
-from mcsweep.report.fit import coefficient_table  # noqa: E402
+from mcsweep.experiments.f90_fit import coefficient_table  # noqa: E402
 
 BIN = Path(sys.executable).parent
 

@@ -12,8 +12,7 @@ from astropy_healpix import HEALPix
 from mcsweep.errors import UserInputError
 from mcsweep.prior import Prior
 from mcsweep.prior.maps import check_nside, map_column_name, prior_maps_bytes
-from mcsweep.report.build import write_prior_maps
-from mcsweep.report.fit import fit_all
+from mcsweep.experiments.f90_fit import fit_all, prior_maps_for_run
 
 #: The map and Prior.from_run evaluate the same formula at the same pixel centres, but
 #: the map went through a FITS file: float64 round-trips exactly, so only array-vs-scalar
@@ -48,7 +47,7 @@ def _synthetic_run(run_dir, nside=8):
 def test_maps_read_with_astropy_healpix_equal_prior_from_run(tmp_path):
     run = tmp_path / "run"
     fit, cfg = _synthetic_run(run, nside=8)
-    write_prior_maps(run, fit, cfg)
+    (run / "prior_maps.fits").write_bytes(prior_maps_for_run(run, fit, nside=cfg["prior_maps"]["nside"]))
     prior = Prior.from_run(run)
     with fits.open(run / "prior_maps.fits") as hdul:
         h = hdul[1].header

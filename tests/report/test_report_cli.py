@@ -20,7 +20,7 @@ def _report(run_dir):
     return r, [ln for ln in r.stderr.splitlines() if ln.strip()]
 
 
-@pytest.mark.parametrize("kind,missing", [("f90_sweep", "cells.parquet"), ("secondary", "table2.csv")])
+@pytest.mark.parametrize("kind,missing", [("f90_sweep", "f90_cells.csv"), ("secondary", "table2.csv")])
 def test_unfinished_run_says_what_is_missing_and_writes_nothing(tmp_path, kind, missing):
     # What a run leaves once its inputs are accepted and before its results exist
     # (prov.write(with_manifest=False) in the runners): provenance, a cell or chunk, Hydra's files.

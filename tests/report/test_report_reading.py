@@ -3,6 +3,7 @@ inline code rendered, key numbers that match the run's own result files."""
 
 import html
 import re
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -131,3 +132,52 @@ def test_booleans_dicts_and_numpy_scalars_in_tables_read_as_words():
 def test_counts_read_as_a_person_writes_them():
     assert counts_text({"ok": 672}, "cells") == "all 672 cells ok"
     assert counts_text({"no_crossing": 2, "ok": 670}, "cells") == "670 ok, 2 no_crossing"
+
+
+#: What the sweep writes when it aggregates its cells: the report reads them and never writes them.
+SCIENCE_FILES = ("cells.parquet", "f90_cells.csv", "coefficients.csv", "rms_dex.csv", "eq14_terms.csv",
+                 "prior_maps.fits")
+
+
+def _state(run_dir: Path) -> dict:
+    return {n: ((run_dir / n).read_bytes(), (run_dir / n).stat().st_mtime_ns) for n in SCIENCE_FILES
+            if (run_dir / n).exists()}
+
+
+@pytest.mark.slow
+def test_rebuilding_a_finished_sweeps_report_leaves_its_science_files_untouched(tiny_run, tmp_path):
+    run_dir = tmp_path / tiny_run.name  # the report names its directory
+    shutil.copytree(tiny_run, run_dir)
+    before = _state(run_dir)
+    assert set(before) == set(SCIENCE_FILES)
+    (run_dir / "report.md").unlink()
+    r = subprocess.run([str(BIN / "mcsweep-report"), str(run_dir)], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert _state(run_dir) == before  # same bytes, not even rewritten
+    # Built from the files alone: the same science sections as the report the run wrote (the
+    # provenance section now also lists the report stage's time and files).
+    def science(md: str) -> str:
+        return md[:md.index("\n## Provenance\n")]
+
+    assert science((run_dir / "report.md").read_text()) == science((tiny_run / "report.md").read_text())
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("missing", SCIENCE_FILES[1:])
+def test_a_sweep_without_a_result_file_is_refused_in_one_line_and_nothing_is_written(tiny_run, tmp_path, missing):
+    from mcsweep.errors import UserInputError
+    from mcsweep.report.build import build_report
+
+    run_dir = tmp_path / tiny_run.name  # the report names its directory
+    shutil.copytree(tiny_run, run_dir)
+    (run_dir / missing).unlink()
+    listing = {p.relative_to(run_dir).as_posix(): p.stat().st_mtime_ns for p in run_dir.rglob("*")}
+    with pytest.raises(UserInputError, match=missing.replace(".", r"\.")):
+        build_report(run_dir)
+    if missing == "coefficients.csv":  # and the command says so in one line, exit status 2
+        r = subprocess.run([str(BIN / "mcsweep-report"), str(run_dir)], capture_output=True, text=True,
+                           timeout=300)
+        lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+        assert r.returncode == 2 and len(lines) == 1 and missing in lines[0], r.stderr[-2000:]
+    assert not (run_dir / missing).exists()
+    assert {p.relative_to(run_dir).as_posix(): p.stat().st_mtime_ns for p in run_dir.rglob("*")} == listing

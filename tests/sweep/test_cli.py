@@ -10,6 +10,8 @@ import pandas as pd
 import pytest
 
 BIN = Path(sys.executable).parent
+#: What the sweep writes when it aggregates its cells (the fit of Eqs. 14-17, Sect. 3.4).
+FIT_FILES = ("f90_cells.csv", "coefficients.csv", "rms_dex.csv", "eq14_terms.csv", "prior_maps.fits")
 SMALL = [
     "sky=custom", "sky.directions=[[245.7,46.5],[30,-20],[120,5],[300,60]]",
     "magnitudes.edges=[13,14,15,16,17]", "prior_grid.n=13",
@@ -64,9 +66,10 @@ def test_report_summarises_the_manifest_which_stays_in_provenance(small_run):
     report = (small_run / "report.md").read_text()
     # The report summarises the computation's files as they were when it was written
     # (the report stage's own outputs come after it).
+    # The sweep's results: its cells, the showcase, and the fit of Eqs. 14-17 with its maps.
     manifest = [m for m in json.loads((small_run / "provenance.json").read_text())["manifest"]
-                if m["path"].startswith(("cells/", "cells.parquet", "showcase/"))]
-    assert len(manifest) == 4 * 4 + 1 + len(list((small_run / "showcase").glob("*")))
+                if m["path"].startswith(("cells/", "cells.parquet", "showcase/")) or m["path"] in FIT_FILES]
+    assert len(manifest) == 4 * 4 + 1 + len(list((small_run / "showcase").glob("*"))) + len(FIT_FILES)
     assert "cells/cell_" not in report  # no file-by-file listing in the report
     assert f"Result files of the computation (before this report): {len(manifest)} files" in report
     digest = hashlib.sha256("\n".join(sorted(f"{m['path']}:{m['sha256']}" for m in manifest)).encode())
@@ -93,10 +96,16 @@ def test_result_files_are_readable_by_group_and_others_under_umask_022(small_run
 @pytest.mark.slow
 def test_rerun_skips_finished_cells_and_njobs_does_not_matter(small_run, tmp_path):
     before = {p.name: p.stat().st_mtime_ns for p in (small_run / "cells").glob("*.parquet")}
+    # A run resumed after all its cells are done still writes the fit (not the report):
+    # the same bytes again.
+    fit_bytes = {name: (small_run / name).read_bytes() for name in FIT_FILES}
+    for name in FIT_FILES:
+        (small_run / name).unlink()
     r = run([f"hydra.run.dir={small_run}", *SMALL, "execution.n_jobs=2"])
     assert r.returncode == 0, r.stderr[-2000:]
     after = {p.name: p.stat().st_mtime_ns for p in (small_run / "cells").glob("*.parquet")}
     assert before == after  # nothing recomputed
+    assert {name: (small_run / name).read_bytes() for name in FIT_FILES} == fit_bytes
     one = tmp_path / "one"
     r = run([f"hydra.run.dir={one}", *SMALL, "execution.n_jobs=1"])
     assert r.returncode == 0, r.stderr[-2000:]

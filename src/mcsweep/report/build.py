@@ -1,10 +1,14 @@
-"""Build a run directory's report from its result files (reads results, computes no cells).
+"""Build a run directory's report from its result files (reads results, computes none).
 
-For a sweep: ``f90_cells.csv`` (our sigma_F90 per cell next to the paper's formula),
+For a sweep it reads what the sweep wrote when it aggregated its cells
+(:func:`mcsweep.sweep.runner.run_sweep`, fit in :mod:`mcsweep.experiments.f90_fit`):
+``f90_cells.csv`` (our sigma_F90 per cell next to the paper's formula),
 ``coefficients.csv`` (Eqs. 15-17: fitted, paper, difference), ``rms_dex.csv``,
-``prior_maps.fits`` (HEALPix maps of the fitted prior, :mod:`mcsweep.prior.maps`), the
-figures, and ``report.md`` / ``report.html``. Experiments with their own tables (e.g.
-the secondary solution) add sections through :data:`SECTION_BUILDERS`.
+``eq14_terms.csv`` (Eq. 14 per G bin) and ``prior_maps.fits`` (HEALPix maps of the fitted
+prior, :mod:`mcsweep.prior.maps`). It writes only the figures and ``report.md`` /
+``report.html``; a result file that is missing is reported (:data:`REQUIRED_RESULTS`),
+never recomputed. Experiments with their own tables (e.g. the secondary solution) add
+sections through :data:`SECTION_BUILDERS`.
 """
 
 from __future__ import annotations
@@ -18,22 +22,18 @@ import numpy as np
 import pandas as pd
 
 from ..errors import UserInputError
+from ..experiments.f90_fit import FIT_FILES, PAPER_COEFFICIENTS, evaluate_formula, read_fit
 from ..prior import Prior
-from ..prior.maps import DEFAULT_NSIDE, MAPS_FILE, prior_maps_bytes
-from ..sweep.store import atomic_write_bytes
+from ..prior.maps import MAPS_FILE
 from . import figures
 from .document import FIG_DIR, Document, counts_text, plain
-from .fit import PAPER_COEFFICIENTS, evaluate_formula, fit_all
 from .primary_section import primary_section
 from .real_sky_section import real_sky_section
 from .scanning_note import extrapolation_para
 from .secondary_section import secondary_section
 
-__all__ = ["build_report", "SECTION_BUILDERS", "REQUIRED_RESULTS", "sweep_section", "provenance_section",
-           "write_prior_maps"]
+__all__ = ["build_report", "SECTION_BUILDERS", "REQUIRED_RESULTS", "sweep_section", "provenance_section"]
 
-_MAP_CELL_COLUMNS = ("cell_id", "l_deg", "b_deg", "g_min", "g_max", "g", "n_stars", "radius_deg", "f90_flag",
-                     "sigma_f90_mas", "fitted_sigma_f90_mas", "paper_sigma_f90_mas")
 #: Michalik et al. (2015), Table 1: the star (alpha, delta) = (157.5, 0) deg and the UTC
 #: time of the first transit of each of its 8 distinct transit groups "#" (pre-launch
 #: nominal scanning law; the table gives 0.1 h).
@@ -42,30 +42,22 @@ TABLE1_GROUP_STARTS_UTC = ("2014-10-30T17:00", "2014-11-20T17:00", "2014-12-19T1
                            "2015-05-23T18:54", "2015-06-21T04:54", "2015-11-09T06:06", "2015-12-29T11:48")
 
 
-def _f90_table(cells: pd.DataFrame) -> pd.DataFrame:
-    base = cells.drop_duplicates("cell_id")[["cell_id", "l_deg", "b_deg", "ra_deg", "dec_deg", "g_min",
-                                             "g_max", "n_stars", "n_in_cone", "radius_deg", "n_groups",
-                                             "sigma_f90_mas", "f90_flag"]
-                                            + [c for c in ("sigma_f90_lo_mas", "sigma_f90_hi_mas",
-                                                           "ill_determined") if c in cells]]
-    at = cells[cells["at_f90"]].pivot_table(index="cell_id", columns="case", values="fraction_inside")
-    at.columns = [f"fraction_at_f90_{c}" for c in at.columns]
-    return base.merge(at, left_on="cell_id", right_index=True, how="left").reset_index(drop=True)
-
-
 def sweep_section(doc: Document, run_dir: Path, prov: dict) -> None:
     """The F90 sweep: the headline (Fig. 4 analogues, key numbers, what differs and why,
-    the sky maps) first, then the long tables, then the Table 1 beam (Figs. 1-3)."""
-    cells = pd.read_parquet(run_dir / "cells.parquet")
-    f90 = _f90_table(cells)
-    fit = fit_all(f90)
-    for name, table in (("f90_cells.csv", fit.compared), ("coefficients.csv", fit.coefficients),
-                        ("rms_dex.csv", fit.rms), ("eq14_terms.csv", fit.terms)):
-        atomic_write_bytes(run_dir / name, table.to_csv(index=False).encode())
+    the sky maps) first, then the long tables, then the Table 1 beam (Figs. 1-3).
+
+    Reads the fit the sweep wrote (:func:`mcsweep.experiments.f90_fit.read_fit`); the
+    per-cell table ``f90_cells.csv`` holds every column of the cells it was fitted to.
+    """
+    fit = read_fit(run_dir)
+    f90 = fit.compared
     figdir = run_dir / FIG_DIR
     figdir.mkdir(exist_ok=True)
     cfg = prov.get("config", {})
-    run_prior = write_prior_maps(run_dir, fit, cfg)
+    try:
+        run_prior = Prior.from_run(run_dir)
+    except UserInputError:  # coefficients not determined: prior_maps.fits holds NaN maps
+        run_prior = None
     p = float(cfg.get("confidence", 0.9))
     showcase = _showcase_curves(run_dir)
 
@@ -292,24 +284,6 @@ def _difference_sentence(fit, noise: np.ndarray, cfg: dict, prov: dict) -> str:
             + f", whose star counts and distances differ from GUMS ({_DOCS_DIFFERENCES}; {_DOCS_MODEL}).")
 
 
-def write_prior_maps(run_dir: Path, fit, cfg: dict) -> Prior | None:
-    """Write ``prior_maps.fits`` (maps of the run's prior at every G bin centre, the cells).
-
-    The prior is read back with :meth:`Prior.from_run` from the ``coefficients.csv`` just
-    written, so the maps hold exactly what a user of the run directory gets; None (NaN
-    maps) when the polynomials could not be fitted.
-    """
-    g_centres = sorted(set(fit.compared["g"].astype(float)))
-    try:
-        run_prior = Prior.from_run(run_dir)
-    except UserInputError:
-        run_prior = None
-    cells = fit.compared[[c for c in _MAP_CELL_COLUMNS if c in fit.compared.columns]]
-    nside = int(cfg.get("prior_maps", {}).get("nside", DEFAULT_NSIDE))
-    atomic_write_bytes(run_dir / MAPS_FILE, prior_maps_bytes(run_prior, g_centres, nside=nside, cells=cells))
-    return run_prior
-
-
 def _showcase_section(doc: Document, run_dir: Path, figdir: Path, p: float, cfg: dict) -> None:
     show = sorted((run_dir / "showcase").glob("cell_*.parquet")) if (run_dir / "showcase").exists() else []
     curves_files = [f for f in show if not f.stem.endswith("_scatter")]
@@ -423,7 +397,7 @@ SECTION_BUILDERS: dict[str, list[Callable]] = {"f90_sweep": [sweep_section], "se
                                                "primary": [primary_section], "real_sky": [real_sky_section]}
 #: Result files each run kind's sections read: all must exist before anything is written.
 REQUIRED_RESULTS: dict[str, tuple[str, ...]] = {
-    "f90_sweep": ("cells.parquet",),
+    "f90_sweep": (*FIT_FILES, MAPS_FILE),
     "secondary": ("table2.csv", "no_prior.csv", "secondary_summary.csv"),
     "primary": ("table3.csv", "primary_summary.csv", "primary_convergence.csv"),
     "real_sky": ("real_sky.csv", "real_sky_errors.csv"),

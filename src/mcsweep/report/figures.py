@@ -13,8 +13,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from matplotlib.patches import Ellipse  # noqa: E402
 from ..astrometry.confidence import binomial_interval  # noqa: E402
-
-from .fit import PAPER_COEFFICIENTS, FitResult, direction_design, evaluate_formula  # noqa: E402
+from ..experiments.f90_fit import PAPER_COEFFICIENTS, FitResult, direction_design, evaluate_formula  # noqa: E402
 
 __all__ = [
     "plot_fig4_latitude",

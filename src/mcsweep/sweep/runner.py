@@ -4,7 +4,11 @@ Stages (each timed in the provenance): population source, transits of every
 direction (one scanning-law evaluation for all directions, in this process), the cells
 (in worker processes, each written atomically as soon as it is done, so an
 interrupted sweep resumes where it stopped), the single-direction showcase (Figs. 1-3),
-aggregation into ``cells.parquet``, and the report.
+and aggregation: ``cells.parquet``, the fit of Eqs. 14-17 over the sky (Sect. 3.4,
+:mod:`mcsweep.experiments.f90_fit`: ``f90_cells.csv``, ``coefficients.csv``,
+``rms_dex.csv``, ``eq14_terms.csv``) and ``prior_maps.fits``. Aggregation runs on every
+call, so a sweep resumed after all its cells were done still writes them. The report
+(:mod:`mcsweep.report`) only reads these files.
 """
 
 from __future__ import annotations
@@ -12,6 +16,7 @@ from __future__ import annotations
 import logging
 
 import dataclasses
+import io
 from functools import lru_cache
 from pathlib import Path
 
@@ -21,8 +26,10 @@ from astropy.time import Time
 
 from ..astrometry.noise import NoiseModel
 from ..errors import UserInputError
+from ..experiments.f90_fit import f90_table, fit_all, fit_tables, prior_maps_for_run
 from ..experiments.pencil_beam import CellSettings, cell_radius, run_cell
 from ..population import CatalogueSource, make_source
+from ..prior.maps import MAPS_FILE
 from ..scanning import ScanningLaw, find_transits
 from ..scanning.timescale import tcb_jd
 from .cells import Cell, Direction, enumerate_cells, sky_directions
@@ -32,8 +39,8 @@ from .provenance import Provenance
 from .schema import Config
 from .store import CellStore, atomic_write_bytes
 
-__all__ = ["build_settings", "run_sweep", "showcase_cell", "showcase_groups", "CELLS_DIR", "SHOWCASE_DIR",
-           "SHOWCASE_GROUPS_FILE", "OUTPUTS"]
+__all__ = ["build_settings", "run_sweep", "write_fit", "showcase_cell", "showcase_groups", "CELLS_DIR",
+           "SHOWCASE_DIR", "SHOWCASE_GROUPS_FILE", "OUTPUTS"]
 
 CELLS_DIR = "cells"
 SHOWCASE_DIR = "showcase"
@@ -219,7 +226,10 @@ def run_sweep(config: Config, raw_cfg: dict, run_dir: Path, *, prov: Provenance 
             raise RuntimeError(f"{len(missing)} cells have no valid result, e.g. {missing[0]}")
         allcells = pd.concat(tables, ignore_index=True)
         out = run_dir / "cells.parquet"
-        atomic_write_bytes(out, allcells.to_parquet(index=False))
+        data = allcells.to_parquet(index=False)
+        atomic_write_bytes(out, data)
+        # The fit reads the cells as cells.parquet holds them (what a later reader gets).
+        write_fit(run_dir, pd.read_parquet(io.BytesIO(data)), nside=config.prior_maps.nside)
         prov.seeds["cells"] = ("stars: SeedSequence(seed, spawn_key=(*key, 0)); noise of a case: "
                                "SeedSequence(seed, spawn_key=(*key, 1, crc32(case name))); bootstrap of "
                                "sigma_F90: SeedSequence(seed, spawn_key=(*key, 2)); "
@@ -227,3 +237,16 @@ def run_sweep(config: Config, raw_cfg: dict, run_dir: Path, *, prov: Provenance 
     return out
 
 
+def write_fit(run_dir: Path, cells: pd.DataFrame, *, nside: int) -> None:
+    """Fit Eqs. 14-17 to a sweep's cells (Sect. 3.4) and write the fit's tables and
+    ``prior_maps.fits`` into ``run_dir`` (each file whole or not at all).
+
+    The maps come after ``coefficients.csv``: they are drawn from the prior read back from
+    it (:func:`mcsweep.experiments.f90_fit.prior_maps_for_run`). ``nside`` is not part of
+    the config hash, so a rerun redraws the maps from the same fit at the configured nside.
+    """
+    run_dir = Path(run_dir)
+    fit = fit_all(f90_table(cells))
+    for name, table in fit_tables(fit).items():
+        atomic_write_bytes(run_dir / name, table.to_csv(index=False).encode())
+    atomic_write_bytes(run_dir / MAPS_FILE, prior_maps_for_run(run_dir, fit, nside=nside))

@@ -1,4 +1,4 @@
-"""Fit of the paper's all-sky approximation to simulated sigma_F90 values.
+"""Fit of the paper's all-sky approximation to a sweep's simulated sigma_F90 values.
 
 Two least-squares steps, as in Sect. 3.4: per G bin over the directions,
 ``log10 sigma_F90 = s0 + s1 |sin b| + s2 cos b cos l`` (Eq. 14); then the coefficients
@@ -9,16 +9,23 @@ Uncertainties: the whole chain is repeated on bootstrap resamples of the cells (
 each G bin, directions drawn with replacement), which carries both the Monte Carlo noise
 of each cell's sigma_F90 and the scatter of the cells about Eq. 14. Intervals are the
 16th-84th percentiles of the resampled coefficients (FIT_INTERVAL).
+
+The sweep computes this fit when it aggregates its cells (:func:`mcsweep.sweep.runner.run_sweep`)
+and writes :data:`FIT_FILES` and ``prior_maps.fits`` (:func:`prior_maps_for_run`); the
+report only reads them back (:func:`read_fit`).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from ..prior import PAPER_COEFFICIENTS, sigma_from_coefficients
+from ..errors import UserInputError
+from ..prior import PAPER_COEFFICIENTS, Prior, sigma_from_coefficients
+from ..prior.maps import prior_maps_bytes
 
 __all__ = [
     "POLY_DEGREES",
@@ -35,16 +42,43 @@ __all__ = [
     "bootstrap_fit",
     "FIT_BOOTSTRAP",
     "FIT_INTERVAL",
+    "FIT_FILES",
+    "MAP_CELL_COLUMNS",
+    "f90_table",
+    "fit_tables",
+    "read_fit",
+    "prior_maps_for_run",
 ]
 
 #: Polynomial degree in G of s0, s1, s2 (Eqs. 15-17).
 POLY_DEGREES = {"s0": 2, "s1": 3, "s2": 1}
 #: Bootstrap resamples of the cells for the fit's uncertainties, and their fixed seed
-#: (the report only reads a run: the same run always gives the same intervals).
+#: (the same cells always give the same intervals, so a resumed sweep rewrites them unchanged).
 FIT_BOOTSTRAP = 400
 FIT_BOOTSTRAP_SEED = 14
 #: Percentiles of the bootstrap distribution reported as the interval (68 %).
 FIT_INTERVAL = (16.0, 84.0)
+#: The fit's tables in a sweep's run directory, by file name: the FitResult field each holds.
+FIT_FILES = {"f90_cells.csv": "compared", "coefficients.csv": "coefficients", "rms_dex.csv": "rms",
+             "eq14_terms.csv": "terms"}
+#: Per-cell columns copied into the CELLS extension of ``prior_maps.fits``.
+MAP_CELL_COLUMNS = ("cell_id", "l_deg", "b_deg", "g_min", "g_max", "g", "n_stars", "radius_deg", "f90_flag",
+                    "sigma_f90_mas", "fitted_sigma_f90_mas", "paper_sigma_f90_mas")
+
+
+def f90_table(cells: pd.DataFrame) -> pd.DataFrame:
+    """One row per cell from the sweep's ``cells.parquet`` (one row per cell, case and
+    prior): the cell, its sigma_F90 and flag, and the fraction inside the P ellipse at
+    sigma_F90 of every case (columns ``fraction_at_f90_<case>``)."""
+    base = cells.drop_duplicates("cell_id")[["cell_id", "l_deg", "b_deg", "ra_deg", "dec_deg", "g_min",
+                                             "g_max", "n_stars", "n_in_cone", "radius_deg", "n_groups",
+                                             "sigma_f90_mas", "f90_flag"]
+                                            + [c for c in ("sigma_f90_lo_mas", "sigma_f90_hi_mas",
+                                                           "ill_determined") if c in cells]]
+    at = cells[cells["at_f90"]].pivot_table(index="cell_id", columns="case", values="fraction_inside")
+    at.columns = [f"fraction_at_f90_{c}" for c in at.columns]
+    return base.merge(at, left_on="cell_id", right_index=True, how="left").reset_index(drop=True)
+
 
 def direction_design(l_deg, b_deg) -> np.ndarray:
     """Columns of Eq. 14: 1, |sin b|, cos b cos l."""
@@ -186,3 +220,39 @@ def fit_all(f90: pd.DataFrame) -> FitResult:
         terms[f"{name}_lo"], terms[f"{name}_hi"] = iv[:, 0], iv[:, 1]
     compared = compare_cells(f90, fitted)
     return FitResult(terms, fitted, coefficient_table(fitted, boot_coefs), compared, rms_table(compared))
+
+
+def fit_tables(fit: FitResult) -> dict[str, pd.DataFrame]:
+    """The tables a sweep writes (as CSV) for ``fit``, by file name (:data:`FIT_FILES`)."""
+    return {name: getattr(fit, field) for name, field in FIT_FILES.items()}
+
+
+def read_fit(run_dir) -> FitResult:
+    """The fit a sweep wrote into ``run_dir`` (:data:`FIT_FILES`), read back without refitting.
+
+    ``fitted`` (Eqs. 15-17, increasing power of G) is the ``fitted`` column of
+    ``coefficients.csv``, rows ``s0_c0`` ... ``s2_c1``; NaN where it was not determined.
+    """
+    run_dir = Path(run_dir)
+    tables = {field: pd.read_csv(run_dir / name) for name, field in FIT_FILES.items()}
+    by_term = dict(zip(tables["coefficients"]["term"].astype(str), tables["coefficients"]["fitted"].astype(float)))
+    fitted = {name: np.array([by_term.get(f"{name}_c{k}", np.nan) for k in range(deg + 1)], float)
+              for name, deg in POLY_DEGREES.items()}
+    return FitResult(tables["terms"], fitted, tables["coefficients"], tables["compared"], tables["rms"])
+
+
+def prior_maps_for_run(run_dir, fit: FitResult, *, nside: int) -> bytes:
+    """Content of ``prior_maps.fits`` for a sweep (:mod:`mcsweep.prior.maps`): the run's prior
+    at every G bin centre, and the cells (:data:`MAP_CELL_COLUMNS`).
+
+    The prior is read back with :meth:`Prior.from_run` from the ``coefficients.csv`` the
+    sweep has just written, so the maps hold exactly what a user of the run directory gets;
+    NaN maps (``FITTED = F``) when the polynomials could not be fitted.
+    """
+    g_centres = sorted(set(fit.compared["g"].astype(float)))
+    try:
+        run_prior = Prior.from_run(run_dir)
+    except UserInputError:
+        run_prior = None
+    cells = fit.compared[[c for c in MAP_CELL_COLUMNS if c in fit.compared.columns]]
+    return prior_maps_bytes(run_prior, g_centres, nside=nside, cells=cells)

@@ -1,4 +1,5 @@
-"""Benchmark of the global solver on a Dask cluster whose workers keep the chunks (issue 27).
+"""Benchmark of the global solver on a Dask cluster whose workers keep the chunks
+(mcsweep.solver.dask_resident).
 
 Problem as ``bench_primary.py`` (random stars, the flown law's FoV transits over ``--days``,
 a fraction ``--keep`` kept, AL + AC, noisy measurements, prior 1000 mas, R = 10 /yr), at two

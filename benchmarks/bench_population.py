@@ -27,7 +27,7 @@ import numpy as np  # noqa: E402
 
 from mcsweep.population import GalaxyModel  # noqa: E402
 
-#: Required drawing rate, stars per CPU second (issue #4).
+#: Required drawing rate, stars per CPU second (performance target).
 REQUIRED_RATE = 1e6
 CASES = {
     "beam l=30 b=2 r=1 G=10-21": (30.0, 2.0, 1.0, 10.0, 21.0),

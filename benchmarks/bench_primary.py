@@ -63,8 +63,9 @@ from mcsweep.solver.direct import solve_direct  # noqa: E402
 
 START_JD = 2456863.9375  # 2014-07-25 10:30 TCB, start of routine operations (Prusti et al. 2016)
 PRIORS_MAS = {"0.01 mas": 0.01, "F90 (1 mas)": 1.0, "10 F90 (10 mas)": 10.0, "1000 mas": 1000.0}
-#: Issue 12's full scale: the paper's three classes of 5e5 stars (Sect. 4), one year, 20 % dead
-#: time (conf/experiment/primary.yaml's 3 h knots; measured: docs/table3.md).
+#: Full scale of the paper's primary solution (Sect. 4.2, Table 3): the paper's three classes
+#: of 5e5 stars (Sect. 4), one year, 20 % dead time (conf/experiment/primary.yaml's 3 h knots;
+#: measured: docs/table3.md).
 FULL_STARS, FULL_DAYS, FULL_LIVE = 1.5e6, 365.25, 0.8
 
 
@@ -296,7 +297,7 @@ def main():
               f"solve peak above storage {peak / 2**20:.0f} MB ({peak / o.size:.0f} B/measurement)")
         print(f"      memory-bandwidth floor (2 streaming reads of the stored bytes per iteration, plain numpy, "
               f"this run): {2 * floor / o.size * 1e9:.1f} ns/(measurement iteration); ratio "
-              f"{it_only / (2 * floor):.1f} (goal: <= 40 ns/(measurement iteration), issue 23)")
+              f"{it_only / (2 * floor):.1f} (goal: <= 40 ns/(measurement iteration), docs/table3.md)")
 
     print("\n6. extrapolation to full scale (1.5e6 stars, 1 year, 20 % dead time; measured: docs/table3.md)")
     m_per_star_day = rows[-2][0] / (args.stars * 4 * args.days * args.keep)

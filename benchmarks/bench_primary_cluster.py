@@ -1,5 +1,5 @@
 """Benchmark: the driver's memory of a primary solution on a Dask cluster, data built on the
-driver versus on the workers (issue 27).
+driver versus on the workers (experiments.primary_cluster).
 
 For each star count, two runs in fresh processes, each with a LocalCluster of ``--workers``
 worker processes (its scheduler in the driver's process, as ``execution=dask`` makes it):

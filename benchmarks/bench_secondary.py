@@ -1,4 +1,4 @@
-"""Benchmark of the secondary-solution experiment (``mcsweep experiment=secondary``, issue #6).
+"""Benchmark of the secondary-solution experiment (``mcsweep experiment=secondary``; Sect. 4.1, Table 2).
 
 For each class size it runs the real command line in a fresh process,
 

@@ -1,4 +1,4 @@
-"""Throughput of the FoV-transit search (issue #3, performance criterion).
+"""Throughput of the FoV-transit search, against performance targets.
 
 Finds the transits of ``--n-directions`` random directions (default 1e6, uniform on the
 sky, seeded) over ``--years`` years (default 5) with :func:`mcsweep.scanning.find_transits`
@@ -36,7 +36,7 @@ from mcsweep.scanning.attitude import attitude_for
 from mcsweep.scanning.ephemeris import gaia_position_au
 from mcsweep.scanning.reference import reference_transits
 
-#: Target wall time for 1e6 directions x 5 years [s] and peak memory [GB] (issue #3).
+#: Target wall time for 1e6 directions x 5 years [s] and peak memory [GB].
 TARGET_WALL_S = 120.0
 TARGET_MEMORY_GB = 4.0
 #: Agreement with the reference: transit times [s].

@@ -1,7 +1,8 @@
-"""One primary solution evaluated three ways (issue 24; docs/table3.md, "The candidates at the
-paper's sizes").
+"""One primary solution evaluated three ways (Sect. 4.2, Table 3; docs/table3.md, "The
+candidates at the paper's sizes").
 
-Two of issue 24's candidates change only how a solution is evaluated, not the solution:
+Two of the candidate explanations of the gap to Table 3 (docs/table3.md) change only how a
+solution is evaluated, not the solution:
 the frame rotator fitted with equal weights (``experiment.primary.frame_fit=equal``,
 candidate 4) and positions at each star's own mean epoch
 (``experiment.primary.evaluation_epoch=star_mean``, candidate 5). At the paper's sizes a

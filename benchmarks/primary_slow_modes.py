@@ -1,4 +1,4 @@
-"""Where the primary solution's PCG iterations go (issue 23; docs/table3.md, "Where the iterations go").
+"""Where the primary solution's PCG iterations go (Sect. 4.2; docs/table3.md, "Where the iterations go").
 
 Builds the primary experiment's own problem through the CLI (the run stops once its
 measurements are prepared), then, for the sigma_F90 prior:

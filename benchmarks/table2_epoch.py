@@ -1,4 +1,5 @@
-"""Table 2 before and after the reference-epoch change (issue 11): all 30 cells, with errors.
+"""Table 2 before and after the reference-epoch change (Sect. 2.1,
+``experiment.secondary.reference_epoch``): all 30 cells, with errors.
 
 Usage::
 

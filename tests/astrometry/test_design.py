@@ -19,7 +19,7 @@ from mcsweep.astrometry.design import (
     years_since,
 )
 
-#: Agreement required between our displacements and astropy's (issue #2).
+#: Agreement required between our Eq. 1 displacements and astropy's (1 microarcsec).
 ASTROPY_TOLERANCE_MAS = 1e-3  # 1 microarcsec
 #: Rows computed from differently shaped or masked inputs: numpy may take vector or
 #: scalar loops for different elements, which can differ in the last bits.
@@ -61,7 +61,7 @@ def _model_rows(ra, dec, t_yr, psi, obs):
 
 @pytest.mark.parametrize("ra_deg, dec_deg", [(157.5, 0.0), (10.0, 62.0), (266.4, -28.9), (300.0, -85.0)])
 def test_parallax_displacement_matches_astropy(table1, ra_deg, dec_deg):
-    """Star at 1 kpc versus the same star at infinity, seen from Gaia (issue #2)."""
+    """Star at 1 kpc versus the same star at infinity, seen from Gaia (Eq. 1's parallax column)."""
     tcb_jd, psi = table1["tcb_jd"], table1["psi_deg"]
     obs = _observer_au(tcb_jd)
     star = SkyCoord(ra_deg * u.deg, dec_deg * u.deg, distance=1 * u.kpc, frame="icrs")

@@ -17,7 +17,7 @@ from mcsweep.astrometry.solve import (
 from mcsweep.errors import UserInputError
 from mcsweep.scanning.ephemeris import gaia_position_au
 
-#: Appendix A formula versus the general solver (issue #2), relative.
+#: Appendix A formula (Eq. A.2) versus the general solver with a prior (solve_with_prior), relative.
 APPENDIX_RTOL = 1e-9
 #: Recovery of the true parameters from noiseless data, mas or mas/yr.
 NOISELESS_ATOL = 1e-9

@@ -1,4 +1,4 @@
-"""The global experiments' classes of stars drawn as executor tasks (issue 27): the same stars,
+"""The global experiments' classes of stars drawn as executor tasks: the same stars,
 bit for bit, whether drawn in this process, by loky workers or on a Dask cluster, and a
 worker's warning reaches the user."""
 

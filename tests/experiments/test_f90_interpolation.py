@@ -98,8 +98,9 @@ def _one_crossing(frac, p, interp):
 
 
 def test_bootstrap_interval_does_not_depend_on_the_order_of_the_stars():
-    # Seeded from the cell alone (issue 13): the same stars in another order must give the
-    # same interval, bit for bit (patterns are sorted by content, not by position).
+    # Seeded from the cell alone (SeedSequence(seed, spawn_key=(*key, 2))): the same stars in
+    # another order must give the same interval, bit for bit (patterns are sorted by content,
+    # not by position).
     from mcsweep.experiments.pencil_beam import sigma_f90_interval
 
     rng = np.random.default_rng(11)

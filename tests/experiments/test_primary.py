@@ -99,7 +99,7 @@ main()
 
 
 def test_tables_read_part_by_part_are_the_tables_of_one_part(cli_run, tmp_path):
-    # Issue 27: the tables are reduced from the per-star results part by part
+    # The tables are reduced from the per-star results part by part
     # (experiments.primary_cells); how the stars are split changes no bit of any table.
     out = tmp_path / "run"
     r = subprocess.run([sys.executable, "-c", _SMALL_PARTS, f"hydra.run.dir={out}", *TINY, "population=catalogue",
@@ -533,7 +533,8 @@ def test_unconverged_solution_ends_the_run_in_one_line_and_writes_no_table(tmp_p
 
 
 def test_positions_at_a_stars_own_epoch_equal_a_solution_referred_to_it():
-    # evaluation_epoch='star_mean' (issue 24, candidate 5): the propagated position and
+    # evaluation_epoch='star_mean' (Sect. 2.1's "mean epoch of observation" per star;
+    # docs/table3.md, "Candidate: the <= 4 transit rows"): the propagated position and
     # covariance against an independent solution of the same data whose design matrix is
     # referred to the other epoch (the prior of Eq. 18 leaves positions free, so the two
     # parametrisations give the same posterior).
@@ -714,7 +715,8 @@ DEAD_FRACTION_TOL = 0.02
 
 
 def test_subsets_by_scheduled_transits_change_the_tables_not_the_solutions(cli_run, tmp_path):
-    # experiment.primary.subset_transits=scheduled (issue 24, candidate 5): the <= 4 / > 4
+    # experiment.primary.subset_transits=scheduled (Table 3's rows; docs/table3.md,
+    # "Candidate: the <= 4 transit rows"): the <= 4 / > 4
     # subsets count the transits before the dead time; the solutions are the same bits.
     out = tmp_path / "run"
     r = subprocess.run([str(BIN / "mcsweep"), f"hydra.run.dir={out}", *TINY, "population=catalogue",

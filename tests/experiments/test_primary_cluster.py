@@ -1,4 +1,4 @@
-"""The primary experiment's data built on the workers of a Dask cluster (issue 27): the same bits
+"""The primary experiment's data built on the workers of a Dask cluster: the same bits
 as the data built in the driver, and the same solution, while the driver never holds a
 measurement."""
 
@@ -192,7 +192,8 @@ def test_cluster_built_solution_is_the_forked_one(both, client, monkeypatch):
 
 
 def test_positions_at_each_stars_own_epoch_on_the_cluster_are_the_forked_ones(both, client):
-    # evaluation_epoch='star_mean' (issue 24, candidate 5): the cluster attaches each star's
+    # evaluation_epoch='star_mean' (Sect. 2.1's "mean epoch of observation" per star): the
+    # cluster attaches each star's
     # epoch offset on its worker; the local path reads it from the driver's table
     settings, local, remote = both
     own = dataclasses.replace(settings, evaluation_epoch="star_mean")

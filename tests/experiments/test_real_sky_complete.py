@@ -1,5 +1,5 @@
-"""The real-sky fractions carried over to the complete sky by colour (issue 25;
-experiments.real_sky_complete): the weighting against closed forms."""
+"""The real-sky fractions carried over to the complete sky by colour
+(experiments.real_sky_complete): the weighting against closed forms."""
 
 import numpy as np
 import pytest

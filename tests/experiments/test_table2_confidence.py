@@ -1,6 +1,6 @@
 """Table 2's headings and error percentile follow the run's confidence level and dilution.
 
-Issue 16: the headings hard-coded "95 %" (the paper's dilution) and the error column stayed
+Formerly the headings hard-coded "95 %" (the paper's dilution) and the error column stayed
 the 90th percentile whatever ``confidence`` was. The paper's F90 prior makes the P
 ellipse match the P-th percentile of the actual errors (Sect. 3.3), so a run at P
 reports the 100 P-th percentile.

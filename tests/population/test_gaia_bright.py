@@ -1,4 +1,4 @@
-"""Gaia DR3's bright sky (G < 10) as a count reference (issue 25; population.gaia_bright)."""
+"""Gaia DR3's bright sky (G < 10) as a count reference (besancon-r03-5; population.gaia_bright)."""
 
 import numpy as np
 import pytest
@@ -92,15 +92,15 @@ def test_missing_magnitudes_are_nan_and_a_foreign_file_is_refused():
 
 
 def test_default_model_within_5_percent_of_gaia_at_g_4_10():
-    # docs/galaxy_model.md (issue 25): against Gaia's own G counts the default (AGG92 dust and
+    # docs/galaxy_model.md (r03-4 -> r03-5): against Gaia's own G counts the default (AGG92 dust and
     # subgiants, besancon-r03-5) is 0.96-1.01 at G = 4-10
     c = pc.count_comparison(GalaxyModel(), range(4, 10))
     assert np.all(np.abs(c.ratio_gaia - 1.0) < 0.05)
 
 
 @pytest.mark.xfail(strict=True, reason="the r03-4 defaults (disc dust, no subgiants) are 1.03-1.10 x Gaia DR3's "
-                   "counts at G = 4-10 and 1.13-1.30 at G = 10-14: calibrated (issue #14) to Tycho-2/UCAC4, "
-                   "whose UCAC4 part is too bright (issue 25, docs/galaxy_model.md)")
+                   "counts at G = 4-10 and 1.13-1.30 at G = 10-14: calibrated (besancon-r03-2 to r03-4) to "
+                   "Tycho-2/UCAC4, whose UCAC4 part is too bright (docs/galaxy_model.md)")
 def test_disc_dust_without_subgiants_within_8_percent_of_gaia_at_g_4_14():
     c = pc.count_comparison(GalaxyModel(extinction_model="disc", subgiants=False), range(4, 14))
     assert np.all(np.abs(c.ratio_gaia - 1.0) < 0.08)

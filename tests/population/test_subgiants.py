@@ -1,4 +1,4 @@
-"""The galaxy model's optional subgiants (issue 25; population.params.subgiants)."""
+"""The galaxy model's subgiants (population.params.subgiants; on by default since besancon-r03-5)."""
 
 import numpy as np
 import pytest

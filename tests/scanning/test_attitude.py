@@ -14,7 +14,7 @@ from mcsweep.scanning import ScanningLaw
 from mcsweep.scanning.attitude import attitude_for
 from mcsweep.scanning.sun import nominal_sun_longitude
 
-SOLAR_ASPECT_TOLERANCE_RAD = 1e-9  # rad (issue #3)
+SOLAR_ASPECT_TOLERANCE_RAD = 1e-9  # rad, Sun - spin axis angle vs the law's solar aspect angle xi
 ORTHONORMAL_TOLERANCE = 1e-13  # dimensionless
 REFERENCE_PHASE_TOLERANCE_RAD = 1e-10  # rad
 NSL_RATE_RTOL = 1e-6  # relative, finite differences of the interpolated angles
@@ -26,7 +26,7 @@ PRECESSION_PERIOD_DAYS = (62.0, 64.0)  # "about 63 days" (S = 4.22)
 @pytest.fixture(scope="module")
 def law():
     # The flown law's 2014-09-25 - 2017-01-27 segment as a one-segment law (mcsweep's
-    # flown law before issue 28).
+    # flown law before the law became segments, scanning-law-history.md).
     return ScanningLaw(name="one_segment", segments=(), ref_epoch_tcb="2015-01-01T00:00:00",
                        nu_ref_deg=323.3708, omega_ref_deg=95.1324)
 

@@ -1,6 +1,6 @@
-"""The flown law as segments (issue 28): each segment's attitude against an independent
-evaluation of its equations, the boundaries the note declares, and the transit search
-across boundaries and in the gap.
+"""The flown law as segments (scanning.segments.FLOWN_SEGMENTS): each segment's attitude
+against an independent evaluation of its equations, the boundaries the note declares, and the
+transit search across boundaries and in the gap.
 
 Source of the segments and their phases: the research note scanning-law-history.md
 (GOST forecast fits), mirrored by mcsweep.scanning.segments.FLOWN_SEGMENTS.
@@ -108,7 +108,7 @@ def test_declared_discontinuity_at_2017_02_08(att):
     # at 2017-02-08T12:00)". We use the explicit phases; the previous segment's law gives
     # nu = 51.329 deg and Omega - 82.5 = 169.597 deg there, so the explicit phases differ from
     # "continuing" by -0.27 deg in nu and +0.37 deg in Omega (the note is not self-consistent
-    # at that level; see the issue 28 closing note). This test pins what we ship.
+    # at that level). This test pins what we ship.
     t = np.array([tcb_jd("2017-02-08T12:00:00", "t")])
     _, nu_prev, om_prev = att.parts[2].lam_nu_omega(t)
     _, nu_new, om_new = att.parts[3].lam_nu_omega(t)

@@ -1,4 +1,4 @@
-"""Numbers of field-of-view transits of the flown law against the published counts (issue 28).
+"""Numbers of field-of-view transits of the flown law against the published counts.
 
 References (published, independent of our code):
 
@@ -11,8 +11,8 @@ References (published, independent of our code):
   on average ~70 usable transits per star, assuming ~20 % of the transits collected on
   board give no useful information.
 
-The issue asks for the mean over Gaia EDR3's span against Lindegren et al. (2021, A&A
-649, A2); that figure was not within reach of this project's sources (README, scanning law),
+The closest reference would be the mean over Gaia EDR3's span in Lindegren et al. (2021,
+A&A 649, A2); that figure was not within reach of this project's sources (README, scanning law),
 so the flown law's counts are checked against these instead, over the 5-year mission and
 DR1's span. Dead time enters as its mean fraction (the expected count), not as random blocks.
 """
@@ -24,7 +24,7 @@ import astropy.units as u
 
 from mcsweep.scanning import ScanningLaw, find_transits
 
-#: Relative tolerance on a mean count: the issue's 10 %. The sampling error of our means
+#: Relative tolerance on a mean count: 10 %. The sampling error of our means
 #: (20000 directions, ~1000 per ecliptic band, per-direction scatter ~20 %) is < 1 %.
 COUNT_TOLERANCE = 0.10
 

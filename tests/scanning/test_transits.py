@@ -23,7 +23,7 @@ FOV_LAG_TOLERANCE_S = 5.0  # s, deviation of the P -> F lag from Gamma / omega_z
 OBS_TOLERANCE_AU = 1e-12  # au
 CONVERGENCE_TIME_S = 1e-3  # s, residual of phi(t) = FoV azimuth at the returned time, as time
 CONVERGENCE_ZETA_DEG = 1e-8  # deg, returned zeta vs the attitude at the returned time
-MEAN_COUNT_RANGE_5YR = (85.0, 90.0)  # FoV transits per star over 5 years (issue #3)
+MEAN_COUNT_RANGE_5YR = (85.0, 90.0)  # FoV transits per star over 5 years, no dead time (acceptance range)
 DILUTION_TOLERANCE = 0.005  # absolute, kept fraction (> 5 sigma for ~1e5 transits)
 DEAD_TIME_TOLERANCE = 0.03  # absolute, lost fraction of transits
 

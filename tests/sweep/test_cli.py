@@ -184,7 +184,7 @@ def test_sweep_writes_prior_maps_equal_to_prior_from_run(small_run):
 
 @pytest.mark.slow
 def test_default_run_is_not_extrapolated_and_names_each_visits_segment(small_run):
-    # The paper's window lies inside the flown law's 2014-09-25 - 2017-01-27 segment (issue 28).
+    # The paper's window lies inside the flown law's 2014-09-25 - 2017-01-27 segment (scanning-law-history.md).
     prov = json.loads((small_run / "provenance.json").read_text())
     assert prov["derived"]["scanning"] == {"extrapolated": None}
     groups = pd.read_csv(small_run / "showcase" / "groups.csv")

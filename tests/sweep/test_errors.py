@@ -1,6 +1,6 @@
 """Only errors a user can cause become one line and exit 2; a bug keeps its traceback.
 
-Issue 16: ``sweep/validate.py`` turned every exception into a one-line "user error",
+Formerly ``sweep/validate.py`` turned every exception into a one-line "user error",
 hiding genuine bugs. Decision: a bug propagates; Python ends the command with status 1
 and the traceback, which also goes to the run's log when a job had started.
 """

@@ -1,4 +1,5 @@
-"""observations=dr1..dr5 (issue 28): each preset's span, for the sweep and the global experiments."""
+"""observations=dr1..dr5: each preset's span (the data releases' observation spans,
+scanning-law-history.md), for the sweep and the global experiments."""
 
 import pytest
 

@@ -1,7 +1,8 @@
 """A refused run removes exactly what it created: never the user's files, never an earlier run's.
 
-Issue 16: ``mcsweep hydra.run.dir=. population=catalogue population.path=typo.fits`` in a
-folder of the user's own files printed the right error and then deleted the folder.
+The bug this guards against: ``mcsweep hydra.run.dir=. population=catalogue
+population.path=typo.fits`` in a folder of the user's own files printed the right error and
+then deleted the folder.
 """
 
 import json
@@ -45,7 +46,7 @@ USER_FILES = {"figures/my_plot.png": b"\x89PNG mine", "report.md": b"# my notes\
 
 
 def test_refused_run_in_a_folder_of_user_files_touches_none_of_them(tmp_path):
-    """The issue's case: files named like our outputs, run dir '.', a typo in the catalogue path."""
+    """The original bug's case: files named like our outputs, run dir '.', a typo in the catalogue path."""
     _plant(tmp_path, USER_FILES)
     before = _state(tmp_path)
     r, lines = _mcsweep(tmp_path, "hydra.run.dir=.", "population=catalogue", "population.path=typo.fits")

@@ -1,6 +1,6 @@
 """Cells remember the code version that computed them; a resume refuses another version's cells.
 
-Issue 16: resuming after an upgrade reused old cells silently and then recorded the new
+Formerly, resuming after an upgrade reused old cells silently and then recorded the new
 commit for all of them.
 """
 

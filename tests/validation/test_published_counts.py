@@ -11,7 +11,7 @@ import pytest
 from mcsweep.population import GalaxyModel
 from mcsweep.validation import published_counts as pc
 
-#: Issue #14 targets.
+#: Calibration targets of besancon-r03-2 to r03-4 (docs/galaxy_model.md).
 COUNT_TOL = 0.10        # all-sky counts per G magnitude
 LOCAL_TOL = 0.20        # local (GCNS) density
 BEAM_TOL = 0.10         # paper Table 1 beam vs 458 GUMS stars

@@ -36,12 +36,12 @@ import numpy as np  # noqa: E402
 
 from mcsweep.astrometry.confidence import chi2_threshold, ellipse_semi_axes, mahalanobis_sq  # noqa: E402
 from mcsweep.astrometry.solve import solve_with_prior  # noqa: E402
-from mcsweep.experiments import pencil_beam as pb  # noqa: E402
+from mcsweep.experiments.f90_sweep import pencil_beam as pb  # noqa: E402
 from mcsweep.population import GalaxyModel  # noqa: E402
-from mcsweep.sweep.cells import sky_directions  # noqa: E402
-from mcsweep.sweep.runner import build_settings, direction_transits  # noqa: E402
-from mcsweep.sweep.schema import SkyConf  # noqa: E402
-from mcsweep.sweep.validate import compose_config, to_config  # noqa: E402
+from mcsweep.experiments.f90_sweep.cells import sky_directions  # noqa: E402
+from mcsweep.experiments.f90_sweep.runner import build_settings, direction_transits  # noqa: E402
+from mcsweep.experiments.f90_sweep.conf import SkyConf  # noqa: E402
+from mcsweep.command.validate import compose_config, to_config  # noqa: E402
 
 
 def old_curve(n0, b0, priors, s):

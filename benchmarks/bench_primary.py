@@ -25,7 +25,7 @@ only 1-4 transits), AL + AC, noisy measurements, the prior of Eq. 18 (R = 10 /yr
 7. AGIS's knot density (30 s knots): the two compiled passes over one solver block of
    32768 stars out of a 1.5e6-star sky, the block's stars taken in random order (every block a
    sample of the whole sky) and in sky order (HEALPix level-12 nested, the primary experiment's
-   order: :func:`mcsweep.experiments.global_classes.sky_order`): ns per measurement of each.
+   order: :func:`mcsweep.experiments.global_solution.classes.sky_order`): ns per measurement of each.
 
 Times are CPU seconds of this process (``time.process_time``) except where marked wall: the
 machine is shared, so only ratios measured in this run mean anything.
@@ -51,7 +51,7 @@ import scipy.sparse as sp  # noqa: E402
 from scipy.sparse.linalg import lsqr  # noqa: E402
 
 from mcsweep.astrometry.noise import NoiseModel  # noqa: E402
-from mcsweep.experiments.global_classes import sky_order  # noqa: E402
+from mcsweep.experiments.global_solution.classes import sky_order  # noqa: E402
 from mcsweep.astrometry.solve import prior_diagonal  # noqa: E402
 from mcsweep.scanning import find_transits  # noqa: E402
 from mcsweep.scanning.ephemeris import gaia_position_au  # noqa: E402

@@ -5,12 +5,12 @@ For each star count, two runs in fresh processes, each with a LocalCluster of ``
 worker processes (its scheduler in the driver's process, as ``execution=dask`` makes it):
 
 * ``driver``: the stars drawn, put in sky order, their transits searched and the solver's
-  blocks built in the driver (:func:`mcsweep.experiments.primary.prepare`), the chunks then
+  blocks built in the driver (:func:`mcsweep.experiments.primary.experiment.prepare`), the chunks then
   scattered to the workers;
 * ``cluster``: the stars drawn by a task and put in sky order on the workers
-  (:func:`mcsweep.experiments.primary_sky.sky_partitions`), the transits, blocks and
+  (:func:`mcsweep.experiments.primary.sky.sky_partitions`), the transits, blocks and
   measurements made and kept there
-  (:func:`mcsweep.experiments.primary_cluster.prepare_on_cluster`).
+  (:func:`mcsweep.experiments.primary.cluster.prepare_on_cluster`).
 
 Then one solution (prior sigma_F90, ``--iterations`` PCG iterations) in each, its per-star
 results read part by part (as the run writes them). Printed per run: measurements, the
@@ -23,7 +23,7 @@ one year of the flown law, 20 % dead time, 3 h knots (the experiment's defaults)
 
 The per-star results are read in parts of ``--part-stars`` stars (default 10000, so both
 sizes hold several parts; a run's parts of 250000 stars bound the driver's part at some
-25 MB whatever the size, :data:`mcsweep.experiments.primary_results.PART_STARS`).
+25 MB whatever the size, :data:`mcsweep.experiments.primary.results.PART_STARS`).
 
 Run: ``python benchmarks/bench_primary_cluster.py [--stars 30000 120000] [--iterations 5]
 [--workers 2] [--part-stars 10000] [--chunk-stars 50000]`` (``--chunk-stars``: the solver's
@@ -63,13 +63,13 @@ def one(mode: str, n: int, iterations: int, workers: int, part_stars: int, chunk
     import numpy as np
     from distributed import Client, LocalCluster
 
-    from mcsweep.experiments import primary as P
-    from mcsweep.experiments.primary_solution import solve_prior
-    from mcsweep.experiments import primary_results
-    from mcsweep.experiments.global_classes import class_table, sky_order
-    from mcsweep.experiments.primary_cluster import prepare_on_cluster
-    from mcsweep.experiments.primary_sky import sky_partitions
-    from mcsweep.sweep.validate import compose_config, to_config
+    from mcsweep.experiments.primary import experiment as P
+    from mcsweep.experiments.primary.prior_solution import solve_prior
+    from mcsweep.experiments.primary import results as primary_results
+    from mcsweep.experiments.global_solution.classes import class_table, sky_order
+    from mcsweep.experiments.primary.cluster import prepare_on_cluster
+    from mcsweep.experiments.primary.sky import sky_partitions
+    from mcsweep.command.validate import compose_config, to_config
 
     config = to_config(compose_config(["experiment=primary", f"experiment.primary.solver_max_iter={iterations}",
                                        "experiment.primary.allow_unconverged=true"]))

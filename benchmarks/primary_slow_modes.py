@@ -36,7 +36,7 @@ class _Prepared(Exception):
 
 def experiment_problem(stars: int, classes: str, knot_transits: float, knot_rule: str = "counts"):
     """(settings, prepared data) of ``mcsweep experiment=primary`` with these sizes."""
-    import mcsweep.sweep.primary_runner as runner
+    import mcsweep.experiments.primary.runner as runner
     from mcsweep.cli import main
 
     got = {}
@@ -86,7 +86,7 @@ def main():
     args = ap.parse_args()
 
     from mcsweep.astrometry.solve import prior_diagonal
-    from mcsweep.experiments.primary import prior_sigma_mas
+    from mcsweep.experiments.primary.experiment import prior_sigma_mas
     from mcsweep.solver import blocks as B
     from mcsweep.solver import solve_global
 

@@ -8,7 +8,7 @@ Usage::
     python benchmarks/table2_epoch.py RUN_A RUN_B > docs/table2_epoch.md
 
 Per cell: ours with star_mean (before), ours with dataset_mean (after), the paper's
-(Table 2, from :data:`mcsweep.experiments.secondary_table.PAPER_TABLE2`).
+(Table 2, from :data:`mcsweep.experiments.secondary.table.PAPER_TABLE2`).
 
 Uncertainties. Fractions: binomial 1 sigma, sqrt(f (1 - f) / n) with n the stars solved in
 the cell. The paper's fractions get the same binomial sigma with our cell's n (the paper
@@ -29,8 +29,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from mcsweep.experiments.global_table import PAPER_G_CLASSES, SUBSETS, subset_masks
-from mcsweep.experiments.secondary_table import PAPER_TABLE2, PRIORS, SOLUTION_COLUMNS
+from mcsweep.experiments.global_solution.table import PAPER_G_CLASSES, SUBSETS, subset_masks
+from mcsweep.experiments.secondary.table import PAPER_TABLE2, PRIORS, SOLUTION_COLUMNS
 
 Q = 0.9
 ROUND_FRAC = 0.0005 / np.sqrt(3.0)  # the paper's fractions are given to 0.1 %

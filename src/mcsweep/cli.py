@@ -5,12 +5,12 @@
 whole-sky secondary solution of Sect. 4.1. Outputs go to Hydra's run directory
 (``hydra.run.dir=PATH``); ``mcsweep -m confidence=0.8,0.9,0.95`` runs one job per
 value. Bad values end the command with one line on stderr and exit status 2 before
-any output is written (:func:`mcsweep.sweep.validate.preflight`); a user error found
+any output is written (:func:`mcsweep.command.validate.preflight`); a user error found
 once the job has started (a catalogue, a run directory) removes exactly the paths this
-command created and puts back what Hydra rewrote (:mod:`mcsweep.sweep.rundir`), never
+command created and puts back what Hydra rewrote (:mod:`mcsweep.command.rundir`), never
 a file or directory that was there before. Ctrl-C and a full disk end it with one line
 saying how many results are kept and to rerun the same command to resume, exit status
-130 or 1 (:mod:`mcsweep.sweep.interruption`); their traceback goes to the run's log only.
+130 or 1 (:mod:`mcsweep.runtime.interruption`); their traceback goes to the run's log only.
 """
 
 from __future__ import annotations
@@ -26,12 +26,12 @@ from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf
 
 from .errors import EXIT_NOT_CONVERGED, NotConvergedError, UserInputError, report_user_error
-from .sweep.interruption import (EXIT_INTERRUPTED, exit_on_second_interrupt, is_disk_full, kept_in_run,
-                                 remove_unfinished_writes, report_stop)
-from .sweep.rundir import release, snapshot_for, undo_unstarted
-from .sweep.logs import quiet_third_party_console
-from .sweep.schema import register_configs
-from .sweep.validate import ignored_settings, preflight, to_config
+from .runtime.interruption import (EXIT_INTERRUPTED, exit_on_second_interrupt, is_disk_full,
+                                   remove_unfinished_writes, report_stop)
+from .command.rundir import release, snapshot_for, undo_unstarted
+from .runtime.logs import quiet_third_party_console
+from .command.schema import register_configs
+from .command.validate import ignored_settings, preflight, to_config
 
 # The experiments, their runners and the report are imported by the job that needs them
 # (run_job): a mistyped override ends before scipy.stats, matplotlib and astropy are loaded,
@@ -48,7 +48,7 @@ def refuse_foreign_outputs(run_dir: Path, outputs) -> None:
     Without ``provenance.json`` nothing there was written by mcsweep, so a ``report.md``
     or a non-empty ``figures/`` is the user's own and a successful run would overwrite it.
     """
-    from .sweep.provenance import PROVENANCE_FILE
+    from .command.provenance import PROVENANCE_FILE
 
     if (run_dir / PROVENANCE_FILE).exists():
         return
@@ -82,10 +82,13 @@ def _stopped(cfg: DictConfig, run_dir: Path, exc: BaseException) -> int:
     _log_to_files(logging.getLogger(__name__), f"mcsweep {what}", (type(exc), exc, exc.__traceback__))
     remove_unfinished_writes(run_dir)
     try:
-        from .sweep.provenance import config_hash
+        from .command.provenance import config_hash
+
+        from .experiments.registry import get
 
         config = to_config(cfg)
-        kept = kept_in_run(config, config_hash(OmegaConf.to_container(cfg, resolve=True)), run_dir)
+        kept = get(config.experiment.name).kept(config, config_hash(OmegaConf.to_container(cfg, resolve=True)),
+                                                run_dir)
     except Exception:  # noqa: BLE001 - the line must come out; the count is a courtesy
         kept = f"finished results kept in {run_dir}"
     return report_stop("mcsweep", exc, kept)
@@ -101,26 +104,17 @@ def _undo(run_dir: Path) -> None:
 
 def run_job(cfg: DictConfig, run_dir: Path) -> Path:
     """Run the job described by a composed config in ``run_dir``; returns the report path."""
-    from .experiments.primary import OUTPUTS as PRIMARY_OUTPUTS
-    from .experiments.real_sky import OUTPUTS as REAL_SKY_OUTPUTS
-    from .experiments.secondary import OUTPUTS as SECONDARY_OUTPUTS
+    from .command.provenance import Provenance
+    from .experiments.registry import get
     from .report.build import build_report
-    from .sweep.primary_runner import run_primary
-    from .sweep.provenance import Provenance
-    from .sweep.real_sky_runner import run_real_sky
-    from .sweep.runner import OUTPUTS, run_sweep
-    from .sweep.secondary_runner import run_secondary
 
     config = to_config(cfg)
     raw = OmegaConf.to_container(cfg, resolve=True)
-    name = config.experiment.name
-    prov = Provenance(run_dir, raw, kind=name)
-    refuse_foreign_outputs(run_dir, {"f90_sweep": OUTPUTS, "secondary": SECONDARY_OUTPUTS,
-                                     "primary": PRIMARY_OUTPUTS, "real_sky": REAL_SKY_OUTPUTS}[name])
+    experiment = get(config.experiment.name)
+    prov = Provenance(run_dir, raw, kind=experiment.kind)
+    refuse_foreign_outputs(run_dir, experiment.all_outputs)
     prov.check_compatible()
-    run = {"f90_sweep": run_sweep, "secondary": run_secondary, "primary": run_primary,
-           "real_sky": run_real_sky}[name]
-    run(config, raw, run_dir, prov=prov)
+    experiment.run(config, raw, run_dir, prov)
     prov.write()
     with prov.stage("report"):
         report = build_report(run_dir)

@@ -3,7 +3,7 @@
 A :class:`UserInputError` means "bad config value, bad catalogue, impossible
 parameter": the command-line tools print its message as a single line on stderr and
 exit with status 2, before anything is written. Ctrl-C and a full disk are neither a
-user error nor a bug (one line, exit 130 or 1: :mod:`mcsweep.sweep.interruption`);
+user error nor a bug (one line, exit 130 or 1: :mod:`mcsweep.runtime.interruption`);
 every other exception is a bug and keeps its traceback.
 """
 

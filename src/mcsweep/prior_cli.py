@@ -17,7 +17,7 @@ output goes to a temporary name in the destination directory and is moved into p
 (atomically, with the mode ``0666 & ~umask`` of a normally created file) only when
 complete. The command sits after every stage (like ``mcsweep``), so it may use the
 sweep's file conventions. Ctrl-C and a full disk end it with one line naming what was
-written, exit status 130 or 1 (:mod:`mcsweep.sweep.interruption`); the unfinished
+written, exit status 130 or 1 (:mod:`mcsweep.runtime.interruption`); the unfinished
 output's temporary file is removed.
 """
 
@@ -31,8 +31,8 @@ from pathlib import Path
 from .errors import UserInputError, report_user_error
 from .prior import Prior
 from .prior.annotate import detect_format
-from .sweep.interruption import exit_on_second_interrupt, is_disk_full, report_stop
-from .sweep.store import atomic_write_via
+from .runtime.interruption import exit_on_second_interrupt, is_disk_full, report_stop
+from .runtime.store import atomic_write_via
 
 __all__ = ["main"]
 

@@ -10,9 +10,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from mcsweep.experiments.global_classes import draw_classes
-from mcsweep.sweep.execution import executor
-from mcsweep.sweep.validate import compose_config, to_config
+from mcsweep.experiments.global_solution.classes import draw_classes
+from mcsweep.runtime.execution import executor
+from mcsweep.command.validate import compose_config, to_config
 
 GALAXY = {"name": "galaxy_model"}
 GROUPS = [(15.0, 300, 1500), (19.0, 200, 1900)]

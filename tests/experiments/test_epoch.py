@@ -5,7 +5,7 @@ import pytest
 from astropy.time import Time
 
 from mcsweep.errors import UserInputError
-from mcsweep.experiments.epoch import describe_reference_epoch, resolve_reference_epoch
+from mcsweep.experiments.global_solution.epoch import describe_reference_epoch, resolve_reference_epoch
 
 START, END = 2456863.9, 2458690.1  # TCB JD
 

@@ -4,7 +4,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from mcsweep.experiments.f90_fit import PAPER_COEFFICIENTS, fit_all
+from mcsweep.experiments.f90_sweep.fit import PAPER_COEFFICIENTS, fit_all
 
 COEF_TOL = 1e-8  # dex per unit power of G: exact recovery up to rounding
 
@@ -22,7 +22,7 @@ def _synthetic(coefs):
     rows = []
     for g0 in range(6, 20):
         g = g0 + 0.5
-        # Eqs. 14-17 written out by hand (independent of mcsweep.experiments.f90_fit.evaluate_formula).
+        # Eqs. 14-17 written out by hand (independent of mcsweep.experiments.f90_sweep.fit.evaluate_formula).
         s0 = coefs["s0"][0] + coefs["s0"][1] * g + coefs["s0"][2] * g**2
         s1 = coefs["s1"][0] + coefs["s1"][1] * g + coefs["s1"][2] * g**2 + coefs["s1"][3] * g**3
         s2 = coefs["s2"][0] + coefs["s2"][1] * g
@@ -62,7 +62,7 @@ def test_paper_formula_value_by_hand():
     # G = 15, (l, b) = (0, 0): s0 = 2.187 - 3.8205 + 1.43595 = -0.19755; s2 = 0.031 - 0.093 = -0.062
     # log10 sigma = -0.19755 - 0.062 = -0.25955 -> 0.54996 mas
     df = pd.DataFrame([dict(l_deg=0.0, b_deg=0.0, g_min=14.5, g_max=15.5, sigma_f90_mas=1.0, f90_flag="ok")])
-    from mcsweep.experiments.f90_fit import compare_cells
+    from mcsweep.experiments.f90_sweep.fit import compare_cells
 
     out = compare_cells(df, PAPER_COEFFICIENTS)
     assert out["paper_sigma_f90_mas"].item() == pytest.approx(10**-0.25955, rel=1e-9)

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from mcsweep.experiments.pencil_beam import sigma_f90_from_curve
+from mcsweep.experiments.f90_curve import sigma_f90_from_curve
 
 GRID = np.geomspace(0.01, 1000, 41)
 
@@ -39,7 +39,7 @@ def test_bootstrap_fractions_have_the_resampling_covariance():
     # Resampling n stars with replacement: the fractions at priors j, l have mean p_j and
     # covariance (p_jl - p_j p_l) / n, p_jl the fraction inside at both (a closed form of
     # the star-by-star bootstrap, independent of the pattern/multinomial shortcut).
-    from mcsweep.experiments.pencil_beam import bootstrap_fractions
+    from mcsweep.experiments.f90_curve import bootstrap_fractions
 
     rng = np.random.default_rng(3)
     n, m, r = 500, 6, 20000
@@ -57,7 +57,7 @@ def test_bootstrap_fractions_have_the_resampling_covariance():
 
 
 def test_bootstrap_fractions_leave_invalid_stars_out():
-    from mcsweep.experiments.pencil_beam import bootstrap_fractions
+    from mcsweep.experiments.f90_curve import bootstrap_fractions
 
     # Star 3 has no confidence region (inside implies valid): it never enters a fraction,
     # so every resample's fraction is one of 0, 1/2, 1 (two valid stars, one inside) ...
@@ -72,7 +72,7 @@ def test_bootstrap_fractions_leave_invalid_stars_out():
 
 
 def test_vectorised_crossings_follow_the_one_curve_rule():
-    from mcsweep.experiments.pencil_beam import prior_crossings
+    from mcsweep.experiments.f90_curve import prior_crossings
 
     rng = np.random.default_rng(5)
     curves = np.clip(0.5 + 0.2 * np.log10(GRID / 0.1) + rng.normal(0, 0.05, (300, 41)), 0, 1)
@@ -101,7 +101,7 @@ def test_bootstrap_interval_does_not_depend_on_the_order_of_the_stars():
     # Seeded from the cell alone (SeedSequence(seed, spawn_key=(*key, 2))): the same stars in
     # another order must give the same interval, bit for bit (patterns are sorted by content,
     # not by position).
-    from mcsweep.experiments.pencil_beam import sigma_f90_interval
+    from mcsweep.experiments.f90_curve import sigma_f90_interval
 
     rng = np.random.default_rng(11)
     score = rng.normal(size=3000)

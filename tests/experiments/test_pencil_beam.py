@@ -6,13 +6,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from mcsweep.experiments.pencil_beam import run_cell
+from mcsweep.experiments.f90_sweep.pencil_beam import run_cell
 from mcsweep.population import GalaxyModel
 from mcsweep.prior import sigma_f90
-from mcsweep.sweep.cells import Cell, sky_directions
-from mcsweep.sweep.runner import build_settings, direction_transits
-from mcsweep.sweep.schema import SkyConf
-from mcsweep.sweep.validate import compose_config, to_config
+from mcsweep.experiments.f90_sweep.cells import Cell, sky_directions
+from mcsweep.experiments.f90_sweep.runner import build_settings, direction_transits
+from mcsweep.experiments.f90_sweep.conf import SkyConf
+from mcsweep.command.validate import compose_config, to_config
 
 P = 0.9
 N_STARS = 2000
@@ -118,7 +118,7 @@ def _reference_curve(n0, b0, priors, ratio_r, p):
 def test_prior_curve_counts_match_a_direct_computation(table1, unsolvable):
     # Where every star has a region the fraction is the plain mean (the pre-issue-17
     # result); stars without one (singular normal matrix) leave the denominator.
-    from mcsweep.experiments.pencil_beam import prior_curve
+    from mcsweep.experiments.f90_sweep.pencil_beam import prior_curve
 
     config, _, _ = table1
     s = build_settings(config)
@@ -148,7 +148,7 @@ RTOL_CELL_SINGULAR = 1e-6
 
 
 def test_prior_scan_leaves_the_cell_statistics_unchanged(table1):
-    from mcsweep.experiments import pencil_beam as pb
+    from mcsweep.experiments.f90_sweep import pencil_beam as pb
 
     config, cell, transits = table1
     s = build_settings(config)
@@ -179,7 +179,7 @@ def test_bootstrap_interval_covers_the_truth_at_its_nominal_rate(table1):
     so the true sigma_F90 is 1 mas (paper Sects. 2.3-2.4)."""
     import dataclasses
 
-    from mcsweep.sweep.cells import Cell
+    from mcsweep.experiments.f90_sweep.cells import Cell
 
     config, cell, transits = table1
     s = build_settings(config)
@@ -210,7 +210,7 @@ def test_shared_geometry_normals_equal_the_general_path(table1, use_ac):
     from mcsweep.astrometry.measurements import simulate
     from mcsweep.astrometry.noise import NoiseModel
     from mcsweep.astrometry.solve import normal_equations
-    from mcsweep.experiments import pencil_beam as pb
+    from mcsweep.experiments.f90_sweep import pencil_beam as pb
 
     config, cell, transits = table1
     s = dataclasses.replace(build_settings(config), noise=NoiseModel(use_ac=use_ac))

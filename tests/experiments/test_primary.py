@@ -12,12 +12,13 @@ import pytest
 from omegaconf import OmegaConf
 
 from mcsweep.errors import UserInputError
-from mcsweep.experiments import primary as P
-from mcsweep.experiments.primary_solution import solve_prior
-from mcsweep.experiments.global_priors import parse_prior
-from mcsweep.experiments.primary_table import PAPER_TABLE3, TABLE3_COLUMNS, cell_statistics, paper_value3
+from mcsweep.experiments.primary import CHUNKS_DIR
+from mcsweep.experiments.primary import experiment as P
+from mcsweep.experiments.primary.prior_solution import solve_prior
+from mcsweep.experiments.global_solution.priors import parse_prior
+from mcsweep.experiments.primary.table import PAPER_TABLE3, TABLE3_COLUMNS, cell_statistics, paper_value3
 from mcsweep.solver.attitude_spline import live_segments
-from mcsweep.sweep.validate import compose_config, to_config
+from mcsweep.command.validate import compose_config, to_config
 
 BIN = Path(sys.executable).parent
 #: A few hundred stars per class, 1500 primaries, 1 day knots: a run of under a minute.
@@ -79,8 +80,8 @@ def test_tiny_run_on_a_dask_cluster_gives_the_same_bits(cli_run, tmp_path):
     assert r.returncode == 0, r.stderr[-3000:]
     assert "large graph" not in r.stderr.lower()
     pd.testing.assert_frame_equal(pd.read_csv(out / "table3.csv"), pd.read_csv(cli_run / "table3.csv"))
-    for f in sorted((cli_run / P.CHUNKS_DIR).glob("*.parquet")):
-        pd.testing.assert_frame_equal(pd.read_parquet(out / P.CHUNKS_DIR / f.name), pd.read_parquet(f),
+    for f in sorted((cli_run / CHUNKS_DIR).glob("*.parquet")):
+        pd.testing.assert_frame_equal(pd.read_parquet(out / CHUNKS_DIR / f.name), pd.read_parquet(f),
                                       check_exact=True)
     a, b = (pd.read_csv(d / "primary_convergence.csv").drop(columns="seconds") for d in (out, cli_run))
     pd.testing.assert_frame_equal(a, b, check_exact=True)
@@ -90,7 +91,7 @@ def test_tiny_run_on_a_dask_cluster_gives_the_same_bits(cli_run, tmp_path):
 #: run's 1950 stars in 3 parts; the default part of 250000 would need a run too large here).
 _SMALL_PARTS = """
 import sys
-import mcsweep.experiments.primary_results as C
+import mcsweep.experiments.primary.results as C
 C.PART_STARS = 700
 from mcsweep.cli import main
 sys.argv = ["mcsweep", *sys.argv[1:]]
@@ -109,10 +110,10 @@ def test_tables_read_part_by_part_are_the_tables_of_one_part(cli_run, tmp_path):
     for name in ("table3.csv", "table3.md", "primary_factor.csv", "primary_factor_curves.csv"):
         assert (out / name).read_bytes() == (cli_run / name).read_bytes(), name
     for prior in ("F90", "10F90"):
-        parts = sorted((out / P.CHUNKS_DIR).glob(f"prior_{prior}.part*.parquet"))
+        parts = sorted((out / CHUNKS_DIR).glob(f"prior_{prior}.part*.parquet"))
         assert [p.name[-12:-8] for p in parts] == ["0000", "0001", "0002"]
         whole = pd.concat([pd.read_parquet(p) for p in parts], ignore_index=True)
-        pd.testing.assert_frame_equal(whole, pd.read_parquet(cli_run / P.CHUNKS_DIR / f"prior_{prior}.part0000.parquet"),
+        pd.testing.assert_frame_equal(whole, pd.read_parquet(cli_run / CHUNKS_DIR / f"prior_{prior}.part0000.parquet"),
                                       check_exact=True)
 
 
@@ -429,7 +430,7 @@ def test_sky_order_puts_a_block_of_stars_into_few_stretches_of_the_scan():
     # Why the primary solution holds its stars in sky order (global_classes, "Sky order"): a
     # solver block of consecutive stars is then crossed by the scan in a small part of the
     # year, so its passes read a small part of the attitude vector.
-    from mcsweep.experiments.global_classes import sky_order, star_transits
+    from mcsweep.experiments.global_solution.classes import sky_order, star_transits
 
     stars = synthetic_stars(30000, 11)
     ra, dec = stars["ra"].to_numpy(), stars["dec"].to_numpy()
@@ -569,7 +570,7 @@ PROPAGATION_RTOL = 1e-7
 #: costly to provoke in a test), the F90 solution before it solved as usual.
 _FREE_ATTITUDE = """
 import sys
-import mcsweep.sweep.primary_runner as R
+import mcsweep.experiments.primary.runner as R
 from mcsweep.solver import AttitudeNotDetermined
 solve = R.solve_prior
 def failing(settings, data, label, **kw):
@@ -634,7 +635,7 @@ def test_an_attitude_the_data_leave_free_ends_the_run_in_one_line_and_keeps_what
 
 _EVERY_ITERATION = """
 import sys
-import mcsweep.sweep.progress as progress
+import mcsweep.runtime.progress as progress
 progress.SOLVE_LINE_SECONDS = 0.0
 from mcsweep.cli import main
 sys.argv = ["mcsweep", *sys.argv[1:]]
@@ -643,7 +644,7 @@ main()
 
 
 def test_a_running_solution_says_where_it_stands(tmp_path):
-    # The line a minute of a long solution (mcsweep.sweep.progress.SolveLines), here at every
+    # The line a minute of a long solution (mcsweep.runtime.progress.SolveLines), here at every
     # iteration: the prior, the iteration, the seconds per iteration, the estimated error and what
     # the solution stops at, on stderr (execution.progress=false: none, tests/sweep/test_progress.py).
     cat = _catalogue(tmp_path / "stars.csv", n=3000)
@@ -671,7 +672,7 @@ def test_a_solution_started_from_the_previous_priors_attitude_stops_within_the_t
     # window held that step stopped such a solution at iteration 11, 1.45 times over the
     # tolerance (the default run, 3 h knots; mcsweep.solver.pcg, "Starting attitude").
     from mcsweep.astrometry.solve import prior_diagonal
-    from mcsweep.experiments.global_priors import prior_sigma_mas
+    from mcsweep.experiments.global_solution.priors import prior_sigma_mas
     from mcsweep.solver import solve_global
 
     settings = P.build_settings(primary_config(["experiment.primary.mission_years=1", "experiment.primary.knot_interval_hours=3",
@@ -725,8 +726,8 @@ def test_subsets_by_scheduled_transits_change_the_tables_not_the_solutions(cli_r
                        capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr[-3000:]
     for prior in ("F90", "10F90"):
-        a = pd.read_parquet(out / P.CHUNKS_DIR / f"prior_{prior}.part0000.parquet")
-        b = pd.read_parquet(cli_run / P.CHUNKS_DIR / f"prior_{prior}.part0000.parquet")
+        a = pd.read_parquet(out / CHUNKS_DIR / f"prior_{prior}.part0000.parquet")
+        b = pd.read_parquet(cli_run / CHUNKS_DIR / f"prior_{prior}.part0000.parquet")
         pd.testing.assert_frame_equal(a, b, check_exact=True)
     live, scheduled = a["n_fov"].to_numpy(int), a["n_fov_scheduled"].to_numpy(int)
     assert np.all(live <= scheduled)

@@ -7,11 +7,11 @@ import pytest
 from scipy import stats
 
 from mcsweep.astrometry.confidence import percentile_interval
-from mcsweep.experiments.global_table import FRACTION_INTERVAL
-from mcsweep.experiments.pencil_beam import sigma_f90_from_curve
-from mcsweep.experiments.primary_cells import SPAN_QUANTILES, CellReduction, RankSelector, reduce_parts
-from mcsweep.experiments.primary_factor import factor_rows, rows_from_reduction
-from mcsweep.experiments.primary_table import cell_statistics, table3_from_reduction, table3_rows
+from mcsweep.experiments.global_solution.table import FRACTION_INTERVAL
+from mcsweep.experiments.f90_curve import sigma_f90_from_curve
+from mcsweep.experiments.primary.reduction import SPAN_QUANTILES, CellReduction, RankSelector, reduce_parts
+from mcsweep.experiments.primary.factor import factor_rows, rows_from_reduction
+from mcsweep.experiments.primary.table import cell_statistics, table3_from_reduction, table3_rows
 
 #: numpy's percentile and ours from the same two order statistics: the same formula, so
 #: equal up to the last bit; a relative 1e-15 allows one rounding of difference.

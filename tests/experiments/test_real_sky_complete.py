@@ -4,7 +4,7 @@
 import numpy as np
 import pytest
 
-from mcsweep.experiments.real_sky_complete import BP_RP_EDGES, carried_fraction, colour_class
+from mcsweep.experiments.real_sky.complete import BP_RP_EDGES, carried_fraction, colour_class
 
 #: Two exact evaluations of one weighted mean in floating point.
 RTOL = 1e-12
@@ -32,7 +32,7 @@ def test_carried_fraction_weights_each_class_by_its_share_of_the_whole():
 
 
 def test_carried_quantile_against_hazen_and_a_two_value_closed_form():
-    from mcsweep.experiments.real_sky_complete import carried_quantile
+    from mcsweep.experiments.real_sky.complete import carried_quantile
 
     values = np.random.default_rng(3).lognormal(1.0, 0.7, 501)
     classes = np.random.default_rng(4).integers(0, 3, values.size)
@@ -55,7 +55,7 @@ def test_carried_quantile_against_hazen_and_a_two_value_closed_form():
 
 
 def test_classes_by_colour_within_half_magnitudes():
-    from mcsweep.experiments.real_sky_complete import N_COLOUR_CLASSES, SUB_BINS, colour_magnitude_class
+    from mcsweep.experiments.real_sky.complete import N_COLOUR_CLASSES, SUB_BINS, colour_magnitude_class
 
     assert SUB_BINS == 2
     got = colour_magnitude_class([0.0, 0.0, 1.2, np.nan, 1.2], [6.1, 6.6, 7.49, 7.99, 8.0], [(6, 7), (7, 8), (8, 9)])

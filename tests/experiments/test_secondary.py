@@ -14,17 +14,18 @@ import pytest
 from omegaconf import OmegaConf
 
 from mcsweep.errors import UserInputError
-from mcsweep.experiments import global_classes as C
-from mcsweep.experiments import secondary as S
-from mcsweep.experiments.global_settings import load_f90_coefficients
-from mcsweep.experiments.global_table import SUBSETS
-from mcsweep.experiments.secondary_table import (NO_PRIOR_COLUMNS, PAPER_TABLE2, PRIORS, SOLUTION_COLUMNS,
+from mcsweep.experiments.global_solution import classes as C
+from mcsweep.experiments.secondary import CHUNKS_DIR
+from mcsweep.experiments.secondary import experiment as S
+from mcsweep.experiments.global_solution.settings import load_f90_coefficients
+from mcsweep.experiments.global_solution.table import SUBSETS
+from mcsweep.experiments.secondary.table import (NO_PRIOR_COLUMNS, PAPER_TABLE2, PRIORS, SOLUTION_COLUMNS,
                                                  TABLE2_COLUMNS, paper_value)
 from mcsweep.population import CatalogueSource, GalaxyModel
 from mcsweep.prior import PAPER_COEFFICIENTS, sigma_f90
-from mcsweep.sweep.provenance import Provenance
-from mcsweep.sweep.secondary_runner import run_secondary
-from mcsweep.sweep.validate import compose_config, to_config
+from mcsweep.command.provenance import Provenance
+from mcsweep.experiments.registry import get as experiment
+from mcsweep.command.validate import compose_config, to_config
 
 BIN = Path(sys.executable).parent
 CLASS_SIZE = 3000  # stars per magnitude class of the reduced run
@@ -98,7 +99,7 @@ def test_f90_prior_is_calibrated_and_two_parameter_solution_is_not(cli_run):
 
 
 def _per_star(run_dir: Path) -> pd.DataFrame:
-    parts = sorted((run_dir / S.CHUNKS_DIR).glob("class*.parquet"))
+    parts = sorted((run_dir / CHUNKS_DIR).glob("class*.parquet"))
     return pd.concat([pd.read_parquet(p).assign(g=p.name[5:9]) for p in parts], ignore_index=True)
 
 
@@ -108,8 +109,8 @@ def test_same_results_whatever_the_chunk_size_and_n_jobs(cli_run, tmp_path):
     # and one chunk per class.
     config, raw = _config(["execution.chunk_stars=1000", "execution.n_jobs=1"])
     out = tmp_path / "chunked"
-    run_secondary(config, raw, out, prov=Provenance(out, raw, kind="secondary"))
-    assert len(list((out / S.CHUNKS_DIR).glob("class*.parquet"))) == 3 * 3
+    experiment("secondary").run(config, raw, out, Provenance(out, raw, kind="secondary"))
+    assert len(list((out / CHUNKS_DIR).glob("class*.parquet"))) == 3 * 3
     for name in ("table2.csv", "no_prior.csv", "secondary_summary.csv", "table2.md"):
         assert (out / name).read_bytes() == (cli_run / name).read_bytes(), name
     pd.testing.assert_frame_equal(_per_star(out), _per_star(cli_run), check_exact=True)

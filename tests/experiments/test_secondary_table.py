@@ -13,8 +13,8 @@ import pandas as pd
 from scipy import stats
 
 from mcsweep.astrometry.confidence import binomial_interval, inside, inside_counts, mahalanobis_sq
-from mcsweep.experiments.global_table import fraction_statistics
-from mcsweep.experiments.secondary_table import SOLUTION_COLUMNS, no_prior_rows, table2_rows
+from mcsweep.experiments.global_solution.table import fraction_statistics
+from mcsweep.experiments.secondary.table import SOLUTION_COLUMNS, no_prior_rows, table2_rows
 
 #: Two implementations of the same exact interval (beta quantiles vs. scipy's binomtest).
 RTOL_INTERVAL = 1e-9

@@ -12,7 +12,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from mcsweep.experiments.secondary_table import (SOLUTION_COLUMNS, no_prior_rows, table2_layout,
+from mcsweep.experiments.secondary.table import (SOLUTION_COLUMNS, no_prior_rows, table2_layout,
                                                  table2_markdown, table2_rows)
 
 N = 101

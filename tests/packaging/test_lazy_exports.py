@@ -26,8 +26,8 @@ def test_every_exported_name_resolves_to_its_modules_object(name):
 
 
 def test_the_config_schema_loads_without_scipy_stats_matplotlib_or_the_experiments():
-    code = ("import sys, mcsweep.sweep.validate, mcsweep.cli; "
-            "print(sorted(m for m in ('scipy.stats', 'matplotlib', 'mcsweep.experiments.primary', "
+    code = ("import sys, mcsweep.command.validate, mcsweep.cli; "
+            "print(sorted(m for m in ('scipy.stats', 'matplotlib', 'mcsweep.experiments.primary.experiment', "
             "'mcsweep.report.build') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True)
     assert out.stdout.strip() == "[]", out.stdout

@@ -12,7 +12,7 @@ from astropy_healpix import HEALPix
 from mcsweep.errors import UserInputError
 from mcsweep.prior import Prior
 from mcsweep.prior.maps import check_nside, map_column_name, prior_maps_bytes
-from mcsweep.experiments.f90_fit import fit_all, prior_maps_for_run
+from mcsweep.experiments.f90_sweep.fit import fit_all, prior_maps_for_run
 
 #: The map and Prior.from_run evaluate the same formula at the same pixel centres, but
 #: the map went through a FITS file: float64 round-trips exactly, so only array-vs-scalar

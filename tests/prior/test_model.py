@@ -11,7 +11,7 @@ from astropy.coordinates import FK5, ICRS, Galactic, SkyCoord
 from mcsweep.astrometry.solve import prior_diagonal
 from mcsweep.errors import UserInputError
 from mcsweep.prior import Prior, sigma_f90
-from mcsweep.experiments.f90_fit import coefficient_table
+from mcsweep.experiments.f90_sweep.fit import coefficient_table
 
 #: Hand evaluations keep 6-7 significant digits in log10 sigma.
 HAND_RTOL = 1e-6

@@ -12,9 +12,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from mcsweep.experiments.global_priors import prior_label
-from mcsweep.experiments.global_table import SUBSET_TITLES
-from mcsweep.experiments.secondary_table import PRIOR_LABELS
+from mcsweep.experiments.global_solution.priors import prior_label
+from mcsweep.experiments.global_solution.table import SUBSET_TITLES
+from mcsweep.experiments.secondary.table import PRIOR_LABELS
 
 BIN = Path(sys.executable).parent
 #: Small versions of the runs of tests/experiments (about 13 s and 17 s on 2 cores); the
@@ -149,7 +149,7 @@ def _never(cell, table):
 
 
 def test_a_largest_difference_within_its_interval_names_no_cause():
-    from mcsweep.report.global_section import difference_sentence
+    from mcsweep.experiments.global_solution.section import difference_sentence
 
     text = difference_sentence(_table(0.90, 0.894, 0.88, 0.92), prior_label, _never)
     assert "sigma_F90, > 4 transits, G ~ 11, 90.0 [88.0-92.0] % against 89.4 % (+0.6 points" in text
@@ -157,7 +157,7 @@ def test_a_largest_difference_within_its_interval_names_no_cause():
 
 
 def test_no_comparable_cell_and_missing_rows_are_said_in_words():
-    from mcsweep.report.global_section import difference_sentence, key_numbers
+    from mcsweep.experiments.global_solution.section import difference_sentence, key_numbers
 
     table = _table(0.80, float("nan"), 0.7, 0.9, prior="2F90")
     lead, items = key_numbers(table, 0.8, ("F90", "2F90"), prior_label, "experiment.primary.priors")

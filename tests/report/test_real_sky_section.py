@@ -6,8 +6,8 @@ import itertools
 import pandas as pd
 import pytest
 
-from mcsweep.report.document import Document
-from mcsweep.report.real_sky_section import real_sky_section
+from mcsweep.runtime.document import Document
+from mcsweep.experiments.real_sky.section import real_sky_section
 from mcsweep.scanning.law import ScanningLaw
 
 

@@ -12,7 +12,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from mcsweep.report.document import Document, counts_text
+from mcsweep.runtime.document import Document, counts_text
 
 BIN = Path(sys.executable).parent
 #: The smallest run that still fits Eqs. 15-17 (s1 is cubic: 4 G bins) with bootstrap

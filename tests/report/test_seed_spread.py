@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pandas as pd
 
-from mcsweep.report.seed_spread import EXPECTED_INSIDE, seed_spread
+from mcsweep.validation.seed_spread import EXPECTED_INSIDE, seed_spread
 
 N_CELLS = 4000
 NOISE_DEX = 0.02
@@ -34,7 +34,7 @@ def test_seed_spread_recovers_the_noise_of_one_run():
 
 
 def test_missing_run_is_one_line_and_exit_2(tmp_path, capsys):
-    from mcsweep.report.seed_spread import main
+    from mcsweep.validation.seed_spread import main
 
     good = tmp_path / "a"
     good.mkdir()

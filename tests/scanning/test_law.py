@@ -73,7 +73,7 @@ def test_hydra_composes_each_scanning_option(choice):
     # The whole app config, with its typed schema: the YAML keys must match the schema's.
     from hydra import compose, initialize_config_module
 
-    from mcsweep.sweep.schema import register_configs
+    from mcsweep.command.schema import register_configs
 
     register_configs()
     with initialize_config_module(config_module="mcsweep.conf", version_base="1.3"):

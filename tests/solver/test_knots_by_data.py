@@ -123,7 +123,7 @@ def test_uniform_knots_count_the_epochs_at_a_segment_s_start():
 
 def test_the_config_accepts_the_spline_s_knot_rules():
     from mcsweep.solver.attitude_spline import KNOT_RULES
-    from mcsweep.sweep.schema import KNOT_RULES as accepted
+    from mcsweep.experiments.primary.conf import KNOT_RULES as accepted
 
     assert accepted == KNOT_RULES
     with pytest.raises(ValueError, match="knot_rule"):

@@ -5,8 +5,8 @@ from pathlib import Path
 import pytest
 
 from mcsweep.errors import UserInputError
-from mcsweep.sweep.schema import Config
-from mcsweep.sweep.validate import preflight
+from mcsweep.command.schema import Config
+from mcsweep.command.validate import preflight
 
 CONF = Path(__file__).resolve().parents[2] / "src" / "mcsweep" / "conf"
 GROUPS = sorted(p.name for p in CONF.iterdir() if p.is_dir() and not p.name.startswith("_"))

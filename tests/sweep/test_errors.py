@@ -1,6 +1,6 @@
 """Only errors a user can cause become one line and exit 2; a bug keeps its traceback.
 
-Formerly ``sweep/validate.py`` turned every exception into a one-line "user error",
+Formerly ``command/validate.py`` turned every exception into a one-line "user error",
 hiding genuine bugs. Decision: a bug propagates; Python ends the command with status 1
 and the traceback, which also goes to the run's log when a job had started.
 """
@@ -14,7 +14,7 @@ import pytest
 from hydra.errors import ConfigCompositionException
 
 from mcsweep.errors import UserInputError
-from mcsweep.sweep import schema, validate
+from mcsweep.command import schema, validate
 
 BIN = Path(sys.executable).parent
 
@@ -69,7 +69,7 @@ def _run_with_injected_bug(tmp_path, patch: str):
 
 
 def test_cli_bug_before_the_job_gives_a_traceback_and_status_1(tmp_path):
-    r = _run_with_injected_bug(tmp_path, "import mcsweep.sweep.schema as s; "
+    r = _run_with_injected_bug(tmp_path, "import mcsweep.command.schema as s; "
                                          "s.CellConf.__post_init__ = lambda self: 1 / 0")
     assert r.returncode == 1, r.stderr[-2000:]
     assert "Traceback" in r.stderr and "ZeroDivisionError" in r.stderr
@@ -77,7 +77,7 @@ def test_cli_bug_before_the_job_gives_a_traceback_and_status_1(tmp_path):
 
 
 def test_cli_bug_inside_the_job_keeps_traceback_and_writes_it_to_the_log(tmp_path):
-    r = _run_with_injected_bug(tmp_path, "import mcsweep.sweep.provenance as p; "
+    r = _run_with_injected_bug(tmp_path, "import mcsweep.command.provenance as p; "
                                          "p.Provenance.check_compatible = lambda self: 1 / 0")
     assert r.returncode == 1, r.stderr[-2000:]
     assert "ZeroDivisionError" in r.stderr and "mcsweep: error" not in r.stderr

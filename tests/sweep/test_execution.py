@@ -7,8 +7,8 @@ import sys
 
 import pytest
 
-from mcsweep.sweep.execution import executor
-from mcsweep.sweep.schema import ExecutionConf
+from mcsweep.runtime.execution import executor
+from mcsweep.command.schema import ExecutionConf
 
 
 def _children() -> set[str]:

@@ -57,13 +57,14 @@ def test_sigkill_then_rerun_gives_identical_results(reference, tmp_path, kill_af
 @pytest.mark.slow
 def test_dask_local_cluster_matches_loky_cell_by_cell(reference, tmp_path):
     pytest.importorskip("dask.distributed")
-    from mcsweep.sweep.runner import run_sweep
-    from mcsweep.sweep.validate import compose_config, to_config
+    from mcsweep.command.provenance import Provenance
+    from mcsweep.command.validate import compose_config, to_config
+    from mcsweep.experiments.f90_sweep.runner import run_sweep
     from omegaconf import OmegaConf
 
     cfg = compose_config([*SMALL, "execution=dask", "execution.n_jobs=2"])
-    config = to_config(cfg)
-    run_sweep(config, OmegaConf.to_container(cfg, resolve=True), tmp_path)
+    config, raw = to_config(cfg), OmegaConf.to_container(cfg, resolve=True)
+    run_sweep(config, raw, tmp_path, prov=Provenance(tmp_path, raw, kind="f90_sweep"))
     dask_cells = sorted((tmp_path / "cells").glob("cell_*.parquet"))
     ref_cells = sorted((reference / "cells").glob("cell_*.parquet"))
     assert [p.name for p in dask_cells] == [p.name for p in ref_cells] and len(ref_cells) == 9

@@ -1,11 +1,11 @@
-"""The shared path of the global experiments (mcsweep.sweep.global_runner) and what it prints."""
+"""The shared path of the global experiments (mcsweep.experiments.global_solution.run) and what it prints."""
 
 import numpy as np
 import pandas as pd
 
-from mcsweep.sweep.global_runner import GlobalRun
-from mcsweep.sweep.primary_runner import solution_line
-from mcsweep.sweep.store import CellStore
+from mcsweep.experiments.global_solution.run import GlobalRun
+from mcsweep.experiments.primary.runner import solution_line
+from mcsweep.runtime.store import CellStore
 
 
 def test_solution_line_writes_the_attitude_rms_as_numbers_not_a_numpy_repr():

@@ -6,8 +6,8 @@ from pathlib import Path
 
 from omegaconf import OmegaConf
 
-from mcsweep.sweep.provenance import config_hash
-from mcsweep.sweep.validate import compose_config, ignored_settings, preflight
+from mcsweep.command.provenance import config_hash
+from mcsweep.command.validate import compose_config, ignored_settings, preflight
 
 BIN = Path(sys.executable).parent
 IGNORED = ["sky=single", "cell.max_stars=77", "prior_grid.n=5", "observations.f90_case=one",
@@ -136,7 +136,7 @@ def test_same_values_under_an_older_hash_rule_are_explained(tmp_path):
     import pytest
 
     from mcsweep.errors import UserInputError
-    from mcsweep.sweep.provenance import Provenance
+    from mcsweep.command.provenance import Provenance
 
     (tmp_path / "provenance.json").write_text(json.dumps({"config_hash": "0ld", "config": {"seed": 1},
                                                           "mcsweep_version": "0.1"}))
@@ -152,7 +152,7 @@ def test_a_refusal_names_both_values_of_a_changed_default(tmp_path):
     import pytest
 
     from mcsweep.errors import UserInputError
-    from mcsweep.sweep.provenance import Provenance
+    from mcsweep.command.provenance import Provenance
 
     old = OmegaConf.to_container(compose_config(["population.params.extinction_model=disc",
                                                  "population.params.subgiants=false"]), resolve=True)
@@ -171,7 +171,7 @@ def test_a_refusal_names_the_knot_rule_only_where_it_has_an_effect(tmp_path):
     import pytest
 
     from mcsweep.errors import UserInputError
-    from mcsweep.sweep.provenance import Provenance
+    from mcsweep.command.provenance import Provenance
 
     old = OmegaConf.to_container(compose_config(["experiment=primary"]), resolve=True)
     del old["experiment"]["primary"]["knot_rule"]  # a run made before the option
@@ -216,7 +216,7 @@ def test_a_run_that_read_the_refitted_year_is_refused_naming_the_segment(tmp_pat
     import pytest
 
     from mcsweep.errors import UserInputError
-    from mcsweep.sweep.provenance import Provenance
+    from mcsweep.command.provenance import Provenance
 
     new = OmegaConf.to_container(compose_config(["observations=dr4"]), resolve=True)
     old = json.loads(json.dumps(new))

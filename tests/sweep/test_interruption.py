@@ -26,12 +26,16 @@ from omegaconf import OmegaConf
 
 from mcsweep import cli, prior_cli
 from mcsweep.report import cli as report_cli
-from mcsweep.sweep import store as store_mod
+from mcsweep.runtime import store as store_mod
 # The command modules, imported before any test patches the store's writes (mcsweep.cli
 # imports them only when a job runs): those that import atomic_write_bytes by name keep the real one.
-from mcsweep.sweep import primary_runner, real_sky_runner, secondary_runner  # noqa: F401
-from mcsweep.sweep.runner import run_sweep
-from mcsweep.sweep.validate import compose_config, to_config
+from mcsweep.experiments.f90_sweep import runner as _f90_runner  # noqa: F401
+from mcsweep.experiments.primary import runner as _primary_runner  # noqa: F401
+from mcsweep.experiments.real_sky import runner as _real_sky_runner  # noqa: F401
+from mcsweep.experiments.secondary import runner as _secondary_runner  # noqa: F401
+from mcsweep.experiments.f90_sweep.runner import run_sweep
+from mcsweep.command.provenance import Provenance
+from mcsweep.command.validate import compose_config, to_config
 
 BIN = Path(sys.executable).parent
 ROOT = Path(__file__).resolve().parents[2]
@@ -54,7 +58,8 @@ def reference(tmp_path_factory):
     """The same sweep, uninterrupted (cells only: the report does not change them)."""
     out = tmp_path_factory.mktemp("reference")
     cfg = compose_config([*SMALL, "execution.n_jobs=1"])
-    run_sweep(to_config(cfg), OmegaConf.to_container(cfg, resolve=True), out)
+    raw = OmegaConf.to_container(cfg, resolve=True)
+    run_sweep(to_config(cfg), raw, out, prov=Provenance(out, raw, kind="f90_sweep"))
     return out
 
 
@@ -168,7 +173,7 @@ def _wait_for_cells(proc, run: Path, n: int) -> None:
 @pytest.mark.slow
 def test_sigint_with_a_dask_cluster_one_line_no_worker_traceback(tmp_path):
     # The Dask workers run asyncio, which turns SIGINT into a traceback per worker unless
-    # they start with SIGINT ignored (mcsweep.sweep.execution): the same one line as loky.
+    # they start with SIGINT ignored (mcsweep.runtime.execution): the same one line as loky.
     pytest.importorskip("distributed", reason="execution=dask needs the dask extra")
     run = tmp_path / "run"
     cmd = [str(BIN / "mcsweep"), f"hydra.run.dir={run}", *SMALL, "execution=dask", "execution.n_jobs=2"]

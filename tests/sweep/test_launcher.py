@@ -4,7 +4,7 @@ import pytest
 from hydra import compose, initialize_config_module
 from hydra.core.global_hydra import GlobalHydra
 
-from mcsweep.sweep.schema import register_configs
+from mcsweep.command.schema import register_configs
 
 
 def test_slurm_launcher_composes():

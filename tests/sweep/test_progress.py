@@ -2,7 +2,7 @@
 
 import io
 
-from mcsweep.sweep.progress import STEP_PERCENT, LineProgress, progress, stage_line
+from mcsweep.runtime.progress import STEP_PERCENT, LineProgress, progress, stage_line
 
 
 class _Tty(io.StringIO):
@@ -73,7 +73,7 @@ def test_a_long_solution_gets_a_line_a_minute_saying_where_it_stands():
     # time, none for a solution shorter than that, none when progress is off.
     from types import SimpleNamespace
 
-    from mcsweep.sweep.progress import SolveLines
+    from mcsweep.runtime.progress import SolveLines
 
     now = [0.0]
     out = io.StringIO()

@@ -3,7 +3,7 @@ scanning-law-history.md), for the sweep and the global experiments."""
 
 import pytest
 
-from mcsweep.experiments.global_settings import global_fields
+from mcsweep.experiments.global_solution.settings import global_fields
 from mcsweep.scanning.segments import DATA_RELEASE_SPANS
 from mcsweep.scanning.timescale import tcb_jd
 
@@ -15,7 +15,7 @@ def _config(overrides):
     from hydra import compose, initialize_config_module
     from omegaconf import OmegaConf
 
-    from mcsweep.sweep.schema import register_configs
+    from mcsweep.command.schema import register_configs
 
     register_configs()
     with initialize_config_module(config_module="mcsweep.conf", version_base="1.3"):

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from mcsweep.sweep.rundir import Snapshot
+from mcsweep.command.rundir import Snapshot
 
 BIN = Path(sys.executable).parent
 OLD_NS = 1_577_836_800_000_000_000  # 2020-01-01, so a rewrite cannot keep the same mtime by chance
@@ -131,7 +131,7 @@ def test_snapshot_undo_of_one_job_leaves_its_siblings(tmp_path, scope):
 
 
 def test_tree_too_large_to_list_loses_only_new_top_level_names(tmp_path, monkeypatch):
-    import mcsweep.sweep.rundir as rundir
+    import mcsweep.command.rundir as rundir
 
     _plant(tmp_path, {f"data/f{i}.txt": b"d" for i in range(20)})
     _plant(tmp_path, {".hydra/config.yaml": b"old", "keep.txt": b"k"})

@@ -6,7 +6,7 @@ import pytest
 import os
 from pathlib import Path
 
-from mcsweep.sweep.store import CellStore, atomic_write_bytes, current_umask
+from mcsweep.runtime.store import CellStore, atomic_write_bytes, current_umask
 
 
 def _table():
@@ -93,7 +93,7 @@ def test_finished_counts_only_whole_results_of_this_config(tmp_path):
 _WRITER = """
 import sys, time
 from pathlib import Path
-from mcsweep.sweep.store import atomic_write_via
+from mcsweep.runtime.store import atomic_write_via
 out, ready = Path(sys.argv[1]), Path(sys.argv[2])
 def write(tmp):
     tmp.write_bytes(b"partial")

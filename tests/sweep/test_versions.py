@@ -15,8 +15,8 @@ import pyarrow.parquet as pq
 import pytest
 
 from mcsweep.errors import UserInputError
-from mcsweep.sweep.store import CellStore
-from mcsweep.sweep.version import code_version
+from mcsweep.runtime.store import CellStore
+from mcsweep.runtime.version import code_version
 
 BIN = Path(sys.executable).parent
 OLD = "mcsweep 0.0.1 (git 0123456789ab)"

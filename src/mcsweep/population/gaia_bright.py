@@ -19,7 +19,7 @@ Hipparcos gap-fill row): compared with Hipparcos 2 stars matched to them, the fi
 agrees with G and the other two behave as BP and RP (their difference follows B - V; the
 comparison is in docs/research_notes_moved.md). They are read as BP and RP here: the counts
 use G only; BP - RP sorts the stars Hipparcos lacks into colour classes for the real-sky
-validation (:func:`match_hipparcos`, :mod:`mcsweep.experiments.real_sky_complete`).
+validation (:func:`match_hipparcos`, :mod:`mcsweep.experiments.real_sky.complete`).
 """
 
 from __future__ import annotations

@@ -43,7 +43,7 @@ __all__ = ["Prior", "PAPER_CONFIDENCE", "PAPER_RATIO_R", "COEFFICIENTS_FILE", "s
 PAPER_CONFIDENCE = 0.9
 #: R = sigma_mu,p / sigma_plx,p in 1/yr (Sect. 3.1, Eq. 18).
 PAPER_RATIO_R = 10.0
-#: The fitted coefficients in a run directory (written by the sweep: :func:`mcsweep.sweep.runner.write_fit`).
+#: The fitted coefficients in a run directory (written by the sweep: :func:`mcsweep.experiments.f90_sweep.runner.write_fit`).
 COEFFICIENTS_FILE = "coefficients.csv"
 _PROVENANCE_FILE = "provenance.json"
 _TERMS = {"s0": 3, "s1": 4, "s2": 2}  # number of coefficients of Eqs. 15-17

@@ -1,7 +1,7 @@
 """``mcsweep-report RUN_DIR``: (re)build the report of an existing run directory.
 
 Ctrl-C and a full disk end it with one line and exit status 130 or 1
-(:mod:`mcsweep.sweep.interruption`): the run's results are only read, and each report
+(:mod:`mcsweep.runtime.interruption`): the run's results are only read, and each report
 file is replaced whole or not at all, so running the command again finishes the report.
 """
 
@@ -11,7 +11,7 @@ import argparse
 import sys
 
 from ..errors import UserInputError, report_user_error
-from ..sweep.interruption import exit_on_second_interrupt, is_disk_full, report_stop
+from ..runtime.interruption import exit_on_second_interrupt, is_disk_full, report_stop
 from .build import build_report
 
 __all__ = ["main"]

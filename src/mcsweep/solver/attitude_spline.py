@@ -99,7 +99,7 @@ class SortedEpochs:
     :class:`AttitudeSpline` asks of them is how many lie below given times and the values at
     given ranks. Here one sorted array; epochs spread over a cluster's workers answer the
     same questions without meeting in one process
-    (:mod:`mcsweep.experiments.primary_cluster`), so the knots are the same bits."""
+    (:mod:`mcsweep.experiments.primary.cluster`), so the knots are the same bits."""
 
     def __init__(self, epochs):
         self.t = np.sort(np.asarray(epochs, dtype=float).ravel())

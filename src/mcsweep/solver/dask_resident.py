@@ -5,7 +5,7 @@ chunk (its blocks, its measurements and a dict of its share of the star vectors 
 iteration) is one Dask future, made once per solution: scattered from the driver (what
 the solver does for a problem built in the driver, in contiguous shares of the chunks
 per worker), or any future of a task that built it on a worker (the primary experiment,
-:mod:`mcsweep.experiments.primary_cluster`). Every pass then runs the chunk task on the
+:mod:`mcsweep.experiments.primary.cluster`). Every pass then runs the chunk task on the
 worker that holds the chunk, which reads and updates the chunk's star vectors in place:
 only attitude-sized vectors and a few numbers are sent and come back
 (:mod:`~mcsweep.solver.pcg`, "Where the vectors live"). The solver's passes whose outputs

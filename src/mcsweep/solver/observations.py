@@ -109,7 +109,7 @@ def build_observations(ra_deg, dec_deg, star, tcb_jd, psi_deg, obs_au, *, t_ref_
     obs_au : array_like (k, 3)
         Observer's BCRS position [au].
     t_ref_jd : float, keyword-only
-        The common reference epoch (paper Sect. 2.1; :mod:`mcsweep.experiments.epoch`).
+        The common reference epoch (paper Sect. 2.1; :mod:`mcsweep.experiments.global_solution.epoch`).
     sigma_al_mas, sigma_ac_mas : array_like (k,), keyword-only
         Measurement uncertainties; ``sigma_ac_mas=None``: AL only. Per transit, an AC
         sigma of ``inf`` drops that AC measurement.

@@ -27,7 +27,7 @@ known higher quantile (:func:`quantile_with_unseen`): ``plx90_hip_complete``, th
 range in which the complete sky's value lies (``plx90_hip`` the upper). Proper motions are not
 bracketed so: a giant at 300 pc moving at 30 km/s has ~20 mas/yr, the size of the median.
 Both are also carried over to the complete sky by colour, as the real-sky fractions are
-(:mod:`mcsweep.experiments.real_sky_complete`: each class of Gaia BP - RP weighted by its share
+(:mod:`mcsweep.experiments.real_sky.complete`: each class of Gaia BP - RP weighted by its share
 of all the cell's stars, the stars Hipparcos lacks taken to be like those of their class it
 holds): ``plx90_hip_carried``, ``pm50_hip_carried`` and their ratios.
 
@@ -52,7 +52,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import UserInputError
-from ..experiments.real_sky_complete import N_COLOUR_CLASSES, SUB_BINS, carried_quantile, colour_magnitude_class
+from ..experiments.real_sky.complete import N_COLOUR_CLASSES, SUB_BINS, carried_quantile, colour_magnitude_class
 from ..population import GalaxyModel
 from ..population import gaia_bright, hipparcos
 

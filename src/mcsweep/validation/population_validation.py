@@ -15,7 +15,7 @@ Checks:
    HEALPix nside = 2 pixel centres (Galactic frame, nested order: "48 directions
    uniformly distributed on the sky", the sweep's ``sky=healpix48``) x G = 6..20 (1-mag
    bins centred on G). Beams start at 1 deg and widen until 1000 stars are expected (at
-   most 20 deg) with the sweep's own rule (:func:`mcsweep.experiments.pencil_beam.beam_radius`);
+   most 20 deg) with the sweep's own rule (:func:`mcsweep.experiments.f90_sweep.pencil_beam.beam_radius`);
    up to 2000 stars are drawn per cell.
 4. All-sky counts per G magnitude against the published totals cited in the report.
 5. The published facts the model is calibrated to (:mod:`.published_counts`): all-sky counts per 1-mag G
@@ -45,13 +45,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..experiments.pencil_beam import beam_radius
+from ..experiments.f90_sweep.pencil_beam import beam_radius
 from ..population import GalaxyModel
 from ..population.galaxy.parameters import MODEL_VERSION
 from . import published_counts as pc
 from ..prior import sigma_f90
-from ..sweep.cells import sky_directions
-from ..sweep.schema import SkyConf
+from ..experiments.f90_sweep.cells import sky_directions
+from ..experiments.f90_sweep.conf import SkyConf
 
 __all__ = ["healpix48_centres", "ratio_table", "main"]
 

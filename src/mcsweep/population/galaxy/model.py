@@ -337,7 +337,7 @@ class GalaxyModel:
             Draw at least this many stars (still capped by ``max_stars``): when one
             realisation of the cone holds fewer, the extra stars are further independent
             draws from the same density, so the cone keeps its size (the pencil-beam rule
-            of :mod:`mcsweep.experiments.pencil_beam`). ``n_in_cone`` stays the count of
+            of :mod:`mcsweep.experiments.f90_sweep.pencil_beam`). ``n_in_cone`` stays the count of
             one realisation.
 
         Returns

@@ -1,0 +1,421 @@
+"""One pencil-beam cell: the sigma_F90 search of paper Sects. 3.2-3.4.
+
+For one direction and one G bin: draw the stars of the beam, take the direction's
+field-of-view transits, and for each observation case (Fig. 3: 1, 2, 2 diluted, 4 and
+8 distinct transits) simulate AL/AC measurements and solve with every prior of a log
+grid (Eqs. 9-13, 18). Per prior the cell records the fraction of actual position
+errors inside the P-confidence ellipse (Sect. 2.4), the P-th percentile of the actual
+errors and the median semi-major axis (Figs. 1 and 3). sigma_F90 is the smallest prior
+whose fraction reaches P in the two-transit case (Sect. 3.3); every case is then also
+evaluated at that prior, as in Fig. 3.
+
+All stars of a cell are observed with the transits of the beam's centre. Beam rule
+(:func:`cell_radius`): with the built-in galaxy model the beam keeps the paper's 1 deg
+and at least ``min_stars`` stars are drawn from its density; with a catalogue the beam
+is widened until it holds ``min_stars`` (:func:`beam_radius`).
+"""
+
+from __future__ import annotations
+
+import math
+import zlib
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from ...astrometry.confidence import ellipse_semi_axes, inside, inside_counts, mahalanobis_sq
+from ...astrometry.design import JULIAN_YEAR_DAYS, design_matrix, reference_epoch
+from ...astrometry.noise import NoiseModel
+from ...astrometry.prior_scan import PriorScan, prior_scan
+from ...astrometry.solve import solve_with_prior
+from ...scanning import observer_position_au
+from ..f90_curve import ill_determined, sigma_f90_from_curve, sigma_f90_interval
+
+__all__ = [
+    "CellSettings",
+    "CaseGeometry",
+    "beam_radius",
+    "cell_radius",
+    "case_geometry",
+    "prior_curve",
+    "scan_curve",
+    "run_cell",
+    "CURVE_COLUMNS",
+]
+
+_STAR_STREAM, _NOISE_STREAM, _BOOTSTRAP_STREAM = 0, 1, 2
+
+#: Columns of a cell's result table (one row per case x prior).
+CURVE_COLUMNS = [
+    "cell_id", "l_deg", "b_deg", "ra_deg", "dec_deg", "g_min", "g_max", "case",
+    "sigma_prior_mas", "at_f90", "fraction_inside", "n_inside", "n_valid", "p_error_mas",
+    "median_semi_major_mas", "n_stars", "n_in_cone", "radius_deg", "n_groups", "sigma_f90_mas", "f90_flag",
+    "sigma_f90_lo_mas", "sigma_f90_hi_mas", "ill_determined",
+]
+
+@dataclass(frozen=True)
+class CellSettings:
+    """Everything a cell needs besides its identity (picklable, shared by all cells)."""
+
+    prior_grid_mas: tuple[float, ...]
+    cases: dict[str, tuple[int, ...]]
+    f90_case: str
+    confidence: float
+    ratio_R: float
+    beam_radius_deg: float
+    max_stars: int
+    min_stars: int
+    max_radius_deg: float
+    interpolation: str
+    reference_epoch: str
+    fixed_epoch_tcb_jd: float
+    noise: NoiseModel
+    seed: int
+    #: Bootstrap resamples of the stars for the sigma_F90 interval (0 = no interval).
+    n_bootstrap: int = 0
+    #: Priors at which to keep every star's error and covariance (Fig. 2); F90 is added.
+    scatter_priors_mas: tuple[float, ...] = field(default=())
+    #: p_error_mas and median_semi_major_mas at every prior of the grid (True), or only
+    #: at sigma_F90 (False): on the grid only the showcase's figures use them, and they
+    #: cost more than the fraction inside (two partial sorts per prior).
+    grid_statistics: bool = True
+
+
+@dataclass(frozen=True)
+class CaseGeometry:
+    """The transits of one observation case at the beam centre."""
+
+    tcb_jd: np.ndarray
+    psi_deg: np.ndarray
+    obs_au: np.ndarray  # (k, 3)
+
+
+def _cap_area(radius_deg: float) -> float:
+    return 2.0 * math.pi * (1.0 - math.cos(math.radians(radius_deg)))
+
+
+def beam_radius(source, l_deg, b_deg, g_min, g_max, *, radius_deg: float, min_stars: int,
+                max_radius_deg: float) -> tuple[float, float]:
+    """Radius reaching ``min_stars`` expected stars, and that expected count.
+
+    The 1 deg beam of Table 1 holds only ~10-80 stars at G < 10, too few to measure a
+    90 % fraction, so the beam is widened around the same centre (solid angle scaled by
+    the deficit, re-evaluated twice because the density changes across a wide beam).
+    """
+    radius = radius_deg
+    expected = float(source.expected_count(l_deg, b_deg, radius, g_min, g_max))
+    for _ in range(3):
+        if expected >= min_stars or radius >= max_radius_deg:
+            break
+        if expected <= 0:
+            radius = max_radius_deg
+        else:
+            area = _cap_area(radius) * min_stars / expected * 1.05
+            cos_r = max(1.0 - area / (2.0 * math.pi), math.cos(math.radians(max_radius_deg)))
+            radius = min(math.degrees(math.acos(cos_r)), max_radius_deg)
+        expected = float(source.expected_count(l_deg, b_deg, radius, g_min, g_max))
+    return radius, expected
+
+
+def cell_radius(source, cell, s: CellSettings) -> tuple[float, float]:
+    """Beam radius of a cell and the expected number of stars in it.
+
+    Beam rule: a source that can draw from its density (the built-in galaxy model,
+    ``draws_from_density``) keeps the paper's beam (Table 1: 1 deg) and draws at least
+    ``min_stars`` stars from it -- independent realisations of the same distribution;
+    a catalogue has no further stars, so its beam is widened (:func:`beam_radius`).
+    """
+    d = cell.direction
+    if getattr(source, "draws_from_density", False):
+        return s.beam_radius_deg, float(source.expected_count(d.l_deg, d.b_deg, s.beam_radius_deg,
+                                                              cell.g_min, cell.g_max))
+    return beam_radius(source, d.l_deg, d.b_deg, cell.g_min, cell.g_max, radius_deg=s.beam_radius_deg,
+                       min_stars=s.min_stars, max_radius_deg=s.max_radius_deg)
+
+
+def _transit_columns(transits: pd.DataFrame) -> dict:
+    """The columns the cases need, as numpy arrays (extracted once per cell)."""
+    return {"group": transits["group"].to_numpy(), "tcb_jd": transits["tcb_jd"].to_numpy(float),
+            "scan_angle_deg": transits["scan_angle_deg"].to_numpy(float),
+            "obs_au": observer_position_au(transits)}
+
+
+def case_geometry(transits: pd.DataFrame | dict, groups: tuple[int, ...]) -> CaseGeometry | None:
+    """Transits of the requested distinct-transit groups (negative = from the last).
+
+    ``transits``: the FoV transits of a direction, or the arrays of
+    :func:`_transit_columns` made from them. Returns None when the direction has fewer
+    groups than the case asks for.
+    """
+    cols = transits if isinstance(transits, dict) else _transit_columns(transits)
+    group = cols["group"]
+    available = np.unique(group)
+    try:
+        chosen = available[list(groups)]
+    except IndexError:
+        return None
+    if len(np.unique(chosen)) < len(groups):
+        return None  # e.g. "first and last" with a single group
+    idx = np.flatnonzero(np.isin(group, chosen))
+    tcb = cols["tcb_jd"][idx]
+    order = np.argsort(tcb, kind="stable")
+    idx = idx[order]
+    return CaseGeometry(tcb_jd=tcb[order], psi_deg=cols["scan_angle_deg"][idx], obs_au=cols["obs_au"][idx])
+
+
+def cell_normal_equations(geom: CaseGeometry, ra_deg, dec_deg, stars: pd.DataFrame,
+                      s: CellSettings, rng: np.random.Generator):
+    """Normal equations (Eqs. 2-3) of every star of the cell, star-last (n, 5, 5), (n, 5).
+
+    All stars of a cell are observed with the transits of the beam centre, so their
+    design matrices differ only by the per-star uncertainties: ``A_i = diag(1/sigma_i) A_1``
+    with ``A_1`` the design of unit uncertainties (AL rows, then AC rows). Hence
+    ``N0_i = N_AL / sigma_AL,i^2 + N_AC / sigma_AC,i^2`` and
+    ``b0_i = N0_i x_i + A_1' diag(1/sigma_i) e_i``, with the measurement noise ``e``
+    drawn exactly as :func:`mcsweep.astrometry.measurements.simulate` draws it (one
+    ``(m, n)`` array of standard normals): the result equals ``design_matrix`` +
+    ``simulate`` + ``normal_equations`` to rounding, in O(n) instead of O(n m) work
+    per matrix element.
+    """
+    n, k = len(stars), len(geom.tcb_jd)
+    tcb = geom.tcb_jd[None, :]
+    if s.reference_epoch == "mean":
+        t_ep = reference_epoch(tcb, np.ones((1, k), dtype=bool))  # Sect. 2.1: mean epoch of observation
+    else:
+        t_ep = np.full(1, s.fixed_epoch_tcb_jd)
+    t_yr = (tcb - t_ep[:, None]) / JULIAN_YEAR_DAYS
+    use_ac = s.noise.use_ac
+    a1 = design_matrix(np.array([ra_deg], float), np.array([dec_deg], float), t_yr, geom.psi_deg[None, :],
+                       geom.obs_au[None, :, :], sigma_al_mas=1.0, sigma_ac_mas=1.0 if use_ac else None)[0]
+    a1 = np.ascontiguousarray(a1)  # (m, 5); contiguous, so the products below go to BLAS
+    g = stars["phot_g_mean_mag"].to_numpy(float)
+    blocks = [(a1[:k], 1.0 / s.noise.sigma_al_mas(g))]
+    if use_ac:
+        blocks.append((a1[k:], 1.0 / s.noise.sigma_ac_mas(g)))
+    e = rng.standard_normal((len(a1), n))
+    xt = np.stack([stars[c].to_numpy(float) for c in ("parallax", "pmra", "pmdec")])  # x_true[2:], Sect. 3.2
+    # N0 (25, n) = sum over blocks of vec(A_blk' A_blk) w_blk^2: one BLAS product.
+    w2 = np.stack([w * w for _, w in blocks])
+    N0 = np.ascontiguousarray(np.stack([(a_blk.T @ a_blk).ravel() for a_blk, _ in blocks], axis=1)) @ w2
+    b0 = np.zeros((5, n))
+    row = 0
+    for (a_blk, w), w2_blk in zip(blocks, w2):
+        n_blk = a_blk.T @ a_blk
+        signal = np.ascontiguousarray(n_blk[:, 2:]) @ xt  # N_blk x_true (x_true[:2] = 0)
+        signal *= w2_blk
+        b0 += signal
+        noise = np.ascontiguousarray(a_blk.T) @ e[row:row + len(a_blk)]  # (5, n)
+        noise *= w
+        b0 += noise
+        row += len(a_blk)
+    N0 = N0.reshape(5, 5, n)
+    return np.moveaxis(N0, -1, 0), b0.T
+
+
+def _evaluate(n0, b0, sigma_mas: float, s: CellSettings):
+    sol = solve_with_prior(n0, b0, sigma_mas, ratio_R=s.ratio_R)
+    # True position offsets are zero at the reference epoch, so x[:, :2] are the
+    # actual position errors (estimated minus true), Sect. 3.2.
+    dpos = sol.x[:, :2]
+    cov2 = sol.cov[:, :2, :2]
+    return dpos, cov2
+
+
+def scan_curve(scan: PriorScan, priors_mas, s: CellSettings, *, statistics: bool = True):
+    """The table of :func:`prior_curve` from a prior scan, and the per-star flags.
+
+    The fraction inside comes from :meth:`PriorScan.inside_flags` (no solution is
+    formed); with ``statistics`` the P-th percentile of the actual errors and the
+    median semi-major axis are computed from :meth:`PriorScan.position` at every prior
+    (NaN otherwise: the sweep writes them only where a figure uses them).
+
+    Returns
+    -------
+    table : pandas.DataFrame
+    inside, valid : ndarray of bool, shape (n_priors, n_stars)
+    """
+    arrays, inside_flags, valid_flags = scan_arrays(scan, priors_mas, s, statistics=statistics)
+    return pd.DataFrame(arrays), inside_flags, valid_flags
+
+
+def scan_arrays(scan: PriorScan, priors_mas, s: CellSettings, *, statistics: bool):
+    priors = np.atleast_1d(np.asarray(priors_mas, float))
+    inside_flags, valid_flags = scan.inside_flags(priors, s.confidence)
+    err = semi = None
+    if statistics:
+        err = np.empty((len(priors), scan.n))
+        semi = np.empty((len(priors), scan.n))
+        for i, p in enumerate(priors):
+            dpos, cov2 = scan.position(p)
+            # True position offsets are zero at the reference epoch, so the solved
+            # position is the actual error (Sect. 3.2).
+            err[i] = np.hypot(dpos[:, 0], dpos[:, 1])
+            semi[i] = ellipse_semi_axes(cov2, s.confidence)[0]
+    return _curve_arrays(priors, inside_flags.sum(axis=1), valid_flags.sum(axis=1), err, semi, s), \
+        inside_flags, valid_flags
+
+
+def _curve_arrays(priors, n_in, n_valid, err, semi_major, s: CellSettings) -> dict:
+    n_in = np.asarray(n_in, dtype=np.int64)
+    n_valid = np.asarray(n_valid, dtype=np.int64)
+    if err is None or err.shape[1] == 0:
+        p_err = med = np.full(len(priors), np.nan)
+    else:
+        valid = np.isfinite(err) & np.isfinite(semi_major)
+        # A prior always gives a solution; the NaN-aware reductions (10x slower) only if not.
+        pct, median = (np.percentile, np.median) if valid.all() else (np.nanpercentile, np.nanmedian)
+        p_err = pct(err, 100.0 * s.confidence, axis=1)
+        med = median(semi_major, axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        frac = np.where(n_valid > 0, n_in / np.maximum(n_valid, 1), np.nan)
+    return {
+        "sigma_prior_mas": np.asarray(priors, float),
+        "fraction_inside": frac,
+        "p_error_mas": p_err,
+        "median_semi_major_mas": med,
+        "n_inside": n_in,
+        "n_valid": n_valid,
+    }
+
+
+def _curve_table(priors, n_in, n_valid, err, semi_major, s: CellSettings) -> pd.DataFrame:
+    return pd.DataFrame(_curve_arrays(priors, n_in, n_valid, err, semi_major, s))
+
+
+def prior_curve(n0, b0, priors_mas, s: CellSettings, *, method: str = "scan", return_inside: bool = False,
+                statistics: bool = True):
+    """Fraction inside, P-th percentile error and median semi-major axis per prior.
+
+    ``method="scan"`` (default) reduces each star's normal equations once and evaluates
+    every prior in a few dozen operations per star (:mod:`mcsweep.astrometry.prior_scan`,
+    :func:`scan_curve`); ``"direct"`` solves the 5 x 5 system of every star and prior
+    (the reference, kept for tests and ``benchmarks/bench_cell.py``). The fraction
+    inside follows the NaN rule of :func:`mcsweep.astrometry.confidence.inside_counts`.
+    ``statistics=False`` leaves the percentile and semi-major columns NaN (scan only).
+    With ``return_inside`` also returns the per-star ``inside`` and ``valid`` flags,
+    both (n_priors, n_stars) (for the bootstrap of :func:`sigma_f90_interval`).
+    """
+    priors = np.asarray(priors_mas, float)
+    if method == "scan":
+        table, inside_flags, valid_flags = scan_curve(prior_scan(n0, b0, s.ratio_R), priors, s,
+                                                      statistics=statistics)
+        return (table, inside_flags, valid_flags) if return_inside else table
+    if method != "direct":
+        raise ValueError(f"method={method!r}; expected 'scan' or 'direct'")
+    m, n = len(priors), n0.shape[0]
+    counts = np.zeros((m, 2), dtype=np.int64)
+    err = np.empty((m, n))
+    semi_major = np.empty((m, n))
+    inside_flags = np.zeros((m, n), dtype=bool)
+    valid_flags = np.zeros((m, n), dtype=bool)
+    for i, p in enumerate(priors):
+        sol = solve_with_prior(n0, b0, p, ratio_R=s.ratio_R)
+        dpos, cov2 = np.ascontiguousarray(sol.x[:, :2]), np.ascontiguousarray(sol.cov[:, :2, :2])
+        counts[i] = inside_counts(dpos, cov2, s.confidence)
+        err[i] = np.hypot(dpos[:, 0], dpos[:, 1])
+        semi_major[i] = ellipse_semi_axes(cov2, s.confidence)[0]
+        valid_flags[i] = np.isfinite(mahalanobis_sq(dpos, cov2))
+        inside_flags[i] = inside(dpos, cov2, s.confidence) & valid_flags[i]
+    table = _curve_table(priors, counts[:, 0], counts[:, 1], err, semi_major, s)
+    return (table, inside_flags, valid_flags) if return_inside else table
+
+
+def run_cell(cell, transits: pd.DataFrame, source, s: CellSettings,
+             *, keep_scatter: bool = False, radius_deg: float | None = None,
+             grid_statistics: bool | None = None) -> tuple[pd.DataFrame, pd.DataFrame | None]:
+    """Run one cell; returns its curve table and (optionally) per-star errors (Fig. 2).
+
+    ``cell`` is a :class:`mcsweep.experiments.f90_sweep.cells.Cell`; ``transits`` the FoV transits of
+    its direction (columns of :func:`mcsweep.scanning.find_transits`). ``radius_deg``
+    skips the beam widening when the caller has already computed it (:func:`cell_radius`).
+    ``grid_statistics``: compute ``p_error_mas`` and ``median_semi_major_mas`` at every
+    prior of the grid (True) or only at sigma_F90 (False; NaN on the grid rows); None
+    follows ``s.grid_statistics``. The fraction inside is always on the whole grid.
+    """
+    d = cell.direction
+    # Streams keyed by content (cell, and case *name* for the noise), never by position in
+    # a list, so adding, removing or reordering cases or cells changes no other result.
+    star_ss = np.random.SeedSequence(s.seed, spawn_key=(*cell.key, _STAR_STREAM))
+    radius = cell_radius(source, cell, s)[0] if radius_deg is None else radius_deg
+    more = {"min_draw": s.min_stars} if getattr(source, "draws_from_density", False) else {}
+    stars = source.sample_cone(d.l_deg, d.b_deg, radius, cell.g_min, cell.g_max,
+                               np.random.default_rng(star_ss), max_stars=s.max_stars, **more)
+    n_in_cone = int(stars.attrs.get("n_in_cone", len(stars)))
+    n_groups = int(transits["group"].nunique()) if len(transits) else 0
+    grid = np.asarray(s.prior_grid_mas, float)
+    stats_on_grid = s.grid_statistics if grid_statistics is None else bool(grid_statistics)
+
+    base = dict(cell_id=cell.cell_id, l_deg=d.l_deg, b_deg=d.b_deg, ra_deg=d.ra_deg,
+                dec_deg=d.dec_deg, g_min=cell.g_min, g_max=cell.g_max, n_stars=len(stars),
+                n_in_cone=n_in_cone, radius_deg=radius, n_groups=n_groups)
+    normals, scans = {}, {}
+    columns = _transit_columns(transits)
+    for case, groups in s.cases.items():
+        geom = case_geometry(columns, tuple(groups))
+        if geom is not None and len(stars) > 0:
+            case_ss = np.random.SeedSequence(s.seed, spawn_key=(*cell.key, _NOISE_STREAM,
+                                                                zlib.crc32(case.encode())))
+            normals[case] = cell_normal_equations(geom, d.ra_deg, d.dec_deg, stars, s,
+                                              np.random.default_rng(case_ss))
+            scans[case] = prior_scan(*normals[case], s.ratio_R)
+
+    curves, f90_flags = {}, None
+    for case, scan in scans.items():
+        curves[case], *flags = scan_arrays(scan, grid, s, statistics=stats_on_grid)
+        if case == s.f90_case:
+            f90_flags = flags
+    f90_lo = f90_hi = float("nan")
+    ill = False
+    if s.f90_case in curves:
+        c = curves[s.f90_case]
+        f90, flag = sigma_f90_from_curve(grid, c["fraction_inside"], s.confidence, s.interpolation)
+        boot_rng = np.random.default_rng(np.random.SeedSequence(s.seed, spawn_key=(*cell.key, _BOOTSTRAP_STREAM)))
+        f90_lo, f90_hi = sigma_f90_interval(grid, *f90_flags, s.confidence, s.interpolation,
+                                            s.n_bootstrap, boot_rng)
+        ill = ill_determined(grid, c["fraction_inside"], c["n_valid"], s.confidence)
+    else:
+        f90, flag = float("nan"), "no_transits" if len(stars) else "no_stars"
+
+    # One DataFrame for the whole cell, built from numpy columns (pandas per case costs
+    # more than a cell's arithmetic).
+    empty = _curve_arrays(grid, np.zeros(len(grid)), np.zeros(len(grid)), None, None, s)
+    empty["fraction_inside"] = np.full(len(grid), np.nan)
+    parts, at_f90, case_col = [], [], []
+
+    def add(part, case, at):
+        parts.append(part)
+        at_f90.append(np.full(len(part["sigma_prior_mas"]), at))
+        case_col.extend([case] * len(part["sigma_prior_mas"]))
+
+    for case in s.cases:
+        if case in curves:
+            add(curves[case], case, False)
+            if math.isfinite(f90):
+                add(scan_arrays(scans[case], [f90], s, statistics=True)[0], case, True)
+        else:
+            add(empty, case, False)
+    cols = {k: np.concatenate([p[k] for p in parts]) for k in empty}
+    n_rows = len(cols["sigma_prior_mas"])
+    cols["at_f90"] = np.concatenate(at_f90)
+    cols["case"] = np.array(case_col, dtype=object)
+    scalars = dict(base, sigma_f90_mas=f90, f90_flag=flag, sigma_f90_lo_mas=f90_lo, sigma_f90_hi_mas=f90_hi,
+                   ill_determined=ill)
+    for k, v in scalars.items():
+        cols[k] = np.full(n_rows, v, dtype=object if isinstance(v, str) else None)
+    table = pd.DataFrame({k: cols[k] for k in CURVE_COLUMNS})
+
+    scatter = None
+    if keep_scatter and s.f90_case in normals:
+        priors = list(s.scatter_priors_mas) + ([f90] if math.isfinite(f90) else [])
+        labels = [f"{p:g} mas" for p in s.scatter_priors_mas] + (["F90"] if math.isfinite(f90) else [])
+        parts = []
+        for label, sigma in zip(labels, priors):
+            dpos, cov2 = _evaluate(*normals[s.f90_case], float(sigma), s)
+            parts.append(pd.DataFrame({
+                "prior": label, "sigma_prior_mas": float(sigma),
+                "dra_mas": dpos[:, 0], "ddec_mas": dpos[:, 1],
+                "cov_aa": cov2[:, 0, 0], "cov_ad": cov2[:, 0, 1], "cov_dd": cov2[:, 1, 1],
+                "parallax": stars["parallax"].to_numpy(float)}))
+        scatter = pd.concat(parts, ignore_index=True).assign(case=s.f90_case)
+    return table, scatter

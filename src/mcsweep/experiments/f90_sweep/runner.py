@@ -1,0 +1,244 @@
+"""Run the sigma_F90 sweep: every cell once, resumably, on the configured backend.
+
+Stages (each timed in the provenance): population source, transits of every
+direction (one scanning-law evaluation for all directions, in this process), the cells
+(in worker processes, each written atomically as soon as it is done, so an
+interrupted sweep resumes where it stopped), the single-direction showcase (Figs. 1-3),
+and aggregation: ``cells.parquet``, the fit of Eqs. 14-17 over the sky (Sect. 3.4,
+:mod:`mcsweep.experiments.f90_sweep.fit`: ``f90_cells.csv``, ``coefficients.csv``,
+``rms_dex.csv``, ``eq14_terms.csv``) and ``prior_maps.fits``. Aggregation runs on every
+call, so a sweep resumed after all its cells were done still writes them. The report
+(:mod:`mcsweep.report`) only reads these files.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import dataclasses
+import io
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from astropy.time import Time
+
+from ...astrometry.noise import NoiseModel
+from ...errors import UserInputError
+from .fit import f90_table, fit_all, fit_tables, prior_maps_for_run
+from .pencil_beam import CellSettings, cell_radius, run_cell
+from ...population import CatalogueSource, make_source
+from ...prior.maps import MAPS_FILE
+from ...scanning import ScanningLaw, find_transits
+from ...scanning.timescale import tcb_jd
+from . import CELLS_DIR, SHOWCASE_DIR
+from .cells import Cell, Direction, enumerate_cells, sky_directions
+from .conf import SkyConf
+from ...runtime.execution import executor
+from ...runtime.progress import progress, stage_line
+from ...runtime.store import CellStore, atomic_write_bytes
+
+__all__ = ["build_settings", "run_sweep", "write_fit", "showcase_cell", "showcase_groups", "SHOWCASE_GROUPS_FILE"]
+
+#: The showcase direction's distinct transits (one row per group), for the report's Fig. 3.
+SHOWCASE_GROUPS_FILE = "groups.csv"
+
+
+def build_settings(config) -> CellSettings:
+    g = config.prior_grid
+    grid = tuple(float(v) for v in np.geomspace(g.min_mas, g.max_mas, g.n))
+    obs, cell, sc = config.observations, config.cell, config.experiment.showcase
+    return CellSettings(
+        prior_grid_mas=grid,
+        cases={k: tuple(int(i) for i in v) for k, v in obs.cases.items()},
+        f90_case=obs.f90_case,
+        confidence=config.confidence,
+        ratio_R=config.ratio_R,
+        beam_radius_deg=cell.beam_radius_deg,
+        max_stars=cell.max_stars,
+        min_stars=cell.min_stars,
+        max_radius_deg=cell.max_radius_deg,
+        interpolation=cell.interpolation,
+        n_bootstrap=cell.n_bootstrap,
+        grid_statistics=cell.grid_statistics,
+        reference_epoch=obs.reference_epoch,
+        fixed_epoch_tcb_jd=tcb_jd(obs.fixed_epoch, "observations.fixed_epoch"),
+        noise=NoiseModel.from_config(config.noise),
+        seed=config.seed,
+        scatter_priors_mas=(sc.tight_prior_mas, sc.loose_prior_mas),
+    )
+
+
+def showcase_groups(transits: pd.DataFrame, law: ScanningLaw | None = None) -> pd.DataFrame:
+    """One row per distinct transit (visit) of a direction: group, first and last UTC, FoVs, psi,
+    and (with ``law``) the scanning-law segment of its first transit."""
+    g = transits.groupby("group", sort=True, observed=True)
+    out = g.agg(first_tcb_jd=("tcb_jd", "first"), last_tcb_jd=("tcb_jd", "last"),
+                fovs=("fov", lambda f: "".join(f.astype(str))),
+                scan_angle_deg=("scan_angle_deg", "first")).reset_index()
+    for col in ("first", "last"):
+        out[f"{col}_utc"] = Time(out[f"{col}_tcb_jd"].to_numpy(float), format="jd", scale="tcb").utc.iso
+    cols = ["group", "first_utc", "last_utc", "fovs", "scan_angle_deg"]
+    if law is not None:
+        out["segment"] = law.segment_labels(out["first_tcb_jd"].to_numpy(float))
+        cols.append("segment")
+    return out[cols]
+
+
+def showcase_cell(config) -> Cell:
+    sc = config.experiment.showcase
+    d = sky_directions(SkyConf(name="showcase", kind="list", frame="icrs",
+                               directions=[[sc.ra_deg, sc.dec_deg]]))[0]
+    return Cell(dataclasses.replace(d, index=-1), sc.g_min, sc.g_max)
+
+
+def direction_transits(config, directions: list[Direction]) -> dict[int, pd.DataFrame]:
+    """FoV transits of every direction, keyed by Direction.index."""
+    if not directions:
+        return {}
+    law = ScanningLaw.from_config(dataclasses.asdict(config.scanning))
+    ra = np.array([d.ra_deg for d in directions])
+    dec = np.array([d.dec_deg for d in directions])
+    start = tcb_jd(config.observations.start, "observations.start")
+    end = tcb_jd(config.observations.end, "observations.end")
+    tr = find_transits(ra, dec, start, end, law=law)
+    groups = {int(i): g.reset_index(drop=True) for i, g in tr.groupby("source_index", sort=False)}
+    empty = tr.iloc[:0]
+    return {d.index: groups.get(i, empty) for i, d in enumerate(directions)}
+
+
+@lru_cache(maxsize=4)
+def _source(pop_items: tuple):
+    # One population source per worker process and config (catalogues are read once).
+    return make_source(dict(pop_items))
+
+
+def _freeze(d: dict) -> tuple:
+    return tuple(sorted((k, _freeze(v) if isinstance(v, dict) else tuple(v) if isinstance(v, list) else v)
+                        for k, v in d.items()))
+
+
+def _pop_dict(config) -> dict:
+    return dataclasses.asdict(config.population)
+
+
+def _cell_task(job):
+    # The store travels with the job so a worker stamps the parent's code version.
+    cell, transits, pop_frozen, settings, store, keep_scatter, radius = job
+    source = _source(pop_frozen)
+    # The showcase cell (keep_scatter) feeds Figs. 1 and 3: statistics on its whole grid.
+    table, scatter = run_cell(cell, transits, source, settings, keep_scatter=keep_scatter, radius_deg=radius,
+                              grid_statistics=True if keep_scatter else None)
+    if scatter is not None:
+        store.write(cell.cell_id + "_scatter", scatter)
+    store.write(cell.cell_id, table)
+    return cell.cell_id
+
+
+def run_sweep(config, raw_cfg: dict, run_dir: Path, *, prov) -> Path:
+    """Run (or resume) the sweep of ``config`` (a checked :class:`mcsweep.command.schema.Config`)
+    in ``run_dir`` with ``prov``, its :class:`~mcsweep.command.provenance.Provenance`; returns
+    the path of ``cells.parquet``."""
+    run_dir = Path(run_dir)
+    prov.check_compatible()
+    with prov.stage("population_source"):
+        # Built here first so a bad catalogue fails before any file is written.
+        _source(_freeze(_pop_dict(config)))
+    settings = build_settings(config)
+    law = ScanningLaw.from_config(dataclasses.asdict(config.scanning))
+    note = law.extrapolation_note(tcb_jd(config.observations.start, "observations.start"),
+                                  tcb_jd(config.observations.end, "observations.end"))
+    prov.derived["scanning"] = {"extrapolated": note}
+    if note:
+        logging.getLogger("mcsweep").warning(note)
+    cells = enumerate_cells(config.sky, config.magnitudes)
+    keep = config.resume.accept_other_versions
+    store = CellStore(run_dir / CELLS_DIR, prov.hash, accept_other_versions=keep)
+    show = showcase_cell(config) if config.experiment.showcase.enabled else None
+    show_store = CellStore(run_dir / SHOWCASE_DIR, prov.hash, accept_other_versions=keep)
+    for st in (store, show_store):  # run start: no other writer may be active in run_dir
+        st.remove_stale_temporaries()
+
+    todo = [c for c in cells if store.read(c.cell_id) is None]
+    source = _source(_freeze(_pop_dict(config)))
+    radii: dict[str, float] = {}  # computed here only for catalogues (each call scans the table)
+    if isinstance(source, CatalogueSource):
+        # A catalogue may not cover every cell: say so before any cell is computed.
+        for c in todo + ([show] if show is not None else []):
+            d = c.direction
+            radius, n = cell_radius(source, c, settings)
+            radii[c.cell_id] = radius
+            if n < 1:
+                raise UserInputError(
+                    f"catalogue {source.path.name}: no star within {radius:.3g} deg of (l, b) = "
+                    f"({d.l_deg:.2f}, {d.b_deg:.2f}) with {c.g_min:g} <= phot_g_mean_mag < {c.g_max:g}; "
+                    "expected a catalogue covering every cell of the sweep (choose sky/magnitudes to match)")
+    show_todo = show is not None and (show_store.read(show.cell_id) is None
+                                      or show_store.read(show.cell_id + "_scatter") is None)
+    # Inputs are valid: claim the run directory for this config before any cell is written,
+    # so a killed run is resumed (and guarded against other configs) like a finished one.
+    prov.write(with_manifest=False)
+    dirs = {c.direction.index: c.direction for c in todo}
+    if show_todo:
+        dirs[show.direction.index] = show.direction
+    show_progress = config.execution.progress
+    if dirs:
+        stage_line("transits", f"scanning law over {len(dirs)} direction{'s' * (len(dirs) != 1)}, {config.observations.start} to "
+                   f"{config.observations.end} (TCB)", enabled=show_progress)
+    with prov.stage("transits"):
+        transits = direction_transits(config, list(dirs.values()))
+    if dirs:
+        n_tr = sum(len(t) for t in transits.values())
+        stage_line("transits", f"{n_tr} FoV transits found in {prov.timings['transits']:.1f} s",
+                   enabled=show_progress)
+
+    if show_todo:
+        (run_dir / SHOWCASE_DIR).mkdir(exist_ok=True)
+        atomic_write_bytes(run_dir / SHOWCASE_DIR / SHOWCASE_GROUPS_FILE,
+                           showcase_groups(transits[show.direction.index], law).to_csv(index=False).encode())
+    pop = _freeze(_pop_dict(config))
+    jobs = [(c, transits[c.direction.index], pop, settings, store, False, radii.get(c.cell_id)) for c in todo]
+    if show_todo:
+        jobs.insert(0, (show, transits[show.direction.index], pop, settings, show_store, True,
+                        radii.get(show.cell_id)))
+    with prov.stage("cells"), executor(config.execution) as run:
+        bar = progress(len(cells) + (show is not None), initial=len(cells) + (show is not None) - len(jobs),
+                       desc="cells", unit="cells", enabled=config.execution.progress)
+        for _ in run(_cell_task, jobs):
+            bar.update(1)
+        bar.close()
+
+    with prov.stage("aggregate"):
+        store.versions_read.clear()
+        tables = [store.read(c.cell_id) for c in cells]
+        prov.cell_versions = dict(store.versions_read)
+        missing = [c.cell_id for c, t in zip(cells, tables) if t is None]
+        if missing:  # pragma: no cover - would mean a worker wrote a bad file
+            raise RuntimeError(f"{len(missing)} cells have no valid result, e.g. {missing[0]}")
+        allcells = pd.concat(tables, ignore_index=True)
+        out = run_dir / "cells.parquet"
+        data = allcells.to_parquet(index=False)
+        atomic_write_bytes(out, data)
+        # The fit reads the cells as cells.parquet holds them (what a later reader gets).
+        write_fit(run_dir, pd.read_parquet(io.BytesIO(data)), nside=config.prior_maps.nside)
+        prov.seeds["cells"] = ("stars: SeedSequence(seed, spawn_key=(*key, 0)); noise of a case: "
+                               "SeedSequence(seed, spawn_key=(*key, 1, crc32(case name))); bootstrap of "
+                               "sigma_F90: SeedSequence(seed, spawn_key=(*key, 2)); "
+                               "key = (l*1e4, (b+90)*1e4, 100*g_min, 100*g_max)")
+    return out
+
+
+def write_fit(run_dir: Path, cells: pd.DataFrame, *, nside: int) -> None:
+    """Fit Eqs. 14-17 to a sweep's cells (Sect. 3.4) and write the fit's tables and
+    ``prior_maps.fits`` into ``run_dir`` (each file whole or not at all).
+
+    The maps come after ``coefficients.csv``: they are drawn from the prior read back from
+    it (:func:`mcsweep.experiments.f90_sweep.fit.prior_maps_for_run`). ``nside`` is not part of
+    the config hash, so a rerun redraws the maps from the same fit at the configured nside.
+    """
+    run_dir = Path(run_dir)
+    fit = fit_all(f90_table(cells))
+    for name, table in fit_tables(fit).items():
+        atomic_write_bytes(run_dir / name, table.to_csv(index=False).encode())
+    atomic_write_bytes(run_dir / MAPS_FILE, prior_maps_for_run(run_dir, fit, nside=nside))

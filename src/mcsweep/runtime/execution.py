@@ -1,0 +1,184 @@
+"""Where tasks run: joblib on local processes, or a Dask cluster through joblib.
+
+One code path for every backend: tasks go through :class:`joblib.Parallel` inside
+``joblib.parallel_config(backend=...)``; for ``dask`` a ``distributed.Client`` is
+connected to the configured scheduler (or to a new local cluster of worker processes).
+Tasks are seeded from their own identity, so results never depend on the backend,
+the number of workers or the completion order.
+"""
+
+from __future__ import annotations
+
+import os
+import logging
+import signal
+import threading
+from contextlib import contextmanager
+from typing import Callable, Iterable, Iterator
+
+from joblib import Parallel, delayed, parallel_config
+
+from ..errors import UserInputError
+
+__all__ = ["executor", "in_process", "dask_client", "release_free_memory"]
+
+# BLAS threads per worker: the workers already use every core (Hydra/joblib trap:
+# oversubscribing 2 cores with n_jobs x BLAS threads).
+_THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+@contextmanager
+def dask_client(conf):
+    """Context of a ``distributed.Client``: of ``conf.scheduler_address``, or of a new local
+    cluster of ``conf.n_jobs`` worker processes (closed on leaving). For work that keeps data
+    on the workers (the primary solution, :mod:`mcsweep.solver.dask_resident`); map-like
+    tasks go through :func:`executor`."""
+    try:
+        from dask.distributed import Client, LocalCluster
+    except ImportError:
+        raise UserInputError(
+            "execution.backend='dask' needs dask.distributed; install it with pip install 'mcsweep[dask]'"
+        ) from None
+    if conf.scheduler_address:
+        try:
+            client = Client(conf.scheduler_address, timeout="20s")
+        except (OSError, TimeoutError) as exc:
+            raise UserInputError(f"execution.scheduler_address={conf.scheduler_address!r} is not reachable "
+                                 f"({type(exc).__name__}); expected a running Dask scheduler") from None
+        cluster = None
+    else:
+        # Ctrl-C reaches the whole process group. The workers run asyncio, whose runner turns
+        # SIGINT into KeyboardInterrupt and a traceback per worker, unless SIGINT is ignored
+        # when it starts: an ignored signal is inherited through fork and exec, and neither
+        # Python nor asyncio.Runner installs a handler over it. So the workers are started
+        # with SIGINT ignored; the parent alone acts on it (it closes the cluster).
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+        try:
+            # silence_logs: the workers' own warnings (a task cancelled when the cluster
+            # closes on Ctrl-C) would reach the terminal; errors still do.
+            # dashboard_address ':0', a free port: distributed (2026.8) reads None as its
+            # default 8787 and warns on stderr when another cluster holds that port.
+            cluster = LocalCluster(n_workers=conf.n_jobs, threads_per_worker=1, processes=True,
+                                   dashboard_address=":0", env={v: "1" for v in _THREAD_VARS},
+                                   silence_logs=logging.ERROR)
+        finally:
+            signal.signal(signal.SIGINT, previous)
+        client = Client(cluster)
+    try:
+        yield client
+    finally:
+        if cluster is not None:
+            try:  # our own cluster's workers: their shutdown messages are not the user's business
+                client.run(_quiet_worker_shutdown)
+            except Exception:  # noqa: BLE001 - closing anyway (a worker may be gone, Ctrl-C)
+                pass
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def _quiet_worker_shutdown() -> None:
+    """Run on each worker of a LocalCluster about to close. A worker still freeing gigabytes
+    (the primary solution's blocks) may send its heartbeat to a scheduler that has just
+    closed, and logs that as an ERROR with a traceback on the terminal (seen at the paper's
+    sizes, after a complete run); its work is done by then."""
+    logging.getLogger("distributed.worker").setLevel(logging.CRITICAL)
+    for name in ("distributed.core", "distributed.comm"):
+        logging.getLogger(name).setLevel(logging.CRITICAL)
+
+
+def ignore_sigint() -> None:
+    """Run in each loky worker as it starts (its ``initializer``).
+
+    Ctrl-C in a terminal reaches the whole process group, workers included. The parent
+    alone decides what an interrupt means (it stops the workers and says what is kept);
+    a worker hit by it would print its own KeyboardInterrupt traceback.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _shutdown_loky(*, kill: bool) -> None:
+    from joblib.externals.loky import get_reusable_executor
+
+    # Not reusable with these default arguments, joblib's executor is shut down by the call
+    # itself (with `kill_workers`); the fresh one it returns has no process yet.
+    get_reusable_executor(kill_workers=kill).shutdown(wait=True, kill_workers=kill)
+
+
+def in_process(conf) -> bool:
+    """Whether :func:`executor` runs its tasks one after the other in this process."""
+    return conf.backend == "sequential" or (conf.n_jobs == 1 and conf.backend != "dask")
+
+
+@contextmanager
+def executor(conf, *,
+             release_workers: bool = False) -> Iterator[Callable[[Callable, Iterable], Iterator]]:
+    """Context giving ``run(fn, items)``: an iterator of ``fn(item)`` in completion order.
+
+    ``release_workers``: on leaving, shut the local worker processes down (joblib keeps
+    loky's workers for reuse) so they do not hold their memory through what comes next.
+    Leaving on an exception (Ctrl-C, a full disk) always kills and reaps them, so no
+    worker outlives the command or stays behind as a zombie.
+    """
+    for v in _THREAD_VARS:
+        os.environ.setdefault(v, "1")
+
+    here = in_process(conf)
+
+    def make_run(backend: str, n_jobs: int):
+        def run(fn, items):
+            items = list(items)
+            if here:
+                yield from (fn(item) for item in items)
+                return
+            extra = {"initializer": ignore_sigint} if backend == "loky" else {}
+            with parallel_config(backend=backend, n_jobs=n_jobs, **extra):
+                # joblib starts dispatching (and loky spawns its workers) inside this call:
+                # spawned with SIGINT ignored, a worker ignores it from its first instruction,
+                # not only once its initializer has run (a Ctrl-C while a worker was still
+                # starting under load gave it a traceback; seen in CI).
+                previous = (signal.signal(signal.SIGINT, signal.SIG_IGN)
+                            if backend == "loky" and threading.current_thread() is threading.main_thread() else None)
+                try:
+                    results = Parallel(return_as="generator_unordered")(delayed(fn)(i) for i in items)
+                finally:
+                    if previous is not None:
+                        signal.signal(signal.SIGINT, previous)
+                yield from results
+        return run
+
+    if conf.backend == "dask":
+        with dask_client(conf):
+            yield make_run("dask", -1)
+        return
+    try:
+        yield make_run(conf.backend, conf.n_jobs)
+    except BaseException:
+        if conf.backend == "loky":
+            _shutdown_loky(kill=True)
+        raise
+    else:
+        if release_workers and conf.backend == "loky":
+            _shutdown_loky(kill=False)
+
+
+def release_free_memory() -> None:
+    """Hand the heap's free pages back to the operating system (glibc ``malloc_trim``).
+
+    Numpy arrays below glibc's mmap threshold (up to 32 MB) live in the heap; a stage that
+    builds many such arrays and keeps some of them (the primary experiment's blocks of
+    stars) leaves free holes between them that the allocator keeps, and trimming returns them
+    (the measured saving is in docs/research_notes_moved.md). A no-op where glibc is not the
+    C library.
+    """
+    import ctypes
+    import ctypes.util
+
+    name = ctypes.util.find_library("c")
+    try:
+        libc = ctypes.CDLL(name) if name else None
+        trim = getattr(libc, "malloc_trim", None)
+    except OSError:
+        trim = None
+    if trim is not None:
+        trim(0)

@@ -341,44 +341,60 @@ def run_cell(cell, transits: pd.DataFrame, source, s: CellSettings,
     more = {"min_draw": s.min_stars} if getattr(source, "draws_from_density", False) else {}
     stars = source.sample_cone(d.l_deg, d.b_deg, radius, cell.g_min, cell.g_max,
                                np.random.default_rng(star_ss), max_stars=s.max_stars, **more)
-    n_in_cone = int(stars.attrs.get("n_in_cone", len(stars)))
-    n_groups = int(transits["group"].nunique()) if len(transits) else 0
     grid = np.asarray(s.prior_grid_mas, float)
     stats_on_grid = s.grid_statistics if grid_statistics is None else bool(grid_statistics)
-
     base = dict(cell_id=cell.cell_id, l_deg=d.l_deg, b_deg=d.b_deg, ra_deg=d.ra_deg,
                 dec_deg=d.dec_deg, g_min=cell.g_min, g_max=cell.g_max, n_stars=len(stars),
-                n_in_cone=n_in_cone, radius_deg=radius, n_groups=n_groups)
-    normals, scans = {}, {}
+                n_in_cone=int(stars.attrs.get("n_in_cone", len(stars))), radius_deg=radius,
+                n_groups=int(transits["group"].nunique()) if len(transits) else 0)
+    normals = _case_normals(cell, transits, stars, s)
+    scans = {case: prior_scan(*nrm, s.ratio_R) for case, nrm in normals.items()}
+    curves, f90_flags = {}, None
+    for case, scan in scans.items():
+        curves[case], *flags = scan_arrays(scan, grid, s, statistics=stats_on_grid)
+        if case == s.f90_case:
+            f90_flags = flags
+    f90 = _cell_f90(cell, grid, curves, f90_flags, s, has_stars=len(stars) > 0)
+    table = _cell_table(grid, curves, scans, s, dict(base, **f90))
+    scatter = None
+    if keep_scatter and s.f90_case in normals:
+        scatter = _scatter(normals[s.f90_case], stars, f90["sigma_f90_mas"], s)
+    return table, scatter
+
+
+def _case_normals(cell, transits: pd.DataFrame, stars: pd.DataFrame, s: CellSettings) -> dict:
+    """The normal equations of every observation case with transits (and stars), by case."""
+    normals = {}
     columns = _transit_columns(transits)
     for case, groups in s.cases.items():
         geom = case_geometry(columns, tuple(groups))
         if geom is not None and len(stars) > 0:
             case_ss = np.random.SeedSequence(s.seed, spawn_key=(*cell.key, _NOISE_STREAM,
                                                                 zlib.crc32(case.encode())))
-            normals[case] = cell_normal_equations(geom, d.ra_deg, d.dec_deg, stars, s,
-                                              np.random.default_rng(case_ss))
-            scans[case] = prior_scan(*normals[case], s.ratio_R)
+            normals[case] = cell_normal_equations(geom, cell.direction.ra_deg, cell.direction.dec_deg, stars, s,
+                                                  np.random.default_rng(case_ss))
+    return normals
 
-    curves, f90_flags = {}, None
-    for case, scan in scans.items():
-        curves[case], *flags = scan_arrays(scan, grid, s, statistics=stats_on_grid)
-        if case == s.f90_case:
-            f90_flags = flags
-    f90_lo = f90_hi = float("nan")
-    ill = False
-    if s.f90_case in curves:
-        c = curves[s.f90_case]
-        f90, flag = sigma_f90_from_curve(grid, c["fraction_inside"], s.confidence, s.interpolation)
-        boot_rng = np.random.default_rng(np.random.SeedSequence(s.seed, spawn_key=(*cell.key, _BOOTSTRAP_STREAM)))
-        f90_lo, f90_hi = sigma_f90_interval(grid, *f90_flags, s.confidence, s.interpolation,
-                                            s.n_bootstrap, boot_rng)
-        ill = ill_determined(grid, c["fraction_inside"], c["n_valid"], s.confidence)
-    else:
-        f90, flag = float("nan"), "no_transits" if len(stars) else "no_stars"
 
+def _cell_f90(cell, grid, curves: dict, f90_flags, s: CellSettings, *, has_stars: bool) -> dict:
+    """sigma_F90 of the cell from the F90 case's curve (Sect. 3.3), its flag, its bootstrap
+    interval and whether it is ill-determined."""
+    if s.f90_case not in curves:
+        return dict(sigma_f90_mas=float("nan"), f90_flag="no_transits" if has_stars else "no_stars",
+                    sigma_f90_lo_mas=float("nan"), sigma_f90_hi_mas=float("nan"), ill_determined=False)
+    c = curves[s.f90_case]
+    f90, flag = sigma_f90_from_curve(grid, c["fraction_inside"], s.confidence, s.interpolation)
+    boot_rng = np.random.default_rng(np.random.SeedSequence(s.seed, spawn_key=(*cell.key, _BOOTSTRAP_STREAM)))
+    lo, hi = sigma_f90_interval(grid, *f90_flags, s.confidence, s.interpolation, s.n_bootstrap, boot_rng)
+    return dict(sigma_f90_mas=f90, f90_flag=flag, sigma_f90_lo_mas=lo, sigma_f90_hi_mas=hi,
+                ill_determined=ill_determined(grid, c["fraction_inside"], c["n_valid"], s.confidence))
+
+
+def _cell_table(grid, curves: dict, scans: dict, s: CellSettings, scalars: dict) -> pd.DataFrame:
+    """The cell's rows (:data:`CURVE_COLUMNS`): every case on the grid, then at sigma_F90."""
     # One DataFrame for the whole cell, built from numpy columns (pandas per case costs
     # more than a cell's arithmetic).
+    f90 = scalars["sigma_f90_mas"]
     empty = _curve_arrays(grid, np.zeros(len(grid)), np.zeros(len(grid)), None, None, s)
     empty["fraction_inside"] = np.full(len(grid), np.nan)
     parts, at_f90, case_col = [], [], []
@@ -399,23 +415,22 @@ def run_cell(cell, transits: pd.DataFrame, source, s: CellSettings,
     n_rows = len(cols["sigma_prior_mas"])
     cols["at_f90"] = np.concatenate(at_f90)
     cols["case"] = np.array(case_col, dtype=object)
-    scalars = dict(base, sigma_f90_mas=f90, f90_flag=flag, sigma_f90_lo_mas=f90_lo, sigma_f90_hi_mas=f90_hi,
-                   ill_determined=ill)
     for k, v in scalars.items():
         cols[k] = np.full(n_rows, v, dtype=object if isinstance(v, str) else None)
-    table = pd.DataFrame({k: cols[k] for k in CURVE_COLUMNS})
+    return pd.DataFrame({k: cols[k] for k in CURVE_COLUMNS})
 
-    scatter = None
-    if keep_scatter and s.f90_case in normals:
-        priors = list(s.scatter_priors_mas) + ([f90] if math.isfinite(f90) else [])
-        labels = [f"{p:g} mas" for p in s.scatter_priors_mas] + (["F90"] if math.isfinite(f90) else [])
-        parts = []
-        for label, sigma in zip(labels, priors):
-            dpos, cov2 = _evaluate(*normals[s.f90_case], float(sigma), s)
-            parts.append(pd.DataFrame({
-                "prior": label, "sigma_prior_mas": float(sigma),
-                "dra_mas": dpos[:, 0], "ddec_mas": dpos[:, 1],
-                "cov_aa": cov2[:, 0, 0], "cov_ad": cov2[:, 0, 1], "cov_dd": cov2[:, 1, 1],
-                "parallax": stars["parallax"].to_numpy(float)}))
-        scatter = pd.concat(parts, ignore_index=True).assign(case=s.f90_case)
-    return table, scatter
+
+def _scatter(normals, stars: pd.DataFrame, f90: float, s: CellSettings) -> pd.DataFrame:
+    """Per-star position errors and covariances of the F90 case at the scatter priors and at
+    sigma_F90 (Fig. 2)."""
+    priors = list(s.scatter_priors_mas) + ([f90] if math.isfinite(f90) else [])
+    labels = [f"{p:g} mas" for p in s.scatter_priors_mas] + (["F90"] if math.isfinite(f90) else [])
+    parts = []
+    for label, sigma in zip(labels, priors):
+        dpos, cov2 = _evaluate(*normals, float(sigma), s)
+        parts.append(pd.DataFrame({
+            "prior": label, "sigma_prior_mas": float(sigma),
+            "dra_mas": dpos[:, 0], "ddec_mas": dpos[:, 1],
+            "cov_aa": cov2[:, 0, 0], "cov_ad": cov2[:, 0, 1], "cov_dd": cov2[:, 1, 1],
+            "parallax": stars["parallax"].to_numpy(float)}))
+    return pd.concat(parts, ignore_index=True).assign(case=s.f90_case)

@@ -37,7 +37,7 @@ from .cells import Cell, Direction, enumerate_cells, sky_directions
 from .conf import SkyConf
 from ...runtime.execution import executor
 from ...runtime.progress import progress, stage_line
-from ...runtime.store import CellStore, atomic_write_bytes
+from ...runtime.store import ResultStore, atomic_write_bytes
 
 __all__ = ["build_settings", "run_sweep", "write_fit", "showcase_cell", "showcase_groups", "SHOWCASE_GROUPS_FILE"]
 
@@ -144,55 +144,25 @@ def run_sweep(config, raw_cfg: dict, run_dir: Path, *, prov) -> Path:
     prov.check_compatible()
     with prov.stage("population_source"):
         # Built here first so a bad catalogue fails before any file is written.
-        _source(_freeze(_pop_dict(config)))
+        source = _source(_freeze(_pop_dict(config)))
     settings = build_settings(config)
-    law = ScanningLaw.from_config(dataclasses.asdict(config.scanning))
-    note = law.extrapolation_note(tcb_jd(config.observations.start, "observations.start"),
-                                  tcb_jd(config.observations.end, "observations.end"))
-    prov.derived["scanning"] = {"extrapolated": note}
-    if note:
-        logging.getLogger("mcsweep").warning(note)
+    law = _scanning_law(config, prov)
     cells = enumerate_cells(config.sky, config.magnitudes)
     keep = config.resume.accept_other_versions
-    store = CellStore(run_dir / CELLS_DIR, prov.hash, accept_other_versions=keep)
+    store = ResultStore(run_dir / CELLS_DIR, prov.hash, accept_other_versions=keep)
     show = showcase_cell(config) if config.experiment.showcase.enabled else None
-    show_store = CellStore(run_dir / SHOWCASE_DIR, prov.hash, accept_other_versions=keep)
+    show_store = ResultStore(run_dir / SHOWCASE_DIR, prov.hash, accept_other_versions=keep)
     for st in (store, show_store):  # run start: no other writer may be active in run_dir
         st.remove_stale_temporaries()
 
     todo = [c for c in cells if store.read(c.cell_id) is None]
-    source = _source(_freeze(_pop_dict(config)))
-    radii: dict[str, float] = {}  # computed here only for catalogues (each call scans the table)
-    if isinstance(source, CatalogueSource):
-        # A catalogue may not cover every cell: say so before any cell is computed.
-        for c in todo + ([show] if show is not None else []):
-            d = c.direction
-            radius, n = cell_radius(source, c, settings)
-            radii[c.cell_id] = radius
-            if n < 1:
-                raise UserInputError(
-                    f"catalogue {source.path.name}: no star within {radius:.3g} deg of (l, b) = "
-                    f"({d.l_deg:.2f}, {d.b_deg:.2f}) with {c.g_min:g} <= phot_g_mean_mag < {c.g_max:g}; "
-                    "expected a catalogue covering every cell of the sweep (choose sky/magnitudes to match)")
+    radii = _catalogue_radii(source, todo + ([show] if show is not None else []), settings)
     show_todo = show is not None and (show_store.read(show.cell_id) is None
                                       or show_store.read(show.cell_id + "_scatter") is None)
     # Inputs are valid: claim the run directory for this config before any cell is written,
     # so a killed run is resumed (and guarded against other configs) like a finished one.
     prov.write(with_manifest=False)
-    dirs = {c.direction.index: c.direction for c in todo}
-    if show_todo:
-        dirs[show.direction.index] = show.direction
-    show_progress = config.execution.progress
-    if dirs:
-        stage_line("transits", f"scanning law over {len(dirs)} direction{'s' * (len(dirs) != 1)}, {config.observations.start} to "
-                   f"{config.observations.end} (TCB)", enabled=show_progress)
-    with prov.stage("transits"):
-        transits = direction_transits(config, list(dirs.values()))
-    if dirs:
-        n_tr = sum(len(t) for t in transits.values())
-        stage_line("transits", f"{n_tr} FoV transits found in {prov.timings['transits']:.1f} s",
-                   enabled=show_progress)
-
+    transits = _transits_of(config, prov, todo + ([show] if show_todo else []))
     if show_todo:
         (run_dir / SHOWCASE_DIR).mkdir(exist_ok=True)
         atomic_write_bytes(run_dir / SHOWCASE_DIR / SHOWCASE_GROUPS_FILE,
@@ -202,30 +172,80 @@ def run_sweep(config, raw_cfg: dict, run_dir: Path, *, prov) -> Path:
     if show_todo:
         jobs.insert(0, (show, transits[show.direction.index], pop, settings, show_store, True,
                         radii.get(show.cell_id)))
+    n_all = len(cells) + (show is not None)
     with prov.stage("cells"), executor(config.execution) as run:
-        bar = progress(len(cells) + (show is not None), initial=len(cells) + (show is not None) - len(jobs),
-                       desc="cells", unit="cells", enabled=config.execution.progress)
+        bar = progress(n_all, initial=n_all - len(jobs), desc="cells", unit="cells",
+                       enabled=config.execution.progress)
         for _ in run(_cell_task, jobs):
             bar.update(1)
         bar.close()
-
     with prov.stage("aggregate"):
-        store.versions_read.clear()
-        tables = [store.read(c.cell_id) for c in cells]
-        prov.cell_versions = dict(store.versions_read)
-        missing = [c.cell_id for c, t in zip(cells, tables) if t is None]
-        if missing:  # pragma: no cover - would mean a worker wrote a bad file
-            raise RuntimeError(f"{len(missing)} cells have no valid result, e.g. {missing[0]}")
-        allcells = pd.concat(tables, ignore_index=True)
-        out = run_dir / "cells.parquet"
-        data = allcells.to_parquet(index=False)
-        atomic_write_bytes(out, data)
-        # The fit reads the cells as cells.parquet holds them (what a later reader gets).
-        write_fit(run_dir, pd.read_parquet(io.BytesIO(data)), nside=config.prior_maps.nside)
-        prov.seeds["cells"] = ("stars: SeedSequence(seed, spawn_key=(*key, 0)); noise of a case: "
-                               "SeedSequence(seed, spawn_key=(*key, 1, crc32(case name))); bootstrap of "
-                               "sigma_F90: SeedSequence(seed, spawn_key=(*key, 2)); "
-                               "key = (l*1e4, (b+90)*1e4, 100*g_min, 100*g_max)")
+        return _aggregate(run_dir, cells, store, prov, nside=config.prior_maps.nside)
+
+
+def _scanning_law(config, prov) -> ScanningLaw:
+    """The configured law; where the sweep's interval lies outside its segments, the
+    extrapolation is logged and recorded (``derived.scanning``) for the report."""
+    law = ScanningLaw.from_config(dataclasses.asdict(config.scanning))
+    note = law.extrapolation_note(tcb_jd(config.observations.start, "observations.start"),
+                                  tcb_jd(config.observations.end, "observations.end"))
+    prov.derived["scanning"] = {"extrapolated": note}
+    if note:
+        logging.getLogger("mcsweep").warning(note)
+    return law
+
+
+def _catalogue_radii(source, cells: list[Cell], settings: CellSettings) -> dict[str, float]:
+    """Beam radius per cell id for a catalogue (each call scans the table, so only here), and
+    a one-line refusal naming the first cell the catalogue does not cover, before any cell
+    is computed; {} for the galaxy model."""
+    radii: dict[str, float] = {}
+    if not isinstance(source, CatalogueSource):
+        return radii
+    for c in cells:
+        d = c.direction
+        radius, n = cell_radius(source, c, settings)
+        radii[c.cell_id] = radius
+        if n < 1:
+            raise UserInputError(
+                f"catalogue {source.path.name}: no star within {radius:.3g} deg of (l, b) = "
+                f"({d.l_deg:.2f}, {d.b_deg:.2f}) with {c.g_min:g} <= phot_g_mean_mag < {c.g_max:g}; "
+                "expected a catalogue covering every cell of the sweep (choose sky/magnitudes to match)")
+    return radii
+
+
+def _transits_of(config, prov, cells: list[Cell]) -> dict[int, pd.DataFrame]:
+    """The FoV transits of the directions of ``cells`` (stage ``transits``, with its lines)."""
+    dirs = {c.direction.index: c.direction for c in cells}
+    enabled = config.execution.progress
+    if dirs:
+        stage_line("transits", f"scanning law over {len(dirs)} direction{'s' * (len(dirs) != 1)}, "
+                   f"{config.observations.start} to {config.observations.end} (TCB)", enabled=enabled)
+    with prov.stage("transits"):
+        transits = direction_transits(config, list(dirs.values()))
+    if dirs:
+        n_tr = sum(len(t) for t in transits.values())
+        stage_line("transits", f"{n_tr} FoV transits found in {prov.timings['transits']:.1f} s", enabled=enabled)
+    return transits
+
+
+def _aggregate(run_dir: Path, cells: list[Cell], store: ResultStore, prov, *, nside: int) -> Path:
+    """``cells.parquet`` from every finished cell, then the fit and the maps (:func:`write_fit`)."""
+    store.versions_read.clear()
+    tables = [store.read(c.cell_id) for c in cells]
+    prov.cell_versions = dict(store.versions_read)
+    missing = [c.cell_id for c, t in zip(cells, tables) if t is None]
+    if missing:  # pragma: no cover - would mean a worker wrote a bad file
+        raise RuntimeError(f"{len(missing)} cells have no valid result, e.g. {missing[0]}")
+    out = run_dir / "cells.parquet"
+    data = pd.concat(tables, ignore_index=True).to_parquet(index=False)
+    atomic_write_bytes(out, data)
+    # The fit reads the cells as cells.parquet holds them (what a later reader gets).
+    write_fit(run_dir, pd.read_parquet(io.BytesIO(data)), nside=nside)
+    prov.seeds["cells"] = ("stars: SeedSequence(seed, spawn_key=(*key, 0)); noise of a case: "
+                           "SeedSequence(seed, spawn_key=(*key, 1, crc32(case name))); bootstrap of "
+                           "sigma_F90: SeedSequence(seed, spawn_key=(*key, 2)); "
+                           "key = (l*1e4, (b+90)*1e4, 100*g_min, 100*g_max)")
     return out
 
 

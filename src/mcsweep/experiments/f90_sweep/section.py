@@ -46,13 +46,18 @@ def sweep_section(doc: Document, run_dir: Path, prov: dict) -> None:
     figdir = run_dir / FIG_DIR
     figdir.mkdir(exist_ok=True)
     cfg = prov.get("config", {})
-    try:
-        run_prior = Prior.from_run(run_dir)
-    except UserInputError:  # coefficients not determined: prior_maps.fits holds NaN maps
-        run_prior = None
     p = float(cfg.get("confidence", 0.9))
-    showcase = _showcase_curves(run_dir)
+    noise = _cell_noise_dex(f90)
+    _headline(doc, run_dir, prov, fit, noise, figdir)
+    _long_tables(doc, fit, noise)
+    _showcase_section(doc, run_dir, figdir, p, cfg)
 
+
+def _headline(doc: Document, run_dir: Path, prov: dict, fit, noise: np.ndarray, figdir: Path) -> None:
+    """What was run, the Fig. 4 analogues, what differs from the paper and why, the key
+    numbers and the sky maps: the first screen of the report."""
+    f90, cfg = fit.compared, prov.get("config", {})
+    p = float(cfg.get("confidence", 0.9))
     n_dirs = f90[["l_deg", "b_deg"]].drop_duplicates().shape[0]
     n_bins = f90[["g_min", "g_max"]].drop_duplicates().shape[0]
     doc.heading("Optimum prior sigma_F90 over the sky against the paper (Sect. 3.4, Fig. 4)")
@@ -61,7 +66,8 @@ def sweep_section(doc: Document, run_dir: Path, prov: dict) -> None:
              f"Confidence level P = {p:g}, R = {plain(cfg.get('ratio_R'))} /yr, sigma_F90 fixed from the "
              f"'{cfg.get('observations', {}).get('f90_case', 'two')}' case; the paper's values are its "
              "Eqs. 14-17.")
-    if fit.terms["s0"].notna().sum() > 0:
+    fitted = fit.terms["s0"].notna().sum() > 0
+    if fitted:
         row = []
         for name, fn, cap in (
             ("fig4_latitude.png", figures.plot_fig4_latitude, "log sigma_F90 against |sin b| per G bin (Fig. 4 left)"),
@@ -71,23 +77,32 @@ def sweep_section(doc: Document, run_dir: Path, prov: dict) -> None:
             fn(fit, figdir / name)
             row.append((f"{FIG_DIR}/{name}", cap))
         doc.figure_row(row)
-    noise = _cell_noise_dex(f90)
     # The conclusion before the numbers behind it, so both fit under the figures on one screen.
     doc.para(_difference_sentence(fit, noise, cfg, prov))
     extrapolation_para(doc, prov)
-    doc.bullets(_key_numbers(fit, f90, noise, showcase, p, list(cfg.get("observations", {}).get("cases", {}))))
+    doc.bullets(_key_numbers(fit, f90, noise, _showcase_curves(run_dir), p,
+                             list(cfg.get("observations", {}).get("cases", {}))))
     maps = []
-    if run_prior is not None:
+    try:
+        Prior.from_run(run_dir)
+        has_prior = True
+    except UserInputError:  # coefficients not determined: prior_maps.fits holds NaN maps
+        has_prior = False
+    if has_prior:
         figures.plot_prior_mollweide(run_dir / MAPS_FILE, Prior.paper(), figdir / "prior_maps.png")
         maps.append((f"{FIG_DIR}/prior_maps.png", "sigma_F90 over the sky (galactic Mollweide, l = 0 at the "
                      "centre, increasing to the left) at a few G bin centres: this run's fit (prior_maps.fits) "
                      "and the paper's Eqs. 14-17"))
-    if fit.terms["s0"].notna().sum() > 0:
+    if fitted:
         figures.plot_sky_difference(fit, figdir / "sky_difference.png")
         maps.append((f"{FIG_DIR}/sky_difference.png", "Sky map of log10(ours / paper) per cell"))
     if maps:
         doc.figure_row(maps)
 
+
+def _long_tables(doc: Document, fit, noise: np.ndarray) -> None:
+    """The Monte Carlo precision, the coefficients, the per-bin numbers and the cells."""
+    f90 = fit.compared
     doc.heading("Coefficients, per-bin numbers and cells", level=3)
     if len(noise):
         n_ill = int(f90["ill_determined"].sum()) if "ill_determined" in f90 else 0
@@ -128,8 +143,6 @@ def sweep_section(doc: Document, run_dir: Path, prov: dict) -> None:
         summary.insert(0, "case", [c.removeprefix("fraction_at_f90_") for c in summary.index])
         doc.table(summary.reset_index(drop=True), "Fraction inside the P ellipse at each cell's sigma_F90, per case",
                   {"count": ".0f", "mean": ".3f", "10%": ".3f", "50%": ".3f", "90%": ".3f"})
-    _showcase_section(doc, run_dir, figdir, p, cfg)
-
 
 def _n(count: int, noun: str) -> str:
     return f"{count} {noun}" + ("" if count == 1 else "s")

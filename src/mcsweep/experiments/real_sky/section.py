@@ -74,12 +74,36 @@ def real_sky_section(doc: Document, run_dir: Path, prov: dict) -> None:
     f90_case = cfg.get("observations", {}).get("f90_case", "two")
     case = f90_case if f90_case in cases else cases[0]
     priors = list(dict.fromkeys(table["prior"]))
-    base = table[(table["truth"] == "hipparcos") & (table["g_bin"] == "all")]
 
     doc.heading("Real-sky validation: Hipparcos stars as truth")
     doc.para(f"Fraction of actual position errors inside the {100 * p:g} % confidence ellipse, ours "
              f"[{100 * FRACTION_INTERVAL:g} % Clopper-Pearson interval], case '{case}' (the case that defines "
              "sigma_F90, Sect. 3.3), all G, per |b| band:")
+    doc.bullets(_headline_items(run_dir, table, errors, case, cases, priors))
+    # Where every global section says it (the real-sky run is one, run_global records the note).
+    extrapolation_para(doc, prov)
+    fig = plot_fraction_by_band(table, case, p, run_dir / FIGURE)
+    doc.figure(fig.name, f"Fraction inside the {100 * p:g} % ellipse per |b| band and prior, case '{case}', "
+                         f"with {100 * FRACTION_INTERVAL:g} % Clopper-Pearson intervals.")
+
+    _setup_and_tables(doc, prov, table, cases, priors, p)
+
+    doc.heading("Diagnostics", level=3)
+    readable_table(doc, errors, "Hipparcos' own parallax errors against the prior, per |b| band and G bin",
+                   {c: ".3g" for c in errors.columns if c not in ("b_band_deg", "g_bin", "n_stars")})
+    doc.para("Hipparcos' errors are the truth's noise: the real stars' parallaxes and proper motions differ from "
+             "the catalogue's by about e_Plx, e_pmRA, e_pmDE. Where e_Plx is small against sigma_F90 the prior's "
+             "bias, and so the fraction inside, hardly depends on which of the two the truth is; the rows "
+             "'perturbed' of real_sky.csv solve the same stars with the same measurement noise and the truth "
+             "drawn around the catalogue's values, and the headline gives the change.")
+
+
+
+def _headline_items(run_dir: Path, table: pd.DataFrame, errors: pd.DataFrame, case: str, cases: list,
+                    priors: list) -> list[str]:
+    """The headline's bullets: the fraction per |b| band and prior in the F90 case, carried
+    over to the complete sky, what Hipparcos' errors change, and how large they are."""
+    base = table[(table["truth"] == "hipparcos") & (table["g_bin"] == "all")]
     items = []
     for prior in priors:
         r = base[(base["prior"] == prior) & (base["case"] == case)].set_index("b_band_deg")
@@ -112,13 +136,12 @@ def real_sky_section(doc: Document, run_dir: Path, prov: dict) -> None:
         items.append(f"Hipparcos' median parallax error is {plain(np.nanmin(r), '.2g')}-{plain(np.nanmax(r), '.2g')} "
                      f"x the median sigma_F90 of the paper's prior over the |b| band x G bin cells "
                      f"(median e_Plx {plain(np.nanmedian(errors['median_parallax_error_mas']), '.2g')} mas).")
-    doc.bullets(items)
-    # Where every global section says it (the real-sky run is one, run_global records the note).
-    extrapolation_para(doc, prov)
-    fig = plot_fraction_by_band(table, case, p, run_dir / FIGURE)
-    doc.figure(fig.name, f"Fraction inside the {100 * p:g} % ellipse per |b| band and prior, case '{case}', "
-                         f"with {100 * FRACTION_INTERVAL:g} % Clopper-Pearson intervals.")
+    return items
 
+
+def _setup_and_tables(doc: Document, prov: dict, table: pd.DataFrame, cases: list, priors: list, p: float) -> None:
+    """What was solved how, the reference epoch, and one table per prior."""
+    cfg, sec, _ = section_config(prov, "real_sky")
     doc.heading("Setup and tables", level=3)
     obs = cfg.get("observations", {})
     doc.para(f"Hipparcos 2 stars (van Leeuwen 2007, CDS I/311) with {plain(sec.get('g_min'))} <= G < "
@@ -143,12 +166,3 @@ def real_sky_section(doc: Document, run_dir: Path, prov: dict) -> None:
                     row[f"G {g}"] = _cell(r) + f" / {plain(r['p_error_mas'], '.3g')} mas"
                 rows.append(row)
         doc.table(pd.DataFrame(rows), f"Prior '{prior}': fraction inside [interval] / p{100 * p:g} error")
-
-    doc.heading("Diagnostics", level=3)
-    readable_table(doc, errors, "Hipparcos' own parallax errors against the prior, per |b| band and G bin",
-                   {c: ".3g" for c in errors.columns if c not in ("b_band_deg", "g_bin", "n_stars")})
-    doc.para("Hipparcos' errors are the truth's noise: the real stars' parallaxes and proper motions differ from "
-             "the catalogue's by about e_Plx, e_pmRA, e_pmDE. Where e_Plx is small against sigma_F90 the prior's "
-             "bias, and so the fraction inside, hardly depends on which of the two the truth is; the rows "
-             "'perturbed' of real_sky.csv solve the same stars with the same measurement noise and the truth "
-             "drawn around the catalogue's values, and the headline gives the change.")

@@ -5,7 +5,7 @@ import pandas as pd
 
 from mcsweep.experiments.global_solution.run import GlobalRun
 from mcsweep.experiments.primary.runner import solution_line
-from mcsweep.runtime.store import CellStore
+from mcsweep.runtime.store import ResultStore
 
 
 def test_solution_line_writes_the_attitude_rms_as_numbers_not_a_numpy_repr():
@@ -18,7 +18,7 @@ def test_solution_line_writes_the_attitude_rms_as_numbers_not_a_numpy_repr():
 
 
 def test_pending_finds_the_missing_chunks_without_counting_the_finished_ones(tmp_path):
-    store = CellStore(tmp_path / "chunks", "hash0", version="v1")
+    store = ResultStore(tmp_path / "chunks", "hash0", version="v1")
     store.write("a", pd.DataFrame({"x": [1, 2]}))
     run = GlobalRun(config=None, run_dir=tmp_path, prov=None, settings=None, epoch={}, classes=[], store=store)
     assert run.pending(["a", "b"]) == ["b"]

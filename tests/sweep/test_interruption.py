@@ -117,7 +117,7 @@ def _verified_cells(run_dir: Path) -> int:
     import json
 
     h = json.loads((run_dir / "provenance.json").read_text())["config_hash"]
-    return len(store_mod.CellStore(run_dir / "cells", h).finished())
+    return len(store_mod.ResultStore(run_dir / "cells", h).finished())
 
 
 # ------------------------------------------------------------------------------ mcsweep (F90 sweep)

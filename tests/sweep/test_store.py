@@ -6,7 +6,7 @@ import pytest
 import os
 from pathlib import Path
 
-from mcsweep.runtime.store import CellStore, atomic_write_bytes, current_umask
+from mcsweep.runtime.store import ResultStore, atomic_write_bytes, current_umask
 
 
 def _table():
@@ -14,7 +14,7 @@ def _table():
 
 
 def test_roundtrip(tmp_path):
-    store = CellStore(tmp_path, "abc")
+    store = ResultStore(tmp_path, "abc")
     store.write("cell_1", _table())
     pd.testing.assert_frame_equal(store.read("cell_1"), _table())
     assert not list(tmp_path.glob(".*tmp"))  # no temporary files left behind
@@ -22,7 +22,7 @@ def test_roundtrip(tmp_path):
 
 @pytest.mark.parametrize("damage", ["truncate", "garbage", "empty"])
 def test_damaged_file_is_recomputed_with_warning(tmp_path, damage):
-    store = CellStore(tmp_path, "abc")
+    store = ResultStore(tmp_path, "abc")
     path = store.write("cell_1", _table())
     data = path.read_bytes()
     path.write_bytes({"truncate": data[: len(data) // 2], "garbage": b"not parquet at all", "empty": b""}[damage])
@@ -31,13 +31,13 @@ def test_damaged_file_is_recomputed_with_warning(tmp_path, damage):
 
 
 def test_foreign_and_other_config_files_are_not_taken(tmp_path):
-    CellStore(tmp_path, "other").write("cell_1", _table())
+    ResultStore(tmp_path, "other").write("cell_1", _table())
     with pytest.warns(UserWarning, match="different config"):
-        assert CellStore(tmp_path, "abc").read("cell_1") is None
-    store = CellStore(tmp_path, "abc")
+        assert ResultStore(tmp_path, "abc").read("cell_1") is None
+    store = ResultStore(tmp_path, "abc")
     store.write("cell_2", _table())
     (tmp_path / "cell_3.parquet").write_bytes((tmp_path / "cell_2.parquet").read_bytes())
-    with pytest.warns(UserWarning, match="belongs to cell"):
+    with pytest.warns(UserWarning, match="belongs to entry"):
         assert store.read("cell_3") is None
     _table().to_parquet(tmp_path / "cell_4.parquet")  # a plain Parquet file without our metadata
     with pytest.warns(UserWarning, match="unreadable"):
@@ -62,7 +62,7 @@ def test_a_write_stopped_by_a_full_disk_leaves_nothing_and_names_the_file(tmp_pa
     import errno
     from pathlib import Path
 
-    store = CellStore(tmp_path, "h1")
+    store = ResultStore(tmp_path, "h1")
     store.write("c1", pd.DataFrame({"a": [1.0, 2.0]}))
     real_write_bytes = Path.write_bytes
 
@@ -80,13 +80,13 @@ def test_a_write_stopped_by_a_full_disk_leaves_nothing_and_names_the_file(tmp_pa
 
 
 def test_finished_counts_only_whole_results_of_this_config(tmp_path):
-    store = CellStore(tmp_path, "h1")
+    store = ResultStore(tmp_path, "h1")
     for cid in ("c1", "c2", "c3"):
         store.write(cid, pd.DataFrame({"a": [1.0]}))
     (tmp_path / "c2.parquet").write_bytes((tmp_path / "c2.parquet").read_bytes()[:-20])  # truncated
-    CellStore(tmp_path, "other").write("c4", pd.DataFrame({"a": [1.0]}))
+    ResultStore(tmp_path, "other").write("c4", pd.DataFrame({"a": [1.0]}))
     (tmp_path / ".c5.parquet.x1.tmp").write_bytes((tmp_path / "c1.parquet").read_bytes())  # a killed write's temporary
-    assert CellStore(tmp_path, "h1", version="a later version").finished() == ["c1", "c3"]
+    assert ResultStore(tmp_path, "h1", version="a later version").finished() == ["c1", "c3"]
 
 
 #: Writes OUT atomically and stops mid-write: the temporary's name goes to READY, then it sleeps.
@@ -160,7 +160,7 @@ def test_a_cell_store_clears_only_unheld_temporaries(tmp_path):
     try:
         stale = d / ".c2.parquet.abc123.tmp"  # no process holds it: a killed write's
         stale.write_bytes(b"partial")
-        assert CellStore(d, "h1").remove_stale_temporaries() == 1
+        assert ResultStore(d, "h1").remove_stale_temporaries() == 1
         assert not stale.exists() and held.exists()
     finally:
         proc.send_signal(signal.SIGKILL)

@@ -15,7 +15,7 @@ import pyarrow.parquet as pq
 import pytest
 
 from mcsweep.errors import UserInputError
-from mcsweep.runtime.store import CellStore
+from mcsweep.runtime.store import ResultStore
 from mcsweep.runtime.version import code_version
 
 BIN = Path(sys.executable).parent
@@ -32,25 +32,25 @@ def _refake_version(path: Path, version: str) -> None:
 
 def test_store_refuses_a_cell_of_another_version_naming_both(tmp_path):
     df = pd.DataFrame({"x": np.arange(3.0)})
-    CellStore(tmp_path, "h", version=OLD).write("c1", df)
+    ResultStore(tmp_path, "h", version=OLD).write("c1", df)
     with pytest.raises(UserInputError) as err:
-        CellStore(tmp_path, "h").read("c1")
+        ResultStore(tmp_path, "h").read("c1")
     msg = str(err.value)
     assert OLD in msg and code_version() in msg and "resume.accept_other_versions=true" in msg
-    kept = CellStore(tmp_path, "h", accept_other_versions=True)
+    kept = ResultStore(tmp_path, "h", accept_other_versions=True)
     pd.testing.assert_frame_equal(kept.read("c1"), df, check_exact=True)
     assert kept.versions_read == {OLD: 1}
 
 
 def test_store_treats_a_cell_without_a_version_as_another_version(tmp_path):
-    CellStore(tmp_path, "h").write("c1", pd.DataFrame({"x": [1.0]}))
+    ResultStore(tmp_path, "h").write("c1", pd.DataFrame({"x": [1.0]}))
     path = tmp_path / "c1.parquet"
     table = pq.read_table(path)
     meta = json.loads(table.schema.metadata[b"mcsweep"])
     del meta["code_version"]
     pq.write_table(table.replace_schema_metadata({b"mcsweep": json.dumps(meta).encode()}), path)
     with pytest.raises(UserInputError, match="too old to record its version"):
-        CellStore(tmp_path, "h").read("c1")
+        ResultStore(tmp_path, "h").read("c1")
 
 
 @pytest.mark.slow

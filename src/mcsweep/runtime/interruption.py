@@ -12,7 +12,7 @@ line on stderr and an exit status that says why:
 Nothing half-written survives either: every file goes through
 :func:`~mcsweep.runtime.store.atomic_write_via`, which removes its temporary on any error,
 and a rerun reads only files that pass the store's checks. What is kept is read back
-from the run directory (:meth:`~mcsweep.runtime.store.CellStore.finished`), not from
+from the run directory (:meth:`~mcsweep.runtime.store.ResultStore.finished`), not from
 counters of the stopped process, which a worker's last write may have outrun.
 """
 

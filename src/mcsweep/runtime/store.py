@@ -1,16 +1,17 @@
-"""Cell results on disk: atomic Parquet files that prove they are complete.
+"""Results on disk, one entry per file: atomic Parquet files that prove they are complete.
 
-A cell file is written to a temporary name in the same directory, flushed and
+An entry is what one task computes: a sweep's cell, a global experiment's chunk of stars,
+a primary solution's part of its per-star results. Its file is written to a temporary name in the same directory, flushed and
 renamed over the final name (``os.replace`` is atomic on POSIX), so a killed worker
 leaves either no file or a whole one, and at most a temporary, which the next write of
 the same file removes (:func:`atomic_write_via`: the writer's ``flock`` on it tells a
 live write's from a killed one's). A file counts as finished only if it parses as
-Parquet, carries this run's config hash and the cell's identity in its metadata, and
+Parquet, carries this run's config hash and the entry's identity in its metadata, and
 its table checksum matches; anything else (truncated, foreign, from another config)
 is recomputed with a warning.
 
 Each file also records the code version that wrote it (:func:`mcsweep.runtime.version.code_version`).
-A finished cell of another version is refused with one line naming both versions
+A finished entry of another version is refused with one line naming both versions
 (:class:`~mcsweep.errors.UserInputError`), unless the store was opened with
 ``accept_other_versions=True`` (the user's ``resume.accept_other_versions=true``): a
 resumed run after an upgrade must not mix results of two codes silently.
@@ -35,7 +36,7 @@ import pyarrow.parquet as pq
 from ..errors import UserInputError
 from .version import code_version
 
-__all__ = ["CellStore", "atomic_write_bytes", "atomic_write_via", "current_umask", "remove_temporaries", "table_checksum"]
+__all__ = ["ResultStore", "atomic_write_bytes", "atomic_write_via", "current_umask", "remove_temporaries", "table_checksum"]
 
 _META_KEY = b"mcsweep"
 
@@ -193,8 +194,10 @@ def atomic_write_bytes(path: Path, data: bytes) -> None:
     atomic_write_via(path, lambda tmp: tmp.write_bytes(data))
 
 
-class CellStore:
-    """Directory of per-cell Parquet files for one config (identified by its hash)."""
+class ResultStore:
+    """Directory of one Parquet file per entry for one config (identified by its hash); an
+    entry's id names its file (``<id>.parquet``) and is recorded in it (metadata ``cell_id``,
+    the name it had when every entry was a sweep's cell, kept so older runs resume)."""
 
     def __init__(self, directory: Path, config_hash: str, *, version: str | None = None,
                  accept_other_versions: bool = False):
@@ -205,28 +208,28 @@ class CellStore:
         #: Finished files read, per code version that wrote them.
         self.versions_read: Counter = Counter()
 
-    def path(self, cell_id: str) -> Path:
-        return self.directory / f"{cell_id}.parquet"
+    def path(self, entry_id: str) -> Path:
+        return self.directory / f"{entry_id}.parquet"
 
-    def write(self, cell_id: str, df: pd.DataFrame) -> Path:
+    def write(self, entry_id: str, df: pd.DataFrame) -> Path:
         df = df.reset_index(drop=True)
-        meta = {"config_hash": self.config_hash, "cell_id": cell_id,
+        meta = {"config_hash": self.config_hash, "cell_id": entry_id,
                 "checksum": table_checksum(df), "n_rows": len(df), "code_version": self.version}
         table = pa.Table.from_pandas(df, preserve_index=False)
         table = table.replace_schema_metadata({**(table.schema.metadata or {}),
                                                _META_KEY: json.dumps(meta).encode()})
         sink = pa.BufferOutputStream()
         pq.write_table(table, sink)
-        path = self.path(cell_id)
+        path = self.path(entry_id)
         atomic_write_bytes(path, sink.getvalue().to_pybytes())
         return path
 
-    def read(self, cell_id: str) -> pd.DataFrame | None:
+    def read(self, entry_id: str) -> pd.DataFrame | None:
         """The finished cell's table, or None (with a warning if a bad file was there)."""
-        path = self.path(cell_id)
+        path = self.path(entry_id)
         if not path.exists():
             return None
-        df, meta, problem = self._verified(cell_id)
+        df, meta, problem = self._verified(entry_id)
         if problem:
             warnings.warn(f"recomputing {path.name}: {problem}", stacklevel=2)
             return None
@@ -251,17 +254,17 @@ class CellStore:
             return []
         return [p.stem for p in sorted(self.directory.glob("*.parquet")) if self._verified(p.stem)[2] is None]
 
-    def _verified(self, cell_id: str):
+    def _verified(self, entry_id: str):
         """``(table, metadata, problem)``; ``problem`` is None when the file is a finished result."""
-        path = self.path(cell_id)
+        path = self.path(entry_id)
         df, meta = None, {}
         try:
             table = pq.read_table(path)
             meta = json.loads((table.schema.metadata or {})[_META_KEY])
             df = table.to_pandas()
             problem = None
-            if meta.get("cell_id") != cell_id:
-                problem = f"it belongs to cell {meta.get('cell_id')!r}"
+            if meta.get("cell_id") != entry_id:
+                problem = f"it belongs to entry {meta.get('cell_id')!r}"
             elif meta.get("config_hash") != self.config_hash:
                 problem = "it was computed with a different config"
             elif meta.get("n_rows") != len(df) or meta.get("checksum") != table_checksum(df):

@@ -1,7 +1,7 @@
 """Which code computed a result: the package version and, from a checkout, its git commit.
 
 Every cell file carries the :func:`code_version` that wrote it, so a run resumed after
-an upgrade can tell its old cells from new ones (:class:`mcsweep.runtime.store.CellStore`).
+an upgrade can tell its old cells from new ones (:class:`mcsweep.runtime.store.ResultStore`).
 """
 
 from __future__ import annotations

@@ -38,10 +38,10 @@ def run(config, raw_cfg: dict, run_dir: Path, prov) -> Path:
     import numpy as np
     import pandas as pd
 
-    from mcsweep.runtime.store import CellStore, atomic_write_bytes
+    from mcsweep.runtime.store import ResultStore, atomic_write_bytes
 
     sec = config.experiment.throwaway
-    store = CellStore(Path(run_dir) / CHUNKS_DIR, prov.hash, accept_other_versions=config.resume.accept_other_versions)
+    store = ResultStore(Path(run_dir) / CHUNKS_DIR, prov.hash, accept_other_versions=config.resume.accept_other_versions)
     with prov.stage("draws"):
         for i in range(sec.n_chunks):
             if store.read(_chunk_id(i)) is None:
@@ -64,9 +64,9 @@ def report(doc, run_dir: Path, prov: dict) -> None:
 
 
 def kept(config, config_hash: str, run_dir: Path) -> str:
-    from mcsweep.runtime.store import CellStore
+    from mcsweep.runtime.store import ResultStore
 
-    done = CellStore(Path(run_dir) / CHUNKS_DIR, config_hash).finished()
+    done = ResultStore(Path(run_dir) / CHUNKS_DIR, config_hash).finished()
     return f"{len(done)} of {config.experiment.throwaway.n_chunks} chunks kept in {run_dir}"
 
 

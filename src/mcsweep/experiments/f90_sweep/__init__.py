@@ -38,11 +38,11 @@ def _report(doc, run_dir: Path, prov: dict) -> None:
 
 
 def _kept(config, config_hash: str, run_dir: Path) -> str:
-    from ...runtime.store import CellStore
+    from ...runtime.store import ResultStore
     from .cells import enumerate_cells
 
     cells = {c.cell_id for c in enumerate_cells(config.sky, config.magnitudes)}
-    done = CellStore(Path(run_dir) / CELLS_DIR, config_hash).finished()
+    done = ResultStore(Path(run_dir) / CELLS_DIR, config_hash).finished()
     return f"{sum(c in cells for c in done)} of {len(cells)} cells kept in {run_dir}"
 
 

@@ -39,7 +39,7 @@ from .settings import spawn
 from ...population import make_source
 from ...runtime.execution import executor, in_process
 from ...runtime.progress import progress
-from ...runtime.store import CellStore, atomic_write_bytes
+from ...runtime.store import ResultStore, atomic_write_bytes
 
 __all__ = ["GlobalExperiment", "GlobalRun", "run_global", "kept_chunks"]
 
@@ -95,7 +95,7 @@ class GlobalRun:
     epoch: dict
     #: (G0, class key, stars) per group of :attr:`GlobalExperiment.groups`, in order.
     classes: list
-    store: CellStore
+    store: ResultStore
 
     @property
     def section(self):
@@ -167,7 +167,7 @@ def _draw_population(experiment: GlobalExperiment, config, settings, section, ki
 
 def kept_chunks(experiment: GlobalExperiment, config, config_hash: str, run_dir) -> str:
     """What a rerun of ``config`` in ``run_dir`` keeps, as the middle of a stopped command's line."""
-    done = set(CellStore(Path(run_dir) / experiment.chunks_dir, config_hash).finished())
+    done = set(ResultStore(Path(run_dir) / experiment.chunks_dir, config_hash).finished())
     return experiment.kept(getattr(config.experiment, experiment.kind), done, Path(run_dir))
 
 
@@ -195,7 +195,7 @@ def run_global(experiment: GlobalExperiment, config, raw_cfg: dict, run_dir, *, 
         else:
             classes = _draw_population(experiment, config, settings, section, kind)
     prov.write(with_manifest=False)
-    store = CellStore(run_dir / experiment.chunks_dir, prov.hash,
+    store = ResultStore(run_dir / experiment.chunks_dir, prov.hash,
                       accept_other_versions=config.resume.accept_other_versions)
     store.remove_stale_temporaries()  # left by a killed write, never a result
     run = GlobalRun(config=config, run_dir=run_dir, prov=prov, settings=settings, epoch=epoch, classes=classes,

@@ -28,6 +28,7 @@ from omegaconf import DictConfig, OmegaConf
 from .errors import EXIT_NOT_CONVERGED, NotConvergedError, UserInputError, report_user_error
 from .runtime.interruption import (EXIT_INTERRUPTED, exit_on_second_interrupt, is_disk_full,
                                    remove_unfinished_writes, report_stop)
+from .command.renamed import with_new_names
 from .command.rundir import release, snapshot_for, undo_unstarted
 from .runtime.logs import quiet_third_party_console
 from .command.schema import register_configs
@@ -157,6 +158,9 @@ def main() -> None:
     full_error = os.environ.get("HYDRA_FULL_ERROR")
     os.environ["HYDRA_FULL_ERROR"] = "1"
     try:
+        sys.argv[1:], renamed = with_new_names(sys.argv[1:])  # Hydra reads sys.argv
+        for line in renamed:
+            print(f"mcsweep: warning: {line}", file=sys.stderr)
         try:
             configs = preflight(sys.argv[1:])
         except UserInputError as exc:

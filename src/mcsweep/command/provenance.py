@@ -30,7 +30,8 @@ from ..errors import UserInputError
 from ..experiments.global_solution.settings import mission_span_jd
 from ..population.galaxy.parameters import MODEL_VERSION as GALAXY_MODEL_VERSION
 from ..scanning.timescale import tcb_jd
-from ..experiments.registry import hash_defaults_from_before, hash_only_with, ignored_keys
+from ..experiments.registry import hash_defaults_from_before, hash_only_with, ignored_keys, renamed_keys
+from .renamed import to_old_names
 from ..runtime.store import atomic_write_bytes
 from ..runtime.version import git_commit
 
@@ -64,8 +65,9 @@ def _drop(out: dict, dotted: str, only_if=_ANY) -> None:
 
 
 def _science_part(cfg: dict) -> dict:
-    """The keys that can change results: not execution/resume, nor what the experiment ignores."""
-    out = {k: v for k, v in cfg.items() if k not in _EXCLUDED_KEYS}
+    """The keys that can change results: not execution/resume, nor what the experiment ignores;
+    renamed keys under their old names (:func:`~mcsweep.command.renamed.to_old_names`)."""
+    out = {k: v for k, v in to_old_names(cfg).items() if k not in _EXCLUDED_KEYS}
     name = (cfg.get("experiment") or {}).get("name", "f90_sweep")
     for dotted in ignored_keys(name):
         _drop(out, dotted)
@@ -188,6 +190,14 @@ def _diff_keys(a: Any, b: Any, prefix: str = "") -> list[str]:
     return [] if a == b else [f"{prefix[:-1]}: {a!r} -> {b!r}"]
 
 
+def _new_name(diff: str) -> str:
+    """A line of :func:`_diff_keys` naming a renamed key by its new name, as the user writes it."""
+    for old, new in renamed_keys().items():
+        if diff.startswith(old + ":"):
+            return new + diff[len(old):]
+    return diff
+
+
 def _is_segment_list(value: Any) -> bool:
     return isinstance(value, list) and all(isinstance(v, dict) and "kind" in v and "start_tcb" in v for v in value)
 
@@ -219,6 +229,7 @@ class Provenance:
         if old.get("config_hash") != self.hash:
             diffs = _diff_keys(_with_defaults_from_before(_science_part(old.get("config", {}))),
                                _with_defaults_from_before(_science_part(self.cfg)))
+            diffs = [_new_name(d) for d in diffs]
             what = "; ".join(diffs[:3]) + (" ..." if len(diffs) > 3 else "") if diffs else \
                 f"same values, hash {old.get('config_hash')} by {old.get('mcsweep_version')} vs {self.hash}"
             raise UserInputError(

@@ -19,7 +19,7 @@ from . import f90_sweep, primary, real_sky, secondary
 from .spec import ExperimentSpec
 
 __all__ = ["EXPERIMENTS", "register", "get", "ignored_keys", "hash_defaults_from_before", "hash_only_with",
-           "experiment_conf_class"]
+           "renamed_keys", "experiment_conf_class"]
 
 #: Every experiment by kind, in the order they are listed to a user.
 EXPERIMENTS: dict[str, ExperimentSpec] = {
@@ -73,6 +73,11 @@ def hash_defaults_from_before() -> dict[str, Any]:
 def hash_only_with() -> dict[str, str]:
     """Every experiment's :attr:`~mcsweep.experiments.spec.ExperimentSpec.only_with`."""
     return {k: v for e in EXPERIMENTS.values() for k, v in e.only_with.items()}
+
+
+def renamed_keys() -> dict[str, str]:
+    """Every experiment's renamed config keys, old dotted name -> new."""
+    return {k: v for e in EXPERIMENTS.values() for k, v in e.renamed_keys.items()}
 
 
 def experiment_conf_class() -> type:

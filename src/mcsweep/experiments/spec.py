@@ -52,6 +52,10 @@ class ExperimentSpec:
     defaults_from_before: Mapping[str, Any] = field(default_factory=dict)
     #: dotted key -> the key without which it has no effect (left out while that is null).
     only_with: Mapping[str, str] = field(default_factory=dict)
+    #: Renamed config keys, old dotted name -> new: the old name still works on the command
+    #: line (with a one-line deprecation warning), and the hash is computed under the old
+    #: name, so runs made before the rename keep their hash and resume.
+    renamed_keys: Mapping[str, str] = field(default_factory=dict)
 
     @property
     def all_outputs(self) -> tuple[str, ...]:

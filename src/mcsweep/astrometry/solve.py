@@ -71,7 +71,7 @@ class Solution:
         False where the normal matrix was singular (or, without prior, ill-conditioned).
     condition : ndarray, shape (n,), or None
         1-norm condition number of the solved normal matrix scaled to unit diagonal
-        (:mod:`mcsweep.astrometry.linalg`); ``inf`` where singular. None when not
+        (``mcsweep.astrometry.linalg``); ``inf`` where singular. None when not
         computed (:func:`solve_with_prior` without ``with_condition=True``).
     """
 
@@ -228,7 +228,7 @@ def solve_no_prior(N0, b0, max_condition=DEFAULT_MAX_CONDITION) -> Solution:
     N0 : array_like, shape (n, 5, 5)
     b0 : array_like, shape (n, 5)
     max_condition : float
-        Largest accepted condition number; default :data:`DEFAULT_MAX_CONDITION`.
+        Largest accepted condition number; default ``DEFAULT_MAX_CONDITION``.
     """
     if not (np.isscalar(max_condition) and max_condition >= 1.0):
         raise UserInputError(f"max_condition={max_condition!r} is not accepted; expected a number >= 1")

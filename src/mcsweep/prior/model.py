@@ -127,7 +127,7 @@ class Prior:
 
         Raises
         ------
-        UserInputError
+        mcsweep.errors.UserInputError
             If the directory is not a finished sweep with fitted coefficients.
         """
         import pandas as pd  # only needed here
@@ -275,7 +275,7 @@ def sigma_f90(l_deg, b_deg, G, *, bright: str = "extrapolate") -> np.ndarray:
         G magnitude; broadcast with ``l_deg``, ``b_deg``. G > 20 uses G = 20 (paper
         Sect. 3.4).
     bright : {"extrapolate", "clamp"}, keyword-only
-        Treatment of G < 6 (:mod:`mcsweep.prior.formula`): evaluate the polynomials
+        Treatment of G < 6 (``mcsweep.prior.formula``): evaluate the polynomials
         (default) or use the value at G = 6.
 
     Returns

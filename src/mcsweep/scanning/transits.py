@@ -93,7 +93,7 @@ def observer_position_au(transits: pd.DataFrame) -> np.ndarray:
     """Gaia's BCRS position [au] at each transit, shape (n, 3).
 
     From the frame's observer columns, or, for compact output, from the same
-    ephemeris table (:func:`mcsweep.scanning.ephemeris.gaia_position_au`) at ``tcb_jd``.
+    ephemeris table (:func:`mcsweep.scanning.gaia_position_au`) at ``tcb_jd``.
     """
     if "obs_x_au" in transits:
         return transits[["obs_x_au", "obs_y_au", "obs_z_au"]].to_numpy(float)
@@ -119,7 +119,7 @@ def find_transits(ra_deg, dec_deg, start, end, *, law: ScanningLaw | None = None
         between segments (2017-01-27 - 02-08) have no transits.
     dead_time_fraction : float, keyword-only
         Fraction of the time line lost, in [0, 1) (the paper's 20 % is 0.2); drawn as
-        blocks of ``dead_time_block_days`` (see :mod:`mcsweep.scanning.timeline`).
+        blocks of ``dead_time_block_days`` (see ``mcsweep.scanning.timeline``).
     dilution : float, keyword-only
         Probability in [0, 1] that each FoV transit is removed (the paper's 95 % is 0.95).
     rng : numpy.random.Generator, int or None, keyword-only
@@ -144,11 +144,11 @@ def find_transits(ra_deg, dec_deg, start, end, *, law: ScanningLaw | None = None
         angle psi of the scan direction, 0 = local north, 90 = local east, in [0, 360)),
         ``ac_offset_deg`` (zeta), ``group`` (0-based distinct-transit number per source,
         Table 1's "#" minus one, counted among the transits that survive dead time and
-        dilution; see :mod:`mcsweep.scanning.groups`) and
+        dilution; see ``mcsweep.scanning.groups``) and
         ``obs_x_au, obs_y_au, obs_z_au`` (Gaia's BCRS position, ICRS axes; not in
         compact output).
         ``df.attrs`` holds the law, the interval, the options and ``extrapolated`` (the
-        sentence of :meth:`ScanningLaw.extrapolation_note`, or None).
+        sentence of ``ScanningLaw.extrapolation_note``, or None).
 
     Raises
     ------

@@ -158,7 +158,7 @@ class GalaxyModel:
     Parameters
     ----------
     params : mapping, optional
-        Model parameters (keys of :data:`DEFAULT_PARAMS`); keyword arguments override it.
+        Model parameters (keys of ``DEFAULT_PARAMS``); keyword arguments override it.
     **kwargs
         Same keys as ``params``.
 
@@ -169,8 +169,8 @@ class GalaxyModel:
 
     Notes
     -----
-    Every number comes from a published source named in :mod:`.parameters`,
-    :mod:`.luminosity`, :mod:`.extinction` and :mod:`.kinematics`.
+    Every number comes from a published source named in ``parameters``,
+    ``luminosity``, ``extinction`` and ``kinematics`` (modules of ``mcsweep.population.galaxy``).
 
     The model counts *sources* (an unresolved multiple system counts once, as in Gaia
     and GUMS): its local luminosity function is calibrated to source counts (Bovy 2017
@@ -337,7 +337,7 @@ class GalaxyModel:
             Draw at least this many stars (still capped by ``max_stars``): when one
             realisation of the cone holds fewer, the extra stars are further independent
             draws from the same density, so the cone keeps its size (the pencil-beam rule
-            of :mod:`mcsweep.experiments.f90_sweep.pencil_beam`). ``n_in_cone`` stays the count of
+            of ``mcsweep.experiments.f90_sweep.pencil_beam``). ``n_in_cone`` stays the count of
             one realisation.
 
         Returns

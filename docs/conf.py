@@ -55,7 +55,8 @@ autodoc_member_order = "bysource"
 # The numpydoc sections carry the types; annotations in signatures or fields would become
 # references to private classes.
 autodoc_typehints = "none"
-autodoc_default_options = {"members": True, "undoc-members": True, "show-inheritance": False}
+# Members are listed by name in api/index.rst: the public API only.
+autodoc_default_options = {"show-inheritance": False}
 napoleon_google_docstring = False
 napoleon_numpy_docstring = True
 napoleon_use_rtype = False

@@ -5,7 +5,7 @@ For each star count, two runs in fresh processes, each with a LocalCluster of ``
 worker processes (its scheduler in the driver's process, as ``execution=dask`` makes it):
 
 * ``driver``: the stars drawn, put in sky order, their transits searched and the solver's
-  blocks built in the driver (:func:`mcsweep.experiments.primary.experiment.prepare`), the chunks then
+  blocks built in the driver (:func:`mcsweep.experiments.primary.local.prepare`), the chunks then
   scattered to the workers;
 * ``cluster``: the stars drawn by a task and put in sky order on the workers
   (:func:`mcsweep.experiments.primary.sky.sky_partitions`), the transits, blocks and
@@ -64,7 +64,9 @@ def one(mode: str, n: int, iterations: int, workers: int, part_stars: int, chunk
     from distributed import Client, LocalCluster
 
     from mcsweep.experiments.primary import experiment as P
+    from mcsweep.experiments.primary.local import prepare
     from mcsweep.experiments.primary.prior_solution import solve_prior
+    from mcsweep.experiments.primary.transits import transits_of
     from mcsweep.experiments.primary import results as primary_results
     from mcsweep.experiments.global_solution.classes import class_table, sky_order
     from mcsweep.experiments.primary.cluster import prepare_on_cluster
@@ -83,11 +85,11 @@ def one(mode: str, n: int, iterations: int, workers: int, part_stars: int, chunk
             stars = class_table(_stars(n), 1500)
             stars = stars.iloc[sky_order(stars["ra"].to_numpy(), stars["dec"].to_numpy())].reset_index(drop=True)
             ra, dec = stars["ra"].to_numpy(), stars["dec"].to_numpy()
-            parts = [P.transits_of((i, lo, ra[lo:lo + chunk], dec[lo:lo + chunk], settings.start_jd, settings.end_jd,
+            parts = [transits_of((i, lo, ra[lo:lo + chunk], dec[lo:lo + chunk], settings.start_jd, settings.end_jd,
                                     settings.law))[1] for i, lo in enumerate(range(0, n, chunk))]
             tr = {k: np.concatenate([p[k] for p in parts]) for k in ("star", "t", "psi")}
             del parts
-            data = P.prepare(settings, stars, tr)
+            data = prepare(settings, stars, tr)
             del tr, stars  # as the experiment's runner does: the solution's table (data.stars) has them
         else:
             sky, _ = sky_partitions(client, [(1500, functools.partial(client.submit, _stars, n, pure=False))], chunk)

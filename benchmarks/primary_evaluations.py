@@ -9,7 +9,7 @@ candidate 4) and positions at each star's own mean epoch
 solution takes up to an hour here, so this runs ``mcsweep experiment=primary`` with the
 arguments given and evaluates each prior's solution, as it is made, in the run's own way and
 in those two, with the experiment's own evaluation
-(:func:`mcsweep.experiments.primary.experiment.evaluate_solution`); each prior's three
+(:func:`mcsweep.experiments.primary.evaluation.evaluate_solution`); each prior's three
 Table 3s go to ``evaluations_<prior>.csv`` in the run directory (columns of ``table3.csv``
 after ``evaluation``). The run's own evaluation must equal the run's ``table3.csv`` star by
 star (checked as it goes); the other two equal the runs with those config values (checked at
@@ -40,7 +40,7 @@ EVALUATIONS = (("run", None, None), ("frame_fit=equal", True, False), ("evaluati
 def evaluations(settings, data, problem, sol, run_result: pd.DataFrame, label: str) -> pd.DataFrame:
     """Table 3 rows of one solution under each of :data:`EVALUATIONS` (``None``: the run's
     setting), the first checked against the run's own per-star result."""
-    from mcsweep.experiments.primary.experiment import evaluate_solution
+    from mcsweep.experiments.primary.evaluation import evaluate_solution
     from mcsweep.experiments.primary.table import table3_rows
 
     s = data.solved
@@ -70,7 +70,7 @@ def evaluations(settings, data, problem, sol, run_result: pd.DataFrame, label: s
 
 
 def main(argv: list[str]) -> None:
-    import mcsweep.experiments.primary.experiment as primary
+    import mcsweep.experiments.primary.local as primary
     import mcsweep.experiments.primary.runner as runner
     from mcsweep.cli import main as cli
 

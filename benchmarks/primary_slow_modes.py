@@ -86,7 +86,7 @@ def main():
     args = ap.parse_args()
 
     from mcsweep.astrometry.solve import prior_diagonal
-    from mcsweep.experiments.primary.experiment import prior_sigma_mas
+    from mcsweep.experiments.global_solution.priors import prior_sigma_mas
     from mcsweep.solver import blocks as B
     from mcsweep.solver import solve_global
 

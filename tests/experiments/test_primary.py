@@ -14,7 +14,10 @@ from omegaconf import OmegaConf
 from mcsweep.errors import UserInputError
 from mcsweep.experiments.primary import CHUNKS_DIR
 from mcsweep.experiments.primary import experiment as P
+from mcsweep.experiments.primary.local import prepare
 from mcsweep.experiments.primary.prior_solution import solve_prior
+from mcsweep.experiments.primary.evaluation import positions_at
+from mcsweep.experiments.primary.transits import transit_summary, transits_of
 from mcsweep.experiments.global_solution.priors import parse_prior
 from mcsweep.experiments.primary.table import PAPER_TABLE3, TABLE3_COLUMNS, cell_statistics, paper_value3
 from mcsweep.solver.attitude_spline import live_segments
@@ -202,9 +205,9 @@ def test_the_basic_angle_design_of_the_blocks_takes_a_shift_of_every_parallax():
                          "experiment.primary.mission_years=0.08"])
     settings = P.build_settings(config)
     stars = synthetic_stars(1500, 9)
-    _, tr = P.transits_of((0, 0, stars["ra"].to_numpy(), stars["dec"].to_numpy(), settings.start_jd,
+    _, tr = transits_of((0, 0, stars["ra"].to_numpy(), stars["dec"].to_numpy(), settings.start_jd,
                            settings.end_jd, settings.law))
-    data = P.prepare(settings, stars, tr, with_noise=False, block_stars=256)
+    data = prepare(settings, stars, tr, with_noise=False, block_stars=256)
     problem = data.problem(prior_diagonal(1.0, 10.0))
     design = problem.design()
     A = sparse_design(*design, problem.n_stars, problem.n_coef)
@@ -323,9 +326,9 @@ def test_noiseless_data_recover_the_truth_and_the_attitude():
     settings = P.build_settings(config)
     stars = synthetic_stars(3000, 7)
     stars[["parallax", "pmra", "pmdec"]] = 0.0
-    _, tr = P.transits_of((0, 0, stars["ra"].to_numpy(), stars["dec"].to_numpy(), settings.start_jd,
+    _, tr = transits_of((0, 0, stars["ra"].to_numpy(), stars["dec"].to_numpy(), settings.start_jd,
                            settings.end_jd, settings.law))
-    data = P.prepare(settings, stars, tr, with_noise=False)
+    data = prepare(settings, stars, tr, with_noise=False)
     assert 1e3 * np.sqrt(np.mean(data.true_attitude_at(data.epochs()) ** 2)) > 1000 * RECOVERY_UAS  # a real one
     res, _, extra, *_ = solve_prior(settings, data, "F90")
     assert extra["converged"]
@@ -351,9 +354,9 @@ def test_noiseless_data_with_a_basic_angle_variation_recover_it_and_the_truth():
     worst = {}
     for harmonics in (1, 0):
         settings = P.build_settings(primary_config([*overrides, f"experiment.primary.basic_angle_harmonics={harmonics}"])[0])
-        _, tr = P.transits_of((0, 0, stars["ra"].to_numpy(), stars["dec"].to_numpy(), settings.start_jd,
+        _, tr = transits_of((0, 0, stars["ra"].to_numpy(), stars["dec"].to_numpy(), settings.start_jd,
                                settings.end_jd, settings.law))
-        data = P.prepare(settings, stars, tr, with_noise=False)
+        data = prepare(settings, stars, tr, with_noise=False)
         if harmonics:
             true = np.array([0.5, -0.3])
             signal = true[0] * data.calibration.column(0) + true[1] * data.calibration.column(1)
@@ -390,9 +393,9 @@ def test_block_by_block_build_is_the_one_observations_problem():
     config, _ = primary_config([])
     settings = P.build_settings(config)
     stars = synthetic_stars(2000, 3)
-    _, tr = P.transits_of((0, 0, stars["ra"].to_numpy(), stars["dec"].to_numpy(), settings.start_jd,
+    _, tr = transits_of((0, 0, stars["ra"].to_numpy(), stars["dec"].to_numpy(), settings.start_jd,
                            settings.end_jd, settings.law))
-    data = P.prepare(settings, stars, tr, with_noise=False, block_stars=256)
+    data = prepare(settings, stars, tr, with_noise=False, block_stars=256)
     assert len(data.blocks) == -(-data.solved.size // 256) > 4
     prior = prior_diagonal(5.0, 10.0)
     part = data.problem(prior)
@@ -454,9 +457,9 @@ def test_knot_transits_places_the_knots_by_the_data_between_the_gaps():
     config, _ = primary_config(["experiment.primary.knot_transits=25", "experiment.primary.knot_rule=counts"])
     settings = P.build_settings(config)
     stars = synthetic_stars(2000, 5)
-    _, tr = P.transits_of((0, 0, stars["ra"].to_numpy(), stars["dec"].to_numpy(), settings.start_jd,
+    _, tr = transits_of((0, 0, stars["ra"].to_numpy(), stars["dec"].to_numpy(), settings.start_jd,
                            settings.end_jd, settings.law))
-    data = P.prepare(settings, stars, tr, with_noise=False)
+    data = prepare(settings, stars, tr, with_noise=False)
     live = ~data.dead.is_dead(tr["t"])
     t = tr["t"][live]
     assert t.size == data.n_fov_transits
@@ -486,9 +489,9 @@ def test_uniform_knots_keep_agis_s_interval_and_at_least_knot_transits_per_knot(
     settings = P.build_settings(config)
     assert settings.knot_rule == "uniform"
     stars = synthetic_stars(2000, 5)
-    _, tr = P.transits_of((0, 0, stars["ra"].to_numpy(), stars["dec"].to_numpy(), settings.start_jd,
+    _, tr = transits_of((0, 0, stars["ra"].to_numpy(), stars["dec"].to_numpy(), settings.start_jd,
                            settings.end_jd, settings.law))
-    data = P.prepare(settings, stars, tr, with_noise=False)
+    data = prepare(settings, stars, tr, with_noise=False)
     t = np.sort(tr["t"][~data.dead.is_dead(tr["t"])])
     sp = data.spline
     D = ((settings.end_jd - settings.start_jd) - data.dead.total_days) * 25 / t.size  # live days per 25
@@ -554,7 +557,7 @@ def test_positions_at_a_stars_own_epoch_equal_a_solution_referred_to_it():
     A1 = design_matrix(ra, dec, t - tau_yr[:, None], psi, obs, **kw)
     h = rng.normal(0, 1, A0.shape[:2])
     sols = [solve_with_prior(*normal_equations(A, h), 1000.0) for A in (A0, A1)]
-    pos, cov = P.positions_at(sols[0].x, sols[0].cov, tau_yr)
+    pos, cov = positions_at(sols[0].x, sols[0].cov, tau_yr)
     scale = np.abs(sols[1].cov[:, :2, :2]).max()
     np.testing.assert_allclose(pos, sols[1].x[:, :2], rtol=0, atol=PROPAGATION_RTOL * np.abs(sols[1].x).max())
     np.testing.assert_allclose(cov, sols[1].cov[:, :2, :2], rtol=0, atol=PROPAGATION_RTOL * scale)
@@ -678,9 +681,9 @@ def test_a_solution_started_from_the_previous_priors_attitude_stops_within_the_t
     settings = P.build_settings(primary_config(["experiment.primary.mission_years=1", "experiment.primary.knot_interval_hours=3",
                                          "experiment.primary.attitude_timescale_hours=24"])[0])
     stars = synthetic_stars(3000, 11)
-    _, tr = P.transits_of((0, 0, stars["ra"].to_numpy(), stars["dec"].to_numpy(), settings.start_jd,
+    _, tr = transits_of((0, 0, stars["ra"].to_numpy(), stars["dec"].to_numpy(), settings.start_jd,
                            settings.end_jd, settings.law))
-    data = P.prepare(settings, stars, tr)
+    data = prepare(settings, stars, tr)
     st = data.stars.iloc[data.solved]
     f90 = settings.sigma_f90_mas(st["l"].to_numpy(), st["b"].to_numpy(), st["phot_g_mean_mag"].to_numpy())
 
@@ -704,7 +707,7 @@ def test_transit_summary_counts_the_live_and_the_scheduled_transits():
     # dead), 1 of 13; the dead interval is [5, 7)
     star = np.array([10, 10, 10, 12, 12, 13])
     t = np.array([1.0, 5.5, 9.0, 5.0, 6.9, 7.0])
-    out = P.transit_summary(star, t, DeadTime(np.array([5.0]), np.array([7.0])), 10, 4)
+    out = transit_summary(star, t, DeadTime(np.array([5.0]), np.array([7.0])), 10, 4)
     assert out["n_scheduled"].tolist() == [3, 0, 2, 1]
     assert out["n_fov"].tolist() == [2, 0, 0, 1]
     assert out["mean_tcb_jd"][0] == 5.0 and out["span_days"][0] == 8.0

@@ -14,7 +14,9 @@ import pytest
 from mcsweep.astrometry.design import JULIAN_YEAR_DAYS
 from mcsweep.experiments.primary import CHUNKS_DIR
 from mcsweep.experiments.primary import experiment as P
+from mcsweep.experiments.primary.local import prepare
 from mcsweep.experiments.primary.prior_solution import solve_prior
+from mcsweep.experiments.primary.transits import transits_of
 from mcsweep.experiments.primary import results as primary_results
 
 from .test_primary import primary_config, synthetic_stars
@@ -41,9 +43,9 @@ def both(client):
                          "experiment.primary.allow_unconverged=true"])
     settings = P.build_settings(config)
     stars = synthetic_stars(2500, 11)
-    _, tr = P.transits_of((0, 0, stars["ra"].to_numpy(), stars["dec"].to_numpy(), settings.start_jd,
+    _, tr = transits_of((0, 0, stars["ra"].to_numpy(), stars["dec"].to_numpy(), settings.start_jd,
                            settings.end_jd, settings.law))
-    local = P.prepare(settings, stars, tr, block_stars=BLOCK)
+    local = prepare(settings, stars, tr, block_stars=BLOCK)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         # partitions of 700 stars: the blocks of solved stars run across them
@@ -135,10 +137,10 @@ def test_outcome_lost_before_the_parts_are_read_solves_again(both, client, monke
 
 def test_cluster_built_data_are_the_driver_built_bits(both, client):
     settings, local, remote = both
-    assert remote.on_cluster and remote.h is None and not local.on_cluster
+    assert remote.on_cluster and not hasattr(remote, "h") and not local.on_cluster
     assert len(local.blocks) > 6  # several blocks, chunks of two, partitions across them
     # the driver holds no star: only counts
-    assert remote.stars is None and remote.solved is None and remote.normals is None and remote.x_true is None
+    assert not any(hasattr(remote, name) for name in ("stars", "solved", "normals", "x_true"))
     assert (remote.n_stars, remote.n_solved, remote.n_fov_transits) == (local.n_stars, local.n_solved,
                                                                          local.n_fov_transits)
     for a, b in zip(remote.spline.segment_knots, local.spline.segment_knots, strict=True):
@@ -151,8 +153,8 @@ def test_cluster_built_data_are_the_driver_built_bits(both, client):
     np.testing.assert_array_equal(remote.naa_band, local.problem(prior).naa_band)
     assert local.problem(prior).leaf > 1
     # each block, its measurements, its stars' data normal matrices and truth, as kept on the workers
-    ranges = [tuple(r) for r in remote._resident[0][1]]
-    chunks = client.gather(remote._resident[1].futures)
+    ranges = [tuple(r) for r in remote.ranges]
+    chunks = client.gather(remote.chunks.futures)
     for (lo, hi), (blocks, hs, kept) in zip(ranges, chunks, strict=True):
         stars = slice(local.blocks[lo].first, local.blocks[hi - 1].first + local.blocks[hi - 1].n)
         np.testing.assert_array_equal(kept["normals"], local.normals[stars])

@@ -1,7 +1,8 @@
 """One global solution of the primary experiment (paper Sect. 4.2, Table 3) for one prior,
-wherever its data live: held in this process (:func:`~.primary.solve_in_process`) or on a
-Dask cluster's workers (:func:`~.primary_cluster.solve_on_cluster`); both give the same
-bits, and the per-star outcome and summary are made here once for both."""
+wherever its data live: held in this process (:class:`~.local.LocalData`) or on a Dask
+cluster's workers (:class:`~.cluster.ClusterData`), each solving through
+:meth:`~.data.PreparedData.solve`; both give the same bits, and the summary is made here
+once for both."""
 
 from __future__ import annotations
 
@@ -12,15 +13,16 @@ import numpy as np
 import pandas as pd
 
 from ...solver.tasks import back_task, direction_task, forward_task
-from .experiment import PreparedData, PrimarySettings, attitude_error_series, solve_in_process
-from .cluster import solve_on_cluster
+from .data import PreparedData
+from .evaluation import attitude_error_series
+from .experiment import PrimarySettings
 from .results import StarParts
 
 __all__ = ["PriorSolution", "solve_prior"]
 
 
 class PriorSolution(NamedTuple):
-    """What :func:`solve_prior` gives: per-star results (:class:`~.primary_results.StarParts`,
+    """What :func:`solve_prior` gives: per-star results (:class:`~.results.StarParts`,
     read part by part), PCG history, summary (``extra``),
     attitude error on a grid, and the attitude spline coefficients solved (``n_coef, 3``,
     mas), from which the next prior's solution may start (``solver_start='previous'``)."""
@@ -41,7 +43,7 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
     ``err_mas`` (position error after the frame correction), ``err_parallax_mas``
     (estimated - true parallax), ``sigma_prior_mas``. ``extra``: iterations, convergence,
     attitude error RMS per axis [uas] over the measurement epochs, fitted frame rotation and
-    spin; ``attitude_error`` on a grid (:func:`~.primary.attitude_error_series`).
+    spin; ``attitude_error`` on a grid (:func:`~.evaluation.attitude_error_series`).
     ``chunk_stars``, ``workers``, ``dask_client``: the chunk size, forked workers or Dask
     cluster (whose workers keep the chunks and their star vectors) for the solver's per-chunk
     work (:func:`mcsweep.solver.solve_global`); results do not depend on them.
@@ -53,16 +55,9 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
     # astrometry sets the removed rotation (docs/table3.md, the candidate for the paper's
     # collapse); not the default.
     equal = settings.frame_fit != "precision"
-    if data.on_cluster:  # everything per star stays on the workers (nothing per star to the driver)
-        if dask_client is None:
-            raise ValueError("these data live on a cluster's workers: solve them with its dask_client")
-        sol, resident, eps, omega, results, sq = solve_on_cluster(
-            settings, data, label, dask_client, chunk_stars=chunk_stars, log=log, equal=equal,
-            attitude_start=attitude_start)
-    else:
-        sol, resident, eps, omega, results, sq = solve_in_process(
-            settings, data, label, log, chunk_stars=chunk_stars, workers=workers, dask_client=dask_client,
-            attitude_start=attitude_start, equal=equal)
+    sol, resident, eps, omega, results, sq = data.solve(
+        settings, label, log=log, chunk_stars=chunk_stars, workers=workers, dask_client=dask_client,
+        attitude_start=attitude_start, equal=equal)
     m = data.n_measurements
     hist = pd.DataFrame([dataclasses.asdict(r) for r in sol.history])
     hist.insert(0, "prior", label)
@@ -71,8 +66,9 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
              "frame_rotation_mas": eps.tolist(), "frame_spin_mas_yr": omega.tolist(),
              "residual_rms": sol.residual_rms,
              "seconds": float(sol.history[-1].seconds) if sol.history else 0.0}
-    if data.calibration is not None:
-        extra["basic_angle_mas"] = dict(zip(data.calibration.names(), sol.border.tolist()))
+    names = data.border_names()
+    if names is not None:
+        extra["basic_angle_mas"] = dict(zip(names, sol.border.tolist()))
     if resident is not None and sol.history:  # what travelled per iteration, measured:
         # the iterations' passes only (the one-off setup and residual passes apart)
         sent, received = resident.bytes_per_call(forward_task, back_task, direction_task)

@@ -1,7 +1,7 @@
 """The one-year global (primary) experiment (paper Sect. 4.2, Table 3) on the global path.
 
-The science lives in :mod:`mcsweep.experiments.primary.experiment`; the path every global
-experiment shares (provenance, classes of stars, chunk store and resume, aggregation) in
+The science lives in :mod:`mcsweep.experiments.primary.experiment` and the modules it names; the
+path every global experiment shares (provenance, classes of stars, chunk store and resume, aggregation) in
 :mod:`mcsweep.experiments.global_solution.run`. What is the primary's own: the transit search
 through the executor in chunks of stars, the observations of all stars together, and
 one global solution per prior, each a task whose per-star results are written
@@ -29,8 +29,9 @@ from ...errors import NotConvergedError
 from ..global_solution.classes import POPULATION_STREAM, class_key, class_table, draw_class, sky_order
 from ..global_solution.settings import spawn
 from .sky import sky_partitions
-from .experiment import (FACTOR_STREAM, PRIMARY_KEY, TAG, build_settings, prepare, stream_seed,
-                                   transits_of)
+from .experiment import FACTOR_STREAM, PRIMARY_KEY, TAG, build_settings, stream_seed
+from .transits import transits_of
+from .local import prepare
 from .prior_solution import solve_prior
 from .cluster import prepare_on_cluster
 from .reduction import CellReduction, reduce_parts
@@ -146,7 +147,7 @@ def _transits(run: GlobalRun, stars: pd.DataFrame) -> dict:
 class _Computed:
     """What the tables need besides the solutions in the store."""
 
-    data: object        # experiments.primary.PreparedData (its stars: the table of every star)
+    data: object        # experiments.primary.data.PreparedData (held here or on the cluster)
     factors: dict       # factor k -> its prior label (experiment.primary.factor_grid)
 
 

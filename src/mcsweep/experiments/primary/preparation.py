@@ -149,7 +149,8 @@ def prepare_data(settings: PrimarySettings, where: Partitions, *, block_stars: i
     del digests
     epochs = None
     if settings.knot_transits is not None:  # knots placed by the solution's live FoV transits
-        epochs = where.epochs([where.submit(live_epochs, where.summary(p), where.transits(p), where.shared("dead", dead),
+        dead_shared = where.shared("dead", dead)
+        epochs = where.epochs([where.submit(live_epochs, where.summary(p), where.transits(p), dead_shared,
                                             int(where.first[p])) for p in range(n_parts)],
                               settings.start_jd, settings.end_jd)
     spline = attitude_spline(settings, dead, epochs)

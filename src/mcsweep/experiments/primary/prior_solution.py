@@ -39,7 +39,7 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
     """One global solution for the prior ``label`` (:class:`PriorSolution`).
 
     Per-star results (all stars of the solution's table, part by part:
-    :class:`~.primary_results.StarParts`): ``inside`` (1/0, -1 not solved),
+    :class:`~.results.StarParts`): ``inside`` (1/0, -1 not solved),
     ``err_mas`` (position error after the frame correction), ``err_parallax_mas``
     (estimated - true parallax), ``sigma_prior_mas``. ``extra``: iterations, convergence,
     attitude error RMS per axis [uas] over the measurement epochs, fitted frame rotation and

@@ -28,7 +28,7 @@ def dead_time_of(settings: PrimarySettings) -> DeadTime:
 
 
 def true_attitude(settings: PrimarySettings) -> tuple[AttitudeSpline, np.ndarray]:
-    """The smooth random rotation (module notes, step 3): its spline and coefficients [mas]."""
+    """The smooth random rotation (:mod:`~.experiment` notes, step 3): its spline and coefficients [mas]."""
     rng = np.random.default_rng(stream_seed(settings.seed, ATTITUDE_STREAM))
     timescale_days = settings.attitude_timescale_days
     shift_days = rng.uniform(0.0, timescale_days)  # knots off the solver's grid

@@ -24,8 +24,8 @@ from mcsweep.solver.attitude_spline import live_segments
 from mcsweep.command.validate import compose_config, to_config
 
 BIN = Path(sys.executable).parent
-#: A few hundred stars per class, 1500 primaries, 1 day knots: a run of under a minute.
-TINY = ["experiment=primary", "experiment.primary.class_size=150", "experiment.primary.primary_sources=1500",
+#: A few hundred stars per class, 1500 extra stars, 1 day knots: a run of under a minute.
+TINY = ["experiment=primary", "experiment.primary.class_size=150", "experiment.primary.extra_sources=1500",
         "experiment.primary.knot_interval_hours=24", "experiment.primary.attitude_timescale_hours=192",
         "experiment.primary.priors=[F90,10F90]", "execution.progress=false", "execution.n_jobs=1"]
 #: The unit tests' settings: a quarter of a year, 12 h knots, 4 day perturbations.
@@ -167,7 +167,7 @@ def test_bad_prior_through_cli_exits_2_in_one_line_and_leaves_no_output(tmp_path
     ("experiment.primary.dead_time_fraction=1.0", "dead_time_fraction"),
     ("experiment.primary.reference_epoch=star_mean", "reference_epoch"),
     ("experiment.primary.priors=[0F90]", "priors"),
-    ("experiment.primary.primary_sources=-1", "primary_sources"),
+    ("experiment.primary.extra_sources=-1", "extra_sources"),
     ("experiment.primary.factor_grid=[1,0]", "factor_grid"),
     ("experiment.primary.factor_grid=[2,2]", "factor_grid"),
     ("experiment.primary.frame_fit=median", "frame_fit"),
@@ -229,7 +229,7 @@ def test_the_basic_angle_design_of_the_blocks_takes_a_shift_of_every_parallax():
 def test_default_is_the_papers_three_classes_only():
     # Sect. 4: one solution of the three classes; extra attitude carriers are an option.
     cfg = to_config(compose_config(["experiment=primary"]))
-    assert cfg.experiment.primary.primary_sources == 0
+    assert cfg.experiment.primary.extra_sources == 0
     assert list(cfg.experiment.primary.g_classes) == [11.0, 15.0, 19.0]
     assert list(cfg.experiment.primary.factor_grid) == []
 
@@ -651,7 +651,7 @@ def test_a_running_solution_says_where_it_stands(tmp_path):
     # iteration: the prior, the iteration, the seconds per iteration, the estimated error and what
     # the solution stops at, on stderr (execution.progress=false: none, tests/sweep/test_progress.py).
     cat = _catalogue(tmp_path / "stars.csv", n=3000)
-    quick = ["experiment=primary", "experiment.primary.class_size=100", "experiment.primary.primary_sources=600",
+    quick = ["experiment=primary", "experiment.primary.class_size=100", "experiment.primary.extra_sources=600",
              "experiment.primary.mission_years=0.25", "experiment.primary.knot_interval_hours=24",
              "experiment.primary.attitude_timescale_hours=192", "experiment.primary.priors=[F90]",
              "execution.n_jobs=1", "population=catalogue", f"population.path={cat}"]

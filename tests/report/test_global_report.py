@@ -21,7 +21,7 @@ BIN = Path(sys.executable).parent
 #: primary solves two of the paper's three priors, so its 1000 mas row has no counterpart.
 SECONDARY = ["experiment=secondary", "experiment.secondary.class_size=3000", "execution.progress=false",
              "execution.n_jobs=1", "execution.chunk_stars=1000"]
-PRIMARY = ["experiment=primary", "experiment.primary.class_size=150", "experiment.primary.primary_sources=1500",
+PRIMARY = ["experiment=primary", "experiment.primary.class_size=150", "experiment.primary.extra_sources=1500",
            "experiment.primary.knot_interval_hours=24", "experiment.primary.attitude_timescale_hours=192",
            "experiment.primary.priors=[F90,10F90]", "execution.progress=false", "execution.n_jobs=1"]
 #: Per run: overrides, its table, how the paper names a row, the headline's rows.

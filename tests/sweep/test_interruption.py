@@ -243,7 +243,7 @@ def _catalogue(path: Path, n: int = 6000, seed: int = 3) -> Path:
 
 
 SECONDARY = ["experiment=secondary", "experiment.secondary.class_size=300", "execution.chunk_stars=100"]
-PRIMARY = ["experiment=primary", "experiment.primary.class_size=100", "experiment.primary.primary_sources=600",
+PRIMARY = ["experiment=primary", "experiment.primary.class_size=100", "experiment.primary.extra_sources=600",
            "experiment.primary.mission_years=0.25", "experiment.primary.knot_interval_hours=24",
            "experiment.primary.attitude_timescale_hours=192", "experiment.primary.priors=[F90,10F90]"]
 

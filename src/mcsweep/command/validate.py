@@ -25,6 +25,7 @@ from omegaconf.errors import OmegaConfBaseException
 
 from ..errors import UserInputError
 from ..experiments.registry import ignored_keys
+from .renamed import with_new_names
 from .schema import Config, register_configs
 
 __all__ = ["to_config", "compose_config", "preflight", "ignored_settings", "CONFIG_MODULE"]
@@ -97,9 +98,10 @@ def compose_config(overrides: Iterable[str] = ()) -> DictConfig:
 
     register_configs()
     GlobalHydra.instance().clear()
+    overrides, _ = with_new_names(list(overrides))  # the command line warns about old names
     try:
         with initialize_config_module(config_module=CONFIG_MODULE, version_base="1.3"):
-            return compose(config_name="config", overrides=list(overrides))
+            return compose(config_name="config", overrides=overrides)
     except UserInputError:
         raise
     except _CONFIG_ERRORS as exc:  # hydra's MissingConfigException, ConfigCompositionException, ...

@@ -41,4 +41,7 @@ EXPERIMENT = global_experiment_spec(
         "experiment.primary.knot_rule": "counts",  # knots at equal counts of transits
     },
     # The knot rule places knots only by knot_transits; 3 h knots (the default) ignore it.
-    only_with={"experiment.primary.knot_rule": "experiment.primary.knot_transits"})
+    only_with={"experiment.primary.knot_rule": "experiment.primary.knot_transits"},
+    # "primary" names the experiment; the extra stars it may add are not Gaia's primary sources.
+    renamed_keys={"experiment.primary.primary_sources": "experiment.primary.extra_sources",
+                  "experiment.primary.primary_g_min": "experiment.primary.extra_g_min"})

@@ -26,8 +26,8 @@ class PrimaryConf:
 
     class_size: int = 30000
     g_classes: List[float] = field(default_factory=lambda: [11.0, 15.0, 19.0])
-    primary_sources: int = 0
-    primary_g_min: float = 13.0
+    extra_sources: int = 0
+    extra_g_min: float = 13.0
     mission_years: float = 1.0
     mission_start: str = "2014-07-25T10:30:00"
     dead_time_fraction: float = 0.2
@@ -89,7 +89,7 @@ class PrimaryConf:
                  "solver_update_tol_uas)")
         for key in ("class_size", "solver_max_iter"):
             require(getattr(self, key) > 0, f"experiment.primary.{key}", getattr(self, key), "a positive number")
-        require(self.primary_sources >= 0, "experiment.primary.primary_sources", self.primary_sources,
+        require(self.extra_sources >= 0, "experiment.primary.extra_sources", self.extra_sources,
                  "a number >= 0 (0: the magnitude classes only, as the paper)")
         require(len(self.g_classes) > 0 and all(0 <= g < G_MAX for g in self.g_classes),
                  "experiment.primary.g_classes", list(self.g_classes), f"G values within 0..{G_MAX:g}")

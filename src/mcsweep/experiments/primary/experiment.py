@@ -10,8 +10,8 @@ The attitude is now *not* known: stars and attitude are solved together
    than G0 = 11, 15, 19 over the whole sky, drawn exactly as in the secondary
    experiment, :mod:`mcsweep.experiments.global_solution.classes`), and only
    those: the paper's global solution holds these 1.5e6 stars (Sect. 4: 5e5 per class)
-   and determines the attitude from them, all with the prior. ``primary_sources`` (default
-   0) adds that many extra stars (the brightest fainter than ``primary_g_min``) to the
+   and determines the attitude from them, all with the prior. ``extra_sources`` (default
+   0) adds that many extra stars (the brightest fainter than ``extra_g_min``) to the
    solution, an option *not* in the paper: well-observed extra stars add attitude
    information the paper's solution did not have (docs/table3.md). The default is reduced
    (``class_size`` in conf/experiment/primary.yaml) so a run takes minutes on 2 cores.
@@ -59,7 +59,7 @@ gives ~140 FoV transits per hour, so 3 h keeps ~420 transits per knot; at full s
 interval), the attitude error the prior's bias causes does not (docs/table3.md).
 
 Reproducibility: SeedSequence(seed, spawn_key=(42, stream, ...)): population of a class
-(stream 0, class key round(100 G0); primaries key 0), dead time (1), true attitude (2),
+(stream 0, class key round(100 G0); the extra stars key 0), dead time (1), true attitude (2),
 measurement noise (3, key: the block of ``SOLVER_BLOCK_STARS`` solved stars, drawn in the block's
 order). So results do not depend on n_jobs, chunking or where a block is built (the driver,
 or a Dask worker: :mod:`~mcsweep.experiments.primary.preparation`); the transit search is
@@ -81,7 +81,7 @@ from ..global_solution.priors import parse_prior, prior_sigma_mas
 from ..global_solution.settings import GlobalSettings, global_fields, spawn
 
 __all__ = [
-    "PRIMARY_KEY",
+    "EXTRA_KEY",
     "TAG",
     "DEAD_STREAM",
     "ATTITUDE_STREAM",
@@ -98,7 +98,7 @@ __all__ = [
 ]
 
 #: Class key of the primary sources in the seeds and the results.
-PRIMARY_KEY = 0
+EXTRA_KEY = 0
 TAG = 42  # Sect. 4.2: first element of every spawn key of this experiment
 #: Stream numbers of the spawn keys (the population's is POPULATION_STREAM = 0).
 DEAD_STREAM, ATTITUDE_STREAM, NOISE_STREAM, FACTOR_STREAM = 1, 2, 3, 4
@@ -169,9 +169,9 @@ def build_settings(config) -> PrimarySettings:
         raise UserInputError(f"experiment.primary.basic_angle_harmonics={pri.basic_angle_harmonics} is not accepted "
                              "with execution=dask (the calibration's design is made on this machine); expected 0, "
                              "or execution.backend loky, threading or sequential")
-    if max(list(pri.g_classes) + [pri.primary_g_min]) >= G_MAX:
-        raise UserInputError(f"experiment.primary.g_classes={list(pri.g_classes)} / primary_g_min="
-                             f"{pri.primary_g_min:g} is not accepted; expected magnitudes below {G_MAX:g}")
+    if max(list(pri.g_classes) + [pri.extra_g_min]) >= G_MAX:
+        raise UserInputError(f"experiment.primary.g_classes={list(pri.g_classes)} / extra_g_min="
+                             f"{pri.extra_g_min:g} is not accepted; expected magnitudes below {G_MAX:g}")
     return PrimarySettings(
         **fields,
         dead_time_fraction=float(pri.dead_time_fraction), dead_time_block_days=float(pri.dead_time_block_days),

@@ -29,7 +29,7 @@ from ...errors import NotConvergedError
 from ..global_solution.classes import POPULATION_STREAM, class_key, class_table, draw_class, sky_order
 from ..global_solution.settings import spawn
 from .sky import sky_partitions
-from .experiment import FACTOR_STREAM, PRIMARY_KEY, TAG, build_settings, stream_seed
+from .experiment import EXTRA_KEY, FACTOR_STREAM, TAG, build_settings, stream_seed
 from .transits import transits_of
 from .local import prepare
 from .prior_solution import solve_prior
@@ -83,8 +83,8 @@ def _finished(chunks: Path, label: str, solver_start: str) -> bool:
 
 def _groups(pri) -> list[tuple[float, int, int]]:
     groups = [(float(g), pri.class_size, class_key(g)) for g in pri.g_classes]
-    if pri.primary_sources > 0:  # optional extra attitude carriers (0: the paper's three classes only)
-        groups.append((float(pri.primary_g_min), pri.primary_sources, PRIMARY_KEY))
+    if pri.extra_sources > 0:  # optional extra attitude carriers (0: the paper's three classes only)
+        groups.append((float(pri.extra_g_min), pri.extra_sources, EXTRA_KEY))
     return groups
 
 
@@ -362,8 +362,8 @@ def _aggregate(run: GlobalRun, computed: _Computed) -> dict[str, str]:
     counts = cells.class_counts
     notes = [run.conditions(f"{pri.mission_years:g} year(s) from {pri.mission_start} (TCB), dead time "
                             f"{100 * pri.dead_time_fraction:g} % in blocks of {pri.dead_time_block_days:g} d"),
-             f"Stars: {pri.class_size} per class (paper 5e5), {counts.get(PRIMARY_KEY, 0)} primary sources "
-             f"(G >= {pri.primary_g_min:g}); {data.n_solved} with >= 1 transit, {n_obs} measurements; "
+             f"Stars: {pri.class_size} per class (paper 5e5), {counts.get(EXTRA_KEY, 0)} extra stars "
+             f"(G >= {pri.extra_g_min:g}); {data.n_solved} with >= 1 transit, {n_obs} measurements; "
              f"attitude: cubic spline in {data.spline.n_segments} segments between the dead-time gaps, "
              f"knot interval {data.mean_knot_interval_hours:.3g} h ({knot_rule(pri)}), "
              f"{data.transits_per_knot:.1f} FoV transits per knot, {3 * data.spline.n_coef} coefficients; "
@@ -414,7 +414,7 @@ PRIMARY = GlobalExperiment(
     kind="primary", tag=TAG, chunks_dir=CHUNKS_DIR, build_settings=build_settings, groups=_groups,
     compute=_compute, aggregate=_aggregate, tables=TABLES, kept=_kept,
     draws_on_workers=lambda config: config.execution.backend == "dask",
-    seeds={"population": "SeedSequence(seed, spawn_key=(42, 0, round(100*G0) or 0 for the primaries))",
+    seeds={"population": "SeedSequence(seed, spawn_key=(42, 0, round(100*G0) or 0 for the extra stars))",
            "dead_time": "SeedSequence(seed, spawn_key=(42, 1))",
            "true_attitude": "SeedSequence(seed, spawn_key=(42, 2))",
            "noise": "SeedSequence(seed, spawn_key=(42, 3))",

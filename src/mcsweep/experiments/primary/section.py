@@ -134,8 +134,8 @@ def primary_section(doc: Document, run_dir: Path, prov: dict) -> None:
         heading="One-year global solution with the attitude (paper Sect. 4.2, Table 3)",
         description=(
             f"{plain(pri.get('class_size'))} stars per class (paper: 5e5), the attitude from the same stars"
-            + (f" and {plain(pri.get('primary_sources'))} extra stars G >= {plain(pri.get('primary_g_min'))} "
-               "(not in the paper)" if pri.get("primary_sources") else " (as the paper)")
+            + (f" and {plain(_extra(pri, 'sources'))} extra stars G >= {plain(_extra(pri, 'g_min'))} "
+               "(not in the paper)" if _extra(pri, "sources") else " (as the paper)")
             + f"; {plain(pri.get('mission_years'))} {'year' if pri.get('mission_years') == 1 else 'years'} from "
             f"{pri.get('mission_start')} "
             f"(TCB), {100 * float(pri.get('dead_time_fraction', 0.2)):g} % dead time; one AL "
@@ -165,3 +165,9 @@ def primary_section(doc: Document, run_dir: Path, prov: dict) -> None:
                  "`primary_factor_curves.csv`.")
         readable_table(doc, fac, "Smallest factor k per G class and subset",
                        {"k_min": ".3g", "k_lo": ".3g", "k_hi": ".3g"}, {"g_class": "G class"})
+
+
+def _extra(pri: dict, what: str):
+    """``extra_<what>`` of a run's ``experiment.primary`` section, or its name before the
+    rename (``primary_<what>``) in a run directory made before it."""
+    return pri.get(f"extra_{what}", pri.get(f"primary_{what}"))

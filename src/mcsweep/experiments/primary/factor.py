@@ -24,7 +24,7 @@ import numpy as np
 import pandas as pd
 
 from ..global_solution.table import SUBSETS, fraction_from_counts, g_label
-from .reduction import CellReduction, reduce_parts
+from .reduction import TableReduction, reduce_parts
 
 __all__ = ["FACTOR_COLUMNS", "CURVE_COLUMNS", "factor_label", "factor_curves", "factor_rows", "curves_from_reduction",
            "rows_from_reduction", "overall_factor"]
@@ -39,11 +39,11 @@ def factor_label(k: float) -> str:
 
 
 def _reduced(results: Mapping[float, pd.DataFrame], g_classes: Sequence[float], confidence: float,
-             count: str) -> CellReduction:
+             count: str) -> TableReduction:
     """The cells of solutions held whole (one part each; factor k -> per-star results)."""
     labels = {float(k): factor_label(k) for k in results}
     parts = {labels[float(k)]: df for k, df in results.items()}
-    return reduce_parts(lambda _: parts, 1, CellReduction(list(parts), g_classes, confidence, count=count,
+    return reduce_parts(lambda _: parts, 1, TableReduction(list(parts), g_classes, confidence, count=count,
                                                           factors=labels, ranked=()))
 
 
@@ -55,9 +55,9 @@ def factor_curves(results: Mapping[float, pd.DataFrame], g_classes: Sequence[flo
     return curves_from_reduction(_reduced(results, g_classes, 0.9, count))
 
 
-def curves_from_reduction(reduction: CellReduction) -> pd.DataFrame:
+def curves_from_reduction(reduction: TableReduction) -> pd.DataFrame:
     """:func:`factor_curves` from the cells of solutions read part by part
-    (:class:`~mcsweep.experiments.primary.reduction.CellReduction` with its ``factors``)."""
+    (:class:`~mcsweep.experiments.primary.reduction.TableReduction` with its ``factors``)."""
     rows = [(subset, g_label(g), k, n_val, n_in, *fraction_from_counts(n_in, n_val))
             for subset in SUBSETS for g in reduction.g_classes
             for k, (n_val, n_in) in zip(reduction.factors, reduction.factor_counts(subset, g))]
@@ -82,7 +82,7 @@ def factor_rows(results: Mapping[float, pd.DataFrame], g_classes: Sequence[float
     return rows_from_reduction(_reduced(results, g_classes, confidence, count), n_resamples=n_resamples, rng=rng)
 
 
-def rows_from_reduction(reduction: CellReduction, *, n_resamples: int, rng: np.random.Generator) -> pd.DataFrame:
+def rows_from_reduction(reduction: TableReduction, *, n_resamples: int, rng: np.random.Generator) -> pd.DataFrame:
     """:func:`factor_rows` from the cells of solutions read part by part: the bootstrap
     draws over the cell's patterns of flags, which is the bootstrap over its stars
     (:func:`~mcsweep.experiments.f90_curve.pattern_fractions`), the same bits."""

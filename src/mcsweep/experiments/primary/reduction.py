@@ -1,5 +1,5 @@
-"""Table 3's cells, the factor search's curves and the notes' counts, reduced from per-star
-results read part by part.
+"""Table 3's table cells (prior x subset x class), the factor search's curves and the notes'
+counts, reduced from per-star results read part by part.
 
 A primary solution's per-star results are written in parts of :data:`PART_STARS` stars
 (:func:`parts_of`); the run reduces them to its tables in two passes over the parts, so no
@@ -16,8 +16,8 @@ process holds a whole solution's stars:
    :func:`~mcsweep.astrometry.confidence.percentile_interval` give on all the values
    (tests).
 
-The same reduction serves one part held in memory (:func:`~.primary_table.table3_rows`,
-:func:`~.primary_factor.factor_rows`), so a table does not depend on how the stars were
+The same reduction serves one part held in memory (:func:`~.table.table3_rows`,
+:func:`~.factor.factor_rows`), so a table does not depend on how the stars were
 split, and a run on a cluster gives the bits of a local one.
 """
 
@@ -36,7 +36,7 @@ from ..global_solution.table import FRACTION_INTERVAL, SUBSETS, error_percentile
 from ...solver.selection import float_keys, quantile_from_neighbours, quantile_ranks
 from ..f90_curve import flag_patterns, merge_patterns, pattern_interval, sigma_f90_from_curve
 
-__all__ = ["RankSelector", "CellReduction", "reduce_parts", "rank_interval_indices"]
+__all__ = ["RankSelector", "TableReduction", "reduce_parts", "rank_interval_indices"]
 
 #: Quantiles of the spans of the <= 4 transit stars' live transits in the table notes.
 SPAN_QUANTILES = (0.1, 0.5, 0.9)
@@ -147,7 +147,7 @@ def _errors(part: pd.DataFrame) -> np.ndarray | None:
     return part["err_mas"].to_numpy() if "err_mas" in part else None
 
 
-class CellReduction:
+class TableReduction:
     """The reduction of one run's solutions (module notes).
 
     ``labels``: every solution read (Table 3's priors and the factor grid's); ``factors``:
@@ -295,8 +295,8 @@ class CellReduction:
         return q, within / n
 
 
-def reduce_parts(read: Callable[[int], Mapping[str, pd.DataFrame]], n_parts: int, reduction: CellReduction
-                 ) -> CellReduction:
+def reduce_parts(read: Callable[[int], Mapping[str, pd.DataFrame]], n_parts: int, reduction: TableReduction
+                 ) -> TableReduction:
     """``reduction`` after both passes over the ``n_parts`` parts ``read(j)`` gives (part j of
     every solution it reduces)."""
     for j in range(n_parts):

@@ -34,7 +34,7 @@ from .transits import transits_of
 from .local import prepare
 from .prior_solution import solve_prior
 from .cluster import prepare_on_cluster
-from .reduction import CellReduction, reduce_parts
+from .reduction import TableReduction, reduce_parts
 from .results import parts_of
 from .factor import curves_from_reduction, factor_label, overall_factor, rows_from_reduction
 from .table import SUBSET_COUNTS, table3_from_reduction, table3_markdown
@@ -99,7 +99,7 @@ def solution_line(label: str, extra: dict) -> str:
                "iteration" if sent else ""))
 
 
-def few_transit_spans(cells: CellReduction) -> str:
+def few_transit_spans(cells: TableReduction) -> str:
     """The note on the <= 4 transit subset's time spans: whether its stars were seen in one
     visit or in several months apart decides their errors. From the solutions' cells (the
     subset as the table counts it, of the stars with live transits)."""
@@ -320,7 +320,7 @@ def _read_solutions(run: GlobalRun, factors: dict) -> tuple[list, dict, list]:
     return histories, extras, attitude
 
 
-def _cells(run: GlobalRun, factors: dict, n_stars: int) -> CellReduction:
+def _cells(run: GlobalRun, factors: dict, n_stars: int) -> TableReduction:
     """Table 3's and the factor search's cells of every solution, read from the store part
     by part (:mod:`mcsweep.experiments.primary.reduction`): never a whole solution in memory."""
     pri = run.section
@@ -330,7 +330,7 @@ def _cells(run: GlobalRun, factors: dict, n_stars: int) -> CellReduction:
     def read(j: int) -> dict:
         return dict(zip(labels, run.read_all([ids[label][j] for label in labels])))
 
-    return reduce_parts(read, len(parts_of(n_stars)), CellReduction(
+    return reduce_parts(read, len(parts_of(n_stars)), TableReduction(
         labels, pri.g_classes, run.settings.confidence, count=SUBSET_COUNTS[pri.subset_transits], factors=factors,
         ranked=run.settings.priors))
 

@@ -27,7 +27,7 @@ import numpy as np
 import pandas as pd
 
 from ...astrometry.confidence import percentile_interval
-from .reduction import CellReduction, reduce_parts
+from .reduction import TableReduction, reduce_parts
 from ..global_solution.priors import prior_label
 from ..global_solution.table import (FRACTION_INTERVAL, PAPER_G_CLASSES, SUBSETS, error_percentile, fraction_statistics,
                            g_label, layout_markdown, paper_layout, published_value)
@@ -91,14 +91,14 @@ def table3_rows(results: Mapping[str, pd.DataFrame], g_classes: Sequence[float],
     ``count``: the column counting transits for the subsets (:data:`SUBSET_COUNTS`).
     The results held whole: :func:`table3_from_reduction` of their one part.
     """
-    reduction = reduce_parts(lambda _: results, 1, CellReduction(list(results), g_classes, confidence, count=count))
+    reduction = reduce_parts(lambda _: results, 1, TableReduction(list(results), g_classes, confidence, count=count))
     return table3_from_reduction(reduction, list(results), converged)
 
 
-def table3_from_reduction(reduction: CellReduction, priors: Sequence[str],
+def table3_from_reduction(reduction: TableReduction, priors: Sequence[str],
                           converged: Mapping[str, bool] | None = None) -> pd.DataFrame:
     """:func:`table3_rows` from the cells of solutions read part by part
-    (:class:`~mcsweep.experiments.primary.reduction.CellReduction`, whose stars may never be in
+    (:class:`~mcsweep.experiments.primary.reduction.TableReduction`, whose stars may never be in
     memory at once): the same rows, bit for bit."""
     q = error_percentile(reduction.confidence)
     rows = []

@@ -9,7 +9,7 @@ from scipy import stats
 from mcsweep.astrometry.confidence import percentile_interval
 from mcsweep.experiments.global_solution.table import FRACTION_INTERVAL
 from mcsweep.experiments.f90_curve import sigma_f90_from_curve
-from mcsweep.experiments.primary.reduction import SPAN_QUANTILES, CellReduction, RankSelector, reduce_parts
+from mcsweep.experiments.primary.reduction import SPAN_QUANTILES, TableReduction, RankSelector, reduce_parts
 from mcsweep.experiments.primary.factor import factor_rows, rows_from_reduction
 from mcsweep.experiments.primary.table import cell_statistics, table3_from_reduction, table3_rows
 
@@ -86,12 +86,12 @@ def _split(res, cuts):
 def test_tables_do_not_depend_on_the_parts():
     res = _results(30000, 3, labels=("F90", "2F90", "4F90"))
     factors = {1.0: "F90", 2.0: "2F90", 4.0: "4F90"}
-    whole = CellReduction(list(res), [11.0, 15.0, 19.0], 0.9, factors=factors)
+    whole = TableReduction(list(res), [11.0, 15.0, 19.0], 0.9, factors=factors)
     reduce_parts(lambda _: res, 1, whole)
     for cuts in ([1, 29999], [7000, 7001, 15000, 22222]):
         parts = _split(res, cuts)
         split = reduce_parts(lambda j: parts[j], len(parts),
-                             CellReduction(list(res), [11.0, 15.0, 19.0], 0.9, factors=factors))
+                             TableReduction(list(res), [11.0, 15.0, 19.0], 0.9, factors=factors))
         pd.testing.assert_frame_equal(table3_from_reduction(whole, list(res)), table3_from_reduction(split, list(res)),
                                       check_exact=True)
         a = rows_from_reduction(whole, n_resamples=50, rng=np.random.default_rng(4))
@@ -104,7 +104,7 @@ def test_tables_do_not_depend_on_the_parts():
 
 def test_few_transit_spans_are_numpys_quantiles():
     res = _results(20000, 5)
-    red = reduce_parts(lambda _: res, 1, CellReduction(list(res), [15.0], 0.9))
+    red = reduce_parts(lambda _: res, 1, TableReduction(list(res), [15.0], 0.9))
     r = res["F90"]
     m = ((r["class_key"] == 1500) & (r["n_fov"] >= 1) & (r["n_fov"] <= 4)).to_numpy()
     span = r["span_days"].to_numpy()[m].astype(float)

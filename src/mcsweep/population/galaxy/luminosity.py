@@ -67,6 +67,9 @@ __all__ = [
     "local_dwarf_lf",
     "subgiant_lf",
     "build_luminosity_table",
+    "build_part_table",
+    "dwarf_shift",
+    "PARTS",
 ]
 
 _DATA = "mcsweep.population.data"
@@ -251,6 +254,75 @@ def subgiant_lf():
     return dwarf_mv[bright], np.clip(wielen - dwarf_phi[bright], 0.0, None)
 
 
+def _component_bins(components, *, local=None, faint_scale=1.0, subgiants=False):
+    """Per component, the 1-mag bins of its luminosity function in M_G: ``(lo, hi, n, part)``
+    (bin edges, stars per pc^3, and which part of the local function each bin belongs to:
+    :data:`PARTS`). The one construction behind :func:`build_luminosity_table` and
+    :func:`build_part_table`, so their numbers cannot drift apart."""
+    if local is None:
+        local = [c for c in components if c.law != "bulge" and c.lf_part != "giants"]
+    local = [c for c in local if c.lf_part != "giants"]
+    mv, phi = load_local_lf()
+    giant_mv, giant_phi = mv[mv <= P.GIANT_MV_MAX], phi[mv <= P.GIANT_MV_MAX]
+    # 1-mag bins: the sum of phi is the giants' density; scaled to Bovy (2017)
+    giant_phi = giant_phi * (P.LOCAL_GIANT_DENSITY_PC3 / giant_phi.sum())
+    dwarf_mv, dwarf_phi, _ = local_dwarf_lf(faint_scale)
+
+    w_local_d = np.zeros(dwarf_mv.size)
+    w_local_g = 0.0
+    for c in local:
+        wd, wg = _weights(c, dwarf_mv)
+        w_local_d += wd
+        w_local_g += wg
+
+    lo_v, hi_v = dwarf_mv - 0.5, dwarf_mv + 0.5
+    lo_g_sol = lo_v + _g_minus_v(lo_v)
+    hi_g_sol = hi_v + _g_minus_v(hi_v)
+    glo = giant_mv - 0.5 + P.GIANT_G_MINUS_V
+    ghi = giant_mv + 0.5 + P.GIANT_G_MINUS_V
+    sub_mv, sub_phi = subgiant_lf() if subgiants else (np.zeros(0), np.zeros(0))
+    slo = sub_mv - 0.5 + P.SUBGIANT_G_MINUS_V
+    shi = sub_mv + 0.5 + P.SUBGIANT_G_MINUS_V
+    part = np.concatenate([np.full(dwarf_mv.size, 0), np.full(giant_mv.size, 1), np.full(sub_mv.size, 2)])
+
+    out = []
+    for c in components:
+        wd, wg = _weights(c, dwarf_mv)
+        n_dwarf = dwarf_phi * np.divide(wd, w_local_d, out=np.zeros_like(wd),
+                                        where=w_local_d > 0)
+        n_giant = giant_phi * (wg / w_local_g)
+        n_sub = sub_phi * (wg / w_local_g)  # evolved stars, shared as the giants are
+        # an age bin's giants (and subgiants) live in its giant-only companion (parameters.py)
+        n_dwarf = n_dwarf * (c.lf_part != "giants")
+        n_giant = n_giant * (c.lf_part != "dwarfs")
+        n_sub = n_sub * (c.lf_part != "dwarfs")
+        lo = np.concatenate([lo_g_sol - dwarf_shift(c), glo, slo])
+        hi = np.concatenate([hi_g_sol - dwarf_shift(c), ghi, shi])
+        n = np.concatenate([n_dwarf, n_giant, n_sub])
+        out.append((lo, hi, n, part))
+    return out
+
+
+def dwarf_shift(comp):
+    """How much brighter (mag) the dwarfs of ``comp`` are than the solar-metallicity sequence
+    of the same mass: the old metal-poor components' turn-off moved to
+    :data:`.parameters.OLD_METAL_POOR_TURNOFF_MV` (module notes, item 4); 0 otherwise."""
+    if not comp.metal_poor:
+        return 0.0
+    return float(_mv_of_mass(turnoff_mass(comp.age_gyr[1]))) - P.OLD_METAL_POOR_TURNOFF_MV
+
+
+def _cdf_of_bins(mg, lo, hi, n):
+    frac = np.clip((mg[None, :] - lo[:, None]) / (hi - lo)[:, None], 0.0, 1.0)
+    return (n[:, None] * frac).sum(axis=0)
+
+
+#: The parts of a component's luminosity function (:func:`build_part_table`): dwarfs (the
+#: main sequence fainter than :data:`.parameters.GIANT_MV_MAX`), the bins treated as giants
+#: (:data:`.parameters.GIANT_MV_MAX` and brighter) and the subgiants.
+PARTS = ("dwarfs", "giants", "subgiants")
+
+
 def build_luminosity_table(components, *, local=None, faint_scale=1.0, subgiants=False):
     """Luminosity functions in M_G of ``components`` (see module notes).
 
@@ -272,49 +344,32 @@ def build_luminosity_table(components, *, local=None, faint_scale=1.0, subgiants
     -------
     LuminosityTable
     """
-    if local is None:
-        local = [c for c in components if c.law != "bulge" and c.lf_part != "giants"]
-    local = [c for c in local if c.lf_part != "giants"]
-    mv, phi = load_local_lf()
-    giant_mv, giant_phi = mv[mv <= P.GIANT_MV_MAX], phi[mv <= P.GIANT_MV_MAX]
-    # 1-mag bins: the sum of phi is the giants' density; scaled to Bovy (2017)
-    giant_phi = giant_phi * (P.LOCAL_GIANT_DENSITY_PC3 / giant_phi.sum())
-    dwarf_mv, dwarf_phi, _ = local_dwarf_lf(faint_scale)
-
-    w_local_d = np.zeros(dwarf_mv.size)
-    w_local_g = 0.0
-    for c in local:
-        wd, wg = _weights(c, dwarf_mv)
-        w_local_d += wd
-        w_local_g += wg
-
     mg = np.arange(MG_MIN, MG_MAX + 0.5 * MG_STEP, MG_STEP)
-    lo_v, hi_v = dwarf_mv - 0.5, dwarf_mv + 0.5
-    lo_g_sol = lo_v + _g_minus_v(lo_v)
-    hi_g_sol = hi_v + _g_minus_v(hi_v)
-    glo = giant_mv - 0.5 + P.GIANT_G_MINUS_V
-    ghi = giant_mv + 0.5 + P.GIANT_G_MINUS_V
-    sub_mv, sub_phi = subgiant_lf() if subgiants else (np.zeros(0), np.zeros(0))
-    slo = sub_mv - 0.5 + P.SUBGIANT_G_MINUS_V
-    shi = sub_mv + 0.5 + P.SUBGIANT_G_MINUS_V
-
+    bins = _component_bins(components, local=local, faint_scale=faint_scale, subgiants=subgiants)
     cdf = np.zeros((len(components), mg.size))
-    for k, c in enumerate(components):
-        wd, wg = _weights(c, dwarf_mv)
-        n_dwarf = dwarf_phi * np.divide(wd, w_local_d, out=np.zeros_like(wd),
-                                        where=w_local_d > 0)
-        n_giant = giant_phi * (wg / w_local_g)
-        n_sub = sub_phi * (wg / w_local_g)  # evolved stars, shared as the giants are
-        # an age bin's giants (and subgiants) live in its giant-only companion (parameters.py)
-        n_dwarf = n_dwarf * (c.lf_part != "giants")
-        n_giant = n_giant * (c.lf_part != "dwarfs")
-        n_sub = n_sub * (c.lf_part != "dwarfs")
-        shift = 0.0
-        if c.metal_poor:
-            shift = float(_mv_of_mass(turnoff_mass(c.age_gyr[1]))) - P.OLD_METAL_POOR_TURNOFF_MV
-        lo = np.concatenate([lo_g_sol - shift, glo, slo])
-        hi = np.concatenate([hi_g_sol - shift, ghi, shi])
-        n = np.concatenate([n_dwarf, n_giant, n_sub])
-        frac = np.clip((mg[None, :] - lo[:, None]) / (hi - lo)[:, None], 0.0, 1.0)
-        cdf[k] = (n[:, None] * frac).sum(axis=0)
+    for k, (lo, hi, n, _) in enumerate(bins):
+        cdf[k] = _cdf_of_bins(mg, lo, hi, n)
     return LuminosityTable(names=tuple(c.name for c in components), mg=mg, cdf=cdf)
+
+
+def build_part_table(components, *, local=None, faint_scale=1.0, subgiants=False):
+    """The luminosity functions of :func:`build_luminosity_table` split into their
+    :data:`PARTS`: what a star of given M_G is (a dwarf, one of the bins treated as giants,
+    a subgiant), which its colour needs (:mod:`.colours`).
+
+    Returns
+    -------
+    mg : ndarray, shape (K,)
+        The absolute-magnitude grid of :func:`build_luminosity_table`.
+    cdf : ndarray, shape (n_comp, len(PARTS), K)
+        Stars per pc^3 brighter than ``mg``, per component and part (their sum over parts is
+        the luminosity table's ``cdf`` to rounding).
+    """
+    mg = np.arange(MG_MIN, MG_MAX + 0.5 * MG_STEP, MG_STEP)
+    bins = _component_bins(components, local=local, faint_scale=faint_scale, subgiants=subgiants)
+    cdf = np.zeros((len(components), len(PARTS), mg.size))
+    for k, (lo, hi, n, part) in enumerate(bins):
+        for p in range(len(PARTS)):
+            sel = part == p
+            cdf[k, p] = _cdf_of_bins(mg, lo[sel], hi[sel], n[sel])
+    return mg, cdf

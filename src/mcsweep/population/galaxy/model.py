@@ -17,7 +17,10 @@ the sky cell, and a velocity from the component's ellipsoid. Capping the number 
 Randomness comes only from the ``rng`` passed in: it gives the count and one root seed;
 stars are drawn in fixed blocks of :data:`DRAW_BLOCK_STARS`, block ``i`` from
 ``SeedSequence(root, spawn_key=(i,))``, so the result does not depend on how blocks are
-grouped into chunks (``chunk_stars``) and memory stays flat.
+grouped into chunks (``chunk_stars``) and memory stays flat. Each star's Gaia colour
+(``bp_rp``, :mod:`.colours`) needs one more uniform number, drawn from a stream of its own,
+block ``i``'s from ``SeedSequence(root, spawn_key=(i, COLOUR_STREAM))``: the streams of the
+other columns are untouched, so adding the colour changed none of them.
 """
 
 from __future__ import annotations
@@ -35,11 +38,13 @@ from ..query import COLUMNS, POPULATION_CATEGORIES, ConeQuery
 from . import parameters as P
 from .density import component_shape, heliocentric_to_galactocentric
 from .extinction import AG_OVER_AV, AV_PER_KPC, DUST_SCALE_HEIGHT_PC, DUST_SCALE_LENGTH_KPC, DustModel
+from .colours import ColourTable, reddening_bp_rp
 from .extinction_arenou import ArenouDust
 from .kinematics import AstrometryTransform, draw_velocities, mean_lag_kms
 from .luminosity import build_luminosity_table
 
-__all__ = ["GalaxyModel", "DEFAULT_PARAMS", "DRAW_BLOCK_STARS", "gcns_faint_scale", "local_sources_per_pc3"]
+__all__ = ["GalaxyModel", "DEFAULT_PARAMS", "DRAW_BLOCK_STARS", "COLOUR_STREAM", "COLOUR_COLUMN",
+           "gcns_faint_scale", "local_sources_per_pc3"]
 
 #: Stars drawn per independently seeded block (block ``i`` from ``SeedSequence(root,
 #: spawn_key=(i,))``, module notes). Why this size: a block's arrays (~80 bytes per star,
@@ -47,6 +52,13 @@ __all__ = ["GalaxyModel", "DEFAULT_PARAMS", "DRAW_BLOCK_STARS", "gcns_faint_scal
 #: many stars. The value defines which stars share a random stream: changing it changes
 #: every sample drawn with a given seed, so it is fixed.
 DRAW_BLOCK_STARS = 65536
+#: Second spawn-key element of the colour stream of block ``i``: ``SeedSequence(root,
+#: spawn_key=(i, COLOUR_STREAM))`` (module notes). A stream apart from the block's own
+#: ``(i,)``, so that the colour consumes none of the numbers the other columns are drawn from.
+COLOUR_STREAM = 1
+#: The column the galaxy model adds to :data:`~mcsweep.population.query.COLUMNS`: Gaia BP - RP
+#: [mag], intrinsic colour plus reddening (:mod:`.colours`).
+COLOUR_COLUMN = "bp_rp"
 #: Distance-modulus grid: 2.5 pc to 79 kpc in steps of 0.05 mag (2.3 % in distance).
 MU_MIN, MU_MAX, MU_STEP = -3.0, 19.5, 0.05
 #: Largest number of stars drawn in one call (memory: ~80 bytes per star).
@@ -202,6 +214,8 @@ class GalaxyModel:
         # instead (multiplicity_frequency=0) scales every magnitude alike.
         scale = (1.0 + P.MULTIPLICITY_FREQUENCY) / (1.0 + float(p["multiplicity_frequency"]))
         self.lf = type(lf)(lf.names, lf.mg, lf.cdf * scale)
+        self._colour_args = dict(local=local, faint_scale=gcns_faint_scale(subgiants), subgiants=subgiants)
+        self._colour_table = None
         self.dust = DustModel(
             av_per_kpc=p["dust_av_per_kpc"] if p["extinction"] else 0.0,
             scale_length_kpc=p["dust_scale_length_kpc"], scale_height_pc=p["dust_scale_height_pc"],
@@ -223,6 +237,13 @@ class GalaxyModel:
     def __repr__(self):
         changed = {k: v for k, v in self.params.items() if v != DEFAULT_PARAMS[k]}
         return f"GalaxyModel({changed})"
+
+    @property
+    def colours(self):
+        """The :class:`.colours.ColourTable` of this model's components (built on first use)."""
+        if self._colour_table is None:
+            self._colour_table = ColourTable.build(self.components, **self._colour_args)
+        return self._colour_table
 
     # ----------------------------------------------------------------- tabulation
     def _line_of_sight(self, l_deg, b_deg, radius_deg):
@@ -344,7 +365,8 @@ class GalaxyModel:
         -------
         pandas.DataFrame
             Columns ``ra, dec, l, b`` [deg], ``parallax`` [mas], ``pmra, pmdec`` [mas/yr],
-            ``phot_g_mean_mag`` [mag], ``distance_pc`` [pc], ``population`` (categorical).
+            ``phot_g_mean_mag`` [mag], ``distance_pc`` [pc], ``population`` (categorical),
+            ``bp_rp`` [mag] (Gaia BP - RP with reddening, :mod:`.colours`).
             ``attrs["n_in_cone"]`` is the number of stars in the cone (before the cap) and
             ``attrs["expected_count"]`` its expectation.
         """
@@ -372,7 +394,7 @@ class GalaxyModel:
 
     # ----------------------------------------------------------------- drawing
     def _draw(self, los, shape, cum, g_min, g_max, n, root):
-        cols = {c: np.empty(n) for c in COLUMNS[:-1]}
+        cols = {c: np.empty(n) for c in COLUMNS[:-1] + (COLOUR_COLUMN,)}
         codes = np.empty(n, dtype=np.int64)
         n_blocks = -(-n // DRAW_BLOCK_STARS)
         per_chunk = max(1, self.chunk_stars // DRAW_BLOCK_STARS)
@@ -381,19 +403,22 @@ class GalaxyModel:
             stop = min(n, (first + per_chunk) * DRAW_BLOCK_STARS)
             uni = np.empty((5, stop - start))
             nor = np.empty((3, stop - start))
+            u_colour = np.empty(stop - start)
             for i in range(first, min(first + per_chunk, n_blocks)):
                 a = i * DRAW_BLOCK_STARS - start
                 m = min(DRAW_BLOCK_STARS, n - i * DRAW_BLOCK_STARS)
                 gen = np.random.default_rng(np.random.SeedSequence(root, spawn_key=(i,)))
                 uni[:, a:a + m] = gen.random((5, m))
                 nor[:, a:a + m] = gen.standard_normal((3, m))
-            part, part_codes = self._stars(los, shape, cum, g_min, g_max, uni, nor)
+                u_colour[a:a + m] = np.random.default_rng(
+                    np.random.SeedSequence(root, spawn_key=(i, COLOUR_STREAM))).random(m)
+            part, part_codes = self._stars(los, shape, cum, g_min, g_max, uni, nor, u_colour)
             for c, v in part.items():
                 cols[c][start:stop] = v
             codes[start:stop] = part_codes
         return self._frame(cols, codes)
 
-    def _stars(self, los, shape, cum, g_min, g_max, uni, normals):
+    def _stars(self, los, shape, cum, g_min, g_max, uni, normals, u_colour):
         # searchsorted is much faster on sorted queries (cache); the result is unchanged
         target = uni[0] * cum[-1]
         order = np.argsort(target)
@@ -422,12 +447,16 @@ class GalaxyModel:
         v = draw_velocities(x, y, self.lag_kms[k], self.sigma_uvw[k], normals,
                             v_circ_kms=self.params["v_circ_kms"])
         ra, dec, pmra, pmdec = self.transform.astrometry(l, b, d_kpc, v, gal_unit=n_gal)
+        # colour last: it reads what was drawn above and changes none of it
+        bp_rp0, _ = self.colours.intrinsic(k, m_g, u_colour)
+        bp_rp = bp_rp0 + reddening_bp_rp(bp_rp0, a_g / float(self.params["ag_over_av"]))
         cols = {"ra": ra, "dec": dec, "l": l, "b": b, "parallax": 1000.0 / d_pc,
-                "pmra": pmra, "pmdec": pmdec, "phot_g_mean_mag": g, "distance_pc": d_pc}
+                "pmra": pmra, "pmdec": pmdec, "phot_g_mean_mag": g, "distance_pc": d_pc,
+                COLOUR_COLUMN: bp_rp}
         return cols, self.label_codes[k]
 
     @staticmethod
     def _frame(cols, codes):
         data = dict(cols)
         data["population"] = pd.Categorical.from_codes(codes, categories=POPULATION_CATEGORIES)
-        return pd.DataFrame(data, columns=list(COLUMNS), copy=False)
+        return pd.DataFrame(data, columns=[*COLUMNS, COLOUR_COLUMN], copy=False)

@@ -1,0 +1,226 @@
+"""Gaia BP - RP of the galaxy model's stars: an intrinsic colour per type plus reddening.
+
+Why: a prior that knows a star's colour needs a model whose stars have colours drawn the
+way Gaia sees them. Each star's colour follows from what the model already drew (its
+component, absolute magnitude M_G and extinction A_G); only the choice between the parts of
+the luminosity function that overlap at its M_G (a dwarf, an early-type main-sequence star
+or an evolved giant, a subgiant) takes a random number, from a stream of its own
+(:mod:`.model`), so every other column of a draw is unchanged.
+
+Intrinsic colours (BP - RP)_0:
+
+* dwarfs: Mamajek's mean dwarf sequence, columns Mv, G-V and Bp-Rp (E. Mamajek,
+  ``EEM_dwarf_UBVIJHK_colors_Teff.txt``, version 2024.05.15, extending Pecaut & Mamajek 2013,
+  ApJS 208, 9, Table 5; ``data/dwarf_sequence_mamajek.ecsv``), interpolated in
+  M_G = M_V + (G - V), the same sequence that turns the model's M_V into M_G. The old
+  metal-poor components' dwarfs, made brighter by :func:`.luminosity.dwarf_shift`, take the
+  colour of the solar-metallicity dwarf of the same mass. The table gives no Bp-Rp earlier
+  than B9V: hotter stars keep B9V's -0.120 (their true colours are bluer);
+* the bins treated as giants (M_V <= :data:`.parameters.GIANT_MV_MAX`): in the Wielen/Allen
+  function those bins hold main-sequence B and A stars as well as evolved giants. Each
+  bin's main-sequence share is Bovy's (2017) present-day mass function integrated over the
+  bin's mass range (the model's own bright-dwarf law, :data:`.parameters.BOVY_PDMF_NORM`),
+  shared among the components as the dwarfs are (:func:`.luminosity._weights`, so old
+  components hold none), over the bin's stars in that component, at most 1. The main-sequence
+  stars take the dwarf sequence's colour at their M_V; the evolved giants
+  :data:`GIANT_BP_RP`;
+* subgiants: :data:`SUBGIANT_BP_RP`.
+
+Reddening: E(BP - RP) = (k_BP - k_RP) A_0, with the Gaia EDR3 extinction law for
+main-sequence stars (ESA, "Gaia EDR3 extinction law", cosmos.esa.int/web/gaia/edr3-extinction-law,
+file ``Fitz19_EDR3_MainSequence.csv``, rows BPRP; the Fitzpatrick et al. 2019 law through the
+EDR3 passbands of Riello et al. 2021, A&A 649, A3): k_X = A_X / A_0 is a polynomial in the
+intrinsic colour X = (BP - RP)_0 and A_0, terms (1, X, X^2, X^3, A, A^2, A^3, X A, A X^2,
+X A^2) with the coefficients :data:`EDR3_K_BP` and :data:`EDR3_K_RP`. A_0 (the extinction at
+541.4 nm, i.e. A_V for the model's purposes) is the model's own A_G over its A_G / A_V
+(:data:`.extinction.AG_OVER_AV`, Wang & Chen 2019), the inverse of how the model made A_G.
+The law's X is clipped to :data:`EDR3_X_RANGE`, the colours of its main-sequence grid.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+from importlib import resources
+
+import numpy as np
+from astropy.table import Table
+
+from . import parameters as P
+from .luminosity import (
+    PARTS,
+    _mass_of_mv,
+    _weights,
+    build_part_table,
+    dwarf_shift,
+    load_local_lf,
+)
+
+__all__ = [
+    "EDR3_K_BP",
+    "EDR3_K_RP",
+    "EDR3_X_RANGE",
+    "GIANT_BP_RP",
+    "SUBGIANT_BP_RP",
+    "COLOUR_PARTS",
+    "load_dwarf_colours",
+    "dwarf_bp_rp",
+    "main_sequence_bp_rp",
+    "extinction_ratios",
+    "reddening_bp_rp",
+    "giant_bin_main_sequence_fraction",
+    "ColourTable",
+]
+
+_DATA = "mcsweep.population.data"
+
+#: Gaia EDR3 extinction law, main sequence, k_BP = A_BP / A_0 against (BP - RP)_0: the BPRP
+#: row of ``Fitz19_EDR3_MainSequence.csv`` (ESA, cosmos.esa.int/web/gaia/edr3-extinction-law),
+#: terms (1, X, X^2, X^3, A, A^2, A^3, X A, A X^2, X A^2), X = (BP - RP)_0, A = A_0 [C: read
+#: in four public codes that quote the ESA file, identical to the last digit].
+EDR3_K_BP = (1.15363197483424, -0.0814012991657388, -0.036013023976704, 0.0192143585568966,
+             -0.022397548243016, 0.000840562680547171, -1.31018008013549e-05, 0.00660124080271006,
+             -0.000882247501989453, -0.000111215755291684)
+#: The same for k_RP = A_RP / A_0.
+EDR3_K_RP = (0.66320787941067, -0.0179847164933981, 0.000493769449961458, -0.00267994405695751,
+             -0.00651422146709376, 3.30179903473159e-05, 1.57894227641527e-06, -7.9800898337247e-05,
+             0.000255679812110045, 1.10476584967393e-05)
+#: Range of (BP - RP)_0 at which the law is evaluated, mag: the extremes of the dwarf colours
+#: used here (B9V -0.120 to M3V 2.50); redder dwarfs are nearby, almost unreddened stars,
+#: and a cubic in X is not extrapolated to them.
+EDR3_X_RANGE = (-0.120, 2.50)
+#: (BP - RP)_0 of the evolved giants: the colour the model's own giant G - V = -0.31
+#: (:data:`.parameters.GIANT_G_MINUS_V`) stands for on Mamajek's sequence (the K3V row: G-V
+#: -0.31, Bp-Rp 1.19 [V]); red-clump and red-giant-branch stars have BP - RP ~ 1.1-1.3 [M].
+GIANT_BP_RP = 1.19
+#: (BP - RP)_0 of the subgiants: G5V's Bp-Rp on Mamajek's sequence (0.850 [V]), the row
+#: whose G - V the model gives them (:data:`.parameters.SUBGIANT_G_MINUS_V`).
+SUBGIANT_BP_RP = 0.850
+#: What a star is, for its colour: the luminosity function's :data:`.luminosity.PARTS` with
+#: the giant bins split into evolved giants and main-sequence stars.
+COLOUR_PARTS = ("dwarfs", "giants", "giant_bins_main_sequence", "subgiants")
+
+
+@lru_cache(maxsize=1)
+def load_dwarf_colours():
+    """Mamajek's dwarf sequence where it has Bp-Rp: (M_V, M_G = M_V + (G - V), Bp-Rp), mag,
+    M_V increasing."""
+    with resources.files(_DATA).joinpath("dwarf_sequence_mamajek.ecsv").open("r") as fh:
+        t = Table.read(fh.read(), format="ascii.ecsv")
+    mv = np.asarray(t["M_V"], float)
+    gv = np.asarray(t["G_minus_V"], float)
+    c = np.asarray(t["bp_rp"], float)
+    ok = np.isfinite(c)
+    return mv[ok], mv[ok] + gv[ok], c[ok]
+
+
+def dwarf_bp_rp(mg):
+    """(BP - RP)_0 of a solar-metallicity dwarf of absolute magnitude ``mg`` (M_G, mag)."""
+    _, seq_mg, seq_c = load_dwarf_colours()
+    return np.interp(mg, seq_mg, seq_c)
+
+
+def main_sequence_bp_rp(mv):
+    """(BP - RP)_0 of a main-sequence star of absolute magnitude ``mv`` (M_V, mag)."""
+    seq_mv, _, seq_c = load_dwarf_colours()
+    return np.interp(mv, seq_mv, seq_c)
+
+
+def extinction_ratios(bp_rp0, a0):
+    """(k_BP, k_RP) = (A_BP / A_0, A_RP / A_0) of the Gaia EDR3 law (module notes).
+
+    Parameters
+    ----------
+    bp_rp0 : array_like
+        Intrinsic colour (BP - RP)_0, mag (clipped to :data:`EDR3_X_RANGE`).
+    a0 : array_like
+        Extinction A_0, mag.
+    """
+    x = np.clip(np.asarray(bp_rp0, float), *EDR3_X_RANGE)
+    a = np.asarray(a0, float)
+    terms = (np.ones_like(x * a), x, x ** 2, x ** 3, a, a ** 2, a ** 3, x * a, a * x ** 2, x * a ** 2)
+    return tuple(sum(c * t for c, t in zip(coef, terms)) for coef in (EDR3_K_BP, EDR3_K_RP))
+
+
+def reddening_bp_rp(bp_rp0, a0):
+    """E(BP - RP) = (k_BP - k_RP) A_0, mag (:func:`extinction_ratios`); 0 where A_0 <= 0."""
+    a = np.clip(np.asarray(a0, float), 0.0, None)
+    k_bp, k_rp = extinction_ratios(bp_rp0, a)
+    return (k_bp - k_rp) * a
+
+
+def giant_bin_main_sequence_fraction(components, local):
+    """Per component and giant bin (the Wielen/Allen bins with M_V <=
+    :data:`.parameters.GIANT_MV_MAX`): the share of the bin's stars that are on the main
+    sequence (module notes). Returns (bin centres M_V [mag], fractions (n_comp, n_bins))."""
+    mv, phi = load_local_lf()
+    sel = mv <= P.GIANT_MV_MAX
+    g_mv = mv[sel]
+    g_phi = phi[sel] * (P.LOCAL_GIANT_DENSITY_PC3 / phi[sel].sum())
+    m_hi, m_lo = _mass_of_mv(g_mv - 0.5), _mass_of_mv(g_mv + 0.5)
+    a = P.BOVY_PDMF_SLOPE - 1.0
+    pdmf = P.BOVY_PDMF_NORM / a * (m_lo ** -a - m_hi ** -a)
+    local = [c for c in local if c.lf_part != "giants"]
+    wd_local = sum(_weights(c, g_mv)[0] for c in local)
+    wg_local = sum(_weights(c, g_mv)[1] for c in local)
+    frac = np.zeros((len(components), g_mv.size))
+    for k, c in enumerate(components):
+        wd, wg = _weights(c, g_mv)
+        n_ms = pdmf * np.divide(wd, wd_local, out=np.zeros_like(wd), where=wd_local > 0)
+        n_giant = g_phi * (wg / wg_local)
+        frac[k] = np.clip(np.divide(n_ms, n_giant, out=np.zeros_like(n_ms), where=n_giant > 0), 0.0, 1.0)
+    return g_mv, frac
+
+
+@dataclass(frozen=True)
+class ColourTable:
+    """What the colour of a star of each component and M_G is drawn from.
+
+    Attributes
+    ----------
+    mg : ndarray, shape (K,)
+        Absolute-magnitude grid of the luminosity functions, mag.
+    density : ndarray, shape (n_comp, len(COLOUR_PARTS), K - 1)
+        Stars per pc^3 of each part in each grid interval (relative weights only).
+    shift : ndarray, shape (n_comp,)
+        :func:`.luminosity.dwarf_shift` of each component, mag.
+    """
+
+    mg: np.ndarray
+    density: np.ndarray
+    shift: np.ndarray
+
+    @classmethod
+    def build(cls, components, *, local, faint_scale, subgiants):
+        mg, cdf = build_part_table(components, local=local, faint_scale=faint_scale, subgiants=subgiants)
+        dens = np.diff(cdf, axis=-1)
+        g_mv, ms = giant_bin_main_sequence_fraction(components, local)
+        # the giant bins are 1 mag wide in M_V, centred on g_mv, at M_G = M_V + GIANT_G_MINUS_V
+        mid_mv = 0.5 * (mg[1:] + mg[:-1]) - P.GIANT_G_MINUS_V
+        idx = np.clip(np.searchsorted(g_mv - 0.5, mid_mv, side="right") - 1, 0, g_mv.size - 1)
+        f = ms[:, idx]
+        giants = dens[:, PARTS.index("giants")]
+        density = np.stack([dens[:, PARTS.index("dwarfs")], giants * (1.0 - f), giants * f,
+                            dens[:, PARTS.index("subgiants")]], axis=1)
+        shift = np.array([dwarf_shift(c) for c in components])
+        return cls(mg, np.clip(density, 0.0, None), shift)
+
+    def intrinsic(self, k, m_g, u):
+        """(BP - RP)_0 of stars of components ``k`` (indices) at absolute magnitudes ``m_g``,
+        the part chosen with the uniform numbers ``u`` in [0, 1) by the parts' densities at
+        ``m_g``. Returns (colours [mag], part indices into :data:`COLOUR_PARTS`)."""
+        i = np.clip(np.searchsorted(self.mg, m_g, side="right") - 1, 0, self.mg.size - 2)
+        w = self.density[k, :, i]                       # (n, parts)
+        cum = np.cumsum(w, axis=1)
+        total = cum[:, -1]
+        part = (u[:, None] * total[:, None] >= cum).sum(axis=1)
+        # a star outside every part's bins (rounding at a bin edge) is taken as a dwarf
+        part = np.where(total > 0, np.minimum(part, len(COLOUR_PARTS) - 1), 0)
+        c = np.empty(m_g.size)
+        dw = part == 0
+        c[dw] = dwarf_bp_rp(m_g[dw] + self.shift[k[dw]])
+        c[part == 1] = GIANT_BP_RP
+        ms = part == 2
+        c[ms] = main_sequence_bp_rp(m_g[ms] - P.GIANT_G_MINUS_V)
+        c[part == 3] = SUBGIANT_BP_RP
+        return c, part

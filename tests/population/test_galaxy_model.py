@@ -47,7 +47,7 @@ def test_counts_scale_with_cone_area_at_high_latitude(model):
 
 def test_sample_matches_the_query_and_contract(model):
     df = model.sample_cone(*BEAM, 14.5, 15.5, np.random.default_rng(1))
-    assert list(df.columns) == list(COLUMNS)
+    assert list(df.columns) == [*COLUMNS, "bp_rp"]  # the model adds its stars' colour
     assert isinstance(df["population"].dtype, pd.CategoricalDtype)
     assert df["phot_g_mean_mag"].between(14.5, 15.5, inclusive="left").all()
     sep = np.degrees(np.arccos(np.clip(
@@ -106,7 +106,7 @@ def test_sample_sky_and_empty_draw(model):
     with pytest.raises(UserInputError, match="max_stars"):
         model.sample_sky(0, 21, np.random.default_rng(8))
     none = model.sample_cone(*BEAM, 4.0, 4.001, np.random.default_rng(9))
-    assert len(none) == 0 and list(none.columns) == list(COLUMNS)
+    assert len(none) == 0 and list(none.columns) == [*COLUMNS, "bp_rp"]
 
 
 def test_extinction_and_thin_disc_parameters_act_in_the_expected_direction():

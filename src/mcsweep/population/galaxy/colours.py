@@ -20,7 +20,7 @@ Intrinsic colours (BP - RP)_0:
   function those bins hold main-sequence B and A stars as well as evolved giants. Each
   bin's main-sequence share is Bovy's (2017) present-day mass function integrated over the
   bin's mass range (the model's own bright-dwarf law, :data:`.parameters.BOVY_PDMF_NORM`),
-  shared among the components as the dwarfs are (:func:`.luminosity._weights`, so old
+  shared among the components as the dwarfs are (:func:`.luminosity.component_weights`, so old
   components hold none), over the bin's stars in that component, at most 1. The main-sequence
   stars take the dwarf sequence's colour at their M_V; the evolved giants
   :data:`GIANT_BP_RP`;
@@ -49,8 +49,8 @@ from astropy.table import Table
 from . import parameters as P
 from .luminosity import (
     PARTS,
-    _mass_of_mv,
-    _weights,
+    component_weights,
+    mass_of_mv,
     build_part_table,
     dwarf_shift,
     load_local_lf,
@@ -157,15 +157,15 @@ def giant_bin_main_sequence_fraction(components, local):
     sel = mv <= P.GIANT_MV_MAX
     g_mv = mv[sel]
     g_phi = phi[sel] * (P.LOCAL_GIANT_DENSITY_PC3 / phi[sel].sum())
-    m_hi, m_lo = _mass_of_mv(g_mv - 0.5), _mass_of_mv(g_mv + 0.5)
+    m_hi, m_lo = mass_of_mv(g_mv - 0.5), mass_of_mv(g_mv + 0.5)
     a = P.BOVY_PDMF_SLOPE - 1.0
     pdmf = P.BOVY_PDMF_NORM / a * (m_lo ** -a - m_hi ** -a)
     local = [c for c in local if c.lf_part != "giants"]
-    wd_local = sum(_weights(c, g_mv)[0] for c in local)
-    wg_local = sum(_weights(c, g_mv)[1] for c in local)
+    wd_local = sum(component_weights(c, g_mv)[0] for c in local)
+    wg_local = sum(component_weights(c, g_mv)[1] for c in local)
     frac = np.zeros((len(components), g_mv.size))
     for k, c in enumerate(components):
-        wd, wg = _weights(c, g_mv)
+        wd, wg = component_weights(c, g_mv)
         n_ms = pdmf * np.divide(wd, wd_local, out=np.zeros_like(wd), where=wd_local > 0)
         n_giant = g_phi * (wg / wg_local)
         frac[k] = np.clip(np.divide(n_ms, n_giant, out=np.zeros_like(n_ms), where=n_giant > 0), 0.0, 1.0)

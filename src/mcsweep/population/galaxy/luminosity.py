@@ -144,7 +144,8 @@ def _ages(comp, n=400):
     return np.linspace(max(a, 0.02), b, n)
 
 
-def _mass_of_mv(mv):
+def mass_of_mv(mv):
+    """Mass [M_sun] of a main-sequence star of absolute magnitude ``mv`` (the dwarf sequence)."""
     seq_mv, _, seq_m = load_dwarf_sequence()
     return 10.0 ** np.interp(mv, seq_mv, np.log10(seq_m))
 
@@ -160,7 +161,7 @@ def _mv_of_mass(m):
     return np.interp(np.log10(m), np.log10(seq_m[::-1]), seq_mv[::-1])
 
 
-def _weights(comp, dwarf_mv, n_sub=20):
+def component_weights(comp, dwarf_mv, n_sub=20):
     """(dwarf weights per bin, giant weight, rho/mu) of one component."""
     ages = _ages(comp)
     m_up = float(turnoff_mass(np.mean(ages)))
@@ -171,7 +172,7 @@ def _weights(comp, dwarf_mv, n_sub=20):
         rho_over_mu = comp.rho_ref / mass
     # dwarfs: average over sub-points of each 1-mag bin
     sub = dwarf_mv[:, None] + (np.arange(n_sub) + 0.5)[None, :] / n_sub - 0.5
-    m_sub = _mass_of_mv(sub)
+    m_sub = mass_of_mv(sub)
     t_ms = P.MS_LIFETIME_SUN_GYR * m_sub ** (-P.MS_LIFETIME_SLOPE)
     alive = (t_ms[..., None] > ages[None, None, :]).mean(axis=-1)
     w_dwarf = rho_over_mu * (imf(m_sub, comp.imf) * alive).mean(axis=1)
@@ -230,7 +231,7 @@ def local_dwarf_lf(faint_scale=1.0):
     dwarf = mv > P.GIANT_MV_MAX
     mv, phi = mv[dwarf], phi[dwarf]
     bright = mv < P.BOVY_PDMF_MV_MAX
-    m_hi, m_lo = _mass_of_mv(mv - 0.5), _mass_of_mv(mv + 0.5)
+    m_hi, m_lo = mass_of_mv(mv - 0.5), mass_of_mv(mv + 0.5)
     a = P.BOVY_PDMF_SLOPE - 1.0
     pdmf = P.BOVY_PDMF_NORM / a * (m_lo ** -a - m_hi ** -a)
     return mv, np.where(bright, pdmf, phi * faint_scale), bright
@@ -271,7 +272,7 @@ def _component_bins(components, *, local=None, faint_scale=1.0, subgiants=False)
     w_local_d = np.zeros(dwarf_mv.size)
     w_local_g = 0.0
     for c in local:
-        wd, wg = _weights(c, dwarf_mv)
+        wd, wg = component_weights(c, dwarf_mv)
         w_local_d += wd
         w_local_g += wg
 
@@ -287,7 +288,7 @@ def _component_bins(components, *, local=None, faint_scale=1.0, subgiants=False)
 
     out = []
     for c in components:
-        wd, wg = _weights(c, dwarf_mv)
+        wd, wg = component_weights(c, dwarf_mv)
         n_dwarf = dwarf_phi * np.divide(wd, w_local_d, out=np.zeros_like(wd),
                                         where=w_local_d > 0)
         n_giant = giant_phi * (wg / w_local_g)

@@ -113,22 +113,22 @@ def test_outcome_lost_before_the_parts_are_read_solves_again(both, client, monke
     # (the stars' outcome went with a worker: ChunksLost, as DaskChunks raises it after
     # rebuilding the chunks; here raised once in place of a worker's death) solves the prior
     # again; the same bits.
-    from mcsweep.experiments.primary import cluster as PC
+    from mcsweep.experiments.primary import prior_solution as PS
     from mcsweep.solver.executors import ChunksLost
 
     settings, local, remote = both
     ref = solve_prior(settings, local, "F90").results.frame()
-    real_solve, solves = PC.solve_global, []
-    monkeypatch.setattr(PC, "solve_global", lambda *a, **k: solves.append(1) or real_solve(*a, **k))
-    real_values, lost = PC.chunk_values, []
+    real_solve, solves = PS.solve_global, []
+    monkeypatch.setattr(PS, "solve_global", lambda *a, **k: solves.append(1) or real_solve(*a, **k))
+    real_values, lost = PS.chunk_values, []
 
     def once_lost(run, fn, items):
-        if fn is PC.outcome_slice and not lost:
+        if fn is PS.outcome_slice and not lost:
             lost.append(1)
             raise ChunksLost("lost (simulated)")
         return real_values(run, fn, items)
 
-    monkeypatch.setattr(PC, "chunk_values", once_lost)
+    monkeypatch.setattr(PS, "chunk_values", once_lost)
     got = solve_prior(settings, remote, "F90", dask_client=client, chunk_stars=2 * BLOCK)
     frame = got.results.frame()
     assert lost and len(solves) == 2  # solved again after the loss
@@ -230,13 +230,13 @@ def test_worker_lost_after_the_solution_restarts_it(both, client, monkeypatch):
     import os
     import signal
 
-    from mcsweep.experiments.primary import cluster as PC
+    from mcsweep.experiments.primary import prior_solution as PS
 
     settings, local, remote = both
     ref = solve_prior(settings, local, "F90")
     client.wait_for_workers(2, timeout=60)
     victim = sorted(client.run(os.getpid).values())[0]
-    real, calls = PC.solve_global, []
+    real, calls = PS.solve_global, []
 
     def solve_then_kill(*args, **kwargs):
         sol = real(*args, **kwargs)
@@ -245,7 +245,7 @@ def test_worker_lost_after_the_solution_restarts_it(both, client, monkeypatch):
         calls.append(1)
         return sol
 
-    monkeypatch.setattr(PC, "solve_global", solve_then_kill)
+    monkeypatch.setattr(PS, "solve_global", solve_then_kill)
     got = solve_prior(settings, remote, "F90", dask_client=client, chunk_stars=2 * BLOCK)
     client.wait_for_workers(2, timeout=60)
     assert len(calls) == 2  # solved again after the loss

@@ -3,26 +3,29 @@
 A pass of the solver runs one chunk task (:mod:`~mcsweep.solver.tasks`) on every chunk
 through ``run(fn, items)``, an executor that holds each chunk (its blocks, measurements and
 the state with its share of the star vectors) where its task runs: in this process
-(:func:`in_process`), in a forked worker (:func:`~mcsweep.solver.resident.forked_chunks`) or
+(:func:`in_process`, :class:`HeldChunks`), in a forked worker (:func:`~mcsweep.solver.resident.forked_chunks`) or
 on a Dask worker (:class:`~mcsweep.solver.dask_resident.DaskChunks`). Items are
 ``(ci, *rest)``; the executor calls the task with ``(ci, *chunk, *rest)``. Results may come
 in any order; :func:`ordered` puts them back in chunk order as fresh arrays, so the driver's
 sums in the fixed tree of :mod:`~mcsweep.solver.reduction` are the same bits whatever ran
 them. A worker lost with its chunks' states raises :class:`ChunksLost`, and the solution
 restarts from its first pass (every task is deterministic, so with the same bits) up to
-:data:`MAX_RESTARTS` times. :class:`ChunkPasses` runs a pass and sums the chunks' outputs in
+:data:`MAX_RESTARTS` times (:func:`retried`). :class:`ChunkPasses` runs a pass and sums the chunks' outputs in
 the fixed trees, here or where the chunks are.
 """
 
 from __future__ import annotations
 
-from typing import Callable, Iterable, Iterator
+import contextlib
+from typing import Callable, Iterable, Iterator, Sequence
 
 import numpy as np
 
 from .reduction import pairwise_sum, run_level
+from .resident import forked_chunks
 
-__all__ = ["ChunksLost", "MAX_RESTARTS", "ChunkPasses", "in_process", "fresh_arrays", "ordered", "chunk_values"]
+__all__ = ["ChunksLost", "MAX_RESTARTS", "ChunkPasses", "HeldChunks", "in_process", "fresh_arrays", "ordered",
+           "chunk_values", "retried", "state_vectors"]
 
 #: Restarts of a solution after lost chunk states before the loss is raised.
 MAX_RESTARTS = 3
@@ -34,10 +37,73 @@ class ChunksLost(RuntimeError):
     with the same bits)."""
 
 
-def in_process(chunks: dict, fn: Callable, items: Iterable) -> Iterator:
-    """The in-process executor over chunks ``(blocks, measurements, state)`` it holds; items
-    are ``(ci, *rest)`` as for the resident executors."""
+def retried(action: Callable, retry_if: Callable, between: Callable = lambda: None):
+    """``action()``, repeated up to :data:`MAX_RESTARTS` times when it raises an exception
+    ``retry_if`` accepts (a loss), ``between()`` first; any other raised at once."""
+    for attempt in range(MAX_RESTARTS + 1):
+        try:
+            return action()
+        except Exception as exc:  # noqa: BLE001 - only what retry_if accepts is repeated
+            if attempt == MAX_RESTARTS or not retry_if(exc):
+                raise
+            between()
+
+
+def in_process(chunks, fn: Callable, items: Iterable) -> Iterator:
+    """The in-process executor over chunks ``(blocks, measurements, state)`` it holds
+    (``chunks[ci]``); items are ``(ci, *rest)`` as for the resident executors."""
     return (fn((item[0], *chunks[item[0]], *item[1:])) for item in items)
+
+
+def state_vectors(item):
+    """The vectors ``names`` of a chunk's state (:meth:`HeldChunks.solving`)."""
+    ci, _, _, st, names = item
+    return ci, {k: st[k] for k in names}
+
+
+class HeldChunks:
+    """Chunks ``(blocks, measurements, state)`` held in this process, with the resident
+    chunks' protocol (:meth:`run`, :meth:`attached`, as
+    :class:`~mcsweep.solver.dask_resident.DaskChunks` on a cluster), so one sequence of chunk
+    tasks serves chunks here and there.
+
+    A solution's passes (:meth:`solving`) run here or, with ``workers >= 2`` (and ``fork``),
+    on forked workers (:func:`~mcsweep.solver.resident.forked_chunks`; ``owners[ci]``: chunk
+    ``ci``'s worker) that keep their share of the chunks and states for that solution; the
+    state vectors asked for come back when it ends, and the tasks after it run here.
+    ``shares``: the chunks fall in that many equal shares of the blocks (one per worker,
+    :meth:`~mcsweep.solver.problem.GlobalProblem.chunks`)."""
+
+    def __init__(self, chunks: Sequence[tuple], workers: int = 1, owners: Sequence[int] | None = None):
+        self.chunks = [tuple(c) for c in chunks]
+        self.workers, self.owners = max(1, int(workers)), owners
+
+    @property
+    def shares(self) -> int:
+        return self.workers
+
+    def run(self, fn: Callable, items) -> Iterator:
+        """``fn((ci, *chunk ci, *rest))`` here for items ``(ci, *rest)``."""
+        return in_process(self.chunks, fn, items)
+
+    def attached(self, fn: Callable, args: Sequence) -> "HeldChunks":
+        """New chunks ``fn(chunk ci, args[ci])``, made here."""
+        return HeldChunks([fn(c, a) for c, a in zip(self.chunks, args)], self.workers, self.owners)
+
+    @contextlib.contextmanager
+    def solving(self, keep: Sequence[str] = ("x",)):
+        """The executor ``run(fn, items)`` of one solution's passes (module notes): here, or on
+        forked workers. Afterwards each state holds what it held before plus the vectors
+        ``keep`` (the solution's others are let go)."""
+        before = [set(c[2]) for c in self.chunks]
+        with forked_chunks(self.chunks, self.workers, owners=self.owners) as pool:
+            yield self.run if pool is None else pool
+            if pool is not None and keep:
+                for ci, got in pool(state_vectors, [(ci, tuple(keep)) for ci in range(len(self.chunks))]):
+                    self.chunks[ci][2].update(got)
+        for (_, _, st), names in zip(self.chunks, before):
+            for k in set(st) - names - set(keep):
+                del st[k]
 
 
 def fresh_arrays(obj):

@@ -302,8 +302,9 @@ def star_arrays(blocks, normals, prior) -> dict:
 
 class ResidentProblem:
     """The driver's side of a problem whose blocks, measurements and per-star arrays (data
-    normal matrices, prior, inverses, frame weights, solution) all stay with their chunks on
-    a cluster's workers (:mod:`mcsweep.experiments.primary.cluster`): the block spans, the
+    normal matrices, prior, inverses, frame weights, solution) all stay with their chunks, on
+    a cluster's workers or held in this process (:class:`~mcsweep.solver.executors.HeldChunks`;
+    :mod:`mcsweep.experiments.primary.prior_solution`): the block spans (or blocks), the
     attitude band, the frame's means and penalty weights. :func:`~mcsweep.solver.solve.solve_global` solves it
     with its ``resident_chunks`` only, and the stars' solution stays there too
     (:class:`~mcsweep.solver.pcg.GlobalSolution`'s ``x`` and ``cov`` are None)."""

@@ -18,16 +18,13 @@ attitude") and of :mod:`~mcsweep.solver.stopping` (the convergence criterion).
 
 from __future__ import annotations
 
-from functools import partial
-
 import numpy as np
 
 from .dask_resident import DaskChunks
-from .executors import MAX_RESTARTS, ChunksLost, in_process
+from .executors import ChunksLost, HeldChunks, retried
 from .pcg import GlobalSolution, pcg
 from .problem import GlobalProblem
 from .reduction import pairwise_dot, share_of
-from .resident import forked_chunks
 
 __all__ = ["solve_global"]
 
@@ -69,15 +66,14 @@ def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_u
         Every pass on a Dask cluster whose workers keep the chunks and their star vectors
         (:class:`~mcsweep.solver.dask_resident.DaskChunks`: scattered once, then only
         attitude-sized vectors travel); overrides ``workers``. Results do not depend on it.
-    resident_chunks : DaskChunks, optional, keyword-only
-        As ``dask_client``, with the chunks already on the workers; its chunk ``ci`` must be
-        the problem's blocks of ``problem.chunks(chunk_stars)[ci]`` with their measurements.
+    resident_chunks : DaskChunks or HeldChunks, optional, keyword-only
+        The chunks where they stay (a cluster's workers; this process, ``HeldChunks``): chunk
+        ``ci`` the blocks of ``problem.chunks(chunk_stars, shares=resident_chunks.shares)[ci]``.
     border : array_like (m, k), optional, keyword-only
         Normalised partials of ``k`` further unknowns that every measurement may depend on
-        (a calibration, :mod:`~mcsweep.solver.calibration`), in observation order, without
-        prior or frame constraint: the bordered system is solved (module notes, "Bordered
-        unknowns") and they are returned as ``GlobalSolution.border``. In-process and forked
-        workers only.
+        (a calibration, :mod:`~mcsweep.solver.calibration`), without prior or frame constraint,
+        solved with the rest (module notes, "Bordered unknowns"; ``GlobalSolution.border``).
+        Needs ``h``; resident chunks hold their blocks' rows already (``state["border"]``).
     attitude_start : array_like (n_coef, 3), optional, keyword-only
         Attitude coefficients [mas] PCG starts from (module notes, "Starting attitude"), e.g.
         the solution of the same data under another prior; coefficients without data are
@@ -90,7 +86,8 @@ def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_u
         h = np.asarray(h, dtype=float)
         if h.size != problem.n_measurements:
             raise ValueError(f"h has {h.size} measurements, the problem {problem.n_measurements}")
-    shares = max(1, int(workers)) if resident_chunks is None and dask_client is None else 1
+    shares = getattr(resident_chunks, "shares", 1) if resident_chunks is not None else \
+        1 if dask_client is not None else max(1, int(workers))
     ranges = problem.chunks(chunk_stars, shares=shares)
     chunks = [problem.blocks[lo:hi] for lo, hi in ranges]
     # views when the rows are slices (in_block_order); None: kept with the resident chunks
@@ -105,23 +102,14 @@ def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_u
         kw["start"] = _attitude_start(problem, attitude_start)
     states = [{} for _ in chunks]
     if border is not None:
-        if h is None or resident_chunks is not None:
-            raise ValueError("border unknowns are solved in-process or with forked workers, with h given")
-        kw["border_normals"] = _border(border, h, chunks, states)
-    if resident_chunks is not None:
-        return _solve_resident(problem, chunks, resident_chunks, kw)
-    owners = [share_of(lo, len(problem.blocks), shares) for lo, _ in ranges]
-    return _solve_here(problem, chunks, hs, states, workers, owners, kw)
-
-
-def _solve_here(problem, chunks, hs, states, workers, owners, kw) -> GlobalSolution:
-    """The solution on chunks in this process or on forked workers (``owners[ci]``: the worker
-    of chunk ``ci``), which keep them and their ``states``."""
-    with forked_chunks(list(zip(chunks, hs, states)), workers, owners=owners) as pool:
-        if pool is None:  # in-process: the chunks and their states are these very objects
-            items = {ci: (chunks[ci], hs[ci], states[ci]) for ci in range(len(chunks))}
-            return pcg(problem, chunks, partial(in_process, items), **kw)
-        return pcg(problem, chunks, pool, **kw)
+        kw["border_normals"] = _border(border, h, chunks, None if resident_chunks is not None else states)
+    if resident_chunks is None:
+        owners = [share_of(lo, len(problem.blocks), shares) for lo, _ in ranges]
+        # the chunks and their states are these very objects (or forked copies of them)
+        resident_chunks = HeldChunks(list(zip(chunks, hs, states)), workers, owners)
+        with resident_chunks.solving(keep=()) as run:
+            return pcg(problem, chunks, run, **kw)
+    return _solve_resident(problem, chunks, resident_chunks, kw)
 
 
 def _attitude_start(problem, attitude_start) -> np.ndarray:
@@ -133,10 +121,12 @@ def _attitude_start(problem, attitude_start) -> np.ndarray:
 
 
 def _border(border, h, chunks, states) -> tuple[np.ndarray, np.ndarray]:
-    """The bordered unknowns' partials put in the chunks' ``states`` block by block; returned
-    ``(C'h, C'C)``."""
+    """``(C'h, C'C)`` of the bordered unknowns' partials ``C = border (m, k)``, put block by block
+    in the chunks' ``states`` (None: resident chunks, which hold them already)."""
+    if h is None:
+        raise ValueError("border unknowns are solved with the measurements h given")
     border = np.asarray(border, dtype=float).reshape(h.size, -1)
-    for st, bl in zip(states, chunks):
+    for st, bl in zip(states or (), chunks):
         st["border"] = [np.ascontiguousarray(border[b.rows]) for b in bl]
     # C' h and C' C by numpy's pairwise sums (pairwise_dot): the same bits for any chunking
     return (np.array([pairwise_dot(c, h) for c in border.T]),
@@ -144,13 +134,15 @@ def _border(border, h, chunks, states) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _solve_resident(problem, chunks, resident_chunks, kw) -> GlobalSolution:
-    """The solution on chunks kept on a cluster's workers, restarted from its first pass after
-    lost chunks (:class:`~mcsweep.solver.executors.ChunksLost`) up to
+    """The solution on chunks kept where they are: held in this process (their ``solving``
+    executor: here or on forked workers, the stars' solution left in their states), or on a
+    cluster's workers, restarted from its first pass after lost chunks
+    (:class:`~mcsweep.solver.executors.ChunksLost`) up to
     :data:`~mcsweep.solver.executors.MAX_RESTARTS` times."""
-    for attempt in range(MAX_RESTARTS + 1):
-        try:
-            return pcg(problem, chunks, resident_chunks.run, reduced=getattr(resident_chunks, "reduced", None),
-                       **kw)
-        except ChunksLost:
-            if attempt == MAX_RESTARTS:
-                raise
+    solving = getattr(resident_chunks, "solving", None)
+    if solving is not None:
+        with solving() as run:
+            return pcg(problem, chunks, run, **kw)
+    return retried(lambda: pcg(problem, chunks, resident_chunks.run,
+                               reduced=getattr(resident_chunks, "reduced", None), **kw),
+                   lambda exc: isinstance(exc, ChunksLost))

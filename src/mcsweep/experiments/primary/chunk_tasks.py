@@ -4,7 +4,8 @@ A chunk is ``(blocks, measurements, state)`` (:mod:`mcsweep.solver.executors`); 
 take ``(ci, *chunk, *rest)`` and return ``(ci, value)``, as the solver's own
 (:mod:`mcsweep.solver.tasks`). They attach a prior to a chunk's stars (its prior sigmas and
 inverses, made where the chunk is) and evaluate the solution there with the block functions
-of :mod:`~.evaluation`, so the same bits as a solution held in this process.
+of :mod:`~.evaluation`: the same tasks wherever the chunks are, held in this process
+(:class:`~mcsweep.solver.executors.HeldChunks`) or on a Dask cluster's workers.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from ...solver.selection import digit_counts
 from .experiment import epoch_offset_yr, prior_sigmas
 from .evaluation import block_attitude_sq, block_frame_sums, block_outcome
 
-__all__ = ["attach_prior", "block_slices", "prior_task", "weight_digits", "fit_task", "outcome_task",
+__all__ = ["attach_prior", "with_stars", "block_slices", "prior_task", "weight_digits", "fit_task", "outcome_task",
            "outcome_slice", "attitude_sq_task"]
 
 
@@ -29,7 +30,8 @@ def attach_prior(chunk: tuple, arg: tuple) -> tuple:
     """The solver's chunk ``(blocks, measurements, state)`` for one prior, made on its worker:
     each star's prior sigma from its (l, b, G) (``settings.sigma_f90_mas``, the prior
     ``label``) and the stars' arrays of that prior (:func:`~mcsweep.solver.problem.star_arrays`);
-    ``arg = (settings, label)`` is all that is sent per prior."""
+    ``arg = (settings, label)`` is all that is sent per prior. With ``kept["border"]`` (each
+    block's rows of a calibration's design) the state holds them as the solver's border."""
     blocks, hs, kept = chunk
     settings, label = arg
     sig = prior_sigmas(settings, label, kept["l"], kept["b"], kept["phot_g_mean_mag"])
@@ -39,8 +41,16 @@ def attach_prior(chunk: tuple, arg: tuple) -> tuple:
     if settings.evaluation_epoch == "star_mean":
         stars["tau_yr"] = epoch_offset_yr(settings, kept["mean_tcb_jd"])
     first, binv = blocks[0].first, stars["binv"]
-    return ([dataclasses.replace(b, binv=binv[b.first - first:b.first - first + b.n]) for b in blocks], hs,
-            {"stars": stars})
+    state = {"stars": stars}
+    if "border" in kept:  # the calibration's columns (mcsweep.solver.solve_global's border)
+        state["border"] = kept["border"]
+    return [dataclasses.replace(b, binv=binv[b.first - first:b.first - first + b.n]) for b in blocks], hs, state
+
+
+def with_stars(chunk: tuple, kept: dict) -> tuple:
+    """A chunk ``(blocks, measurements, state)`` sent from the driver, with its stars' arrays
+    ``kept`` in place of the state (as :func:`~.blocks.build_chunk` makes it)."""
+    return (*chunk[:2], kept)
 
 
 def block_slices(blocks) -> list:

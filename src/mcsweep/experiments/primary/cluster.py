@@ -18,11 +18,12 @@ attitude bands, summed on each worker where the fixed tree adds them
 (:class:`~mcsweep.solver.reduction.AlignedPartials`), and which coefficients they touch. The
 transits are then let go.
 
-Per prior (:func:`solve_on_cluster`): the prior's label is sent; the prior sigma of each
-star, the inverses, frame weights, solution, the frame rotator's sums and each star's
-outcome are made on the workers (:mod:`~.chunk_tasks`, with the block functions of the
-local path, summed in the same tree, so the same bits as a forked or in-process run). The
-per-star results come to the driver one part (:data:`~.results.PART_STARS` stars) at a time.
+Per prior (:func:`~.prior_solution.solve_prior`, the sequence data held in this process go
+through too): the prior's label is sent; the prior sigma of each star, the inverses, frame
+weights, solution, the frame rotator's sums and each star's outcome are made on the workers
+(:mod:`~.chunk_tasks`, summed in the same tree, so the same bits as a forked or in-process
+run). The per-star results come to the driver one part (:data:`~.results.PART_STARS` stars)
+at a time, their columns gathered from the partitions (:meth:`ClusterData.star_columns`).
 
 A lost worker takes its chunks and the state of a solution: its chunks are built again from
 the partitions (transit search included; a lost partition is made again from the classes,
@@ -38,45 +39,22 @@ import time
 from typing import Callable
 
 import numpy as np
-import pandas as pd
 
-from ...solver import SOLVER_BLOCK_STARS, solve_global
+from ...solver import SOLVER_BLOCK_STARS
 from ...solver.blocks import BlockSpan
 from ...solver.dask_resident import DaskChunks, is_loss, live_workers
-from ...solver.executors import MAX_RESTARTS, ChunksLost, chunk_values
-from ...solver.frame import frame_from_sums, penalty_weights
-from ...solver.problem import ResidentProblem, solver_chunks
-from ...solver.reduction import pairwise_sum, run_level, share_of, sum_partials
-from ...solver.selection import median
+from ...solver.executors import retried
+from ...solver.problem import solver_chunks
+from ...solver.reduction import run_level, share_of, sum_partials
 from .blocks import build_chunk, fold_infos
-from .chunk_tasks import (attach_prior, attitude_sq_task, fit_task, outcome_slice, outcome_task, prior_task,
-                          weight_digits)
-from .data import PreparedData
+from .data import PreparedData, SolverChunks
 from .experiment import PrimarySettings
 from .knots import ClusterEpochs
 from .preparation import Built, Layout, prepare_data
-from .results import StarParts, solved_results
 from .sky import SkyPartitions, alive
 from .transits import partition_columns, partition_summary, partition_transits
 
-__all__ = ["ClusterData", "OnCluster", "prepare_on_cluster", "solve_on_cluster"]
-
-
-def _retried(action: Callable, retry_if: Callable, between: Callable = lambda: None):
-    """``action()``, repeated up to :data:`~mcsweep.solver.executors.MAX_RESTARTS` times when it
-    raises an exception ``retry_if`` accepts (a loss), ``between()`` first; any other raised
-    at once."""
-    for attempt in range(MAX_RESTARTS + 1):
-        try:
-            return action()
-        except Exception as exc:  # noqa: BLE001 - only what retry_if accepts is repeated
-            if attempt == MAX_RESTARTS or not retry_if(exc):
-                raise
-            between()
-
-
-def _is_chunks_lost(exc: BaseException) -> bool:
-    return isinstance(exc, ChunksLost)
+__all__ = ["ClusterData", "OnCluster", "prepare_on_cluster"]
 
 
 def _first(pair):
@@ -268,21 +246,34 @@ class ClusterData(PreparedData):
             raise ValueError("these data were built on a cluster for other chunks or another client")
         return self.chunks
 
-    def attitude_sq(self, coef, eps, omega, resident: DaskChunks) -> np.ndarray:
-        """Sum over the measurements of the squared attitude error (3,) [mas^2], on the workers
-        holding the chunks ``resident``, added in the fixed tree (the same bits as in process)."""
-        out = chunk_values(resident.run, attitude_sq_task, [(ci, coef, eps, omega, self.true_attitude, self.t_ref_jd)
-                                                            for ci in range(len(self.ranges))])
-        total = pairwise_sum(out, None, [run_level(lo, hi) for lo, hi in self.ranges])
-        return np.zeros(3) if total is None else total
-
-    def solve(self, settings: PrimarySettings, label: str, *, log=None, chunk_stars=None, workers: int = 1,
-              dask_client=None, attitude_start=None, equal: bool = False) -> tuple:
-        """:func:`solve_on_cluster` with the cluster's ``dask_client`` (``workers`` unused)."""
+    def solver_chunks(self, *, chunk_stars=None, workers: int = 1, dask_client=None) -> SolverChunks:
+        """The chunks built on the cluster of ``dask_client`` (``workers`` unused), which must
+        be the ones of ``chunk_stars`` stars (:meth:`resident`)."""
         if dask_client is None:
             raise ValueError("these data live on a cluster's workers: solve them with its dask_client")
-        return solve_on_cluster(settings, self, label, dask_client, chunk_stars=chunk_stars, log=log, equal=equal,
-                                attitude_start=attitude_start)
+        spans = self.blocks
+        if not spans:
+            raise ValueError("no star with a transit to solve")
+        ranges = solver_chunks(len(spans), spans[0].n, self.n_measurements, self.spline.n_coef, chunk_stars)
+        return SolverChunks(ranges, self.resident(dask_client, ranges))
+
+    def star_columns(self, rows: slice) -> tuple[dict, int]:
+        """The columns gathered from the partitions holding stars ``rows`` (made again after a loss)."""
+        sky, table, client = self.sky, self.table, self.client
+        ends = sky.first + sky.sizes
+        overlap = np.flatnonzero((sky.first < rows.stop) & (ends > rows.start))
+
+        def columns():
+            table.ensure()
+            return client.gather([client.submit(partition_columns, sky.futures[p], table.summaries[p],
+                                                max(rows.start - sky.first[p], 0),
+                                                min(rows.stop, ends[p]) - sky.first[p], pure=False) for p in overlap])
+
+        got = retried(columns, is_loss, lambda: time.sleep(1.0))  # (a moment for the scheduler's news of the loss)
+        cols = {c: np.concatenate([g[c] for g in got]) for c in ("class_key", "n_fov", "n_fov_scheduled",
+                                                              "span_days", "solved")}
+        lo = int(self.solved_first[overlap[0]] + got[0]["solved_before"]) if len(overlap) else 0
+        return cols, lo
 
 
 def prepare_on_cluster(settings: PrimarySettings, sky: SkyPartitions, client, *, chunk_stars: int | None,
@@ -292,98 +283,5 @@ def prepare_on_cluster(settings: PrimarySettings, sky: SkyPartitions, client, *,
     notes): the same data, bit for bit, as of the whole table in this process, whose
     ``resident(client, ranges)`` for the solver's chunks of ``chunk_stars`` stars are the
     chunks already there. A worker lost while they are made makes them again from the start."""
-    return _retried(lambda: prepare_data(settings, OnCluster(client, sky, chunk_stars), block_stars=block_stars,
+    return retried(lambda: prepare_data(settings, OnCluster(client, sky, chunk_stars), block_stars=block_stars,
                                          with_noise=with_noise), is_loss)
-
-
-def _cluster_part(data: ClusterData, resident: DaskChunks, rows: slice) -> pd.DataFrame:
-    """Part ``rows`` of a solution's per-star results, gathered from the partitions and chunks
-    that hold its stars."""
-    sky, table, client = data.sky, data.table, resident.client
-    ends = sky.first + sky.sizes
-    overlap = np.flatnonzero((sky.first < rows.stop) & (ends > rows.start))
-
-    def columns():
-        table.ensure()
-        return client.gather([client.submit(partition_columns, sky.futures[p], table.summaries[p],
-                                            max(rows.start - sky.first[p], 0), min(rows.stop, ends[p]) - sky.first[p],
-                                            pure=False) for p in overlap])
-
-    got = _retried(columns, is_loss, lambda: time.sleep(1.0))  # (a moment for the scheduler's news of the loss)
-    cols = {c: np.concatenate([g[c] for g in got]) for c in ("class_key", "n_fov", "n_fov_scheduled", "span_days",
-                                                          "solved")}
-    solved = cols.pop("solved")
-    lo = int(data.solved_first[overlap[0]] + got[0]["solved_before"]) if len(overlap) else 0
-    hi = lo + int(np.count_nonzero(solved))
-    outcome = ()
-    if hi > lo:
-        spans = data.blocks
-        firsts = np.array([spans[a].first for a, _ in data.ranges])
-        lasts = np.array([spans[b - 1].first + spans[b - 1].n for _, b in data.ranges])
-        cis = np.flatnonzero((firsts < hi) & (lasts > lo))
-        out = chunk_values(resident.run, outcome_slice, [(int(ci), lo, hi) for ci in cis])
-        outcome = tuple(np.concatenate([o[i] for o in out]) for i in range(4))
-    return solved_results(rows.start, cols["class_key"], cols["n_fov"], cols["n_fov_scheduled"], cols["span_days"],
-                          solved, outcome)
-
-
-def solve_on_cluster(settings: PrimarySettings, data: ClusterData, label: str, client, *, chunk_stars, log,
-                     equal: bool, attitude_start=None):
-    """One prior's solution of data built on the cluster (:func:`prepare_on_cluster`), every
-    per-star array on the workers: the prior's ``label`` is sent, the prior sigmas, inverses,
-    frame weights, solution and its evaluation are made there, and the driver gets the
-    frame's sums, the attitude and the per-star results part by part
-    (:class:`~.results.StarParts`).
-    A worker lost at any pass (the solution's or the evaluation's, whose stars' solution went
-    with it) restarts the whole sequence on the rebuilt chunks: the same bits; lost while the
-    parts are read, the prior is solved again.
-    Returns (solution, resident chunks, eps, omega, StarParts, summed squared attitude error)."""
-    spans = data.blocks
-    if not spans:
-        raise ValueError("no star with a transit to solve")
-    ranges = solver_chunks(len(spans), spans[0].n, data.n_measurements, data.spline.n_coef, chunk_stars)
-
-    def solve():
-        resident = data.resident(client, ranges).attached(attach_prior, [(settings, label)] * len(ranges))
-        return (resident, *_retried(lambda: _solve_once(settings, data, resident, chunk_stars=chunk_stars,
-                                                        log=log, equal=equal, attitude_start=attitude_start),
-                                    _is_chunks_lost))
-
-    state = {"solution": solve()}
-
-    def resolve():  # the stars' outcome went with a worker: solved again, same bits
-        state["solution"] = solve()
-
-    def make(rows: slice) -> pd.DataFrame:
-        return _retried(lambda: _cluster_part(data, state["solution"][0], rows), _is_chunks_lost, resolve)
-
-    resident, sol, eps, omega, sq = state["solution"]
-    return sol, resident, eps, omega, StarParts(data.n_stars, make), sq
-
-
-def _solve_once(settings, data: ClusterData, resident, *, chunk_stars, log, equal, attitude_start):
-    n_chunks = len(data.ranges)
-    levels = [run_level(lo, hi) for lo, hi in data.ranges]
-    got = chunk_values(resident.run, prior_task, [(ci,) for ci in range(n_chunks)])
-    bad = sum(g[0] for g in got)
-    if bad:
-        raise ValueError(f"{bad} stars have singular source blocks; remove them first")
-    n = data.n_solved
-
-    def counts_of(which: int):
-        return lambda queries: chunk_values(resident.run, weight_digits,
-                                            [(ci, [(which, q) for q in queries]) for ci in range(n_chunks)])
-
-    # the medians by selection, not by gathering every star's weights (mcsweep.solver.selection)
-    w_pos, w_pm = penalty_weights(median(counts_of(0), n), median(counts_of(1), n), n)
-    problem = ResidentProblem(data.blocks, n_coef=data.spline.n_coef, n_measurements=data.n_measurements,
-                              naa_band=data.naa_band, frame_means=pairwise_sum((g[1] for g in got), None, levels) / n,
-                              w_pos=w_pos, w_pm=w_pm)
-    del got
-    sol = solve_global(problem, None, **settings.criterion, log=log, chunk_stars=chunk_stars, residuals=False,
-                       resident_chunks=resident, attitude_start=attitude_start)
-    eps, omega = frame_from_sums(pairwise_sum(
-        chunk_values(resident.run, fit_task, [(ci, equal) for ci in range(n_chunks)]), None, levels))
-    chunk_values(resident.run, outcome_task, [(ci, eps, omega, settings.confidence) for ci in range(n_chunks)])
-    sq = data.attitude_sq(sol.attitude, eps, omega, resident)
-    return sol, eps, omega, sq

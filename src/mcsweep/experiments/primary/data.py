@@ -5,13 +5,16 @@ dead time, the true attitude, the solver's spline, the blocks' places in the pro
 coefficients have data, and the counts of stars and measurements. Where the stars and
 measurements themselves are is a subclass's: held in this process
 (:class:`~.local.LocalData`) or kept on a Dask cluster's workers
-(:class:`~.cluster.ClusterData`); each solves a prior with :meth:`PreparedData.solve` and
-both give the same bits (:func:`~.prior_solution.solve_prior`).
+(:class:`~.cluster.ClusterData`). Each gives the solver's chunks where they are
+(:meth:`PreparedData.solver_chunks`, a :class:`SolverChunks`) and its star columns
+(:meth:`PreparedData.star_columns`); one sequence solves a prior on them, whichever they are
+(:func:`~.prior_solution.solve_prior`), so both give the same bits.
 """
 
 from __future__ import annotations
 
 import dataclasses
+from typing import NamedTuple
 
 import numpy as np
 
@@ -20,7 +23,21 @@ from ...solver import AttitudeSpline
 from ...solver.attitude_spline import DEGREE
 from .truth import block_epochs, rotation_at
 
-__all__ = ["PreparedData"]
+__all__ = ["PreparedData", "SolverChunks"]
+
+
+class SolverChunks(NamedTuple):
+    """The solver's chunks of prepared data where they are: ``ranges`` (each chunk's blocks,
+    :func:`~mcsweep.solver.problem.solver_chunks`), ``chunks`` (the chunks ``(blocks,
+    measurements, stars' arrays)`` with the resident chunks' protocol: held here,
+    :class:`~mcsweep.solver.executors.HeldChunks`, or on a cluster,
+    :class:`~mcsweep.solver.dask_resident.DaskChunks`), and with a calibration its design
+    ``border (m, k)`` and the measurements ``h`` (:func:`~mcsweep.solver.solve_global`), else None."""
+
+    ranges: list
+    chunks: object
+    border: np.ndarray | None = None
+    h: np.ndarray | None = None
 
 
 @dataclasses.dataclass(kw_only=True)
@@ -88,10 +105,14 @@ class PreparedData:
         """Names of the calibration unknowns solved with the stars and attitude, or None."""
         return None
 
-    def solve(self, settings, label: str, *, log, chunk_stars, workers: int, dask_client, attitude_start,
-              equal: bool) -> tuple:
-        """One prior's global solution of these data: ``(solution, resident chunks or None,
-        eps, omega, StarParts, summed squared attitude error (3,) [mas^2])``. Arguments as
-        :func:`~.prior_solution.solve_prior`; ``equal``: the frame rotator fitted with every
-        star alike."""
+    def solver_chunks(self, *, chunk_stars, workers: int, dask_client) -> SolverChunks:
+        """The solver's chunks of ``chunk_stars`` stars (None: as long as they go), solved on
+        ``workers`` forked workers or on the Dask cluster of ``dask_client`` (arguments as
+        :func:`~.prior_solution.solve_prior`)."""
+        raise NotImplementedError
+
+    def star_columns(self, rows: slice) -> tuple[dict, int]:
+        """The results' columns of stars ``rows`` of the table (``class_key``, ``n_fov``,
+        ``n_fov_scheduled``, ``span_days``, and ``solved``, a mask) and the index among the
+        solved stars of the first solved one."""
         raise NotImplementedError

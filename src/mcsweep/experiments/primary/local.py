@@ -4,9 +4,11 @@
 one partition (its transits searched beforehand, in chunks through the run's executor,
 :func:`~.transits.transits_of`), every task is called at once, and the chunks are built one
 block at a time, their measurements written into one array (memory flat: a block's
-temporaries at a time). :class:`LocalData` holds every star's arrays and solves a prior with
-:func:`mcsweep.solver.solve_global` in this process, on forked workers, or on a Dask
-cluster to which its chunks are sent once (:meth:`LocalData.resident`).
+temporaries at a time). :class:`LocalData` holds every star's arrays and gives the solver's
+chunks as views of them, held here (:class:`~mcsweep.solver.executors.HeldChunks`: a prior
+solved in this process or on forked workers) or sent once to a Dask cluster
+(:meth:`LocalData.resident`); the prior's solution is the one sequence of
+:func:`~.prior_solution.solve_prior`, as for data kept on a cluster.
 """
 
 from __future__ import annotations
@@ -16,16 +18,17 @@ import dataclasses
 import numpy as np
 import pandas as pd
 
-from ...astrometry.solve import prior_diagonal
-from ...solver import SOLVER_BLOCK_STARS, GlobalProblem, solve_global
+from ...solver import SOLVER_BLOCK_STARS, GlobalProblem
+from ...solver.blocks import att_band
 from ...solver.calibration import BasicAngleColumns, calibration_design
-from ...solver.reduction import pairwise_sum
+from ...solver.executors import HeldChunks
+from ...solver.problem import solver_chunks
+from ...solver.reduction import pairwise_sum, share_of
 from .blocks import build_chunk
-from .data import PreparedData
-from .evaluation import block_attitude_sq, evaluate_solution
-from .experiment import PrimarySettings, prior_sigmas
+from .chunk_tasks import with_stars
+from .data import PreparedData, SolverChunks
+from .experiment import PrimarySettings
 from .preparation import Built, Layout, prepare_data
-from .results import StarParts, solved_results
 from .transits import partition_summary, with_transit_columns
 
 __all__ = ["InProcess", "LocalData", "prepare"]
@@ -41,6 +44,7 @@ class LocalData(PreparedData):
     normals: np.ndarray      # (n_solved, 5, 5) data normal matrices of the solved stars
     h: np.ndarray            # normalised measurements (observed minus computed from the law), problem order
     x_true: np.ndarray       # (n_solved, 5)
+    mean_tcb_jd: np.ndarray  # (n_solved,) mean live epochs of the solved stars [TCB JD]
     calibration: BasicAngleColumns | None = None  # the basic-angle variation's design, problem order
     cached_problem: GlobalProblem | None = dataclasses.field(default=None, repr=False)
     sent: tuple | None = dataclasses.field(default=None, repr=False)  # ((client, ranges), DaskChunks)
@@ -49,10 +53,10 @@ class LocalData(PreparedData):
         return None if self.calibration is None else self.calibration.names()
 
     def problem(self, prior_diagonal) -> GlobalProblem:
-        """The global problem under ``prior_diagonal``: assembled once from the blocks, then
-        only the per-star inverses and frame weights change from prior to prior
-        (:meth:`GlobalProblem.with_prior`, bit-identical to a new problem). Only the latest
-        prior's inverses are kept (0.3 GB at 1.5e6 stars)."""
+        """The global problem under ``prior_diagonal`` held here (tests, diagnostics; the
+        solutions are made on the chunks, :meth:`solver_chunks`): assembled once from the
+        blocks, then only the per-star inverses and frame weights change from prior to prior
+        (:meth:`GlobalProblem.with_prior`, bit-identical to a new problem)."""
         if self.cached_problem is None:
             st = self.stars
             self.cached_problem = GlobalProblem.from_blocks(
@@ -63,56 +67,57 @@ class LocalData(PreparedData):
             self.cached_problem = self.cached_problem.with_prior(prior_diagonal)
         return self.cached_problem
 
+    def solver_chunks(self, *, chunk_stars=None, workers: int = 1, dask_client=None) -> SolverChunks:
+        """The solver's chunks of the data held here (views of their arrays): held in this
+        process for its ``workers`` (:class:`~mcsweep.solver.executors.HeldChunks`), or sent to
+        the workers of ``dask_client`` once and kept there for every prior (:meth:`resident`)."""
+        if not self.blocks:
+            raise ValueError("no star with a transit to solve")
+        shares = 1 if dask_client is not None else max(1, int(workers))
+        n_blocks = len(self.blocks)
+        ranges = solver_chunks(n_blocks, self.blocks[0].n, self.n_measurements, self.spline.n_coef, chunk_stars,
+                               shares)
+        border = None if self.calibration is None else calibration_design(self.calibration)
+        if dask_client is not None:
+            held = self.resident(dask_client, ranges)
+        else:
+            held = HeldChunks([self.chunk(lo, hi, border) for lo, hi in ranges], shares,
+                              [share_of(lo, n_blocks, shares) for lo, _ in ranges])
+        return SolverChunks(ranges, held, border, None if border is None else self.h)
+
+    def chunk(self, lo: int, hi: int, border=None) -> tuple:
+        """The solver's chunk of blocks ``lo .. hi - 1``: ``(blocks, measurements, stars' arrays)``
+        as :func:`~.blocks.build_chunk` makes it (with ``border``, each block's rows of it)."""
+        blocks = self.blocks[lo:hi]
+        v = slice(blocks[0].first, blocks[-1].first + blocks[-1].n)
+        s = self.solved[v]
+        kept = {"normals": self.normals[v], "x_true": self.x_true[v], "star": s,
+                **{c: self.stars[c].to_numpy()[s] for c in ("l", "b", "phot_g_mean_mag")},
+                "mean_tcb_jd": self.mean_tcb_jd[v]}
+        if border is not None:
+            kept["border"] = [np.ascontiguousarray(border[b.rows]) for b in blocks]
+        return blocks, [self.h[b.rows] for b in blocks], kept
+
     def resident(self, client, ranges):
-        """The solver's chunks (blocks ``ranges``, their measurements) sent once to the workers
-        of a Dask ``client`` and kept there for every prior's solution (only the per-star
-        inverses of a prior are sent with it,
-        :meth:`~mcsweep.solver.dask_resident.DaskChunks.with_inverses`)."""
+        """The solver's chunks (blocks ``ranges``, their measurements and stars' arrays) sent
+        once to the workers of a Dask ``client`` and kept there for every prior's solution
+        (only a prior's label is sent with it, :func:`~.chunk_tasks.attach_prior`)."""
         from ...solver.dask_resident import DaskChunks
 
         key = tuple(map(tuple, ranges))  # with the client itself: a closed one's id may be reused
         if self.sent is None or self.sent[0][0] is not client or self.sent[0][1] != key:
-            self.sent = ((client, key), DaskChunks.scatter(
-                client, [(self.blocks[lo:hi], [self.h[b.rows] for b in self.blocks[lo:hi]]) for lo, hi in ranges]))
+            chunks = [self.chunk(lo, hi) for lo, hi in ranges]
+            self.sent = ((client, key), DaskChunks.scatter(client, [c[:2] for c in chunks]).attached(
+                with_stars, [c[2] for c in chunks]))
         return self.sent[1]
 
-    def attitude_sq(self, coef, eps, omega) -> np.ndarray:
-        """Sum over the measurements of the squared attitude error (3,) [mas^2], block by block
-        in the fixed tree (:func:`~.evaluation.block_attitude_sq`)."""
-        total = pairwise_sum(block_attitude_sq(b, coef, eps, omega, self.true_attitude, self.t_ref_jd)
-                             for b in self.blocks)
-        return np.zeros(3) if total is None else total
-
-    def solve(self, settings: PrimarySettings, label: str, *, log=None, chunk_stars=None, workers: int = 1,
-              dask_client=None, attitude_start=None, equal: bool = False) -> tuple:
-        """One global solution of the data held here (``dask_client``: the measurements' chunks
-        kept on its workers from prior to prior; ``workers``: forked workers)."""
-        st, s = self.stars, self.solved
-        sig = prior_sigmas(settings, label, st["l"].to_numpy()[s], st["b"].to_numpy()[s],
-                           st["phot_g_mean_mag"].to_numpy()[s])
-        tau_yr = st["epoch_offset_yr"].to_numpy()[s] if settings.evaluation_epoch == "star_mean" else None
-        # Raises if a star's block is singular: every solved star has >= 1 AL+AC or 2 AL
-        # measurements, so it cannot be under a positive prior.
-        problem = self.problem(prior_diagonal(sig, settings.ratio_R))
-        resident = None
-        if dask_client is not None:
-            ranges = problem.chunks(chunk_stars)
-            stars = [slice(self.blocks[lo].first, self.blocks[hi - 1].first + self.blocks[hi - 1].n)
-                     for lo, hi in ranges]
-            resident = self.resident(dask_client, ranges).with_inverses([problem.src_inv[sl] for sl in stars])
-        # the basic-angle calibration's unknowns border the system (mcsweep.solver.calibration)
-        sol = solve_global(problem, self.h, **settings.criterion, log=log, chunk_stars=chunk_stars,
-                           residuals=False, workers=workers, resident_chunks=resident,
-                           border=None if self.calibration is None else calibration_design(self.calibration),
-                           attitude_start=attitude_start)
-        eps, omega, outcome = evaluate_solution(
-            problem.K, sol.cov, sol.x - self.x_true, [slice(b.first, b.first + b.n) for b in self.blocks],
-            equal=equal, tau_yr=tau_yr, confidence=settings.confidence)
-        sq = self.attitude_sq(sol.attitude, eps, omega)
-        results = StarParts.of_frame(solved_results(0, st["class_key"].to_numpy(), st["n_fov"].to_numpy(),
-                                                    st["n_fov_scheduled"].to_numpy(), st["span_days"].to_numpy(),
-                                                    s, (*outcome, sig)))
-        return sol, resident, eps, omega, results, sq
+    def star_columns(self, rows: slice) -> tuple[dict, int]:
+        st = self.stars
+        lo, hi = np.searchsorted(self.solved, [rows.start, rows.stop])
+        solved = np.zeros(rows.stop - rows.start, dtype=bool)
+        solved[self.solved[lo:hi] - rows.start] = True
+        cols = {c: st[c].to_numpy()[rows] for c in ("class_key", "n_fov", "n_fov_scheduled", "span_days")}
+        return {**cols, "solved": solved}, int(lo)
 
 
 class InProcess:
@@ -153,7 +158,8 @@ class InProcess:
 
     def build(self, layout: Layout, settings: PrimarySettings, spline, truth: tuple, dead) -> Built:
         """One block at a time (its partials exist twice only while it is built), its
-        measurements written in place; the attitude band is left to the problem."""
+        measurements written in place; the attitude band summed over the blocks in the fixed
+        tree (as where chunks are built on a cluster: the same bits)."""
         n, harmonics = layout.n_solved, settings.basic_angle_harmonics
         h, normals, x_true = np.empty(layout.n_rows), np.empty((n, 5, 5)), np.empty((n, 5))
         cal = (np.zeros(layout.n_rows), np.zeros(layout.n_rows)) if harmonics else None
@@ -176,11 +182,12 @@ class InProcess:
         self.kept = dict(normals=normals, h=h, x_true=x_true,
                          calibration=None if cal is None else BasicAngleColumns(omega=cal[0], weight=cal[1],
                                                                                 harmonics=harmonics))
-        return Built(blocks=blocks, covered=mask, naa_band=None)
+        return Built(blocks=blocks, covered=mask, naa_band=pairwise_sum(att_band(b) for b in blocks))
 
     def data(self, **common) -> LocalData:
-        return LocalData(stars=with_transit_columns(self.settings, self.stars, self.summarised),
-                         solved=np.flatnonzero(self.summarised["solved"]), **self.kept, **common)
+        solved = np.flatnonzero(self.summarised["solved"])
+        return LocalData(stars=with_transit_columns(self.settings, self.stars, self.summarised), solved=solved,
+                         mean_tcb_jd=self.summarised["mean_tcb_jd"][solved], **self.kept, **common)
 
 
 def prepare(settings: PrimarySettings, stars: pd.DataFrame, transits: dict, *,

@@ -366,7 +366,7 @@ class GalaxyModel:
         pandas.DataFrame
             Columns ``ra, dec, l, b`` [deg], ``parallax`` [mas], ``pmra, pmdec`` [mas/yr],
             ``phot_g_mean_mag`` [mag], ``distance_pc`` [pc], ``population`` (categorical),
-            ``bp_rp`` [mag] (Gaia BP - RP with reddening, :mod:`.colours`).
+            ``bp_rp`` [mag] (Gaia BP - RP with reddening, ``mcsweep.population.galaxy.colours``).
             ``attrs["n_in_cone"]`` is the number of stars in the cone (before the cap) and
             ``attrs["expected_count"]`` its expectation.
         """

@@ -65,7 +65,7 @@ START_JD = 2456863.9375  # 2014-07-25 10:30 TCB, start of routine operations (Pr
 PRIORS_MAS = {"0.01 mas": 0.01, "F90 (1 mas)": 1.0, "10 F90 (10 mas)": 10.0, "1000 mas": 1000.0}
 #: Full scale of the paper's primary solution (Sect. 4.2, Table 3): the paper's three classes
 #: of 5e5 stars (Sect. 4), one year, 20 % dead time (conf/experiment/primary.yaml's 3 h knots;
-#: measured: docs/table3.md).
+#: measured: docs/notes/table3/reproduction.md).
 FULL_STARS, FULL_DAYS, FULL_LIVE = 1.5e6, 365.25, 0.8
 
 

@@ -1,7 +1,7 @@
-"""One primary solution evaluated three ways (Sect. 4.2, Table 3; docs/table3.md, "The
+"""One primary solution evaluated three ways (Sect. 4.2, Table 3; docs/notes/table3/candidates_paper_sizes.md, "The
 candidates at the paper's sizes").
 
-Two of the candidate explanations of the gap to Table 3 (docs/table3.md) change only how a
+Two of the candidate explanations of the gap to Table 3 (docs/notes/table3/index.md) change only how a
 solution is evaluated, not the solution:
 the frame rotator fitted with equal weights (``experiment.primary.frame_fit=equal``,
 candidate 4) and positions at each star's own mean epoch

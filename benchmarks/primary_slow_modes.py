@@ -1,4 +1,4 @@
-"""Where the primary solution's PCG iterations go (Sect. 4.2; docs/table3.md, "Where the iterations go").
+"""Where the primary solution's PCG iterations go (Sect. 4.2; docs/notes/table3/preconditioner.md, "Where the iterations go").
 
 Builds the primary experiment's own problem through the CLI (the run stops once its
 measurements are prepared), then, for the sigma_F90 prior:
@@ -13,7 +13,7 @@ measurements are prepared), then, for the sigma_F90 prior:
 
 Run: ``python benchmarks/primary_slow_modes.py [--stars 10000] [--classes 19,19.2,19.4]
 [--knot-transits 25] [--knot-rule counts] [--stop 100] [--windows 4,8]`` (3 x 10000 faint
-stars: ~3 min). The diagnosis in docs/table3.md used knots by equal counts (``counts``, the
+stars: ~3 min). The diagnosis in docs/notes/table3/preconditioner.md used knots by equal counts (``counts``, the
 default here; the experiment's default is ``uniform`` since 2026-11-27).
 """
 

@@ -538,7 +538,7 @@ def test_unconverged_solution_ends_the_run_in_one_line_and_writes_no_table(tmp_p
 
 def test_positions_at_a_stars_own_epoch_equal_a_solution_referred_to_it():
     # evaluation_epoch='star_mean' (Sect. 2.1's "mean epoch of observation" per star;
-    # docs/table3.md, "Candidate: the <= 4 transit rows"): the propagated position and
+    # docs/notes/table3/candidate_few_transits.md, "Candidate: the <= 4 transit rows"): the propagated position and
     # covariance against an independent solution of the same data whose design matrix is
     # referred to the other epoch (the prior of Eq. 18 leaves positions free, so the two
     # parametrisations give the same posterior).
@@ -719,7 +719,7 @@ DEAD_FRACTION_TOL = 0.02
 
 
 def test_subsets_by_scheduled_transits_change_the_tables_not_the_solutions(cli_run, tmp_path):
-    # experiment.primary.subset_transits=scheduled (Table 3's rows; docs/table3.md,
+    # experiment.primary.subset_transits=scheduled (Table 3's rows; docs/notes/table3/candidate_few_transits.md,
     # "Candidate: the <= 4 transit rows"): the <= 4 / > 4
     # subsets count the transits before the dead time; the solutions are the same bits.
     out = tmp_path / "run"

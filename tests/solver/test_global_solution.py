@@ -325,7 +325,7 @@ def _decimal_schur_band(problem, prior, window: int, digits: int = 60) -> np.nda
 def test_banded_schur_block_stays_exact_and_positive_under_a_1000_mas_prior(monkeypatch, window):
     # Stars seen once or twice under 1000 mas: B_i has condition ~1e10-1e12 and the
     # normal-equation form G'G - H'B^-1H loses ~1e-6 of a star's G'G, which at the paper's sizes
-    # with AGIS's knots made the band indefinite (docs/table3.md). The orthogonal form must
+    # with AGIS's knots made the band indefinite (docs/notes/table3/prior_1000mas.md). The orthogonal form must
     # match a 60-digit reference to double precision, where the other form does not.
     from tests.solver.conftest import make_problem
     from mcsweep.solver import blocks as B

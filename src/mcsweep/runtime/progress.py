@@ -23,7 +23,7 @@ __all__ = ["progress", "stage_line", "LineProgress", "SolveLines", "STEP_PERCENT
 #: Per cent of the work between two lines of a non-terminal progress report.
 STEP_PERCENT = 10
 #: Seconds between two lines of a running global solution (:class:`SolveLines`): at the paper's
-#: sizes with AGIS's knots one prior takes 10-60 min (docs/table3.md).
+#: sizes with AGIS's knots one prior takes 10-60 min (docs/notes/table3/candidates_paper_sizes.md).
 SOLVE_LINE_SECONDS = 60.0
 _FORMAT = "{desc}: {n_fmt}/{total_fmt} {unit} ({percentage:3.0f} %) [{elapsed} elapsed, {remaining} left]"
 

@@ -231,7 +231,7 @@ def schur_bandwidth(window: int = SCHUR_WINDOW) -> int:
 #: from the prior), so the loss, ~1e-6 of its ``G'G``, swamps what the knot keeps: at the
 #: paper's sizes with 25 FoV transits per knot (771117 knots) the band was not positive
 #: definite at coefficient 452453, where the exact pivots fall to 1.5e-6-1.1e-4 of the
-#: diagonal, and elsewhere to 1e-9 (docs/table3.md). Below 1e6 the loss is < 2e-10 and the
+#: diagonal, and elsewhere to 1e-9 (docs/notes/table3/prior_1000mas.md). Below 1e6 the loss is < 2e-10 and the
 #: faster form is kept (at 3 x 30000 stars with 25 FoV transits per knot: for all but 50
 #: stars under sigma_F90, 632 under 10 sigma_F90, 1825 under 1000 mas).
 STABLE_ABSORPTION_KAPPA = 1e6

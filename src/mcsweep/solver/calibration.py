@@ -37,7 +37,7 @@ measurements, only ``n_cal`` dot products and vector updates; the preconditioner
 a matrix of rank at most ``2 n_cal``, so CG needs at most that many more iterations (in exact
 arithmetic) to deal with it, however nearly degenerate the calibration is: measured, the
 same iteration counts as without the calibration (``tests/solver/test_calibration.py``;
-docs/table3.md). The energy rule of :mod:`.stopping` then bounds the error of every estimated
+docs/notes/table3/candidate_calibration.md). The energy rule of :mod:`.stopping` then bounds the error of every estimated
 quantity, the calibration and its correlations with the stars included, by the asked
 fraction of its formal uncertainty in the bordered system.
 

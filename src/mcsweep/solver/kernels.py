@@ -5,7 +5,7 @@ times, and at AGIS's 30 s knots there are many iterations). In numpy each produc
 operation with its own temporaries, so one pass streams some 30 measurement-length
 arrays through memory; here one loop reads each measurement's 70 stored bytes once and
 keeps everything else in registers. Measured with ``benchmarks/bench_primary.py``
-(docs/table3.md, "Speed").
+(docs/notes/table3/solver_cost.md, "Speed").
 
 The loops run over the block's measurements in their stored (time) order and add into
 the per-star and attitude sums in that order, one measurement after the other: no

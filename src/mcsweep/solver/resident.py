@@ -19,7 +19,7 @@ as it lies, not copied into one pickled string first), and each task's result go
 soon as it is made, the parent reading whichever worker is ready. A worker then holds one
 result at a time, once: at the paper's sizes with AGIS's knots a chunk's setup result was an
 attitude band of 12 x 2.3e6 doubles, and two of them plus the pickled copy of both were the
-run's peak memory (measured, docs/table3.md; the band now comes in slabs).
+run's peak memory (measured, docs/notes/table3/solver_cost.md; the band now comes in slabs).
 
 Large buffers (at least ``ARENA_MIN_BYTES``) do not go through the pipe but through two
 *arenas* per worker, anonymous shared mappings made before the fork: the sender copies the

@@ -13,7 +13,7 @@ The attitude is now *not* known: stars and attitude are solved together
    and determines the attitude from them, all with the prior. ``extra_sources`` (default
    0) adds that many extra stars (the brightest fainter than ``extra_g_min``) to the
    solution, an option *not* in the paper: well-observed extra stars add attitude
-   information the paper's solution did not have (docs/table3.md). The default is reduced
+   information the paper's solution did not have (docs/notes/table3/looking_for_the_collapse.md). The default is reduced
    (``class_size`` in conf/experiment/primary.yaml) so a run takes minutes on 2 cores.
 2. *Observations.* FoV transits of the configured scanning law (default the flown NSL)
    over ``mission_years`` (1) from ``mission_start`` (start of routine operations,
@@ -29,10 +29,10 @@ The attitude is now *not* known: stars and attitude are solved together
    a constant or a slowly varying rotation is absorbed exactly), so the amplitude is not
    critical. The default, 10 mas on a 24 h time scale (8 default knot intervals), is a
    choice, not a published figure (no published spectrum of Gaia's attitude
-   perturbations on hour-to-day scales was found; docs/table3.md): it is smooth on the
+   perturbations on hour-to-day scales was found; docs/notes/table3/true_attitude.md): it is smooth on the
    knot scale as Gaia's attitude is on its tens-of-seconds knots, and the unmodelled part
    stays below the noise (measured: 100 mas instead of 10 leaves the attitude error
-   unchanged to the 0.1 uas printed, docs/table3.md). A time scale close to the knot
+   unchanged to the 0.1 uas printed, docs/notes/table3/true_attitude.md). A time scale close to the knot
    interval leaves mas-level unmodelled attitude (measured: 3-4 mas RMS with 6 h against
    12 h knots), which then dominates every error; the sensitivity is a config value
    away. The solution starts from the scanning law (as AGIS starts from the commanded attitude).
@@ -56,7 +56,7 @@ al. 2012, Sect. 3.3), i.e. of order 1e3 observations per knot and axis; the pape
 give AGISLab's. Our reduced default (3 x 30000 stars, ~14 transits each per year, AL + AC)
 gives ~140 FoV transits per hour, so 3 h keeps ~420 transits per knot; at full scale
 (1.5e6 stars) 0.18 h gives the same. The attitude's noise scales as 1/sqrt(stars x knot
-interval), the attitude error the prior's bias causes does not (docs/table3.md).
+interval), the attitude error the prior's bias causes does not (docs/notes/table3/reproduction.md).
 
 Reproducibility: SeedSequence(seed, spawn_key=(42, stream, ...)): population of a class
 (stream 0, class key round(100 G0); the extra stars key 0), dead time (1), true attitude (2),

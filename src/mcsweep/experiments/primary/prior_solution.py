@@ -71,7 +71,7 @@ def solve_prior(settings: PrimarySettings, data: PreparedData, label: str, log=N
     one in fewer iterations (:func:`~mcsweep.solver.solve_global`).
     """
     # frame_fit='equal' weights every star alike: then the faint stars' prior-biased
-    # astrometry sets the removed rotation (docs/table3.md, the candidate for the paper's
+    # astrometry sets the removed rotation (docs/notes/table3/looking_for_the_collapse.md, the candidate for the paper's
     # collapse); not the default.
     equal = settings.frame_fit != "precision"
     chunks = data.solver_chunks(chunk_stars=chunk_stars, workers=workers, dask_client=dask_client)

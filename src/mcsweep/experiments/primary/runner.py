@@ -169,7 +169,7 @@ def _solve(run: GlobalRun, data, label: str, client: Callable, start: tuple | No
         # re-send every chunk's measurements per pass, which costs more than the work
         # (mcsweep.solver.solve.solve_global). Results are the same bits either way.
         # A line a minute while it runs: at the paper's sizes with AGIS's knots one solution
-        # takes up to an hour (docs/table3.md), with nothing else to show it is getting there.
+        # takes up to an hour (docs/notes/table3/candidates_paper_sizes.md), with nothing else to show it is getting there.
         log = SolveLines(f"mcsweep: primary: prior {label}", lambda r: settings.describe_state(dataclasses.asdict(r)),
                          f"{settings.describe_criterion()} or experiment.primary.solver_max_iter {settings.max_iter}",
                          enabled=bool(config.execution.progress))
@@ -188,7 +188,7 @@ def _solve(run: GlobalRun, data, label: str, client: Callable, start: tuple | No
         except AttitudeNotDetermined as exc:
             # The knots are closer than these stars' transits can fix under this prior: found
             # only when the prior's Schur block is factorised, after the solutions before it
-            # (docs/table3.md). Not a bad value as such (the same setting works for the
+            # (docs/notes/table3/prior_1000mas.md). Not a bad value as such (the same setting works for the
             # other priors and on other data), so like a solution that did not converge: one
             # line, exit status 3, no table3, and the finished solutions kept for a rerun.
             raise NotConvergedError(

@@ -44,7 +44,7 @@ def table3_cause(cell: pd.Series, table: pd.DataFrame) -> str:
         ten = find_row(table, cell["subset"], "10F90", cell["g_class"])
         contrast = (f" (ours with 10 sigma_F90 in the same cell: {100 * ten['fraction_inside']:.1f} %, paper "
                     f"{100 * ten['paper_fraction_inside']:.1f} %)" if ten is not None else "")
-        # The conclusion of the search for the cause in two sentences (docs/table3.md, its
+        # The conclusion of the search for the cause in two sentences (docs/notes/table3/conclusion.md, its
         # candidates and the summary after them).
         return ("the paper's sigma_F90 row falls further than ours" + contrast + ". Six candidate "
                 "causes, each run at the paper's sizes (`docs/table3.md`, the candidates and their summary), reproduce "

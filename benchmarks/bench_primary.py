@@ -297,9 +297,9 @@ def main():
               f"solve peak above storage {peak / 2**20:.0f} MB ({peak / o.size:.0f} B/measurement)")
         print(f"      memory-bandwidth floor (2 streaming reads of the stored bytes per iteration, plain numpy, "
               f"this run): {2 * floor / o.size * 1e9:.1f} ns/(measurement iteration); ratio "
-              f"{it_only / (2 * floor):.1f} (goal: <= 40 ns/(measurement iteration), docs/table3.md)")
+              f"{it_only / (2 * floor):.1f} (goal: <= 40 ns/(measurement iteration), docs/notes/table3/solver_cost.md)")
 
-    print("\n6. extrapolation to full scale (1.5e6 stars, 1 year, 20 % dead time; measured: docs/table3.md)")
+    print("\n6. extrapolation to full scale (1.5e6 stars, 1 year, 20 % dead time; measured: docs/notes/table3/solver_cost.md)")
     m_per_star_day = rows[-2][0] / (args.stars * 4 * args.days * args.keep)
     m_full = m_per_star_day * FULL_STARS * FULL_DAYS * FULL_LIVE
     ns = rows[-1][1] / rows[-1][0]  # the row at the experiment's density of measurements per star

@@ -47,7 +47,7 @@ def table3_cause(cell: pd.Series, table: pd.DataFrame) -> str:
         # The conclusion of the search for the cause in two sentences (docs/notes/table3/conclusion.md, its
         # candidates and the summary after them).
         return ("the paper's sigma_F90 row falls further than ours" + contrast + ". Six candidate "
-                "causes, each run at the paper's sizes (`docs/table3.md`, the candidates and their summary), reproduce "
+                "causes, each run at the paper's sizes (`docs/notes/table3/`, the candidates and the conclusion), reproduce "
                 "neither that collapse nor the paper's honest 10 sigma_F90 and 1000 mas rows together: AGIS's "
                 "attitude freedom (`experiment.primary.knot_transits=25`) lets the prior's bias reach weakly "
                 "determined knots and costs sigma_F90 13-15 points more than 10 sigma_F90 at G ~ 11, a quarter of the "
@@ -61,7 +61,7 @@ def table3_cause(cell: pd.Series, table: pd.DataFrame) -> str:
                 "own 10 sigma_F90 errors bound its attitude to what the default's 3 h knots give here, where sigma_F90 "
                 "does not collapse, so nothing the paper describes explains its row; under the default, 1.6 "
                 "sigma_F90 brings every cell to within 0.3 points of 90 %, not 10 sigma_F90")
-    return (f"not one of the differences documented in `docs/table3.md` (this cell holds "
+    return (f"not one of the differences documented in `docs/notes/table3/` (this cell holds "
             f"{int(cell['n_valid']) if 'n_valid' in cell else int(cell['n_stars'])} stars)")
 
 

@@ -78,6 +78,8 @@ def _science_part(cfg: dict) -> dict:
     for dotted, needs in hash_only_with().items():
         if _value(cfg, needs) is None:
             _drop(out, dotted)
+    if out.get("prior_model") == {}:  # the paper's model: hashed as before the group existed
+        out.pop("prior_model")
     _segments_as_before(out, _observed_span_jd(cfg))
     return out
 
@@ -98,6 +100,10 @@ _SHARED_DEFAULTS_FROM_BEFORE = {
     "population.params.extinction_model": "disc",
     "population.params.giant_thickness_factor": 0.45,  # galaxy model besancon-r03-4
     "population.params.subgiants": False,  # galaxy models before besancon-r03-5
+    # prior_model=direction_g, the paper's prior (Sect. 3.4): the model before the group existed.
+    "prior_model.name": "direction_g",
+    "prior_model.colour_edges": [],
+    "prior_model.mean": False,
 }
 
 

@@ -22,7 +22,7 @@ from typing import Any, Dict, List, Optional
 from hydra.core.config_store import ConfigStore
 
 from ..experiments.config_checks import require, tcb_jd_checked
-from ..experiments.f90_sweep.conf import CellConf, MagnitudesConf, PriorGridConf, PriorMapsConf, SkyConf
+from ..experiments.f90_sweep.conf import CellConf, MagnitudesConf, PriorGridConf, PriorMapsConf, PriorModelConf, SkyConf
 from ..experiments.registry import experiment_conf_class
 from ..scanning.law import ScanningLaw
 
@@ -199,6 +199,7 @@ class Config:
     execution: ExecutionConf = field(default_factory=ExecutionConf)
     resume: ResumeConf = field(default_factory=ResumeConf)
     prior_maps: PriorMapsConf = field(default_factory=PriorMapsConf)
+    prior_model: PriorModelConf = field(default_factory=PriorModelConf)
     #: Master seed; every cell derives its own stream from (seed, cell identity).
     seed: int = 20150821
     #: Confidence level P of the ellipses (Sect. 2.4: 0.9).

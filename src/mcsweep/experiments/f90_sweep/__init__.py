@@ -41,7 +41,7 @@ def _kept(config, config_hash: str, run_dir: Path) -> str:
     from ...runtime.store import ResultStore
     from .cells import enumerate_cells
 
-    cells = {c.cell_id for c in enumerate_cells(config.sky, config.magnitudes)}
+    cells = {c.cell_id for c in enumerate_cells(config.sky, config.magnitudes, config.prior_model.colour_edges)}
     done = ResultStore(Path(run_dir) / CELLS_DIR, config_hash).finished()
     return f"{sum(c in cells for c in done)} of {len(cells)} cells kept in {run_dir}"
 

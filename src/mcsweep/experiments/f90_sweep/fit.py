@@ -27,6 +27,7 @@ from ...errors import UserInputError
 from ...prior import PAPER_COEFFICIENTS, Prior, sigma_from_coefficients
 from ...prior.maps import prior_maps_bytes
 from . import FIT_FILES
+from .pencil_beam import COLOUR_COLUMNS, MEAN_COLUMNS
 
 __all__ = [
     "POLY_DEGREES",
@@ -45,6 +46,7 @@ __all__ = [
     "FIT_INTERVAL",
     "MAP_CELL_COLUMNS",
     "f90_table",
+    "colour_blind",
     "fit_tables",
     "read_fit",
     "prior_maps_for_run",
@@ -71,10 +73,18 @@ def f90_table(cells: pd.DataFrame) -> pd.DataFrame:
                                              "g_max", "n_stars", "n_in_cone", "radius_deg", "n_groups",
                                              "sigma_f90_mas", "f90_flag"]
                                             + [c for c in ("sigma_f90_lo_mas", "sigma_f90_hi_mas",
-                                                           "ill_determined") if c in cells]]
+                                                           "ill_determined", *COLOUR_COLUMNS, *MEAN_COLUMNS)
+                                               if c in cells]]
     at = cells[cells["at_f90"]].pivot_table(index="cell_id", columns="case", values="fraction_inside")
     at.columns = [f"fraction_at_f90_{c}" for c in at.columns]
     return base.merge(at, left_on="cell_id", right_index=True, how="left").reset_index(drop=True)
+
+
+def colour_blind(f90: pd.DataFrame) -> pd.DataFrame:
+    """The cells without a colour bin (every cell of a sweep without the colour axis)."""
+    if "bp_rp_min" not in f90:
+        return f90
+    return f90[f90["bp_rp_min"].isna()].reset_index(drop=True)
 
 
 def direction_design(l_deg, b_deg) -> np.ndarray:
@@ -207,7 +217,8 @@ class FitResult:
 
 
 def fit_all(f90: pd.DataFrame) -> FitResult:
-    """The whole chain on a per-cell table (cells flagged other than 'ok' are not fitted)."""
+    """The whole chain on a per-cell table (cells flagged other than 'ok' are not fitted).
+    ``f90`` holds the colour-blind cells (:func:`colour_blind`)."""
     usable = f90[(f90["f90_flag"] == "ok") & np.isfinite(f90["sigma_f90_mas"])]
     terms = fit_direction_terms(usable)
     fitted = fit_polynomials(terms)

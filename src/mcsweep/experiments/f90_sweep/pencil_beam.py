@@ -41,10 +41,23 @@ __all__ = [
     "prior_curve",
     "scan_curve",
     "run_cell",
+    "cell_stars",
+    "cell_mean",
     "CURVE_COLUMNS",
+    "COLOUR_COLUMNS",
+    "MEAN_COLUMNS",
+    "curve_columns",
 ]
 
-_STAR_STREAM, _NOISE_STREAM, _BOOTSTRAP_STREAM = 0, 1, 2
+_STAR_STREAM, _NOISE_STREAM, _BOOTSTRAP_STREAM, _MEAN_STREAM, _QUASAR_STREAM = 0, 1, 2, 3, 4
+
+#: A colour cell draws the direction x G population in batches of ``min_stars`` and keeps the
+#: stars of its BP-RP bin, up to this many batches: a bin holding under 1/COLOUR_DRAW_BATCHES
+#: of the stars gets fewer than ``min_stars``.
+COLOUR_DRAW_BATCHES = 10
+#: Below this many stars a colour cell's sigma_F90 is not determined (flag ``few_stars``): the
+#: binomial standard error of its fraction inside would exceed 1 point at P = 0.9.
+COLOUR_MIN_STARS = 1000
 
 #: Columns of a cell's result table (one row per case x prior).
 CURVE_COLUMNS = [
@@ -53,6 +66,19 @@ CURVE_COLUMNS = [
     "median_semi_major_mas", "n_stars", "n_in_cone", "radius_deg", "n_groups", "sigma_f90_mas", "f90_flag",
     "sigma_f90_lo_mas", "sigma_f90_hi_mas", "ill_determined",
 ]
+#: Added to :data:`CURVE_COLUMNS` with the colour axis (NaN for the colour-blind cells).
+COLOUR_COLUMNS = ["bp_rp_min", "bp_rp_max"]
+#: Added with a mean-centred prior: the cell's mean (the prior's centre; proper motion in
+#: galactic and in ICRS components at the beam centre) and, at sigma_F90 of the F90 case, what
+#: that prior does to sources with zero parallax and proper motion (quasars).
+MEAN_COLUMNS = ["mean_parallax_mas", "mean_pml_masyr", "mean_pmb_masyr", "mean_pmra_masyr", "mean_pmdec_masyr",
+                "n_mean_stars", "quasar_fraction_inside", "quasar_n_valid", "quasar_p_error_mas"]
+
+
+def curve_columns(s: "CellSettings") -> list[str]:
+    """The columns of a cell's table under settings ``s``."""
+    return CURVE_COLUMNS + (COLOUR_COLUMNS if s.colour_axis else []) + (MEAN_COLUMNS if s.mean else [])
+
 
 @dataclass(frozen=True)
 class CellSettings:
@@ -80,6 +106,11 @@ class CellSettings:
     #: at sigma_F90 (False): on the grid only the showcase's figures use them, and they
     #: cost more than the fraction inside (two partial sorts per prior).
     grid_statistics: bool = True
+    #: The sweep has a colour axis (:class:`~mcsweep.experiments.f90_sweep.conf.PriorModelConf`):
+    #: every cell's table carries :data:`COLOUR_COLUMNS`.
+    colour_axis: bool = False
+    #: Centre the prior on the cell's mean parallax and proper motion (:data:`MEAN_COLUMNS`).
+    mean: bool = False
 
 
 @dataclass(frozen=True)
@@ -336,30 +367,124 @@ def run_cell(cell, transits: pd.DataFrame, source, s: CellSettings,
     d = cell.direction
     # Streams keyed by content (cell, and case *name* for the noise), never by position in
     # a list, so adding, removing or reordering cases or cells changes no other result.
-    star_ss = np.random.SeedSequence(s.seed, spawn_key=(*cell.key, _STAR_STREAM))
     radius = cell_radius(source, cell, s)[0] if radius_deg is None else radius_deg
-    more = {"min_draw": s.min_stars} if getattr(source, "draws_from_density", False) else {}
-    stars = source.sample_cone(d.l_deg, d.b_deg, radius, cell.g_min, cell.g_max,
-                               np.random.default_rng(star_ss), max_stars=s.max_stars, **more)
+    stars = cell_stars(cell, source, s, radius, _STAR_STREAM)
     grid = np.asarray(s.prior_grid_mas, float)
     stats_on_grid = s.grid_statistics if grid_statistics is None else bool(grid_statistics)
     base = dict(cell_id=cell.cell_id, l_deg=d.l_deg, b_deg=d.b_deg, ra_deg=d.ra_deg,
                 dec_deg=d.dec_deg, g_min=cell.g_min, g_max=cell.g_max, n_stars=len(stars),
                 n_in_cone=int(stars.attrs.get("n_in_cone", len(stars))), radius_deg=radius,
                 n_groups=int(transits["group"].nunique()) if len(transits) else 0)
-    normals = _case_normals(cell, transits, stars, s)
+    if s.colour_axis:
+        base.update(bp_rp_min=np.nan if cell.bp_rp_min is None else cell.bp_rp_min,
+                    bp_rp_max=np.nan if cell.bp_rp_max is None else cell.bp_rp_max)
+    centre = None
+    if s.mean:
+        centre = cell_mean(cell_stars(cell, source, s, radius, _MEAN_STREAM), d)
+        base.update(centre)
+    solved = stars if centre is None else _shifted(stars, centre)
+    normals = _case_normals(cell, transits, solved, s) if len(stars) >= _min_stars(cell) else {}
     scans = {case: prior_scan(*nrm, s.ratio_R) for case, nrm in normals.items()}
     curves, f90_flags = {}, None
     for case, scan in scans.items():
         curves[case], *flags = scan_arrays(scan, grid, s, statistics=stats_on_grid)
         if case == s.f90_case:
             f90_flags = flags
-    f90 = _cell_f90(cell, grid, curves, f90_flags, s, has_stars=len(stars) > 0)
+    f90 = _cell_f90(cell, grid, curves, f90_flags, s, has_stars=len(stars) > 0,
+                    enough_stars=len(stars) >= _min_stars(cell))
+    if centre is not None:
+        base.update(_quasars(cell, transits, stars, centre, f90["sigma_f90_mas"], s))
     table = _cell_table(grid, curves, scans, s, dict(base, **f90))
     scatter = None
     if keep_scatter and s.f90_case in normals:
         scatter = _scatter(normals[s.f90_case], stars, f90["sigma_f90_mas"], s)
     return table, scatter
+
+
+def _min_stars(cell) -> int:
+    return COLOUR_MIN_STARS if cell.has_colour else 1
+
+
+def cell_stars(cell, source, s: CellSettings, radius: float, stream: int) -> pd.DataFrame:
+    """The stars of a cell from stream ``stream`` of its key.
+
+    A colour-blind cell is one draw of the beam and G bin (at least ``min_stars`` from a
+    density, :func:`cell_radius`). A colour cell draws the same way in batches from one
+    generator and keeps the stars of its BP-RP bin until it holds ``min_stars`` (at most
+    :data:`COLOUR_DRAW_BATCHES` batches; a catalogue has one), capped at ``max_stars``.
+    ``attrs["n_in_cone"]`` is then the first batch's one-realisation count scaled by the share
+    of the bin in it.
+    """
+    d = cell.direction
+    rng = np.random.default_rng(np.random.SeedSequence(s.seed, spawn_key=(*cell.key, stream)))
+    density = getattr(source, "draws_from_density", False)
+    more = {"min_draw": s.min_stars} if density else {}
+
+    def draw():
+        return source.sample_cone(d.l_deg, d.b_deg, radius, cell.g_min, cell.g_max, rng, max_stars=s.max_stars,
+                                  **more)
+
+    if not cell.has_colour:
+        return draw()
+    kept, n_kept, n_in_cone = [], 0, None
+    for _ in range(COLOUR_DRAW_BATCHES if density else 1):
+        batch = draw()
+        c = batch["bp_rp"].to_numpy(float)
+        sel = batch[(c >= cell.bp_rp_min) & (c < cell.bp_rp_max)]
+        if n_in_cone is None:
+            n_in_cone = int(round(batch.attrs.get("n_in_cone", len(batch)) * len(sel) / max(len(batch), 1)))
+        kept.append(sel)
+        n_kept += len(sel)
+        if n_kept >= s.min_stars or len(batch) == 0:
+            break
+    out = pd.concat(kept, ignore_index=True).iloc[:s.max_stars]
+    out.attrs["n_in_cone"] = n_in_cone
+    return out
+
+
+def cell_mean(stars: pd.DataFrame, d) -> dict:
+    """The mean parallax and proper motion of a cell's stars: the centre of a mean-centred
+    prior. The proper motion is averaged in galactic components (each star's own rotation)
+    and given in ICRS at the beam centre too, the frame the cell's solutions use."""
+    from ...galactic import pm_galactic_from_icrs, pm_icrs_from_galactic
+
+    if len(stars) == 0:
+        nan = float("nan")
+        return dict(mean_parallax_mas=nan, mean_pml_masyr=nan, mean_pmb_masyr=nan, mean_pmra_masyr=nan,
+                    mean_pmdec_masyr=nan, n_mean_stars=0)
+    pml, pmb = pm_galactic_from_icrs(*(stars[c].to_numpy(float) for c in ("ra", "dec", "pmra", "pmdec")))
+    m_l, m_b = float(np.mean(pml)), float(np.mean(pmb))
+    m_ra, m_dec = pm_icrs_from_galactic(d.l_deg, d.b_deg, m_l, m_b)
+    return dict(mean_parallax_mas=float(stars["parallax"].mean()), mean_pml_masyr=m_l, mean_pmb_masyr=m_b,
+                mean_pmra_masyr=float(m_ra), mean_pmdec_masyr=float(m_dec), n_mean_stars=len(stars))
+
+
+def _shifted(stars: pd.DataFrame, centre: dict) -> pd.DataFrame:
+    """The stars with the prior's centre subtracted from their truth. A prior centred on m
+    gives the same errors as a zero-centred one with the truth x - m (the estimate is linear:
+    x_hat - x = (N + N_p)^-1 (n + N_p (m - x)), Eqs. 11-13), so every cell solves with the
+    zero-centred Eq. 18."""
+    return stars[["phot_g_mean_mag"]].assign(
+        parallax=stars["parallax"].to_numpy(float) - centre["mean_parallax_mas"],
+        pmra=stars["pmra"].to_numpy(float) - centre["mean_pmra_masyr"],
+        pmdec=stars["pmdec"].to_numpy(float) - centre["mean_pmdec_masyr"])
+
+
+def _quasars(cell, transits: pd.DataFrame, stars: pd.DataFrame, centre: dict, f90: float, s: CellSettings) -> dict:
+    """Sources with zero parallax and proper motion (quasars) at the cell's stars' G, solved in
+    the F90 case with the mean-centred prior of width sigma_F90: fraction inside the P ellipse
+    and P-th percentile position error. Their truth relative to the prior's centre is -m."""
+    out = dict(quasar_fraction_inside=np.nan, quasar_n_valid=0, quasar_p_error_mas=np.nan)
+    geom = case_geometry(_transit_columns(transits), tuple(s.cases[s.f90_case])) if len(transits) else None
+    if geom is None or not math.isfinite(f90) or len(stars) == 0:
+        return out
+    zero = {"parallax": 0.0, "pmra": 0.0, "pmdec": 0.0}
+    quasars = _shifted(stars.assign(**zero), centre)
+    rng = np.random.default_rng(np.random.SeedSequence(s.seed, spawn_key=(*cell.key, _QUASAR_STREAM)))
+    n0, b0 = cell_normal_equations(geom, cell.direction.ra_deg, cell.direction.dec_deg, quasars, s, rng)
+    row = scan_arrays(prior_scan(n0, b0, s.ratio_R), [f90], s, statistics=True)[0]
+    return dict(quasar_fraction_inside=float(row["fraction_inside"][0]), quasar_n_valid=int(row["n_valid"][0]),
+                quasar_p_error_mas=float(row["p_error_mas"][0]))
 
 
 def _case_normals(cell, transits: pd.DataFrame, stars: pd.DataFrame, s: CellSettings) -> dict:
@@ -376,11 +501,13 @@ def _case_normals(cell, transits: pd.DataFrame, stars: pd.DataFrame, s: CellSett
     return normals
 
 
-def _cell_f90(cell, grid, curves: dict, f90_flags, s: CellSettings, *, has_stars: bool) -> dict:
+def _cell_f90(cell, grid, curves: dict, f90_flags, s: CellSettings, *, has_stars: bool,
+              enough_stars: bool = True) -> dict:
     """sigma_F90 of the cell from the F90 case's curve (Sect. 3.3), its flag, its bootstrap
     interval and whether it is ill-determined."""
     if s.f90_case not in curves:
-        return dict(sigma_f90_mas=float("nan"), f90_flag="no_transits" if has_stars else "no_stars",
+        flag = "no_stars" if not has_stars else "few_stars" if not enough_stars else "no_transits"
+        return dict(sigma_f90_mas=float("nan"), f90_flag=flag,
                     sigma_f90_lo_mas=float("nan"), sigma_f90_hi_mas=float("nan"), ill_determined=False)
     c = curves[s.f90_case]
     f90, flag = sigma_f90_from_curve(grid, c["fraction_inside"], s.confidence, s.interpolation)
@@ -417,7 +544,7 @@ def _cell_table(grid, curves: dict, scans: dict, s: CellSettings, scalars: dict)
     cols["case"] = np.array(case_col, dtype=object)
     for k, v in scalars.items():
         cols[k] = np.full(n_rows, v, dtype=object if isinstance(v, str) else None)
-    return pd.DataFrame({k: cols[k] for k in CURVE_COLUMNS})
+    return pd.DataFrame({k: cols[k] for k in curve_columns(s)})
 
 
 def _scatter(normals, stars: pd.DataFrame, f90: float, s: CellSettings) -> pd.DataFrame:

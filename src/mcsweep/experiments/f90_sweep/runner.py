@@ -26,7 +26,8 @@ from astropy.time import Time
 
 from ...astrometry.noise import NoiseModel
 from ...errors import UserInputError
-from .fit import f90_table, fit_all, fit_tables, prior_maps_for_run
+from .colour_fit import MEANS_FILE, colour_tables, means_table
+from .fit import colour_blind, f90_table, fit_all, fit_tables, prior_maps_for_run
 from .pencil_beam import CellSettings, cell_radius, run_cell
 from ...population import CatalogueSource, make_source
 from ...prior.maps import MAPS_FILE
@@ -67,6 +68,8 @@ def build_settings(config) -> CellSettings:
         noise=NoiseModel.from_config(config.noise),
         seed=config.seed,
         scatter_priors_mas=(sc.tight_prior_mas, sc.loose_prior_mas),
+        colour_axis=bool(config.prior_model.colour_edges),
+        mean=bool(config.prior_model.mean),
     )
 
 
@@ -146,8 +149,9 @@ def run_sweep(config, raw_cfg: dict, run_dir: Path, *, prov) -> Path:
         # Built here first so a bad catalogue fails before any file is written.
         source = _source(_freeze(_pop_dict(config)))
     settings = build_settings(config)
+    _check_colours(config, source)
     law = _scanning_law(config, prov)
-    cells = enumerate_cells(config.sky, config.magnitudes)
+    cells = enumerate_cells(config.sky, config.magnitudes, config.prior_model.colour_edges)
     keep = config.resume.accept_other_versions
     store = ResultStore(run_dir / CELLS_DIR, prov.hash, accept_other_versions=keep)
     show = showcase_cell(config) if config.experiment.showcase.enabled else None
@@ -180,7 +184,16 @@ def run_sweep(config, raw_cfg: dict, run_dir: Path, *, prov) -> Path:
             bar.update(1)
         bar.close()
     with prov.stage("aggregate"):
-        return _aggregate(run_dir, cells, store, prov, nside=config.prior_maps.nside)
+        return _aggregate(run_dir, cells, store, prov, nside=config.prior_maps.nside, settings=settings)
+
+
+def _check_colours(config, source) -> None:
+    """A colour axis needs each star's BP-RP, which only the galaxy model draws."""
+    edges = config.prior_model.colour_edges
+    if edges and isinstance(source, CatalogueSource):
+        raise UserInputError(
+            f"prior_model.colour_edges={list(edges)} needs each star's BP-RP, which population=catalogue "
+            f"({source.path.name}) does not give; expected population=galaxy_model or prior_model=direction_g")
 
 
 def _scanning_law(config, prov) -> ScanningLaw:
@@ -229,7 +242,8 @@ def _transits_of(config, prov, cells: list[Cell]) -> dict[int, pd.DataFrame]:
     return transits
 
 
-def _aggregate(run_dir: Path, cells: list[Cell], store: ResultStore, prov, *, nside: int) -> Path:
+def _aggregate(run_dir: Path, cells: list[Cell], store: ResultStore, prov, *, nside: int,
+               settings: CellSettings) -> Path:
     """``cells.parquet`` from every finished cell, then the fit and the maps (:func:`write_fit`)."""
     store.versions_read.clear()
     tables = [store.read(c.cell_id) for c in cells]
@@ -246,6 +260,12 @@ def _aggregate(run_dir: Path, cells: list[Cell], store: ResultStore, prov, *, ns
                            "SeedSequence(seed, spawn_key=(*key, 1, crc32(case name))); bootstrap of "
                            "sigma_F90: SeedSequence(seed, spawn_key=(*key, 2)); "
                            "key = (l*1e4, (b+90)*1e4, 100*g_min, 100*g_max)")
+    if settings.colour_axis:
+        prov.seeds["colour_cells"] = ("a colour cell's key appends (100*(bp_rp_min+10), 100*(bp_rp_max+10)); its "
+                                      "stars are the stars of its BP-RP bin in batches drawn from the star stream")
+    if settings.mean:
+        prov.seeds["prior_mean"] = ("the prior's centre: mean of an independent draw, SeedSequence(seed, "
+                                    "spawn_key=(*key, 3)); quasars' noise: SeedSequence(seed, spawn_key=(*key, 4))")
     return out
 
 
@@ -258,7 +278,13 @@ def write_fit(run_dir: Path, cells: pd.DataFrame, *, nside: int) -> None:
     the config hash, so a rerun redraws the maps from the same fit at the configured nside.
     """
     run_dir = Path(run_dir)
-    fit = fit_all(f90_table(cells))
-    for name, table in fit_tables(fit).items():
+    f90 = f90_table(cells)
+    fit = fit_all(colour_blind(f90))
+    tables = fit_tables(fit)
+    if "bp_rp_min" in f90:  # the colour axis (prior_model.colour_edges)
+        tables.update(colour_tables(f90, fit.fitted))
+    if "mean_parallax_mas" in f90:  # a mean-centred prior (prior_model.mean)
+        tables[MEANS_FILE] = means_table(f90)
+    for name, table in tables.items():
         atomic_write_bytes(run_dir / name, table.to_csv(index=False).encode())
     atomic_write_bytes(run_dir / MAPS_FILE, prior_maps_for_run(run_dir, fit, nside=nside))

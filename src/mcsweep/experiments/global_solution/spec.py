@@ -13,9 +13,10 @@ __all__ = ["global_experiment_spec", "GLOBAL_IGNORES"]
 #: procedure and prior maps, and the pencil-beam cases. ``observations.start`` / ``end`` are
 #: read under a release preset (``observations=dr1..dr5`` sets the mission), so they stay in
 #: the hash; ``observations.reference_epoch`` too (the reference epoch is a mean epoch of
-#: observation, paper Sect. 2.1, or a date).
+#: observation, paper Sect. 2.1, or a date). ``prior_model`` shapes the sweep's prior only: a
+#: global experiment takes its prior from the paper or from a sweep's run directory.
 GLOBAL_IGNORES = ("sky", "magnitudes", "prior_grid", "cell", "observations.cases", "observations.f90_case",
-                  "observations.fixed_epoch", "prior_maps")
+                  "observations.fixed_epoch", "prior_maps", "prior_model")
 
 
 def global_experiment_spec(*, load: Callable[[], tuple], **fields) -> ExperimentSpec:

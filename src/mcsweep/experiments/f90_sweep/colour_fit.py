@@ -1,0 +1,117 @@
+"""The prior's colour term and its mean: what a sweep with ``prior_model=colour`` or
+``colour_mean`` writes besides the colour-blind fit of :mod:`.fit`.
+
+The form of the colour term is chosen on the evidence each run writes (``colour_fit_forms.csv``):
+the residual RMS in dex of the colour cells' log10 sigma_F90 about
+
+* ``colour_blind``: the colour-blind surface (Eqs. 14-17 fitted to the colour-blind cells);
+* ``offset``: that surface plus one constant per colour bin (log10 sigma_F90 shifted);
+* ``offset_linear_g``: plus a constant and a slope in G per colour bin;
+* ``per_bin``: Eqs. 14-17 fitted separately to each colour bin's cells (Sect. 3.4's two
+  least-squares steps, the same polynomial degrees).
+
+The prior a run gives is the ``per_bin`` form (``colour_coefficients.csv``), the only one of
+the four that lets the direction terms s1, s2 differ between colours: giants and dwarfs
+are spread differently along a sight line, so their sigma_F90 changes differently with |b|.
+The forms' RMS are there to judge that choice on each run (docs/prior_colour.md).
+
+``prior_means.csv`` lists each cell's mean parallax and proper motion, the prior's centre
+with ``prior_model.mean``; :class:`mcsweep.prior.Prior` interpolates it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from .fit import POLY_DEGREES, coefficient_table, compare_cells, evaluate_formula, fit_all
+
+__all__ = ["COLOUR_FILES", "colour_cells", "colour_tables", "fit_forms", "means_table"]
+
+#: The colour term's tables in a run directory (with ``prior_model.colour_edges``).
+COLOUR_FILES = ("colour_coefficients.csv", "f90_colour_cells.csv", "colour_fit_forms.csv")
+#: The prior's centre per cell (with ``prior_model.mean``).
+MEANS_FILE = "prior_means.csv"
+_MEANS = ["mean_parallax_mas", "mean_pml_masyr", "mean_pmb_masyr"]
+
+
+def colour_cells(f90: pd.DataFrame) -> pd.DataFrame:
+    """The cells with a colour bin."""
+    if "bp_rp_min" not in f90:
+        return f90.iloc[:0]
+    return f90[f90["bp_rp_min"].notna()].reset_index(drop=True)
+
+
+def _usable(cells: pd.DataFrame) -> pd.DataFrame:
+    return cells[(cells["f90_flag"] == "ok") & np.isfinite(cells["sigma_f90_mas"])]
+
+
+def colour_tables(f90: pd.DataFrame, blind_fitted: dict) -> dict[str, pd.DataFrame]:
+    """``colour_coefficients.csv`` (Eqs. 15-17 per colour bin, with bootstrap intervals),
+    ``f90_colour_cells.csv`` (every colour cell with its bin's fitted sigma_F90 and the
+    colour-blind one) and ``colour_fit_forms.csv`` (module notes)."""
+    cells = colour_cells(f90)
+    coefs, compared = [], []
+    for (c0, c1), grp in cells.groupby(["bp_rp_min", "bp_rp_max"], sort=True):
+        if len(_usable(grp)):
+            fit = fit_all(grp)
+            table, comp = fit.coefficients, fit.compared
+        else:  # no cell of this colour has a sigma_F90 (e.g. too few stars at every G)
+            undetermined = {name: np.full(deg + 1, np.nan) for name, deg in POLY_DEGREES.items()}
+            table = coefficient_table(undetermined).assign(fitted_lo=np.nan, fitted_hi=np.nan)
+            comp = compare_cells(grp, undetermined)
+        coefs.append(table.drop(columns=["paper", "difference", "paper_inside"], errors="ignore")
+                     .assign(bp_rp_min=c0, bp_rp_max=c1, n_cells=int(len(_usable(grp)))))
+        compared.append(comp)
+    coef = pd.concat(coefs, ignore_index=True) if coefs else pd.DataFrame()
+    if len(coef):
+        coef = coef[["bp_rp_min", "bp_rp_max", "term", "fitted", "fitted_lo", "fitted_hi", "n_cells"]]
+    comp = pd.concat(compared, ignore_index=True) if compared else cells.copy()
+    if len(comp):
+        comp["colour_blind_sigma_f90_mas"] = evaluate_formula(
+            blind_fitted, comp["l_deg"].to_numpy(float), comp["b_deg"].to_numpy(float),
+            ((comp["g_min"] + comp["g_max"]) / 2).to_numpy(float))
+    return {"colour_coefficients.csv": coef, "f90_colour_cells.csv": comp,
+            "colour_fit_forms.csv": fit_forms(comp, blind_fitted)}
+
+
+def fit_forms(compared: pd.DataFrame, blind_fitted: dict) -> pd.DataFrame:
+    """Residual RMS [dex] of the usable colour cells about each candidate form of the colour
+    term (module notes), per colour bin and over all, with the number of parameters."""
+    ok = _usable(compared)
+    if ok.empty:
+        return pd.DataFrame(columns=["form", "colour_bin", "n_cells", "n_parameters", "rms_dex"])
+    y = np.log10(ok["sigma_f90_mas"].to_numpy(float))
+    g = ((ok["g_min"] + ok["g_max"]) / 2).to_numpy(float)
+    blind = np.log10(evaluate_formula(blind_fitted, ok["l_deg"].to_numpy(float), ok["b_deg"].to_numpy(float), g))
+    own = np.log10(ok["fitted_sigma_f90_mas"].to_numpy(float))
+    labels = [f"{a:g}..{b:g}" for a, b in zip(ok["bp_rp_min"], ok["bp_rp_max"])]
+    bins = sorted(set(labels), key=lambda s: float(s.split("..")[0]))
+    lab = np.array(labels)
+    resid = {"colour_blind": y - blind, "offset": np.empty_like(y), "offset_linear_g": np.empty_like(y),
+             "per_bin": y - own}
+    for b in bins:
+        m = lab == b
+        r = y[m] - blind[m]
+        resid["offset"][m] = r - r.mean()
+        a = np.column_stack([np.ones(m.sum()), g[m]])
+        resid["offset_linear_g"][m] = r - a @ np.linalg.lstsq(a, r, rcond=None)[0]
+    n_par = {"colour_blind": 0, "offset": len(bins), "offset_linear_g": 2 * len(bins), "per_bin": 9 * len(bins)}
+    rows = []
+    for form, r in resid.items():
+        for b in bins + ["all"]:
+            m = np.ones(len(r), bool) if b == "all" else lab == b
+            rows.append(dict(form=form, colour_bin=b, n_cells=int(m.sum()), n_parameters=n_par[form],
+                             rms_dex=float(np.sqrt(np.nanmean(r[m] ** 2)))))
+    return pd.DataFrame(rows)
+
+
+def means_table(f90: pd.DataFrame) -> pd.DataFrame:
+    """``prior_means.csv``: each cell's direction, G bin, colour bin (NaN: colour-blind) and the
+    mean parallax and galactic proper motion of its stars, with the number of stars averaged."""
+    cols = ["l_deg", "b_deg", "g_min", "g_max", "bp_rp_min", "bp_rp_max", *_MEANS, "n_mean_stars"]
+    out = f90.copy()
+    for c in ("bp_rp_min", "bp_rp_max"):
+        if c not in out:
+            out[c] = np.nan
+    return out[cols].reset_index(drop=True)

@@ -104,8 +104,19 @@ def test_small_run_through_the_cli(tmp_path):
     assert set(table["truth"]) == {"hipparcos", "perturbed"}
     assert set(table["case"]) == {"one", "two"}
     assert set(table["b_band_deg"]) == {"0-15", "15-35", "35-90", "all"}
-    assert set(table["g_bin"]) == {"6-7", "7-8", "8-9", "all"}
-    assert len(table) == 2 * 2 * 2 * 4 * 4
+    # the 1-mag bins, G = 6-8 (the range of the real-sky targets) and all
+    assert set(table["g_bin"]) == {"6-7", "7-8", "6-8", "8-9", "all"}
+    assert set(table["colour_bin"]) == {"all", "blue", "middle", "red"}
+    assert len(table) == 2 * 2 * 2 * 4 * 5 * 4
+    # per cell, the BP-RP bins hold the stars with a Gaia colour (at most all of them)
+    by_bin = table[table["colour_bin"] != "all"].groupby(["prior", "truth", "case", "b_band_deg", "g_bin"])
+    whole = table[table["colour_bin"] == "all"].set_index(["prior", "truth", "case", "b_band_deg", "g_bin"])
+    coloured = by_bin["n_stars"].sum()
+    assert (coloured <= whole["n_stars"].reindex(coloured.index)).all()
+    assert coloured.sum() > 0.8 * whole["n_stars"].sum()
+    six_eight = whole.xs("6-8", level="g_bin")["n_stars"]
+    assert (six_eight == whole.xs("6-7", level="g_bin")["n_stars"] + whole.xs("7-8", level="g_bin")["n_stars"]).all()
+    table = table[table["colour_bin"] == "all"]
     total = table[(table["b_band_deg"] == "all") & (table["g_bin"] == "all")]
     assert (total["n_stars"] == 300).all() and (total["n_valid"] > 250).all()
     ok = table["n_valid"] > 0
@@ -132,6 +143,9 @@ def test_small_run_through_the_cli(tmp_path):
     assert {"median_parallax_error_mas", "median_sigma_paper_mas", "median_sigma_fitted_mas"} <= set(errors.columns)
     report = (out / "report.md").read_text()
     assert "Hipparcos stars as truth" in report and (out / "real_sky_fraction.png").is_file()
+    # the BP-RP bins: a table and a figure per |b| band x bin
+    assert (out / "real_sky_colour.png").is_file() and "Per |b| band x Gaia DR3 BP-RP bin" in report
+    assert "Per |b| band x Gaia BP-RP bin, G 6-8" in (out / "real_sky.md").read_text()
     assert report.index("Fraction of actual position errors") < report.index("Setup and tables")
     seeds = json.loads((out / "provenance.json").read_text())["seeds"]["real_sky"]
     assert "noise" in seeds and "perturbed_truth" in seeds

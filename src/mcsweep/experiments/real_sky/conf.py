@@ -25,6 +25,9 @@ class RealSkyConf:
     f90_formula: str = "paper"
     #: Multiplier of sigma_F90 (k sigma_F90 with Eq. 18).
     factor: float = 1.0
+    #: Sweep run directories made with ``prior_model=colour`` or ``colour_mean``: one more
+    #: prior each, queried with each star's Gaia BP-RP (and centred on the run's mean).
+    colour_priors: List[str] = field(default_factory=list)
 
     def __post_init__(self):
         require(0 <= self.g_min < self.g_max <= 21, "experiment.real_sky.g_min/g_max", (self.g_min, self.g_max),
@@ -35,3 +38,5 @@ class RealSkyConf:
                  "0 (all stars) or a positive number of stars")
         require(self.factor > 0 and math.isfinite(self.factor), "experiment.real_sky.factor", self.factor,
                  "a positive, finite multiplier")
+        require(len(set(map(str, self.colour_priors))) == len(self.colour_priors), "experiment.real_sky.colour_priors",
+                 list(self.colour_priors), "a list of distinct sweep run directories")

@@ -23,12 +23,21 @@ This experiment takes the Hipparcos 2 catalogue (van Leeuwen 2007, CDS I/311;
    block)``), the reference epoch of ``observations.reference_epoch`` (``mean``: each
    star's mean epoch of its case's transits, Sect. 2.1), solved with the Eq. 18 prior
    ``factor`` x sigma_F90 of every prior: the paper's (Eqs. 14-17) and, with
-   ``f90_formula=RUN_DIR``, a sweep run's fitted one (:meth:`mcsweep.prior.Prior.from_run`).
+   ``f90_formula=RUN_DIR``, a sweep run's fitted one (:meth:`mcsweep.prior.Prior.from_run`),
+   and one per run of ``colour_priors`` (sweeps made with ``prior_model=colour`` or
+   ``colour_mean``, named by that): queried with each star's Gaia DR3 BP-RP (the bundled
+   match, :func:`~mcsweep.population.gaia_bright.hipparcos_match`; no colour gives the
+   run's colour-blind prior) and, where the run has a mean, centred on the run's mean
+   parallax and proper motion at the star. A Gaussian prior centred on m gives the same
+   position error as one centred on zero for a star whose truth is (truth - m) (Eqs. 11-13
+   are linear in the measurements), so the right-hand side becomes ``b0 - N0 m``.
    Inside the P ellipse by :func:`mcsweep.astrometry.confidence.inside`.
 5. *Table.* ``real_sky.csv``: per prior, truth, case, |b| band (0-15, 15-35, 35-90 deg;
    and all) and G bin (6-7, 7-8, 8-9; and all) the fraction inside with its
    Clopper-Pearson interval and the P-th percentile error with its order-statistic
-   interval; ``real_sky_errors.csv``: Hipparcos' median parallax error against the median
+   interval, each also per BP-RP bin (``colour_bin``: :data:`COLOUR_BINS` and 'all'; a
+   star without a Gaia colour only in 'all') and for the G range :data:`TARGET_G` as one
+   more G bin; ``real_sky_errors.csv``: Hipparcos' median parallax error against the median
    prior per band and G bin; ``real_sky_complete.csv``: the fractions carried over to the
    complete sky by colour (:mod:`mcsweep.experiments.real_sky.complete`).
 
@@ -39,7 +48,9 @@ Reproducibility: noise and perturbations are drawn per fixed block of
 from __future__ import annotations
 
 import dataclasses
+import json
 import zlib
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -50,6 +61,7 @@ from ...astrometry.design import design_matrix, years_since
 from ...astrometry.measurements import simulate
 from ...astrometry.solve import normal_equations, solve_with_prior
 from ...errors import UserInputError
+from ...population import gaia_bright
 from ...population.hipparcos import EXTRA_MESSAGE, have_catalogue, load_hipparcos
 from ...prior import Prior
 from ...scanning import ScanningLaw, find_transits, observer_position_au
@@ -58,9 +70,10 @@ from ...scanning.timescale import tcb_jd
 from ..global_solution.settings import GlobalSettings, spawn
 from ..global_solution.table import FRACTION_INTERVAL, error_percentile, fraction_statistics
 
-__all__ = ["TAG", "REAL_SKY_NOISE_BLOCK_STARS", "B_BANDS", "G_BINS", "TRUTHS", "RealSkySettings",
-           "build_settings", "load_prior", "draw_stars", "prior_sigmas", "solve_chunk", "table_rows", "error_rows",
-           "table_markdown", "band_of", "gbin_of"]
+__all__ = ["TAG", "REAL_SKY_NOISE_BLOCK_STARS", "B_BANDS", "G_BINS", "TRUTHS", "COLOUR_BINS", "TARGET_G",
+           "RealSkySettings", "build_settings", "load_prior", "colour_prior_name", "draw_stars", "prior_sigmas",
+           "prior_queries", "star_columns", "solve_chunk", "table_rows", "error_rows", "table_markdown", "colour_markdown", "band_of",
+           "gbin_of", "colour_bin_of"]
 
 TAG = 43  # real-sky validation: first element of every spawn key (41: Sect. 4.1, 42: Sect. 4.2)
 POPULATION_STREAM, NOISE_STREAM, PERTURB_STREAM = 0, 2, 3
@@ -78,6 +91,13 @@ REAL_SKY_NOISE_BLOCK_STARS = 1024
 B_BANDS = ((0.0, 15.0), (15.0, 35.0), (35.0, 90.0))
 #: Truth variants (step 3 of the module notes).
 TRUTHS = ("hipparcos", "perturbed")
+#: BP-RP bins [mag] (name, lower edge, upper edge): close to the terciles of Gaia DR3's BP-RP
+#: (Gaia Collaboration, Vallenari et al. 2023, A&A 674, A1) of the Hipparcos 2 stars of
+#: G = 6-8 (0.55 and 1.22 mag by the bundled match): early types, F-K dwarfs, mostly giants.
+COLOUR_BINS = (("blue", -np.inf, 0.56), ("middle", 0.56, 1.23), ("red", 1.23, np.inf))
+#: The G range in which the real-sky targets are stated (docs/experiments/real_sky.md):
+#: one more G bin of the table where it joins two or more of the 1-mag bins.
+TARGET_G = (6.0, 8.0)
 
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
@@ -92,9 +112,14 @@ class RealSkySettings(GlobalSettings):
     g_max: float
     max_stars: int
     #: (name, source) of the priors: ('paper', 'paper') and, with f90_formula=RUN_DIR,
-    #: ('fitted', RUN_DIR); loaded by :func:`load_prior` in the parent (a Prior holds a
-    #: mapping proxy, which does not pickle, and the tasks need only its values).
+    #: ('fitted', RUN_DIR), then one (prior_model name, RUN_DIR) per colour prior; loaded
+    #: by :func:`load_prior` in the parent (a Prior holds a mapping proxy, which does not
+    #: pickle, and the tasks need only its values).
     priors: tuple
+    #: Names of the priors queried with each star's BP-RP (the colour priors).
+    colour: tuple = ()
+    #: Names of the priors centred on a mean (their stars carry ``mean_*_<name>``).
+    with_mean: tuple = ()
 
 
 def band_of(b_deg) -> np.ndarray:
@@ -117,6 +142,31 @@ def gbin_of(g, bins) -> np.ndarray:
                    len(bins) - 1)
 
 
+def colour_bin_of(bp_rp) -> np.ndarray:
+    """Index of the BP-RP bin of :data:`COLOUR_BINS`; -1 without a colour (NaN)."""
+    c = np.asarray(bp_rp, dtype=float)
+    out = np.searchsorted([hi for _, _, hi in COLOUR_BINS[:-1]], c, side="right")
+    return np.where(np.isfinite(c), out, -1)
+
+
+def colour_prior_name(run_dir) -> str:
+    """The prior_model name of a sweep run made with a colour axis or a mean (from its
+    provenance.json); a :class:`~mcsweep.errors.UserInputError` in one line otherwise."""
+    prov_path = Path(run_dir) / "provenance.json"
+    try:
+        prov = json.loads(prov_path.read_text())
+    except (OSError, ValueError):
+        prov = None
+    model = ((prov or {}).get("config") or {}).get("prior_model") if isinstance(prov, dict) else None
+    if (not isinstance(model, dict) or not model.get("name")
+            or not (model.get("colour_edges") or model.get("mean"))):
+        found = ("no readable provenance.json" if prov is None
+                 else f"prior_model {model.get('name')!r}" if isinstance(model, dict) else "no prior_model")
+        raise UserInputError(f"experiment.real_sky.colour_priors: {run_dir} is not accepted ({found}); expected the "
+                             "directory of a sweep run made with prior_model=colour or prior_model=colour_mean")
+    return str(model["name"])
+
+
 def build_settings(config) -> RealSkySettings:
     """Settings from a checked config; user errors (no extra, bad run directory) raised here."""
     if not have_catalogue():
@@ -135,12 +185,24 @@ def build_settings(config) -> RealSkySettings:
     if sec.f90_formula != "paper":
         load_prior(sec.f90_formula)  # a bad run directory is a user error now, before any output
         priors.append(("fitted", str(sec.f90_formula)))
+    colour, with_mean = [], []
+    for run_dir in sec.colour_priors:
+        name = colour_prior_name(run_dir)
+        taken = {p for p, _ in priors}
+        label = name if name not in taken else next(f"{name}_{k}" for k in range(2, len(priors) + 2)
+                                                    if f"{name}_{k}" not in taken)
+        prior = load_prior(str(run_dir))  # a bad run directory is a user error now
+        priors.append((label, str(run_dir)))
+        colour.append(label)
+        if prior.has_mean:
+            with_mean.append(label)
     return RealSkySettings(
         seed=int(config.seed), start_jd=start_jd, end_jd=end_jd,
         law=ScanningLaw.from_config(dataclasses.asdict(config.scanning)), noise=NoiseModel.from_config(config.noise),
         confidence=float(config.confidence), ratio_R=float(config.ratio_R), reference_epoch=epoch,
         cases=tuple((c, tuple(int(g) for g in obs.cases[c])) for c in sec.cases), factor=float(sec.factor),
-        g_min=float(sec.g_min), g_max=float(sec.g_max), max_stars=int(sec.max_stars), priors=tuple(priors))
+        g_min=float(sec.g_min), g_max=float(sec.g_max), max_stars=int(sec.max_stars), priors=tuple(priors),
+        colour=tuple(colour), with_mean=tuple(with_mean))
 
 
 def load_prior(source: str) -> Prior:
@@ -150,8 +212,9 @@ def load_prior(source: str) -> Prior:
 
 def draw_stars(settings: RealSkySettings) -> pd.DataFrame:
     """The Hipparcos stars of the G range (with ``max_stars``: an unbiased seeded subset,
-    file order kept); ``attrs['n_in_range']`` is the number before the subset."""
-    df = load_hipparcos()
+    file order kept), with ``bp_rp``: Gaia DR3's BP-RP of the star's counterpart (NaN
+    without one); ``attrs['n_in_range']`` is the number before the subset."""
+    df = load_hipparcos().assign(bp_rp=gaia_bright.hipparcos_match().hip_bp_rp)
     g = df["phot_g_mean_mag"].to_numpy()
     df = df[(g >= settings.g_min) & (g < settings.g_max)].reset_index(drop=True)
     n = len(df)
@@ -164,8 +227,36 @@ def draw_stars(settings: RealSkySettings) -> pd.DataFrame:
 
 def prior_sigmas(settings: RealSkySettings, stars: pd.DataFrame) -> dict[str, np.ndarray]:
     """sigma_F90 [mas] of every prior at each star (before ``factor``)."""
+    return {k[len("sigma_"):]: v for k, v in prior_queries(settings, stars).items() if k.startswith("sigma_")}
+
+
+def prior_queries(settings: RealSkySettings, stars: pd.DataFrame) -> dict[str, np.ndarray]:
+    """The star columns of every prior: ``sigma_<prior>`` (sigma_F90 [mas], before
+    ``factor``) and, for a prior with a mean, ``mean_parallax_<prior>`` [mas] and
+    ``mean_pmra_<prior>``, ``mean_pmdec_<prior>`` [mas/yr, ICRS, pmra = mu_alpha*]. A colour
+    prior is queried with the star's ``bp_rp`` (NaN: the run's colour-blind prior)."""
     l, b, g = (stars[c].to_numpy(float) for c in ("l", "b", "phot_g_mean_mag"))
-    return {name: np.asarray(load_prior(src).sigma_parallax_mas(l, b, g), float) for name, src in settings.priors}
+    bp_rp = stars["bp_rp"].to_numpy(float) if "bp_rp" in stars else np.full(len(stars), np.nan)
+    out = {}
+    for name, src in settings.priors:
+        prior = load_prior(src)
+        if name not in settings.colour:
+            out[f"sigma_{name}"] = np.asarray(prior.sigma_parallax_mas(l, b, g), float)
+            continue
+        out[f"sigma_{name}"] = np.asarray(prior.sigma_parallax_mas(l, b, g, bp_rp=bp_rp), float)
+        if name in settings.with_mean:
+            pmra, pmdec = prior.mean_pm_masyr(l, b, g, bp_rp=bp_rp)
+            out[f"mean_parallax_{name}"] = np.asarray(prior.mean_parallax_mas(l, b, g, bp_rp=bp_rp), float)
+            out[f"mean_pmra_{name}"], out[f"mean_pmdec_{name}"] = np.asarray(pmra, float), np.asarray(pmdec, float)
+    return out
+
+
+def star_columns(settings: RealSkySettings) -> list[str]:
+    """The prior columns a chunk needs besides the stars' own (:func:`prior_queries`)."""
+    cols = [f"sigma_{p}" for p, _ in settings.priors]
+    for p in settings.with_mean:
+        cols += [f"mean_parallax_{p}", f"mean_pmra_{p}", f"mean_pmdec_{p}"]
+    return cols
 
 
 # --------------------------------------------------------------------------- solutions
@@ -205,7 +296,8 @@ def solve_chunk(settings: RealSkySettings, first: int, stars: dict) -> pd.DataFr
     """Per-star results of the stars ``first, first + 1, ...`` (module notes, steps 2-4).
 
     ``stars``: ``ra, dec, l, b, phot_g_mean_mag, parallax, pmra, pmdec`` and their
-    ``*_error``, ``hip`` and ``sigma_<prior>`` (sigma_F90 [mas] of each prior). One row
+    ``*_error``, ``hip``, ``sigma_<prior>`` (sigma_F90 [mas] of each prior) and, for the
+    priors of ``settings.with_mean``, their means (:func:`prior_queries`). One row
     per star: ``star``, ``hip``, ``n_groups``; per case ``n_fov_<case>``; per case, truth
     and prior ``inside_<case>_<truth>_<prior>`` (1/0, -1 = not in the case or no region)
     and ``err_<case>_<truth>_<prior>_mas``.
@@ -261,7 +353,15 @@ def solve_chunk(settings: RealSkySettings, first: int, stars: dict) -> pd.DataFr
                 h = h0 + np.einsum("nmk,nk->nm", A, x)
                 N0, b0 = normal_equations(A, h)
                 for p, _ in settings.priors:
-                    sol = solve_with_prior(N0, b0, settings.factor * st[f"sigma_{p}"][sel], settings.ratio_R)
+                    rhs = b0
+                    if p in settings.with_mean:
+                        # centred on m: the zero-centred solution of the truth minus m
+                        # (module notes, step 4); m has no position part
+                        m = np.zeros((sel.size, 5))
+                        m[:, 2:] = np.stack([st[f"mean_{k}_{p}"][sel] for k in ("parallax", "pmra", "pmdec")],
+                                            axis=1)
+                        rhs = b0 - np.einsum("nij,nj->ni", N0, m)
+                    sol = solve_with_prior(N0, rhs, settings.factor * st[f"sigma_{p}"][sel], settings.ratio_R)
                     dpos, cov = sol.position, sol.position_cov  # true position offset is zero
                     ok = sol.ok & np.isfinite(mahalanobis_sq(dpos, cov))
                     flags, err = res[(truth, p)]
@@ -277,15 +377,29 @@ def _label(lo: float, hi: float) -> str:
     return f"{lo:g}-{hi:g}"
 
 
+def g_sets(g, g_min: float, g_max: float) -> list[tuple[str, np.ndarray]]:
+    """(label, mask) of the G bins of the table: the 1-mag bins, :data:`TARGET_G` where it
+    joins two or more of them but not all, and 'all'."""
+    bins = g_bins(g_min, g_max)
+    gbin = gbin_of(g, bins)
+    out = [(_label(*bins[j]), gbin == j) for j in range(len(bins))]
+    joined = [j for j, (lo, hi) in enumerate(bins) if TARGET_G[0] <= lo and hi <= TARGET_G[1]]
+    if (len(joined) > 1 and len(joined) < len(bins) and bins[joined[0]][0] == TARGET_G[0]
+            and bins[joined[-1]][1] == TARGET_G[1]):
+        out.append((_label(*TARGET_G), np.isin(gbin, joined)))
+    return out + [("all", np.ones(np.size(g), bool))]
+
+
 def table_rows(stars: pd.DataFrame, results: pd.DataFrame, settings: RealSkySettings) -> pd.DataFrame:
-    """``real_sky.csv``: one row per prior x truth x case x |b| band x G bin (each also 'all')."""
+    """``real_sky.csv``: one row per prior x truth x case x |b| band x G bin x BP-RP bin
+    (each also 'all'; the G bins with :data:`TARGET_G`, :func:`g_sets`)."""
     p = settings.confidence
     q = error_percentile(p)
-    bins = g_bins(settings.g_min, settings.g_max)
     band = band_of(stars["b"].to_numpy())
-    gbin = gbin_of(stars["phot_g_mean_mag"].to_numpy(), bins)
+    cbin = colour_bin_of(stars["bp_rp"].to_numpy(float) if "bp_rp" in stars else np.full(len(stars), np.nan))
     groups = [(_label(*B_BANDS[i]), band == i) for i in range(len(B_BANDS))] + [("all", np.ones(len(stars), bool))]
-    gsets = [(_label(*bins[j]), gbin == j) for j in range(len(bins))] + [("all", np.ones(len(stars), bool))]
+    gsets = g_sets(stars["phot_g_mean_mag"].to_numpy(), settings.g_min, settings.g_max)
+    csets = [("all", np.ones(len(stars), bool))] + [(name, cbin == k) for k, (name, _, _) in enumerate(COLOUR_BINS)]
     rows = []
     for prior, _ in settings.priors:
         for truth in TRUTHS:
@@ -294,16 +408,17 @@ def table_rows(stars: pd.DataFrame, results: pd.DataFrame, settings: RealSkySett
                 err = results[f"err_{case}_{truth}_{prior}_mas"].to_numpy()
                 for bname, bmask in groups:
                     for gname, gmask in gsets:
-                        m = bmask & gmask
-                        n_valid, n_in, frac, lo, hi = fraction_statistics(flags[m])
-                        e = err[m & (flags >= 0)]
-                        pe = float(np.percentile(e, q)) if e.size else float("nan")
-                        elo, ehi = percentile_interval(e, q, FRACTION_INTERVAL) if e.size else (np.nan, np.nan)
-                        rows.append({"prior": prior, "truth": truth, "case": case, "b_band_deg": bname,
-                                     "g_bin": gname, "n_stars": int(m.sum()), "n_valid": n_valid,
-                                     "n_inside": n_in, "fraction_inside": frac, "fraction_lo": lo,
-                                     "fraction_hi": hi, "p_error_mas": pe, "p_error_lo_mas": elo,
-                                     "p_error_hi_mas": ehi})
+                        for cname, cmask in csets:
+                            m = bmask & gmask & cmask
+                            n_valid, n_in, frac, lo, hi = fraction_statistics(flags[m])
+                            e = err[m & (flags >= 0)]
+                            pe = float(np.percentile(e, q)) if e.size else float("nan")
+                            elo, ehi = percentile_interval(e, q, FRACTION_INTERVAL) if e.size else (np.nan, np.nan)
+                            rows.append({"prior": prior, "truth": truth, "case": case, "b_band_deg": bname,
+                                         "g_bin": gname, "colour_bin": cname, "n_stars": int(m.sum()),
+                                         "n_valid": n_valid, "n_inside": n_in, "fraction_inside": frac,
+                                         "fraction_lo": lo, "fraction_hi": hi, "p_error_mas": pe,
+                                         "p_error_lo_mas": elo, "p_error_hi_mas": ehi})
     return pd.DataFrame(rows)
 
 
@@ -329,12 +444,54 @@ def error_rows(stars: pd.DataFrame, settings: RealSkySettings) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def colour_cell(r) -> str:
+    """'fraction [interval] / P-th percentile error (n)' of a row of ``real_sky.csv``."""
+    if not np.isfinite(r["fraction_inside"]):
+        return "–"
+    return (f"{100 * r['fraction_inside']:.1f} [{100 * r['fraction_lo']:.1f}-{100 * r['fraction_hi']:.1f}] / "
+            f"{r['p_error_mas']:.3g} (n={r['n_valid']})")
+
+
+def colour_target_g(table: pd.DataFrame) -> str:
+    """The G bin in which the BP-RP tables are shown: :data:`TARGET_G` where the table has
+    it, else 'all'."""
+    target = _label(*TARGET_G)
+    return target if (table["g_bin"] == target).any() else "all"
+
+
+def colour_markdown(table: pd.DataFrame, confidence: float) -> list[str]:
+    """The section of ``real_sky.md`` per |b| band x BP-RP bin: per case, G bin
+    :func:`colour_target_g` and truth = Hipparcos, one row per prior and band."""
+    if "colour_bin" not in table or not (table["colour_bin"] != "all").any():
+        return []
+    pct = f"{100 * confidence:g}"
+    gname = colour_target_g(table)
+    part = table[(table["truth"] == "hipparcos") & (table["g_bin"] == gname)]
+    cnames = ["all"] + [c for c, _, _ in COLOUR_BINS]
+    edges = ", ".join(f"{c} {'<' if np.isinf(lo) else f'{lo:g} <='} BP-RP" + ("" if np.isinf(hi) else f" < {hi:g}")
+                      for c, lo, hi in COLOUR_BINS)
+    lines = [f"## Per |b| band x Gaia BP-RP bin, G {gname}: in {pct} % ellipse [%] / p{pct} error [mas]", "",
+             f"BP-RP bins: {edges} (Gaia DR3 colours of the stars' counterparts; stars without one only "
+             "in 'all').", ""]
+    for case in dict.fromkeys(part["case"]):
+        sub = part[part["case"] == case]
+        lines += [f"### Case '{case}'", ""]
+        head = ["prior", "abs(b) band [deg]"] + [f"BP-RP {c}" for c in cnames]
+        lines += ["| " + " | ".join(head) + " |", "|" + "|".join("---" for _ in head) + "|"]
+        for prior in dict.fromkeys(sub["prior"]):
+            for bname in dict.fromkeys(sub["b_band_deg"]):
+                cell = sub[(sub["prior"] == prior) & (sub["b_band_deg"] == bname)].set_index("colour_bin")
+                lines.append("| " + " | ".join([prior, bname] + [colour_cell(cell.loc[c]) for c in cnames]) + " |")
+        lines.append("")
+    return lines
+
+
 def table_markdown(table: pd.DataFrame, errors: pd.DataFrame, settings: RealSkySettings, notes) -> str:
     """``real_sky.md``: per prior and case, fraction inside [interval] and P-th percentile
     error per |b| band (rows) and G bin (columns), truth = Hipparcos; then Hipparcos' errors."""
     pct = f"{100 * settings.confidence:g}"
     lines = ["# Real-sky validation: Hipparcos 2 stars as truth", ""] + list(notes) + [""]
-    part = table[table["truth"] == "hipparcos"]
+    part = table[(table["truth"] == "hipparcos") & (table.get("colour_bin", "all") == "all")]
     gnames = list(dict.fromkeys(part["g_bin"]))
     for prior, _ in settings.priors:
         for case, _ in settings.cases:
@@ -351,6 +508,7 @@ def table_markdown(table: pd.DataFrame, errors: pd.DataFrame, settings: RealSkyS
                                  f"{100 * r['fraction_hi']:.1f}] / {r['p_error_mas']:.3g} (n={r['n_valid']})")
                 lines.append("| " + " | ".join([bname] + cells) + " |")
             lines.append("")
+    lines += colour_markdown(table, settings.confidence)
     lines += ["## Hipparcos' own parallax errors against the prior", "",
               "| " + " | ".join(errors.columns) + " |", "|" + "|".join("---" for _ in errors.columns) + "|"]
     lines += ["| " + " | ".join(f"{v:.3g}" if isinstance(v, float) else str(v) for v in row) + " |"

@@ -3,8 +3,8 @@
 The science lives in :mod:`mcsweep.experiments.real_sky.experiment`; the shared path (provenance,
 chunk store and resume, aggregation, atomic tables) in :mod:`mcsweep.experiments.global_solution.run`.
 What is its own: the stars come from the Hipparcos 2 catalogue instead of the galaxy
-model (:attr:`GlobalExperiment.draw`), each star's sigma_F90 of every prior is computed
-in the parent (so tasks carry numbers, not priors), chunks of whole noise blocks are
+model (:attr:`GlobalExperiment.draw`), each star's sigma_F90 of every prior (and a colour
+prior's mean) is computed in the parent (so tasks carry numbers, not priors), chunks of whole noise blocks are
 solved through the executor, and the tables ``real_sky.csv``, ``real_sky.md``,
 ``real_sky_errors.csv`` and ``real_sky_complete.csv`` (the fractions carried over to the
 complete sky, :mod:`mcsweep.experiments.real_sky.complete`) are written.
@@ -18,7 +18,7 @@ from pathlib import Path
 import pandas as pd
 
 from .experiment import (REAL_SKY_NOISE_BLOCK_STARS, TAG, build_settings, draw_stars, error_rows,
-                                    prior_sigmas, solve_chunk, table_markdown, table_rows)
+                                    prior_queries, solve_chunk, star_columns, table_markdown, table_rows)
 from .complete import complete_markdown, complete_rows
 from . import CHUNKS_DIR, TABLES
 from ..global_solution.run import GlobalExperiment, GlobalRun
@@ -32,8 +32,8 @@ _COLUMNS = ("hip", "ra", "dec", "l", "b", "phot_g_mean_mag", "parallax", "pmra",
 
 def _draw(settings, section, seed_of) -> list:
     stars = draw_stars(settings)
-    for name, sigma in prior_sigmas(settings, stars).items():
-        stars[f"sigma_{name}"] = sigma
+    for column, values in prior_queries(settings, stars).items():
+        stars[column] = values
     return [(settings.g_min, 0, stars)]
 
 
@@ -54,7 +54,7 @@ def _compute(run: GlobalRun) -> None:
     plan = _plan(run)
     todo = set(run.pending([cid for cid, _, _ in plan]))
     stars = run.classes[0][2]
-    cols = list(_COLUMNS) + [f"sigma_{p}" for p, _ in run.settings.priors]
+    cols = list(_COLUMNS) + star_columns(run.settings)
     jobs = [(run.settings, cid, lo, {c: stars[c].to_numpy()[lo:hi] for c in cols}, run.store)
             for cid, lo, hi in plan if cid in todo]
     run.map("chunks", _chunk_task, jobs, desc="real-sky chunks", done=len(plan) - len(jobs))
@@ -69,7 +69,9 @@ def _aggregate(run: GlobalRun, _computed=None) -> dict[str, str]:
     notes = [f"Confidence P = {settings.confidence:g}; Hipparcos 2 (van Leeuwen 2007, CDS I/311) stars with "
              f"{settings.g_min:g} <= G < {settings.g_max:g}: {len(stars)} of {stars.attrs.get('n_in_range', len(stars))}"
              f"; transits of the scanning law '{run.config.scanning.name}' from {obs.start} to {obs.end} (TCB); "
-             f"priors {', '.join(f'{p} ({s})' for p, s in settings.priors)} x {settings.factor:g}; "
+             f"priors {', '.join(f'{p} ({s})' for p, s in settings.priors)} x {settings.factor:g}"
+             + (f" (with each star's Gaia DR3 BP-RP: {', '.join(settings.colour)}; centred on the run's mean: "
+                f"{', '.join(settings.with_mean) or 'none'})" if settings.colour else "") + "; "
              f"R = {settings.ratio_R:g} /yr; reference epoch: {run.epoch['text']}.",
              "Each cell: fraction inside [68 % Clopper-Pearson interval] / P-th percentile of |estimated - true "
              "position| [mas] (n = stars solved); truth = Hipparcos parallax and proper motion."]

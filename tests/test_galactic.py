@@ -34,3 +34,23 @@ def test_agrees_with_skycoord_over_the_sky():
 def test_broadcasts():
     l_deg, b_deg = galactic_from_icrs(np.zeros((3, 1)), np.linspace(-60, 60, 4))
     assert l_deg.shape == b_deg.shape == (3, 4)
+
+
+#: Proper motions rotated between the frames: rounding of a few mas/yr-sized vectors.
+PM_TOL_MASYR = 1e-9
+
+
+def test_proper_motion_rotation_agrees_with_skycoord():
+    from mcsweep.galactic import pm_galactic_from_icrs, pm_icrs_from_galactic
+
+    rng = np.random.default_rng(16)
+    n = 5000
+    ra, dec = rng.uniform(0, 360, n), np.degrees(np.arcsin(rng.uniform(-1, 1, n)))
+    pmra, pmdec = rng.normal(0, 30, n), rng.normal(0, 30, n)
+    ref = SkyCoord(ra=ra * u.deg, dec=dec * u.deg, pm_ra_cosdec=pmra * u.mas / u.yr,
+                   pm_dec=pmdec * u.mas / u.yr, frame="icrs").galactic
+    pml, pmb = pm_galactic_from_icrs(ra, dec, pmra, pmdec)
+    assert np.abs(pml - ref.pm_l_cosb.to_value(u.mas / u.yr)).max() < PM_TOL_MASYR
+    assert np.abs(pmb - ref.pm_b.to_value(u.mas / u.yr)).max() < PM_TOL_MASYR
+    back_ra, back_dec = pm_icrs_from_galactic(ref.l.deg, ref.b.deg, pml, pmb)
+    assert np.abs(back_ra - pmra).max() < PM_TOL_MASYR and np.abs(back_dec - pmdec).max() < PM_TOL_MASYR

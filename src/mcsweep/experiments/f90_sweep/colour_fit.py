@@ -26,7 +26,7 @@ import pandas as pd
 
 from .fit import POLY_DEGREES, coefficient_table, compare_cells, evaluate_formula, fit_all
 
-__all__ = ["COLOUR_FILES", "colour_cells", "colour_tables", "fit_forms", "means_table"]
+__all__ = ["COLOUR_FILES", "MEANS_FILE", "colour_cells", "colour_tables", "fraction_at", "fit_forms", "means_table"]
 
 #: The colour term's tables in a run directory (with ``prior_model.colour_edges``).
 COLOUR_FILES = ("colour_coefficients.csv", "f90_colour_cells.csv", "colour_fit_forms.csv")
@@ -46,10 +46,12 @@ def _usable(cells: pd.DataFrame) -> pd.DataFrame:
     return cells[(cells["f90_flag"] == "ok") & np.isfinite(cells["sigma_f90_mas"])]
 
 
-def colour_tables(f90: pd.DataFrame, blind_fitted: dict) -> dict[str, pd.DataFrame]:
+def colour_tables(f90: pd.DataFrame, blind_fitted: dict, curves: pd.DataFrame | None = None,
+                  f90_case: str | None = None) -> dict[str, pd.DataFrame]:
     """``colour_coefficients.csv`` (Eqs. 15-17 per colour bin, with bootstrap intervals),
     ``f90_colour_cells.csv`` (every colour cell with its bin's fitted sigma_F90 and the
-    colour-blind one) and ``colour_fit_forms.csv`` (module notes)."""
+    colour-blind one; with ``curves``, the sweep's ``cells.parquet``, also the fraction inside
+    at each of the two in the ``f90_case``) and ``colour_fit_forms.csv`` (module notes)."""
     cells = colour_cells(f90)
     coefs, compared = [], []
     for (c0, c1), grp in cells.groupby(["bp_rp_min", "bp_rp_max"], sort=True):
@@ -60,19 +62,48 @@ def colour_tables(f90: pd.DataFrame, blind_fitted: dict) -> dict[str, pd.DataFra
             undetermined = {name: np.full(deg + 1, np.nan) for name, deg in POLY_DEGREES.items()}
             table = coefficient_table(undetermined).assign(fitted_lo=np.nan, fitted_hi=np.nan)
             comp = compare_cells(grp, undetermined)
+        ok = _usable(grp)
+        # The G range of the cells that determine the bin's fit: the prior of a colour is
+        # evaluated within it only (the paper's rule at its faint end, Sect. 3.4: the value at
+        # the edge beyond it), since a colour's polynomials are unconstrained where its cells
+        # had too few stars (COLOUR_MIN_STARS).
         coefs.append(table.drop(columns=["paper", "difference", "paper_inside"], errors="ignore")
-                     .assign(bp_rp_min=c0, bp_rp_max=c1, n_cells=int(len(_usable(grp)))))
+                     .assign(bp_rp_min=c0, bp_rp_max=c1, n_cells=int(len(ok)),
+                             g_fit_min=float(ok["g_min"].min()) if len(ok) else np.nan,
+                             g_fit_max=float(ok["g_max"].max()) if len(ok) else np.nan))
         compared.append(comp)
     coef = pd.concat(coefs, ignore_index=True) if coefs else pd.DataFrame()
     if len(coef):
-        coef = coef[["bp_rp_min", "bp_rp_max", "term", "fitted", "fitted_lo", "fitted_hi", "n_cells"]]
+        coef = coef[["bp_rp_min", "bp_rp_max", "term", "fitted", "fitted_lo", "fitted_hi", "n_cells", "g_fit_min",
+                     "g_fit_max"]]
     comp = pd.concat(compared, ignore_index=True) if compared else cells.copy()
     if len(comp):
         comp["colour_blind_sigma_f90_mas"] = evaluate_formula(
             blind_fitted, comp["l_deg"].to_numpy(float), comp["b_deg"].to_numpy(float),
             ((comp["g_min"] + comp["g_max"]) / 2).to_numpy(float))
+        if curves is not None:
+            for width in ("fitted", "colour_blind"):
+                comp[f"fraction_at_{width}"] = fraction_at(curves, f90_case, comp["cell_id"],
+                                                           comp[f"{width}_sigma_f90_mas"])
     return {"colour_coefficients.csv": coef, "f90_colour_cells.csv": comp,
             "colour_fit_forms.csv": fit_forms(comp, blind_fitted)}
+
+
+def fraction_at(curves: pd.DataFrame, case: str, cell_ids, sigma_mas) -> np.ndarray:
+    """Fraction inside the P ellipse of each cell's ``case`` at a prior ``sigma_mas``, read off
+    the cell's curve over the prior grid (linear in log sigma, as sigma_F90 is found,
+    Sect. 3.3); NaN outside the grid or where the width is undetermined."""
+    grid = curves[(curves["case"] == case) & ~curves["at_f90"].astype(bool)]
+    by_cell = {cid: g.sort_values("sigma_prior_mas") for cid, g in grid.groupby("cell_id", sort=False)}
+    out = np.full(len(cell_ids), np.nan)
+    for i, (cid, sig) in enumerate(zip(cell_ids, np.asarray(sigma_mas, float))):
+        g = by_cell.get(cid)
+        if g is None or not np.isfinite(sig) or sig <= 0:
+            continue
+        x, y = np.log10(g["sigma_prior_mas"].to_numpy(float)), g["fraction_inside"].to_numpy(float)
+        if x[0] <= np.log10(sig) <= x[-1]:
+            out[i] = np.interp(np.log10(sig), x, y)
+    return out
 
 
 def fit_forms(compared: pd.DataFrame, blind_fitted: dict) -> pd.DataFrame:

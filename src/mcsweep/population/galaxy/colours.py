@@ -22,8 +22,18 @@ Intrinsic colours (BP - RP)_0:
   bin's mass range (the model's own bright-dwarf law, :data:`.parameters.BOVY_PDMF_NORM`),
   shared among the components as the dwarfs are (:func:`.luminosity.component_weights`, so old
   components hold none), over the bin's stars in that component, at most 1. The main-sequence
-  stars take the dwarf sequence's colour at their M_V; the evolved giants
-  :data:`GIANT_BP_RP`;
+  stars take the dwarf sequence's colour at their M_V. The evolved giants take a colour
+  drawn from the evolved stars of a published isochrone at their M_G
+  (:func:`giant_colour_quantiles`): BaSTI-IAC (Hidalgo et al. 2018, ApJ 856, 125), scaled
+  solar, [M/H] = -0.08, in the Gaia DR3 bands (``data/giant_isochrones_basti.ecsv``), of the
+  age nearest the component's (40 Myr, 300 Myr or 3 Gyr: :data:`GIANT_ISOCHRONE_AGES_MYR`),
+  each isochrone point weighted by the component's IMF over its initial-mass step (the number
+  of stars it stands for). At M_G the colour is a quantile of the isochrone's evolved stars
+  within :data:`GIANT_MG_HALF_WIDTH` of it: red clump, red giant branch and AGB at their own
+  shares, so the giants spread from the clump (BP - RP ~ 1.1-1.2) to the RGB tip (~2.1).
+  The quantile level is the star's uniform number rescaled within its part (the part is
+  chosen with the same number, and the rescaled number is again uniform and independent of
+  the choice), so no other random number is used;
 * subgiants: :data:`SUBGIANT_BP_RP`.
 
 Reddening: E(BP - RP) = (k_BP - k_RP) A_0, with the Gaia EDR3 extinction law for
@@ -50,6 +60,7 @@ from . import parameters as P
 from .luminosity import (
     PARTS,
     component_weights,
+    imf,
     mass_of_mv,
     build_part_table,
     dwarf_shift,
@@ -60,10 +71,15 @@ __all__ = [
     "EDR3_K_BP",
     "EDR3_K_RP",
     "EDR3_X_RANGE",
-    "GIANT_BP_RP",
+    "GIANT_ISOCHRONE_AGES_MYR",
+    "GIANT_MG_HALF_WIDTH",
+    "GIANT_QUANTILE_LEVELS",
     "SUBGIANT_BP_RP",
     "COLOUR_PARTS",
     "load_dwarf_colours",
+    "load_giant_isochrones",
+    "giant_isochrone_age_myr",
+    "giant_colour_quantiles",
     "dwarf_bp_rp",
     "main_sequence_bp_rp",
     "extinction_ratios",
@@ -89,10 +105,20 @@ EDR3_K_RP = (0.66320787941067, -0.0179847164933981, 0.000493769449961458, -0.002
 #: used here (B9V -0.120 to M3V 2.50); redder dwarfs are nearby, almost unreddened stars,
 #: and a cubic in X is not extrapolated to them.
 EDR3_X_RANGE = (-0.120, 2.50)
-#: (BP - RP)_0 of the evolved giants: the colour the model's own giant G - V = -0.31
-#: (:data:`.parameters.GIANT_G_MINUS_V`) stands for on Mamajek's sequence (the K3V row: G-V
-#: -0.31, Bp-Rp 1.19 [V]); red-clump and red-giant-branch stars have BP - RP ~ 1.1-1.3 [M].
-GIANT_BP_RP = 1.19
+#: Ages (Myr) of the BaSTI-IAC isochrones (Hidalgo et al. 2018, ApJ 856, 125; [M/H] = -0.08,
+#: Gaia DR3 bands) whose evolved stars give the giants' colours
+#: (``data/giant_isochrones_basti.ecsv``); a component takes the one nearest its mean age in
+#: log age (:func:`giant_isochrone_age_myr`).
+GIANT_ISOCHRONE_AGES_MYR = (40.0, 300.0, 3000.0)
+#: Grid of M_G (mag) at which the giants' colour quantiles are tabulated; a giant takes the
+#: nearest node. Beyond the isochrone's evolved stars a node takes the nearest node that has some.
+GIANT_MG_GRID = np.round(np.arange(-7.0, 2.5001, 0.1), 10)
+#: Half width (mag) of the M_G window of isochrone points behind each node's colour quantiles:
+#: the model's M_G of a giant comes from a G - V of one colour (-0.31, :data:`.parameters.
+#: GIANT_G_MINUS_V`), so it is not known to better than a few tenths of a mag.
+GIANT_MG_HALF_WIDTH = 0.25
+#: Quantile levels tabulated per node (colours between them interpolated linearly).
+GIANT_QUANTILE_LEVELS = np.linspace(0.0, 1.0, 101)
 #: (BP - RP)_0 of the subgiants: G5V's Bp-Rp on Mamajek's sequence (0.850 [V]), the row
 #: whose G - V the model gives them (:data:`.parameters.SUBGIANT_G_MINUS_V`).
 SUBGIANT_BP_RP = 0.850
@@ -112,6 +138,57 @@ def load_dwarf_colours():
     c = np.asarray(t["bp_rp"], float)
     ok = np.isfinite(c)
     return mv[ok], mv[ok] + gv[ok], c[ok]
+
+
+@lru_cache(maxsize=1)
+def load_giant_isochrones():
+    """The evolved stars of the BaSTI-IAC isochrones (``data/giant_isochrones_basti.ecsv``):
+    {age [Myr]: (initial mass [Msun], M_G [mag], (BP - RP)_0 [mag])}, rows in the file's
+    order (initial mass increasing), the first row being the last main-sequence point."""
+    with resources.files(_DATA).joinpath("giant_isochrones_basti.ecsv").open("r") as fh:
+        t = Table.read(fh.read(), format="ascii.ecsv")
+    out = {}
+    for age in np.unique(np.asarray(t["age_myr"], float)):
+        r = t[np.asarray(t["age_myr"], float) == age]
+        out[float(age)] = (np.asarray(r["m_ini"], float), np.asarray(r["G"], float),
+                           np.asarray(r["G_BP"], float) - np.asarray(r["G_RP"], float))
+    return out
+
+
+def giant_isochrone_age_myr(comp):
+    """Age (Myr) of the isochrone whose giants stand for those of ``comp``: of
+    :data:`GIANT_ISOCHRONE_AGES_MYR`, the nearest in log age to the middle of the component's
+    age range."""
+    mid = 1e3 * 0.5 * (comp.age_gyr[0] + comp.age_gyr[1])
+    ages = np.asarray(GIANT_ISOCHRONE_AGES_MYR)
+    return float(ages[np.argmin(np.abs(np.log10(ages) - np.log10(mid)))])
+
+
+def giant_colour_quantiles(age_myr, imf_pieces):
+    """Colour quantiles of the evolved stars of the ``age_myr`` isochrone per M_G node.
+
+    Each isochrone point after the first stands for the stars of initial mass between it and
+    the previous point: weight imf(m) * (m_i - m_(i-1)) (``imf_pieces`` as
+    :func:`.luminosity.imf`). At each node of :data:`GIANT_MG_GRID` the points within
+    :data:`GIANT_MG_HALF_WIDTH` give a weighted distribution of (BP - RP)_0 whose quantiles
+    at :data:`GIANT_QUANTILE_LEVELS` are returned; nodes without points take the nearest node
+    with some. Returns an array (len(GIANT_MG_GRID), len(GIANT_QUANTILE_LEVELS)), mag.
+    """
+    m, mg, c = load_giant_isochrones()[float(age_myr)]
+    w = imf(m[1:], imf_pieces) * np.diff(m)
+    mg, c = mg[1:], c[1:]
+    q = np.full((GIANT_MG_GRID.size, GIANT_QUANTILE_LEVELS.size), np.nan)
+    for i, node in enumerate(GIANT_MG_GRID):     # a table of ~100 nodes, built once
+        sel = (np.abs(mg - node) <= GIANT_MG_HALF_WIDTH) & (w > 0)
+        if not sel.any():
+            continue
+        order = np.argsort(c[sel])
+        cs, ws = c[sel][order], w[sel][order]
+        cdf = (np.cumsum(ws) - 0.5 * ws) / ws.sum()
+        q[i] = np.interp(GIANT_QUANTILE_LEVELS, cdf, cs)
+    have = np.flatnonzero(np.isfinite(q[:, 0]))
+    nearest = have[np.abs(np.arange(GIANT_MG_GRID.size)[:, None] - have[None, :]).argmin(axis=1)]
+    return q[nearest]
 
 
 def dwarf_bp_rp(mg):
@@ -184,11 +261,14 @@ class ColourTable:
         Stars per pc^3 of each part in each grid interval (relative weights only).
     shift : ndarray, shape (n_comp,)
         :func:`.luminosity.dwarf_shift` of each component, mag.
+    giant_q : ndarray, shape (n_comp, len(GIANT_MG_GRID), len(GIANT_QUANTILE_LEVELS))
+        :func:`giant_colour_quantiles` of each component's isochrone and IMF, mag.
     """
 
     mg: np.ndarray
     density: np.ndarray
     shift: np.ndarray
+    giant_q: np.ndarray
 
     @classmethod
     def build(cls, components, *, local, faint_scale, subgiants):
@@ -203,7 +283,8 @@ class ColourTable:
         density = np.stack([dens[:, PARTS.index("dwarfs")], giants * (1.0 - f), giants * f,
                             dens[:, PARTS.index("subgiants")]], axis=1)
         shift = np.array([dwarf_shift(c) for c in components])
-        return cls(mg, np.clip(density, 0.0, None), shift)
+        giant_q = np.stack([giant_colour_quantiles(giant_isochrone_age_myr(c), c.imf) for c in components])
+        return cls(mg, np.clip(density, 0.0, None), shift, giant_q)
 
     def intrinsic(self, k, m_g, u):
         """(BP - RP)_0 of stars of components ``k`` (indices) at absolute magnitudes ``m_g``,
@@ -219,8 +300,24 @@ class ColourTable:
         c = np.empty(m_g.size)
         dw = part == 0
         c[dw] = dwarf_bp_rp(m_g[dw] + self.shift[k[dw]])
-        c[part == 1] = GIANT_BP_RP
+        # an evolved giant's quantile level: its uniform number rescaled within the part's own
+        # interval [cum_0, cum_1) of the cumulated densities, uniform again on [0, 1)
+        gi = np.flatnonzero(part == 1)
+        c[gi] = self.giant_bp_rp(k[gi], m_g[gi], (u[gi] * total[gi] - cum[gi, 0]) / w[gi, 1])
         ms = part == 2
         c[ms] = main_sequence_bp_rp(m_g[ms] - P.GIANT_G_MINUS_V)
         c[part == 3] = SUBGIANT_BP_RP
         return c, part
+
+    def giant_bp_rp(self, k, m_g, level):
+        """(BP - RP)_0 of evolved giants of components ``k`` at absolute magnitudes ``m_g``:
+        the quantile at ``level`` (in [0, 1]) of their isochrone's colours at the nearest M_G
+        node (:attr:`giant_q`), interpolated linearly between tabulated levels."""
+        step = GIANT_MG_GRID[1] - GIANT_MG_GRID[0]
+        node = np.clip(np.rint((m_g - GIANT_MG_GRID[0]) / step).astype(np.intp), 0, GIANT_MG_GRID.size - 1)
+        x = np.clip(level, 0.0, 1.0) * (GIANT_QUANTILE_LEVELS.size - 1)
+        j = np.minimum(x.astype(np.intp), GIANT_QUANTILE_LEVELS.size - 2)
+        f = x - j
+        q = self.giant_q[k, node]                       # (n, levels)
+        rows = np.arange(j.size)
+        return q[rows, j] * (1.0 - f) + q[rows, j + 1] * f

@@ -255,7 +255,7 @@ def _aggregate(run_dir: Path, cells: list[Cell], store: ResultStore, prov, *, ns
     data = pd.concat(tables, ignore_index=True).to_parquet(index=False)
     atomic_write_bytes(out, data)
     # The fit reads the cells as cells.parquet holds them (what a later reader gets).
-    write_fit(run_dir, pd.read_parquet(io.BytesIO(data)), nside=nside)
+    write_fit(run_dir, pd.read_parquet(io.BytesIO(data)), nside=nside, f90_case=settings.f90_case)
     prov.seeds["cells"] = ("stars: SeedSequence(seed, spawn_key=(*key, 0)); noise of a case: "
                            "SeedSequence(seed, spawn_key=(*key, 1, crc32(case name))); bootstrap of "
                            "sigma_F90: SeedSequence(seed, spawn_key=(*key, 2)); "
@@ -269,7 +269,7 @@ def _aggregate(run_dir: Path, cells: list[Cell], store: ResultStore, prov, *, ns
     return out
 
 
-def write_fit(run_dir: Path, cells: pd.DataFrame, *, nside: int) -> None:
+def write_fit(run_dir: Path, cells: pd.DataFrame, *, nside: int, f90_case: str = "two") -> None:
     """Fit Eqs. 14-17 to a sweep's cells (Sect. 3.4) and write the fit's tables and
     ``prior_maps.fits`` into ``run_dir`` (each file whole or not at all).
 
@@ -282,7 +282,7 @@ def write_fit(run_dir: Path, cells: pd.DataFrame, *, nside: int) -> None:
     fit = fit_all(colour_blind(f90))
     tables = fit_tables(fit)
     if "bp_rp_min" in f90:  # the colour axis (prior_model.colour_edges)
-        tables.update(colour_tables(f90, fit.fitted))
+        tables.update(colour_tables(f90, fit.fitted, cells, f90_case))
     if "mean_parallax_mas" in f90:  # a mean-centred prior (prior_model.mean)
         tables[MEANS_FILE] = means_table(f90)
     for name, table in tables.items():

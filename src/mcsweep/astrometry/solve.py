@@ -165,11 +165,13 @@ def prior_diagonal(sigma_plx_prior_mas, ratio_R=DEFAULT_RATIO_R) -> np.ndarray:
 
 
 def solve_with_prior(N0, b0, sigma_plx_prior_mas, ratio_R=DEFAULT_RATIO_R, *,
-                     with_condition: bool = False) -> Solution:
-    """Five-parameter solution with a Gaussian prior centred on zero (Eqs. 11-13, 18).
+                     with_condition: bool = False, prior_mean=None) -> Solution:
+    """Five-parameter solution with a Gaussian prior, centred on zero by default (Eqs. 11-13, 18).
 
     ``x = (N0 + N_p)^-1 b0`` and ``C = (N0 + N_p)^-1`` with
     ``N_p = diag(0, 0, sigma_plx^-2, sigma_mu^-2, sigma_mu^-2)``, ``sigma_mu = R sigma_plx``.
+    With ``prior_mean`` = x_p the right-hand side is ``b0 + N_p x_p`` (Eqs. 11-12); the
+    covariance is unchanged.
     The prior leaves the position unconstrained, so a star whose data cannot fix the
     position (e.g. AL measurements in a single scan direction) is still singular and
     gets ``ok = False``.
@@ -184,6 +186,10 @@ def solve_with_prior(N0, b0, sigma_plx_prior_mas, ratio_R=DEFAULT_RATIO_R, *,
         ``sigma_mu,p / sigma_plx,p`` in 1/yr; default 10 (Sect. 3.1).
     with_condition : bool, keyword-only
         Also compute ``Solution.condition`` (about 30 % more time).
+    prior_mean : array_like, shape (5,) or (n, 5), keyword-only
+        Centre x_p of the prior, parameter order as ``x`` (mas, mas/yr); its position
+        components are multiplied by the prior's zero weights and so have no effect.
+        None (default): centred on zero, the paper's prior (Sect. 2.4).
 
     Returns
     -------
@@ -193,6 +199,13 @@ def solve_with_prior(N0, b0, sigma_plx_prior_mas, ratio_R=DEFAULT_RATIO_R, *,
     diag = prior_diagonal(sigma_plx_prior_mas, ratio_R)
     if diag.ndim == 2 and diag.shape[0] != N0.shape[0]:
         raise ValueError(f"{diag.shape[0]} prior values for {N0.shape[0]} stars")
+    if prior_mean is not None:
+        m = np.asarray(prior_mean, dtype=float)
+        if m.shape not in ((5,), (N0.shape[0], 5)):
+            raise ValueError(f"prior_mean must have shape (5,) or {(N0.shape[0], 5)}, got {m.shape}")
+        if not np.all(np.isfinite(m)):
+            raise UserInputError("prior_mean has NaN or infinite values; expected finite mas and mas/yr")
+        b0 = b0 + diag * m
     x, cov, ok, cond = spd_solve(N0, b0, add_diagonal=diag, with_condition=with_condition)
     return Solution(x=x, cov=cov, ok=ok, condition=cond)
 

@@ -2,7 +2,18 @@
 
 Input columns use Gaia archive names (matched case-insensitively): ``ra, dec`` (ICRS)
 or ``l, b`` (galactic), in degrees, and ``phot_g_mean_mag``. Every other column is kept
-with its unit. Formats: FITS, VOTable, ECSV, CSV and Parquet (by suffix). Parquet to
+with its unit.
+
+For a prior with a colour axis (:attr:`Prior.has_colour`) the star's BP-RP comes from a
+``bp_rp`` column or, without one, from ``phot_bp_mean_mag - phot_rp_mean_mag``; empty or
+NaN values (and a catalogue without these columns) get the colour-blind prior of the
+same run. The column ``prior_colour_bin`` says which prior each row got: the bin as
+``'lo..hi'`` (mag) or ``'colour_blind'``. For a mean-centred prior (:attr:`Prior.has_mean`)
+the prior's centre is added too: ``prior_mean_parallax`` [mas], ``prior_mean_pmra`` and
+``prior_mean_pmdec`` [mas/yr, ICRS, pmra = mu_alpha* as in the Gaia archive]. For the
+paper's prior and a plain run's the output is the two sigma columns only.
+
+Formats: FITS, VOTable, ECSV, CSV and Parquet (by suffix). Parquet to
 Parquet and CSV to CSV are streamed in batches (pyarrow / pandas), so memory stays flat
 whatever the number of rows; the other formats are read whole with astropy.
 
@@ -21,10 +32,18 @@ from .columns import finite_column, unit_scale
 from ..galactic import galactic_from_icrs
 from .model import Prior
 
-__all__ = ["FORMATS", "PARALLAX_COLUMN", "PM_COLUMN", "detect_format", "prior_columns", "annotate_file"]
+__all__ = ["FORMATS", "PARALLAX_COLUMN", "PM_COLUMN", "COLOUR_BIN_COLUMN", "MEAN_COLUMNS", "detect_format",
+           "prior_columns", "output_columns", "annotate_file"]
 
 PARALLAX_COLUMN = "sigma_f90_parallax"
 PM_COLUMN = "sigma_f90_pm"
+#: Which prior a row got (a prior with a colour axis): the BP-RP bin 'lo..hi' or 'colour_blind'.
+COLOUR_BIN_COLUMN = "prior_colour_bin"
+#: The prior's centre (a mean-centred prior): parallax [mas], pmra*, pmdec [mas/yr, ICRS].
+MEAN_COLUMNS = ("prior_mean_parallax", "prior_mean_pmra", "prior_mean_pmdec")
+#: Units of the added columns (None: a string column).
+_UNITS = {PARALLAX_COLUMN: "mas", PM_COLUMN: "mas / yr", COLOUR_BIN_COLUMN: None, MEAN_COLUMNS[0]: "mas",
+          MEAN_COLUMNS[1]: "mas / yr", MEAN_COLUMNS[2]: "mas / yr"}
 #: Accepted formats and the suffixes that select them.
 FORMATS = {
     "fits": (".fits", ".fit", ".fits.gz"),
@@ -54,7 +73,22 @@ def _find(names, wanted: str):
     return low.get(wanted)
 
 
-def _columns(names, source: str) -> tuple[str, tuple[str, str], str]:
+def output_columns(prior: Prior) -> list[str]:
+    """Names of the columns ``annotate`` adds for this prior, in order."""
+    return [PARALLAX_COLUMN, PM_COLUMN] + ([COLOUR_BIN_COLUMN] if prior.has_colour else []) \
+        + (list(MEAN_COLUMNS) if prior.has_mean else [])
+
+
+def _colour_columns(names) -> tuple[str, ...]:
+    """``('bp_rp',)``, ``(bp, rp)`` magnitude columns, or () when the catalogue has no colour."""
+    c = _find(names, "bp_rp")
+    if c is not None:
+        return (c,)
+    bp, rp = _find(names, "phot_bp_mean_mag"), _find(names, "phot_rp_mean_mag")
+    return (bp, rp) if bp is not None and rp is not None else ()
+
+
+def _columns(names, source: str, added=(PARALLAX_COLUMN, PM_COLUMN)) -> tuple[str, tuple[str, str], str]:
     """('icrs' or 'galactic', (lon, lat) column names, G column name)."""
     g = _find(names, "phot_g_mean_mag")
     ra, dec, l_, b_ = (_find(names, k) for k in ("ra", "dec", "l", "b"))
@@ -68,10 +102,10 @@ def _columns(names, source: str) -> tuple[str, tuple[str, str], str]:
         raise UserInputError(f"{source}: columns {list(names)[:12]} lack {'ra, dec (or l, b)' if pos is None else ''}"
                              f"{' and ' if pos is None and g is None else ''}{'phot_g_mean_mag' if g is None else ''}; "
                              "expected Gaia archive names ra, dec or l, b [deg] and phot_g_mean_mag")
-    for existing in (PARALLAX_COLUMN, PM_COLUMN):
+    for existing in added:
         if _find(names, existing) is not None:
             raise UserInputError(f"{source}: already has a column {existing!r}; expected a catalogue without "
-                                 f"{PARALLAX_COLUMN} and {PM_COLUMN}")
+                                 f"{', '.join(added)}")
     return kind, pos, g
 
 
@@ -82,25 +116,55 @@ def _values(col, name: str, source: str, unit, angle: bool) -> np.ndarray:
     return v * factor if factor != 1.0 else v
 
 
-def prior_columns(prior: Prior, kind: str, lon, lat, g) -> tuple[np.ndarray, np.ndarray]:
+def _colour(get, cols, source, units) -> np.ndarray | None:
+    """BP-RP per row from ``cols`` (:func:`_colour_columns`); NaN where empty; None without columns."""
+    if not cols:
+        return None
+    vals = []
+    for c in cols:
+        factor = unit_scale(units.get(c), "mag", f"{source}: column {c}")
+        try:
+            v = np.asarray(get(c), dtype=float)
+        except (TypeError, ValueError):
+            raise UserInputError(f"{source}: column {c} has non-numeric values; expected magnitudes "
+                                 "(empty or NaN where unknown)") from None
+        vals.append(v * factor if factor != 1.0 else v)
+    return vals[0] if len(vals) == 1 else vals[0] - vals[1]
+
+
+def prior_columns(prior: Prior, kind: str, lon, lat, g, bp_rp=None) -> tuple[np.ndarray, np.ndarray]:
     """(sigma_F90 parallax [mas], proper motion [mas/yr]) for arrays of stars."""
     l_deg, b_deg = galactic_from_icrs(lon, lat) if kind == "icrs" else (lon, lat)
-    sig = prior.sigma_parallax_mas(l_deg, b_deg, g)
+    sig = prior.sigma_parallax_mas(l_deg, b_deg, g, bp_rp)
     return sig, prior.ratio_R * sig
 
 
-def _prior_of_table(prior, kind, pos, gcol, get, units, source):
+def _all_columns(prior: Prior, kind: str, lon, lat, g, bp_rp) -> dict[str, np.ndarray]:
+    """Every added column (:func:`output_columns`) for arrays of stars."""
+    l_deg, b_deg = galactic_from_icrs(lon, lat) if kind == "icrs" else (lon, lat)
+    sig = prior.sigma_parallax_mas(l_deg, b_deg, g, bp_rp)
+    out = {PARALLAX_COLUMN: sig, PM_COLUMN: prior.ratio_R * sig}
+    if prior.has_colour:
+        out[COLOUR_BIN_COLUMN] = prior.colour_bin_label(np.full(sig.shape, np.nan) if bp_rp is None else bp_rp)
+    if prior.has_mean:
+        out[MEAN_COLUMNS[0]] = prior.mean_parallax_mas(l_deg, b_deg, g, bp_rp)
+        out[MEAN_COLUMNS[1]], out[MEAN_COLUMNS[2]] = prior.mean_pm_masyr(l_deg, b_deg, g, bp_rp)
+    return out
+
+
+def _prior_of_table(prior, kind, pos, gcol, get, units, source, colour_cols=()):
     lon = _values(get(pos[0]), pos[0], source, units.get(pos[0]), True)
     lat = _values(get(pos[1]), pos[1], source, units.get(pos[1]), True)
     g = _values(get(gcol), gcol, source, units.get(gcol), False)
     if np.any(np.abs(lat) > 90.0):
         raise UserInputError(f"{source}: column {pos[1]} has values beyond +-90 deg; expected latitudes in degrees")
-    return prior_columns(prior, kind, lon, lat, g)
+    bp_rp = _colour(get, colour_cols, source, units) if prior.has_colour else None
+    return _all_columns(prior, kind, lon, lat, g, bp_rp)
 
 
 def annotate_file(src: Path, dst: Path, prior: Prior, *, out_format: str | None = None,
                   batch_rows: int = BATCH_ROWS) -> int:
-    """Write ``src`` with the two prior columns added to ``dst``; returns the number of rows.
+    """Write ``src`` with the prior's columns (module notes) added to ``dst``; returns the number of rows.
 
     ``out_format`` defaults to the format of ``dst``'s suffix (``dst`` may be a
     temporary name without one). Raises UserInputError for unreadable files, missing
@@ -132,21 +196,26 @@ def _parquet_stream(src, dst, prior, source, batch_rows) -> int:
         raise UserInputError(f"{source}: cannot be read as Parquet ({type(exc).__name__}); "
                              "expected a Parquet file") from None
     names = pf.schema_arrow.names
-    kind, pos, gcol = _columns(names, source)
+    added = output_columns(prior)
+    kind, pos, gcol = _columns(names, source, added)
+    colour_cols = _colour_columns(names)
     # Units a writer may have stored as field metadata (astropy, our own files) are honoured.
     units = {}
     for f in pf.schema_arrow:
         meta = f.metadata or {}
         if b"unit" in meta:
             units[f.name] = meta[b"unit"].decode()
-    schema = pf.schema_arrow.append(pa.field(PARALLAX_COLUMN, pa.float64(), metadata={"unit": "mas"})) \
-        .append(pa.field(PM_COLUMN, pa.float64(), metadata={"unit": "mas / yr"}))
+    schema = pf.schema_arrow
+    for name in added:
+        unit = _UNITS[name]
+        schema = schema.append(pa.field(name, pa.float64(), metadata={"unit": unit}) if unit
+                               else pa.field(name, pa.string()))
     n = 0
     with pq.ParquetWriter(dst, schema) as writer:
         for batch in pf.iter_batches(batch_size=batch_rows):
-            plx, pm = _prior_of_table(prior, kind, pos, gcol,
-                                      lambda c: batch.column(c).to_numpy(zero_copy_only=False), units, source)
-            out = pa.RecordBatch.from_arrays([*batch.columns, pa.array(plx), pa.array(pm)], schema=schema)
+            cols = _prior_of_table(prior, kind, pos, gcol, lambda c: batch.column(c).to_numpy(zero_copy_only=False),
+                                   units, source, colour_cols)
+            out = pa.RecordBatch.from_arrays([*batch.columns, *(pa.array(cols[c]) for c in added)], schema=schema)
             writer.write_batch(out)
             n += batch.num_rows
     return n
@@ -159,11 +228,13 @@ def _csv_stream(src, dst, prior, source, batch_rows) -> int:
     try:
         reader = pd.read_csv(src, chunksize=batch_rows, comment="#")
         with open(dst, "w", newline="") as f:
+            added = output_columns(prior)
             for i, chunk in enumerate(reader):
-                kind, pos, gcol = _columns(chunk.columns, source)
-                plx, pm = _prior_of_table(prior, kind, pos, gcol, lambda c: chunk[c].to_numpy(), {}, source)
-                chunk[PARALLAX_COLUMN] = plx
-                chunk[PM_COLUMN] = pm
+                kind, pos, gcol = _columns(chunk.columns, source, added)
+                cols = _prior_of_table(prior, kind, pos, gcol, lambda c: chunk[c].to_numpy(), {}, source,
+                                       _colour_columns(chunk.columns))
+                for name in added:
+                    chunk[name] = cols[name]
                 chunk.to_csv(f, index=False, header=(i == 0))
                 n += len(chunk)
     except UserInputError:
@@ -183,17 +254,25 @@ def _astropy_whole(src, dst, prior, source, fmt_in, fmt_out) -> int:
     except Exception as exc:  # the readers raise many types; report them on one line
         raise UserInputError(f"{source}: cannot be read as {fmt_in} ({type(exc).__name__}); "
                              f"expected a {fmt_in} table") from None
-    kind, pos, gcol = _columns(t.colnames, source)
+    added = output_columns(prior)
+    kind, pos, gcol = _columns(t.colnames, source, added)
 
     def get(c):
         col = t[c]
         return col.filled(np.nan) if hasattr(col, "filled") and col.dtype.kind in "fiu" else col
 
-    plx, pm = _prior_of_table(prior, kind, pos, gcol, get, {c: t[c].unit for c in t.colnames}, source)
-    t[PARALLAX_COLUMN] = plx * u.mas
-    t[PM_COLUMN] = pm * (u.mas / u.yr)
+    cols = _prior_of_table(prior, kind, pos, gcol, get, {c: t[c].unit for c in t.colnames}, source,
+                           _colour_columns(t.colnames))
+    for name in added:
+        t[name] = cols[name] * u.Unit(_UNITS[name]) if _UNITS[name] else cols[name]
     t[PARALLAX_COLUMN].description = f"parallax prior sigma_F90 (Michalik et al. 2015 Eqs. 14-17; {prior.origin})"
     t[PM_COLUMN].description = f"proper-motion prior R sigma_F90, R = {prior.ratio_R:g}/yr (Eq. 18)"
+    if prior.has_colour:
+        t[COLOUR_BIN_COLUMN].description = "BP-RP bin of the prior used (mag), or colour_blind"
+    if prior.has_mean:
+        t[MEAN_COLUMNS[0]].description = "centre of the parallax prior (galaxy model's cell mean)"
+        t[MEAN_COLUMNS[1]].description = "centre of the pmra* prior (ICRS, galaxy model's cell mean)"
+        t[MEAN_COLUMNS[2]].description = "centre of the pmdec prior (ICRS, galaxy model's cell mean)"
     # dst is the command's own temporary file (created empty by mkstemp), so overwrite it.
     # astropy's Parquet writer keeps the units in the file's table metadata by itself.
     t.write(dst, format=ASTROPY_FORMAT[fmt_out], overwrite=True)

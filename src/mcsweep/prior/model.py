@@ -5,6 +5,15 @@ fitted over, the confidence level P and the ratio R = sigma_mu / sigma_plx of Eq
 ``Prior.paper()`` is the paper's formula (Sect. 3.4); ``Prior.from_run(run_dir)`` a
 sweep's own fit (``coefficients.csv``, read by column name, and ``provenance.json``).
 
+A sweep run with a colour axis (``prior_model.colour_edges``) also fitted Eqs. 14-17 per
+Gaia BP-RP bin (:mod:`mcsweep.prior.colour`, the "photometric information" of the
+paper's Sect. 3.4); every query then takes ``bp_rp=`` and a star of unknown colour (NaN)
+gets the colour-blind prior of the same run. A run with ``prior_model.mean`` centres the
+prior on the galaxy model's mean parallax and proper motion per cell
+(:mod:`mcsweep.prior.means`; :meth:`Prior.mean_parallax`, :meth:`Prior.mean_pm`), zero for
+every other prior, as in the paper (Sect. 2.4). ``bp_rp`` given to a prior without a
+colour axis is ignored.
+
 Magnitudes outside the fit range follow the rules of :mod:`mcsweep.prior.formula`
 for both kinds: fainter than ``g_max`` the value at ``g_max`` (the paper's rule at
 G > 20, Sect. 3.4); brighter than ``g_min`` the documented choice ``bright``
@@ -21,13 +30,14 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
 from types import MappingProxyType
-from typing import Mapping
+from typing import TYPE_CHECKING, Mapping
 
 import numpy as np
 from astropy import units as u
 from astropy.coordinates import Galactic, SkyCoord
 
 from ..errors import UserInputError
+from .colour import COLOUR_COEFFICIENTS_FILE, ColourBins, coefficients_from_terms, colour_values
 from .columns import unit_scale
 from .formula import (
     G_FIT_MAX,
@@ -36,6 +46,9 @@ from .formula import (
     check_bright,
     sigma_from_coefficients,
 )
+
+if TYPE_CHECKING:
+    from .means import PriorMeans
 
 __all__ = ["Prior", "PAPER_CONFIDENCE", "PAPER_RATIO_R", "COEFFICIENTS_FILE", "sigma_f90"]
 
@@ -46,7 +59,6 @@ PAPER_RATIO_R = 10.0
 #: The fitted coefficients in a run directory (written by the sweep: :func:`mcsweep.experiments.f90_sweep.runner.write_fit`).
 COEFFICIENTS_FILE = "coefficients.csv"
 _PROVENANCE_FILE = "provenance.json"
-_TERMS = {"s0": 3, "s1": 4, "s2": 2}  # number of coefficients of Eqs. 15-17
 
 
 def _frozen(coefficients: Mapping) -> Mapping[str, tuple[float, ...]]:
@@ -72,6 +84,10 @@ class Prior:
         Treatment of G < ``g_min``.
     origin : str
         Where the coefficients come from ("paper" or the run directory).
+    colour : ColourBins or None
+        Coefficients per BP-RP bin (``mcsweep.prior.colour``); None: no colour axis.
+    means : PriorMeans or None
+        The prior's centre per cell (``mcsweep.prior.means``); None: centred on zero.
 
     Examples
     --------
@@ -89,6 +105,8 @@ class Prior:
     ratio_R: float = PAPER_RATIO_R
     bright: str = "extrapolate"
     origin: str = field(default="paper")
+    colour: ColourBins | None = None
+    means: PriorMeans | None = None
 
     def __post_init__(self):
         missing = [k for k in ("s0", "s1", "s2") if k not in self.coefficients]
@@ -125,6 +143,13 @@ class Prior:
         the magnitude bins), P (``confidence``) and R (``ratio_R``) from the config
         recorded in ``provenance.json``.
 
+        With ``config["prior_model"]["colour_edges"]`` not empty, also the coefficients
+        per BP-RP bin (``colour_coefficients.csv``, ``mcsweep.prior.colour``); with
+        ``config["prior_model"]["mean"]`` the prior's centre per cell
+        (``prior_means.csv`` on the grid of ``config["sky"]``, ``mcsweep.prior.means``).
+        A run without ``prior_model`` (or with the default ``direction_g``) reads as the
+        colour-blind, zero-centred prior of Eqs. 14-18.
+
         Raises
         ------
         mcsweep.errors.UserInputError
@@ -147,30 +172,108 @@ class Prior:
         if not {"term", "fitted"} <= set(table.columns):
             raise UserInputError(f"{coef_path} has columns {list(table.columns)}; expected 'term' and 'fitted'")
         fitted = dict(zip(table["term"].astype(str), table["fitted"].astype(float)))
-        coefficients = {}
-        for name, n in _TERMS.items():
-            terms = [f"{name}_c{k}" for k in range(n)]
-            absent = [t for t in terms if t not in fitted]
-            if absent:
-                raise UserInputError(f"{coef_path} lacks the terms {absent}; expected s0_c0..s0_c2, "
-                                     "s1_c0..s1_c3, s2_c0..s2_c1")
-            coefficients[name] = tuple(fitted[t] for t in terms)
+        coefficients = coefficients_from_terms(fitted, str(coef_path))
         cfg = prov.get("config", {})
         edges = cfg.get("magnitudes", {}).get("edges")
         if prov.get("kind", "f90_sweep") != "f90_sweep" or not edges:
             raise UserInputError(f"run directory {run_dir} is a {prov.get('kind')!r} run; "
                                  "expected a sigma_F90 sweep (experiment=f90_sweep)")
+        model = cfg.get("prior_model") or {}
+        colour_edges = list(model.get("colour_edges") or [])
+        colour = ColourBins.read(run_dir / COLOUR_COEFFICIENTS_FILE, colour_edges) if colour_edges else None
+        means = None
+        if model.get("mean", False):
+            from .means import MEANS_FILE, PriorMeans
+
+            means = PriorMeans.read(run_dir / MEANS_FILE, cfg.get("sky"), colour_edges)
         return cls(coefficients, float(min(edges)), float(max(edges)),
                    float(cfg.get("confidence", PAPER_CONFIDENCE)), float(cfg.get("ratio_R", PAPER_RATIO_R)),
-                   bright, str(run_dir))
+                   bright, str(run_dir), colour, means)
+
+    @property
+    def has_colour(self) -> bool:
+        """True if the prior has a width per BP-RP bin (a run with ``prior_model.colour_edges``)."""
+        return self.colour is not None
+
+    @property
+    def has_mean(self) -> bool:
+        """True if the prior is centred on the model's mean parallax and proper motion per cell."""
+        return self.means is not None
 
     # -- queries ------------------------------------------------------------------------
-    def sigma_parallax_mas(self, l_deg, b_deg, G) -> np.ndarray:
-        """sigma_F90 in mas as a plain array, from galactic l, b in degrees (hot paths)."""
-        g_low = self.g_min if self.bright == "clamp" else None
-        return sigma_from_coefficients(l_deg, b_deg, G, self.coefficients, g_min=g_low, g_max=self.g_max)
+    def colour_bin(self, bp_rp) -> np.ndarray:
+        """Index of each star's colour bin (outer bins extended), -1 for the colour-blind prior.
 
-    def sigma_parallax(self, *where, G=None) -> u.Quantity:
+        -1 everywhere for a prior without a colour axis. Labels: :meth:`colour_bin_label`.
+        """
+        if self.colour is None:
+            return np.full(np.shape(colour_values(bp_rp)), -1)
+        return self.colour.index(bp_rp)
+
+    def colour_bin_label(self, bp_rp) -> np.ndarray:
+        """Which prior each star gets: its BP-RP bin as ``'lo..hi'`` (mag) or ``'colour_blind'``."""
+        from .colour import COLOUR_BLIND
+
+        if self.colour is None:
+            return np.full(np.shape(colour_values(bp_rp)), COLOUR_BLIND)
+        return self.colour.label(self.colour.index(bp_rp))
+
+    def _sigma(self, l_deg, b_deg, G, coefficients) -> np.ndarray:
+        g_low = self.g_min if self.bright == "clamp" else None
+        return sigma_from_coefficients(l_deg, b_deg, G, coefficients, g_min=g_low, g_max=self.g_max)
+
+    def sigma_parallax_mas(self, l_deg, b_deg, G, bp_rp=None) -> np.ndarray:
+        """sigma_F90 in mas as a plain array, from galactic l, b in degrees (hot paths).
+
+        ``bp_rp`` (mag, broadcast; NaN where unknown) selects the coefficients of the
+        star's colour bin; None or NaN: the colour-blind prior. Ignored by a prior
+        without a colour axis.
+        """
+        if bp_rp is None or self.colour is None:
+            return self._sigma(l_deg, b_deg, G, self.coefficients)
+        idx = self.colour.index(bp_rp)
+        if np.all(idx < 0):  # colour-blind for every star: exactly the plain evaluation
+            plain = self._sigma(l_deg, b_deg, G, self.coefficients)
+            return np.broadcast_to(plain, np.broadcast_shapes(plain.shape, idx.shape)).copy()
+        l_deg, b_deg, g, idx = np.broadcast_arrays(np.asarray(l_deg, float), np.asarray(b_deg, float),
+                                                   np.asarray(G, float), idx)
+        out = np.empty(idx.shape)
+        for k in np.unique(idx):  # one evaluation per colour bin present (Eq. 14 with its coefficients)
+            sel = idx == k
+            coefficients = self.coefficients if k < 0 else self.colour.coefficients[k]
+            out[sel] = self._sigma(l_deg[sel], b_deg[sel], g[sel], coefficients)
+        return out
+
+    def _mean_galactic(self, l_deg, b_deg, G, bp_rp):
+        slot = None if (bp_rp is None or self.colour is None) else self.colour.index(bp_rp) + 1
+        return self.means.galactic(l_deg, b_deg, G, slot)
+
+    def _zeros(self, l_deg, b_deg, G, bp_rp) -> np.ndarray:
+        g = np.asarray(G, dtype=float)
+        if np.any(np.isnan(g)):
+            raise UserInputError("G magnitude NaN is not accepted; expected finite magnitudes")
+        shapes = [np.shape(l_deg), np.shape(b_deg), g.shape]
+        if bp_rp is not None and self.colour is not None:
+            shapes.append(np.shape(colour_values(bp_rp)))
+        return np.zeros(np.broadcast_shapes(*shapes))
+
+    def mean_parallax_mas(self, l_deg, b_deg, G, bp_rp=None) -> np.ndarray:
+        """The prior's centre in parallax, mas, from galactic l, b in degrees (zeros if zero-mean)."""
+        if self.means is None:
+            return self._zeros(l_deg, b_deg, G, bp_rp)
+        return self._mean_galactic(l_deg, b_deg, G, bp_rp)[0]
+
+    def mean_pm_masyr(self, l_deg, b_deg, G, bp_rp=None) -> tuple[np.ndarray, np.ndarray]:
+        """The prior's centre in proper motion, (mu_alpha*, mu_delta) in mas/yr, ICRS (zeros if zero-mean)."""
+        if self.means is None:
+            z = self._zeros(l_deg, b_deg, G, bp_rp)
+            return z, z.copy()
+        from .means import pm_icrs_from_galactic
+
+        _, pml, pmb = self._mean_galactic(l_deg, b_deg, G, bp_rp)
+        return pm_icrs_from_galactic(l_deg, b_deg, pml, pmb)
+
+    def sigma_parallax(self, *where, G=None, bp_rp=None) -> u.Quantity:
         """Parallax prior sigma_F90 (Eqs. 14-17) as a Quantity in mas.
 
         Parameters
@@ -182,6 +285,10 @@ class Prior:
         G : array_like, keyword
             G magnitude (plain numbers or a Quantity in mag). Broadcast with the
             positions.
+        bp_rp : array_like, keyword, optional
+            Gaia BP-RP in mag (numbers or a Quantity), broadcast with the others; NaN
+            where unknown gives the colour-blind prior of the same run. Ignored by a
+            prior without a colour axis (:attr:`has_colour`).
 
         Returns
         -------
@@ -189,26 +296,48 @@ class Prior:
             In mas, broadcast shape of the inputs.
         """
         l_deg, b_deg, g = self._parse(where, G)
-        return self.sigma_parallax_mas(l_deg, b_deg, g) * u.mas
+        return self.sigma_parallax_mas(l_deg, b_deg, g, bp_rp) * u.mas
 
-    def sigma_pm(self, *where, G=None) -> u.Quantity:
+    def sigma_pm(self, *where, G=None, bp_rp=None) -> u.Quantity:
         """Proper-motion prior ``R * sigma_F90`` (Eq. 18) as a Quantity in mas/yr.
 
         Same arguments as :meth:`sigma_parallax`.
         """
         l_deg, b_deg, g = self._parse(where, G)
-        return self.ratio_R * self.sigma_parallax_mas(l_deg, b_deg, g) * (u.mas / u.yr)
+        return self.ratio_R * self.sigma_parallax_mas(l_deg, b_deg, g, bp_rp) * (u.mas / u.yr)
 
-    def normal_matrix(self, *where, G=None, factor: float = 1.0) -> np.ndarray:
+    def mean_parallax(self, *where, G=None, bp_rp=None) -> u.Quantity:
+        """Centre of the parallax prior as a Quantity in mas; zero for a zero-mean prior.
+
+        Same arguments as :meth:`sigma_parallax`. For a run with ``prior_model.mean``,
+        the galaxy model's mean parallax of the star's cell, interpolated
+        (``mcsweep.prior.means``).
+        """
+        l_deg, b_deg, g = self._parse(where, G)
+        return self.mean_parallax_mas(l_deg, b_deg, g, bp_rp) * u.mas
+
+    def mean_pm(self, *where, G=None, bp_rp=None) -> tuple[u.Quantity, u.Quantity]:
+        """Centre of the proper-motion prior, ``(pmra*, pmdec)`` Quantities in mas/yr, ICRS.
+
+        ``pmra* = mu_alpha cos(delta)`` as in the Gaia archive's ``pmra``. Zero for a
+        zero-mean prior. Same arguments as :meth:`sigma_parallax`.
+        """
+        l_deg, b_deg, g = self._parse(where, G)
+        pmra, pmdec = self.mean_pm_masyr(l_deg, b_deg, g, bp_rp)
+        return pmra * (u.mas / u.yr), pmdec * (u.mas / u.yr)
+
+    def normal_matrix(self, *where, G=None, bp_rp=None, factor: float = 1.0) -> np.ndarray:
         """Prior normal matrix N_p of Eq. 18 for every star.
 
         ``N_p = diag(0, 0, sigma_plx^-2, sigma_mu^-2, sigma_mu^-2)`` with
         ``sigma_plx = factor * sigma_F90`` and ``sigma_mu = R sigma_plx``; parameter
         order (dalpha*, ddelta, parallax, pmra, pmdec) as in :mod:`mcsweep.astrometry`.
+        The prior's centre (:meth:`mean_parallax`, :meth:`mean_pm`) enters the
+        right-hand side as ``N_p m`` (Eqs. 11-12).
 
         Parameters
         ----------
-        *where, G
+        *where, G, bp_rp
             As for :meth:`sigma_parallax`.
         factor : float, keyword-only
             Multiplier K of sigma_F90 (Sect. 3.3: priors up to ~10 x sigma_F90 keep
@@ -223,15 +352,17 @@ class Prior:
         if not (np.isscalar(factor) and factor > 0 and math.isfinite(factor)):
             raise UserInputError(f"factor={factor!r} is not accepted; expected a positive finite number")
         l_deg, b_deg, g = self._parse(where, G)
-        w_plx = 1.0 / (factor * self.sigma_parallax_mas(l_deg, b_deg, g)) ** 2
+        w_plx = 1.0 / (factor * self.sigma_parallax_mas(l_deg, b_deg, g, bp_rp)) ** 2
         out = np.zeros(w_plx.shape + (5, 5))
         out[..., 2, 2] = w_plx
         out[..., 3, 3] = out[..., 4, 4] = w_plx / self.ratio_R**2
         return out
 
     def __repr__(self) -> str:
+        extra = (f", colour bins {list(self.colour.labels)}" if self.colour is not None else "") \
+            + (", mean-centred" if self.means is not None else "")
         return (f"Prior(origin={self.origin!r}, G {self.g_min:g}-{self.g_max:g}, P={self.confidence:g}, "
-                f"R={self.ratio_R:g}/yr, bright={self.bright!r})")
+                f"R={self.ratio_R:g}/yr, bright={self.bright!r}{extra})")
 
     # -- argument handling --------------------------------------------------------------
     @staticmethod

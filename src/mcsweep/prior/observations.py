@@ -26,7 +26,15 @@ Observation columns (units in the names):
 =====================  ==============================================================
 
 Source columns: ``source_id``, ``ra``, ``dec`` [deg, ICRS reference position] and
-``phot_g_mean_mag``.
+``phot_g_mean_mag``; optionally the colour, ``bp_rp`` or ``phot_bp_mean_mag`` and
+``phot_rp_mean_mag`` (used by a prior with a colour axis; empty or NaN: the colour-blind
+prior of the same run).
+
+A mean-centred prior (:attr:`Prior.has_mean`) enters as the prior mean x_p of Eqs. 11-12:
+the right-hand side gains ``N_p x_p`` with x_p = (0, 0, mean parallax, mean pmra*, mean
+pmdec) of the source's cell; the output then lists that centre
+(``prior_mean_parallax_mas``, ``prior_mean_pmra_mas_yr``, ``prior_mean_pmdec_mas_yr``),
+and for a prior with a colour axis the bin used (``prior_colour_bin``).
 """
 
 from __future__ import annotations
@@ -76,6 +84,23 @@ def read_table(path) -> pd.DataFrame:
                              f"expected a {fmt} table") from None
 
 
+def _source_colour(src: pd.DataFrame, source: str) -> np.ndarray:
+    """BP-RP per source from ``bp_rp`` or ``phot_bp_mean_mag - phot_rp_mean_mag``; NaN where unknown."""
+    lower = {str(c).lower(): c for c in src.columns}
+    if "bp_rp" in lower:
+        cols = [lower["bp_rp"]]
+    elif "phot_bp_mean_mag" in lower and "phot_rp_mean_mag" in lower:
+        cols = [lower["phot_bp_mean_mag"], lower["phot_rp_mean_mag"]]
+    else:
+        return np.full(len(src), np.nan)
+    try:
+        v = [pd.to_numeric(src[c], errors="raise").to_numpy(dtype=float) for c in cols]
+    except (TypeError, ValueError):
+        raise UserInputError(f"{source}: column {cols[0] if len(cols) == 1 else ' or '.join(cols)} has non-numeric "
+                             "values; expected magnitudes (empty or NaN where unknown)") from None
+    return v[0] if len(v) == 1 else v[0] - v[1]
+
+
 def _numeric(df: pd.DataFrame, cols, source: str) -> dict[str, np.ndarray]:
     return {c: finite_column(df[c], c, source) for c in cols}
 
@@ -117,10 +142,12 @@ def read_observations(obs_path, sources_path=None) -> Observations:
     else:
         src = _require_columns(obs, SOURCE_COLUMNS, name, "source_id, ra, dec [deg] and phot_g_mean_mag "
                                "(or a separate --sources table)")
-        src = src[list(SOURCE_COLUMNS)].drop_duplicates("source_id")
+        colour = [c for c in obs.columns if str(c).lower() in ("bp_rp", "phot_bp_mean_mag", "phot_rp_mean_mag")]
+        src = src[list(SOURCE_COLUMNS) + colour].drop_duplicates("source_id")
         sname = name
     vals = _numeric(obs, cols, name)
     svals = _numeric(src, SOURCE_COLUMNS, sname)
+    svals["bp_rp"] = _source_colour(src, sname)
     for key, ok, accepted in (("al_sigma_mas", vals["al_sigma_mas"] > 0, "positive uncertainties in mas"),
                               ("ac_sigma_mas", vals.get("ac_sigma_mas", np.ones(1)) > 0, "positive uncertainties in mas")):
         if not ok.all():
@@ -142,7 +169,7 @@ def read_observations(obs_path, sources_path=None) -> Observations:
     out["source_id"] = obs_ids[sort]
     used = np.unique(out["source_id"])
     pick = order[np.searchsorted(ids_sorted, used)]
-    for k in ("ra", "dec", "phot_g_mean_mag"):
+    for k in ("ra", "dec", "phot_g_mean_mag", "bp_rp"):
         out[f"source_{k}"] = svals[k][pick]
     out["source_ids"] = used
     out["has_ac"] = has_ac
@@ -199,7 +226,9 @@ def solve_observations(obs: Observations, prior: Prior, *, factor: float = 1.0, 
     obs : Observations
         From :func:`read_observations`.
     prior : Prior
-        sigma_plx = ``factor`` x sigma_F90 at the source's (l, b, G); sigma_mu = R sigma_plx.
+        sigma_plx = ``factor`` x sigma_F90 at the source's (l, b, G) and, for a prior with
+        a colour axis, BP-RP; sigma_mu = R sigma_plx; centred on the prior's mean where it
+        has one (module notes).
     factor : float, keyword-only
         K (Sect. 3.3: up to ~10 keeps the errors and gives conservative uncertainties).
     confidence : float, keyword-only
@@ -224,8 +253,14 @@ def solve_observations(obs: Observations, prior: Prior, *, factor: float = 1.0, 
     h = np.where(np.concatenate([mask, mask], axis=1) if has_ac else mask, h, 0.0)
     N0, b0 = normal_equations(A, h)
     l_deg, b_deg = galactic_from_icrs(ra, dec)
-    sigma_plx = factor * prior.sigma_parallax_mas(l_deg, b_deg, g)
-    with_prior = solve_with_prior(N0, b0, sigma_plx, prior.ratio_R)
+    bp_rp = obs.get("source_bp_rp") if prior.has_colour else None
+    sigma_plx = factor * prior.sigma_parallax_mas(l_deg, b_deg, g, bp_rp)
+    centre = None
+    if prior.has_mean:
+        m_plx = prior.mean_parallax_mas(l_deg, b_deg, g, bp_rp)
+        m_pmra, m_pmdec = prior.mean_pm_masyr(l_deg, b_deg, g, bp_rp)
+        centre = np.stack([np.zeros_like(m_plx), np.zeros_like(m_plx), m_plx, m_pmra, m_pmdec], axis=-1)
+    with_prior = solve_with_prior(N0, b0, sigma_plx, prior.ratio_R, prior_mean=centre)
     two = solve_position_only(N0, b0)
     free = solve_no_prior(N0, b0)
     a_mas, b_mas = ellipse_semi_axes(with_prior.position_cov, p)
@@ -234,6 +269,10 @@ def solve_observations(obs: Observations, prior: Prior, *, factor: float = 1.0, 
            "n_transits": padded["counts"], "reference_epoch_tcb_jd": epoch,
            "sigma_prior_parallax_mas": sigma_plx, "sigma_prior_pm_mas_yr": prior.ratio_R * sigma_plx,
            "prior_ok": with_prior.ok}
+    if prior.has_colour:
+        out["prior_colour_bin"] = prior.colour_bin_label(bp_rp)
+    if centre is not None:
+        out["prior_mean_parallax_mas"], out["prior_mean_pmra_mas_yr"], out["prior_mean_pmdec_mas_yr"] = centre[:, 2:].T
     units = dict(zip(_SHORT, ("mas", "mas", "mas", "mas_yr", "mas_yr")))
     for i, name in enumerate(_SHORT):
         out[f"{name}_{units[name]}"] = with_prior.x[:, i]

@@ -1,0 +1,166 @@
+"""The colour axis of the prior: Eqs. 14-17 fitted separately per Gaia BP-RP bin.
+
+The paper's prior depends on direction and G only; its Sect. 3.4 names the next step,
+priors that "take into account photometric ... information. For example, blue stars
+have on average smaller parallaxes than red stars". A sweep with a colour axis fits
+the form of Eqs. 14-17 once per BP-RP bin and writes the coefficients, one block of
+rows per bin, to ``colour_coefficients.csv`` (columns ``bp_rp_min, bp_rp_max, term,
+fitted``; other columns are ignored). :class:`ColourBins` holds them and picks the bin
+of each star:
+
+* bins are half-open, ``bp_rp_min <= BP-RP < bp_rp_max``, contiguous and sorted;
+* a colour below the first edge uses the first bin, above the last edge the last bin;
+* NaN (unknown colour) selects no bin: the colour-blind prior of the same run
+  (index -1, label :data:`COLOUR_BLIND`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from types import MappingProxyType
+from typing import Mapping, Sequence
+
+import numpy as np
+from astropy import units as u
+
+from ..errors import UserInputError
+from .columns import unit_scale
+
+__all__ = ["COLOUR_COEFFICIENTS_FILE", "COLOUR_BLIND", "TERMS", "ColourBins", "colour_values",
+           "coefficients_from_terms"]
+
+#: Per-colour coefficients in a run directory.
+COLOUR_COEFFICIENTS_FILE = "colour_coefficients.csv"
+#: Label of the colour-blind prior (a star without BP-RP, or a prior without colour axis).
+COLOUR_BLIND = "colour_blind"
+#: Number of polynomial coefficients of s0, s1, s2 (Eqs. 15-17).
+TERMS = {"s0": 3, "s1": 4, "s2": 2}
+#: Two edges closer than this (mag) are the same edge (the CSV's bins against the config's).
+_EDGE_ATOL = 1e-9
+
+
+def coefficients_from_terms(fitted: Mapping[str, float], source: str) -> dict[str, tuple[float, ...]]:
+    """``{"s0": (..), "s1": (..), "s2": (..)}`` from rows named ``s0_c0`` ... ``s2_c1``."""
+    out = {}
+    for name, n in TERMS.items():
+        terms = [f"{name}_c{k}" for k in range(n)]
+        absent = [t for t in terms if t not in fitted]
+        if absent:
+            raise UserInputError(f"{source} lacks the terms {absent}; expected s0_c0..s0_c2, "
+                                 "s1_c0..s1_c3, s2_c0..s2_c1")
+        out[name] = tuple(float(fitted[t]) for t in terms)
+    return out
+
+
+def colour_values(bp_rp, what: str = "bp_rp") -> np.ndarray:
+    """BP-RP as float64 (a Quantity in mag or plain numbers); NaN stays NaN (unknown colour)."""
+    if isinstance(bp_rp, u.Quantity):
+        return bp_rp.value * unit_scale(bp_rp.unit, "mag", what)
+    try:
+        return np.asarray(bp_rp, dtype=float)
+    except (TypeError, ValueError):
+        raise UserInputError(f"{what} has non-numeric values; expected BP-RP colours in mag "
+                             "(NaN where unknown)") from None
+
+
+def _label(lo: float, hi: float) -> str:
+    return f"{lo:g}..{hi:g}"
+
+
+@dataclass(frozen=True, eq=False)
+class ColourBins:
+    """Coefficients of Eqs. 14-17 per BP-RP bin.
+
+    Parameters
+    ----------
+    edges : sequence of float
+        K + 1 increasing bin edges in mag.
+    coefficients : sequence of mappings
+        K mappings ``{"s0": (..), "s1": (..), "s2": (..)}`` (as :class:`mcsweep.prior.Prior`).
+    """
+
+    edges: tuple[float, ...]
+    coefficients: tuple[Mapping[str, tuple[float, ...]], ...]
+
+    def __post_init__(self):
+        edges = tuple(float(e) for e in self.edges)
+        if len(edges) < 2 or not all(map(math.isfinite, edges)) or any(b <= a for a, b in zip(edges, edges[1:])):
+            raise UserInputError(f"colour edges {list(edges)} are not accepted; expected at least two "
+                                 "increasing finite BP-RP values in mag")
+        if len(self.coefficients) != len(edges) - 1:
+            raise UserInputError(f"{len(self.coefficients)} coefficient sets for {len(edges) - 1} colour bins; "
+                                 "expected one per bin")
+        frozen = []
+        for c, lab in zip(self.coefficients, self.labels_of(edges)):
+            missing = [k for k in TERMS if k not in c]
+            if missing:
+                raise UserInputError(f"coefficients of colour bin {lab} lack {missing}; expected s0, s1, s2")
+            f = MappingProxyType({k: tuple(float(v) for v in c[k]) for k in TERMS})
+            if not all(math.isfinite(v) for k in TERMS for v in f[k]):
+                raise UserInputError(f"coefficients of colour bin {lab} are not finite numbers; expected a "
+                                     "fitted prior for every colour bin")
+            frozen.append(f)
+        object.__setattr__(self, "edges", edges)
+        object.__setattr__(self, "coefficients", tuple(frozen))
+
+    @staticmethod
+    def labels_of(edges: Sequence[float]) -> tuple[str, ...]:
+        return tuple(_label(a, b) for a, b in zip(edges, edges[1:]))
+
+    @property
+    def labels(self) -> tuple[str, ...]:
+        """One label per bin, ``'lo..hi'`` in mag (e.g. ``'0.56..1.23'``)."""
+        return self.labels_of(self.edges)
+
+    @property
+    def n_bins(self) -> int:
+        return len(self.edges) - 1
+
+    def index(self, bp_rp) -> np.ndarray:
+        """Bin of each colour (0 .. K-1; outer bins extended), -1 where NaN (colour-blind)."""
+        c = colour_values(bp_rp)
+        idx = np.searchsorted(np.asarray(self.edges[1:-1]), c, side="right")
+        return np.where(np.isnan(c), -1, idx)
+
+    def label(self, index) -> np.ndarray:
+        """Labels of bin indices from :meth:`index` (:data:`COLOUR_BLIND` for -1), str array."""
+        names = np.array(self.labels + (COLOUR_BLIND,), dtype=object)
+        return names[np.asarray(index)].astype(str)
+
+    @classmethod
+    def read(cls, path, edges: Sequence[float]) -> "ColourBins":
+        """The bins of ``colour_coefficients.csv``, checked against the config's ``colour_edges``."""
+        import pandas as pd
+
+        path = Path(path)
+        if not path.is_file():
+            raise UserInputError(f"run directory {path.parent} has no {path.name}; expected it in a sweep "
+                                 "with a colour axis (prior_model.colour_edges not empty)")
+        try:
+            table = pd.read_csv(path)
+        except (ValueError, OSError) as exc:
+            raise UserInputError(f"{path}: cannot be read as CSV ({type(exc).__name__}); expected "
+                                 "bp_rp_min, bp_rp_max, term, fitted") from None
+        need = {"bp_rp_min", "bp_rp_max", "term", "fitted"}
+        if not need <= set(table.columns):
+            raise UserInputError(f"{path} has columns {list(table.columns)}; expected {sorted(need)}")
+        edges = [float(e) for e in edges]
+        blocks = []
+        for lo, hi in zip(edges, edges[1:]):
+            sel = np.isclose(table["bp_rp_min"].astype(float), lo, rtol=0, atol=_EDGE_ATOL) \
+                & np.isclose(table["bp_rp_max"].astype(float), hi, rtol=0, atol=_EDGE_ATOL)
+            rows = table[sel]
+            if rows["term"].duplicated().any():
+                raise UserInputError(f"{path}: colour bin {_label(lo, hi)} names a term twice; expected one "
+                                     "row per term and bin")
+            fitted = dict(zip(rows["term"].astype(str), rows["fitted"].astype(float)))
+            blocks.append(coefficients_from_terms(fitted, f"{path} (colour bin {_label(lo, hi)})"))
+        bins = set(zip(table["bp_rp_min"].astype(float), table["bp_rp_max"].astype(float)))
+        unknown = [b for b in bins if not any(abs(b[0] - lo) <= _EDGE_ATOL and abs(b[1] - hi) <= _EDGE_ATOL
+                                              for lo, hi in zip(edges, edges[1:]))]
+        if unknown:
+            raise UserInputError(f"{path}: colour bin {_label(*sorted(unknown)[0])} is not one of the run's "
+                                 f"prior_model.colour_edges {edges}; expected contiguous bins between those edges")
+        return cls(tuple(edges), tuple(blocks))

@@ -11,7 +11,7 @@ the figure, then the setup and the tables, then the diagnostics (Hipparcos' para
 errors against the prior). Where ``real_sky.csv`` has BP-RP bins (``colour_bin``), a table
 and a figure per |b| band x BP-RP bin for every prior (the F90 case, G = 6-8) follow the
 first figure, with a headline bullet per prior on how many of those cells lie in the
-88-92 % band and, for a prior centred on a mean, its P-th percentile error against the
+88-92 % band and, for each colour prior, its P-th percentile error against the
 colour-blind zero-mean prior's.
 """
 
@@ -201,8 +201,8 @@ def _colour_names(colour: pd.DataFrame) -> list[str]:
 
 def _colour_items(colour: pd.DataFrame | None, p: float) -> list[str]:
     """Per prior: how many band x BP-RP cells lie in :data:`TARGET_BAND` and their range;
-    for a prior centred on a mean, its P-th percentile error over the colour-blind
-    zero-mean prior's ('fitted' where it was solved)."""
+    for each colour prior (with or without a mean), its P-th percentile error over the
+    colour-blind zero-mean prior's ('fitted', where it was solved)."""
     if colour is None:
         return []
     lo, hi = TARGET_BAND
@@ -218,7 +218,7 @@ def _colour_items(colour: pd.DataFrame | None, p: float) -> list[str]:
     if ref.empty:
         return items
     for prior in dict.fromkeys(colour["prior"]):
-        if not prior.startswith("colour_mean"):
+        if prior in ("paper", "fitted"):
             continue
         mine = colour[colour["prior"] == prior].set_index(["b_band_deg", "colour_bin"])["p_error_mas"]
         ratio = (mine / ref).dropna()

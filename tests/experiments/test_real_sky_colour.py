@@ -151,6 +151,11 @@ def test_a_mean_centred_prior_solves_like_a_zero_centred_one_of_the_truth_minus_
         # the colour prior changes nothing for the others (same noise, same truth)
         pd.testing.assert_series_equal(got[f"inside_two_{truth}_paper"], alone[f"inside_two_{truth}_paper"])
         pd.testing.assert_series_equal(got[f"err_two_{truth}_paper_mas"], alone[f"err_two_{truth}_paper_mas"])
+    # a star whose mean is not finite is not solved with that prior, the others as before
+    gap = {**centred, "mean_pmra_cm": np.where(np.arange(n) == 0, np.nan, mean["pmra"])}
+    holed = real_sky.solve_chunk(_settings(priors=two, colour=("cm",), with_mean=("cm",)), 0, gap)
+    assert holed.at[0, "inside_two_hipparcos_cm"] == -1 and np.isnan(holed.at[0, "err_two_hipparcos_cm_mas"])
+    pd.testing.assert_frame_equal(holed.iloc[1:], got.iloc[1:])
     # a mean that differs from zero changes the errors
     assert not np.allclose(got["err_two_hipparcos_cm_mas"],
                            real_sky.solve_chunk(_settings(priors=two), 0, {**base, "sigma_cm": sigma})[

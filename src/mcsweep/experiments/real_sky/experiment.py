@@ -28,9 +28,10 @@ This experiment takes the Hipparcos 2 catalogue (van Leeuwen 2007, CDS I/311;
    ``colour_mean``, named by that): queried with each star's Gaia DR3 BP-RP (the bundled
    match, :func:`~mcsweep.population.gaia_bright.hipparcos_match`; no colour gives the
    run's colour-blind prior) and, where the run has a mean, centred on the run's mean
-   parallax and proper motion at the star. A Gaussian prior centred on m gives the same
-   position error as one centred on zero for a star whose truth is (truth - m) (Eqs. 11-13
-   are linear in the measurements), so the right-hand side becomes ``b0 - N0 m``.
+   parallax and proper motion at the star: the prior's right-hand side ``N_p m`` of
+   Eqs. 11-12 (:func:`~mcsweep.astrometry.solve.solve_with_prior` with ``prior_mean``),
+   which gives the same position error as the zero-centred prior for a star whose truth is
+   (truth - m). A star whose mean is not finite is not solved with that prior.
    Inside the P ellipse by :func:`mcsweep.astrometry.confidence.inside`.
 5. *Table.* ``real_sky.csv``: per prior, truth, case, |b| band (0-15, 15-35, 35-90 deg;
    and all) and G bin (6-7, 7-8, 8-9; and all) the fraction inside with its
@@ -353,17 +354,18 @@ def solve_chunk(settings: RealSkySettings, first: int, stars: dict) -> pd.DataFr
                 h = h0 + np.einsum("nmk,nk->nm", A, x)
                 N0, b0 = normal_equations(A, h)
                 for p, _ in settings.priors:
-                    rhs = b0
+                    mean, no_mean = None, np.zeros(sel.size, bool)
                     if p in settings.with_mean:
-                        # centred on m: the zero-centred solution of the truth minus m
-                        # (module notes, step 4); m has no position part
-                        m = np.zeros((sel.size, 5))
-                        m[:, 2:] = np.stack([st[f"mean_{k}_{p}"][sel] for k in ("parallax", "pmra", "pmdec")],
-                                            axis=1)
-                        rhs = b0 - np.einsum("nij,nj->ni", N0, m)
-                    sol = solve_with_prior(N0, rhs, settings.factor * st[f"sigma_{p}"][sel], settings.ratio_R)
+                        # centred on m (Eqs. 11-12; module notes, step 4); m has no position part
+                        mean = np.zeros((sel.size, 5))
+                        mean[:, 2:] = np.stack([st[f"mean_{k}_{p}"][sel] for k in ("parallax", "pmra", "pmdec")],
+                                               axis=1)
+                        no_mean = ~np.all(np.isfinite(mean), axis=1)
+                        mean[no_mean] = 0.0
+                    sol = solve_with_prior(N0, b0, settings.factor * st[f"sigma_{p}"][sel], settings.ratio_R,
+                                           prior_mean=mean)
                     dpos, cov = sol.position, sol.position_cov  # true position offset is zero
-                    ok = sol.ok & np.isfinite(mahalanobis_sq(dpos, cov))
+                    ok = sol.ok & ~no_mean & np.isfinite(mahalanobis_sq(dpos, cov))
                     flags, err = res[(truth, p)]
                     flags[sel[ok]] = inside_ellipse(dpos[ok], cov[ok], settings.confidence)
                     err[sel[ok]] = np.hypot(dpos[ok, 0], dpos[ok, 1])

@@ -127,7 +127,7 @@ class ColourBins:
     def label(self, index) -> np.ndarray:
         """Labels of bin indices from :meth:`index` (:data:`COLOUR_BLIND` for -1), str array."""
         names = np.array(self.labels + (COLOUR_BLIND,), dtype=object)
-        return names[np.asarray(index)].astype(str)
+        return np.asarray(names[np.asarray(index)]).astype(str)
 
     @classmethod
     def read(cls, path, edges: Sequence[float]) -> "ColourBins":

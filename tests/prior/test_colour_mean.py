@@ -183,8 +183,7 @@ def test_nan_cells_fall_back_and_bad_runs_are_refused(tmp_path, synth):
     synth.write_run(tmp_path / "short")
     p = tmp_path / "short" / "prior_means.csv"
     p.write_text("\n".join(p.read_text().splitlines()[:-3]) + "\n")
-    with pytest.raises(UserInputError, match="lacks 3 colour cell"):
-        Prior.from_run(tmp_path / "short")
+    assert Prior.from_run(tmp_path / "short").means.n_filled == 3  # the last cell's colour rows
     synth.write_run(tmp_path / "edges")
     import json
     prov = json.loads((tmp_path / "edges" / "provenance.json").read_text())
@@ -226,3 +225,29 @@ def test_maps_of_colour_and_mean_round_trip(colour_mean_run, tmp_path, synth):
     plain = tmp_path / "plain.fits"
     plain.write_bytes(prior_maps_bytes(Prior.paper(), g_values, nside=4))
     assert [m["name"] for m in list_prior_maps(plain)] == ["SIGMA_F90"]
+
+
+def test_undetermined_bins_and_fit_ranges(colour_run, synth):
+    """A bin without a fit gets the colour-blind prior; a bin's polynomials hold over the G
+    range of the cells that determined them (g_fit_min, g_fit_max), the edge value beyond."""
+    import pandas as pd
+
+    path = colour_run / "colour_coefficients.csv"
+    table = pd.read_csv(path)
+    last = table["bp_rp_min"] == synth.COLOUR_EDGES[2]
+    table.loc[last, "fitted"] = np.nan
+    table["g_fit_min"], table["g_fit_max"] = 6.0, 12.0
+    middle = table["bp_rp_min"] == synth.COLOUR_EDGES[1]
+    table.loc[middle, ["g_fit_min", "g_fit_max"]] = (8.0, 10.0)
+    table.to_csv(path, index=False)
+    prior = Prior.from_run(colour_run)
+    l_deg, b_deg, g = _stars()
+    np.testing.assert_allclose(prior.sigma_parallax_mas(l_deg, b_deg, g, bp_rp=3.0),
+                               prior.sigma_parallax_mas(l_deg, b_deg, g), rtol=RTOL_PATHS)
+    assert prior.colour_bin_label(3.0) == "colour_blind" and prior.colour_bin(3.0) == -1
+    for gq, g_eval in ((6.5, 8.0), (9.0, 9.0), (11.5, 10.0), (15.0, 10.0)):
+        np.testing.assert_allclose(prior.sigma_parallax_mas(l_deg, b_deg, gq, bp_rp=1.0),
+                                   closed_form(l_deg, b_deg, g_eval, synth.PER_BIN[1]), rtol=RTOL_CLOSED_FORM)
+    # a bin fitted over the whole range keeps the prior's bright rule (extrapolation)
+    np.testing.assert_allclose(prior.sigma_parallax_mas(l_deg, b_deg, 4.0, bp_rp=0.0),
+                               closed_form(l_deg, b_deg, 4.0, synth.PER_BIN[0]), rtol=RTOL_CLOSED_FORM)

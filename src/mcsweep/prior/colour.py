@@ -11,7 +11,14 @@ of each star:
 * bins are half-open, ``bp_rp_min <= BP-RP < bp_rp_max``, contiguous and sorted;
 * a colour below the first edge uses the first bin, above the last edge the last bin;
 * NaN (unknown colour) selects no bin: the colour-blind prior of the same run
-  (index -1, label :data:`COLOUR_BLIND`).
+  (index -1, label :data:`COLOUR_BLIND`);
+* a bin whose coefficients are not determined (NaN: none of its cells had enough stars)
+  also gives the colour-blind prior (index -1);
+* a bin's polynomials hold over the G range of the cells that determined them
+  (columns ``g_fit_min``, ``g_fit_max`` when present): fainter than ``g_fit_max`` the
+  value at ``g_fit_max`` (the paper's rule at its faint end, Sect. 3.4), brighter than a
+  ``g_fit_min`` above the run's own G range the value at ``g_fit_min`` (the polynomial is
+  unconstrained there); otherwise the prior's rules (:mod:`mcsweep.prior.formula`).
 """
 
 from __future__ import annotations
@@ -77,12 +84,16 @@ class ColourBins:
     ----------
     edges : sequence of float
         K + 1 increasing bin edges in mag.
-    coefficients : sequence of mappings
-        K mappings ``{"s0": (..), "s1": (..), "s2": (..)}`` (as :class:`mcsweep.prior.Prior`).
+    coefficients : sequence of mappings or None
+        K mappings ``{"s0": (..), "s1": (..), "s2": (..)}`` (as :class:`mcsweep.prior.Prior`);
+        None for a bin whose fit is undetermined (its stars get the colour-blind prior).
+    g_ranges : sequence of (float, float), optional
+        Per bin, the G range of the cells that determined its fit (NaN: not recorded).
     """
 
     edges: tuple[float, ...]
-    coefficients: tuple[Mapping[str, tuple[float, ...]], ...]
+    coefficients: tuple[Mapping[str, tuple[float, ...]] | None, ...]
+    g_ranges: tuple[tuple[float, float], ...] | None = None
 
     def __post_init__(self):
         edges = tuple(float(e) for e in self.edges)
@@ -94,6 +105,9 @@ class ColourBins:
                                  "expected one per bin")
         frozen = []
         for c, lab in zip(self.coefficients, self.labels_of(edges)):
+            if c is None:
+                frozen.append(None)
+                continue
             missing = [k for k in TERMS if k not in c]
             if missing:
                 raise UserInputError(f"coefficients of colour bin {lab} lack {missing}; expected s0, s1, s2")
@@ -102,8 +116,12 @@ class ColourBins:
                 raise UserInputError(f"coefficients of colour bin {lab} are not finite numbers; expected a "
                                      "fitted prior for every colour bin")
             frozen.append(f)
+        ranges = self.g_ranges if self.g_ranges is not None else [(np.nan, np.nan)] * len(frozen)
+        if len(ranges) != len(frozen):
+            raise UserInputError(f"{len(ranges)} G ranges for {len(frozen)} colour bins; expected one per bin")
         object.__setattr__(self, "edges", edges)
         object.__setattr__(self, "coefficients", tuple(frozen))
+        object.__setattr__(self, "g_ranges", tuple((float(a), float(b)) for a, b in ranges))
 
     @staticmethod
     def labels_of(edges: Sequence[float]) -> tuple[str, ...]:
@@ -119,10 +137,20 @@ class ColourBins:
         return len(self.edges) - 1
 
     def index(self, bp_rp) -> np.ndarray:
-        """Bin of each colour (0 .. K-1; outer bins extended), -1 where NaN (colour-blind)."""
+        """Bin of each colour (0 .. K-1; outer bins extended), -1 where NaN or the bin's fit is
+        undetermined (colour-blind)."""
         c = colour_values(bp_rp)
         idx = np.searchsorted(np.asarray(self.edges[1:-1]), c, side="right")
-        return np.where(np.isnan(c), -1, idx)
+        determined = np.array([k is not None for k in self.coefficients])
+        return np.where(np.isnan(c) | ~determined[idx], -1, idx)
+
+    def g_limits(self, k: int, g_min: float, g_max: float, bright: str) -> tuple[float | None, float]:
+        """(lower, upper) G clamp of bin ``k`` for a prior fitted over ``g_min``-``g_max`` (module notes)."""
+        lo, hi = self.g_ranges[k]
+        upper = min(g_max, hi) if math.isfinite(hi) else g_max
+        if math.isfinite(lo) and lo > g_min:
+            return lo, upper
+        return (g_min if bright == "clamp" else None), upper
 
     def label(self, index) -> np.ndarray:
         """Labels of bin indices from :meth:`index` (:data:`COLOUR_BLIND` for -1), str array."""
@@ -147,7 +175,7 @@ class ColourBins:
         if not need <= set(table.columns):
             raise UserInputError(f"{path} has columns {list(table.columns)}; expected {sorted(need)}")
         edges = [float(e) for e in edges]
-        blocks = []
+        blocks, ranges = [], []
         for lo, hi in zip(edges, edges[1:]):
             sel = np.isclose(table["bp_rp_min"].astype(float), lo, rtol=0, atol=_EDGE_ATOL) \
                 & np.isclose(table["bp_rp_max"].astype(float), hi, rtol=0, atol=_EDGE_ATOL)
@@ -156,11 +184,15 @@ class ColourBins:
                 raise UserInputError(f"{path}: colour bin {_label(lo, hi)} names a term twice; expected one "
                                      "row per term and bin")
             fitted = dict(zip(rows["term"].astype(str), rows["fitted"].astype(float)))
-            blocks.append(coefficients_from_terms(fitted, f"{path} (colour bin {_label(lo, hi)})"))
+            c = coefficients_from_terms(fitted, f"{path} (colour bin {_label(lo, hi)})")
+            undetermined = all(math.isnan(v) for v in fitted.values())
+            blocks.append(None if undetermined else c)
+            ranges.append(tuple(float(rows[col].iloc[0]) if col in rows and len(rows) else np.nan
+                                for col in ("g_fit_min", "g_fit_max")))
         bins = set(zip(table["bp_rp_min"].astype(float), table["bp_rp_max"].astype(float)))
         unknown = [b for b in bins if not any(abs(b[0] - lo) <= _EDGE_ATOL and abs(b[1] - hi) <= _EDGE_ATOL
                                               for lo, hi in zip(edges, edges[1:]))]
         if unknown:
             raise UserInputError(f"{path}: colour bin {_label(*sorted(unknown)[0])} is not one of the run's "
                                  f"prior_model.colour_edges {edges}; expected contiguous bins between those edges")
-        return cls(tuple(edges), tuple(blocks))
+        return cls(tuple(edges), tuple(blocks), tuple(ranges))

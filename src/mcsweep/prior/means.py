@@ -21,9 +21,9 @@ and ``bp_rp_min = bp_rp_max = NaN`` for the colour-blind cells.
 * the proper motion is interpolated in galactic components and rotated to ICRS at the
   star's position (:func:`pm_icrs_from_galactic`).
 
-A colour cell whose mean is NaN (no stars drawn in it) takes the colour-blind mean of
-the same direction x G, and a colour-blind cell whose mean is NaN is centred on zero (the
-paper's choice); :attr:`PriorMeans.n_filled` counts them.
+A colour cell whose mean is NaN (no stars drawn in it) or that has no row takes the
+colour-blind mean of the same direction x G, and such a colour-blind cell is centred on
+zero (the paper's choice); :attr:`PriorMeans.n_filled` counts them.
 """
 
 from __future__ import annotations
@@ -163,14 +163,6 @@ class PriorMeans:
         if np.unique(flat).size != flat.size:
             raise UserInputError(f"{path}: a cell (direction, G bin, colour bin) appears twice; "
                                  "expected one row per cell")
-        present = np.zeros(shape, dtype=bool)
-        present.flat[flat] = True
-        if not present[0].all():
-            raise UserInputError(f"{path} lacks {int((~present[0]).sum())} colour-blind cell(s) of the "
-                                 f"{n_dir} directions x {centres.size} G bins; expected every cell of the sweep")
-        if n_slot > 1 and not present[1:].all():
-            raise UserInputError(f"{path} lacks {int((~present[1:]).sum())} colour cell(s); expected every "
-                                 "direction x G x colour cell of the sweep")
         values = np.full(shape + (3,), np.nan)
         values.reshape(-1, 3)[flat] = np.stack([t["mean_parallax_mas"], t["mean_pml_masyr"],
                                                 t["mean_pmb_masyr"]], axis=-1)

@@ -240,8 +240,12 @@ class Prior:
         out = np.empty(idx.shape)
         for k in np.unique(idx):  # one evaluation per colour bin present (Eq. 14 with its coefficients)
             sel = idx == k
-            coefficients = self.coefficients if k < 0 else self.colour.coefficients[k]
-            out[sel] = self._sigma(l_deg[sel], b_deg[sel], g[sel], coefficients)
+            if k < 0:
+                out[sel] = self._sigma(l_deg[sel], b_deg[sel], g[sel], self.coefficients)
+            else:
+                g_low, g_high = self.colour.g_limits(int(k), self.g_min, self.g_max, self.bright)
+                out[sel] = sigma_from_coefficients(l_deg[sel], b_deg[sel], g[sel], self.colour.coefficients[k],
+                                                   g_min=g_low, g_max=g_high)
         return out
 
     def _mean_galactic(self, l_deg, b_deg, G, bp_rp):

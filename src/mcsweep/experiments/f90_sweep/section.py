@@ -5,7 +5,9 @@ differs from the paper and why, the sky maps), the long tables, then the Table 1
 :mod:`mcsweep.experiments.f90_sweep.fit`): ``f90_cells.csv`` (our sigma_F90 per cell next to
 the paper's formula), ``coefficients.csv`` (Eqs. 15-17: fitted, paper, difference),
 ``rms_dex.csv``, ``eq14_terms.csv`` (Eq. 14 per G bin) and ``prior_maps.fits`` (HEALPix maps
-of the fitted prior, :mod:`mcsweep.prior.maps`); computes nothing.
+of the fitted prior, :mod:`mcsweep.prior.maps`); computes nothing. A run with a colour axis
+(``prior_model=colour`` or ``colour_mean``) also gets the subsection of
+:mod:`mcsweep.experiments.f90_sweep.colour_section`.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ from ...prior.maps import MAPS_FILE
 from ...runtime.document import FIG_DIR, Document, counts_text, plain
 from ..scanning_note import extrapolation_para
 from . import figures
+from .colour_section import colour_section
 from .fit import PAPER_COEFFICIENTS, evaluate_formula, read_fit
 
 __all__ = ["sweep_section"]
@@ -49,6 +52,7 @@ def sweep_section(doc: Document, run_dir: Path, prov: dict) -> None:
     p = float(cfg.get("confidence", 0.9))
     noise = _cell_noise_dex(f90)
     _headline(doc, run_dir, prov, fit, noise, figdir)
+    colour_section(doc, run_dir, prov, figdir)  # only for a run with a colour axis (prior_model)
     _long_tables(doc, fit, noise)
     _showcase_section(doc, run_dir, figdir, p, cfg)
 

@@ -16,7 +16,8 @@ from functools import lru_cache
 
 import numpy as np
 
-__all__ = ["icrs_to_galactic_matrix", "galactic_from_icrs", "pm_galactic_from_icrs", "pm_icrs_from_galactic"]
+__all__ = ["icrs_to_galactic_matrix", "galactic_from_icrs", "icrs_from_galactic", "unit_vector", "pm_galactic_from_icrs",
+           "pm_icrs_from_galactic"]
 
 
 @lru_cache(maxsize=1)
@@ -56,41 +57,51 @@ def galactic_from_icrs(ra_deg, dec_deg) -> tuple[np.ndarray, np.ndarray]:
     return l_deg, b_deg
 
 
+def unit_vector(lon_deg, lat_deg) -> np.ndarray:
+    """Cartesian unit vectors (..., 3) of directions given as longitude and latitude in degrees
+    (in the frame the angles are in)."""
+    lon, lat = np.radians(lon_deg), np.radians(lat_deg)
+    return np.stack([np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat)], axis=-1)
+
+
 def _east_north(lon_rad, lat_rad) -> tuple[np.ndarray, np.ndarray]:
     """Unit vectors towards increasing longitude and latitude, (..., 3)."""
     sl, cl, sb, cb = np.sin(lon_rad), np.cos(lon_rad), np.sin(lat_rad), np.cos(lat_rad)
-    east = np.stack([-sl, cl, np.zeros_like(sl)], axis=-1)
-    north = np.stack([-sb * cl, -sb * sl, cb], axis=-1)
-    return east, north
+    return np.stack([-sl, cl, np.zeros_like(sl)], axis=-1), np.stack([-sb * cl, -sb * sl, cb], axis=-1)
+
+
+def icrs_from_galactic(l_deg, b_deg) -> tuple[np.ndarray, np.ndarray]:
+    """ICRS (ra, dec) in degrees of galactic directions (the rotation of :func:`icrs_to_galactic_matrix`,
+    transposed)."""
+    xyz = unit_vector(np.asarray(l_deg, float), np.asarray(b_deg, float)) @ icrs_to_galactic_matrix()
+    ra = np.degrees(np.arctan2(xyz[..., 1], xyz[..., 0])) % 360.0
+    dec = np.degrees(np.arctan2(xyz[..., 2], np.hypot(xyz[..., 0], xyz[..., 1])))
+    return ra, dec
 
 
 def pm_galactic_from_icrs(ra_deg, dec_deg, pmra, pmdec) -> tuple[np.ndarray, np.ndarray]:
     """Proper motion (mu_alpha*, mu_delta) at ICRS directions as galactic (mu_l*, mu_b), same unit.
 
-    The proper motion is a tangent vector; both frames are fixed rotations of each other
-    (:func:`icrs_to_galactic_matrix`), so the vector is rotated and projected on the galactic
-    east and north directions. Agrees with ``SkyCoord(..., pm_ra_cosdec, pm_dec).galactic``
-    to rounding (tests/test_galactic.py).
+    A proper motion is a tangent vector of the sphere and the frames are a fixed rotation of
+    each other (:func:`icrs_to_galactic_matrix`): the vector built on the ICRS east and north
+    directions is rotated and projected on the galactic east and north directions at the same
+    point. Agrees with ``SkyCoord(..., pm_ra_cosdec, pm_dec).galactic`` to rounding
+    (tests/test_galactic.py).
     """
-    ra, dec = np.radians(np.asarray(ra_deg, float)), np.radians(np.asarray(dec_deg, float))
-    east, north = _east_north(ra, dec)
-    v = np.asarray(pmra, float)[..., None] * east + np.asarray(pmdec, float)[..., None] * north
-    vg = v @ icrs_to_galactic_matrix().T
+    east, north = _east_north(np.radians(np.asarray(ra_deg, float)), np.radians(np.asarray(dec_deg, float)))
+    v = (np.asarray(pmra, float)[..., None] * east + np.asarray(pmdec, float)[..., None] * north) \
+        @ icrs_to_galactic_matrix().T
     l_deg, b_deg = galactic_from_icrs(ra_deg, dec_deg)
     ge, gn = _east_north(np.radians(l_deg), np.radians(b_deg))
-    return np.sum(vg * ge, axis=-1), np.sum(vg * gn, axis=-1)
+    return np.sum(v * ge, axis=-1), np.sum(v * gn, axis=-1)
 
 
 def pm_icrs_from_galactic(l_deg, b_deg, pml, pmb) -> tuple[np.ndarray, np.ndarray]:
     """Inverse of :func:`pm_galactic_from_icrs`: (mu_l*, mu_b) at galactic directions as ICRS
-    (mu_alpha*, mu_delta)."""
-    lon, lat = np.radians(np.asarray(l_deg, float)), np.radians(np.asarray(b_deg, float))
-    ge, gn = _east_north(lon, lat)
-    vg = np.asarray(pml, float)[..., None] * ge + np.asarray(pmb, float)[..., None] * gn
-    v = vg @ icrs_to_galactic_matrix()  # galactic -> ICRS: the transpose
-    m = icrs_to_galactic_matrix()
-    xyz_gal = np.stack([np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat)], axis=-1)
-    xyz = xyz_gal @ m
-    ra, dec = np.arctan2(xyz[..., 1], xyz[..., 0]), np.arcsin(np.clip(xyz[..., 2], -1.0, 1.0))
-    e, n = _east_north(ra, dec)
+    (mu_alpha*, mu_delta), same unit."""
+    l_deg, b_deg = np.asarray(l_deg, float), np.asarray(b_deg, float)
+    ge, gn = _east_north(np.radians(l_deg), np.radians(b_deg))
+    v = (np.asarray(pml, float)[..., None] * ge + np.asarray(pmb, float)[..., None] * gn) @ icrs_to_galactic_matrix()
+    ra, dec = icrs_from_galactic(l_deg, b_deg)
+    e, n = _east_north(np.radians(ra), np.radians(dec))
     return np.sum(v * e, axis=-1), np.sum(v * n, axis=-1)

@@ -11,7 +11,7 @@ from astropy.io import fits
 from mcsweep.errors import UserInputError
 from mcsweep.prior import Prior
 from mcsweep.prior.maps import list_prior_maps, pixel_centres, prior_maps_bytes, read_prior_maps
-from mcsweep.prior.means import pm_icrs_from_galactic
+from mcsweep.galactic import pm_icrs_from_galactic
 
 #: Same formula through different code paths (a subset of stars vs all of them).
 RTOL_PATHS = 1e-13

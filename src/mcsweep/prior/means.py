@@ -19,7 +19,7 @@ and ``bp_rp_min = bp_rp_max = NaN`` for the colour-blind cells.
 * G: linear between the centres of the G bins, constant beyond the first and last centre;
 * colour: the bin containing BP-RP (outer bins extended), NaN -> the colour-blind cells;
 * the proper motion is interpolated in galactic components and rotated to ICRS at the
-  star's position (:func:`pm_icrs_from_galactic`).
+  star's position (:func:`mcsweep.galactic.pm_icrs_from_galactic`).
 
 A colour cell whose mean is NaN (no stars drawn in it) or that has no row takes the
 colour-blind mean of the same direction x G, and such a colour-blind cell is centred on
@@ -35,9 +35,9 @@ from typing import Sequence
 import numpy as np
 
 from ..errors import UserInputError
-from ..galactic import icrs_to_galactic_matrix
+from ..galactic import icrs_from_galactic, pm_icrs_from_galactic, unit_vector
 
-__all__ = ["MEANS_FILE", "MEAN_COLUMNS", "PriorMeans", "pm_icrs_from_galactic", "icrs_from_galactic"]
+__all__ = ["MEANS_FILE", "MEAN_COLUMNS", "PriorMeans"]
 
 MEANS_FILE = "prior_means.csv"
 #: Columns of ``prior_means.csv`` (module notes).
@@ -47,43 +47,6 @@ MEAN_COLUMNS = ("l_deg", "b_deg", "g_min", "g_max", "bp_rp_min", "bp_rp_max", "m
 #: (~1e-12 deg); anything beyond 1 arcsec is not one of the sweep's directions.
 _DIRECTION_TOL_DEG = 1.0 / 3600.0
 _EDGE_ATOL = 1e-9
-
-
-def _unit(lon_deg, lat_deg) -> np.ndarray:
-    lon, lat = np.radians(lon_deg), np.radians(lat_deg)
-    return np.stack([np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat)], axis=-1)
-
-
-def _east_north(lon_rad, lat_rad) -> tuple[np.ndarray, np.ndarray]:
-    """Unit vectors towards increasing longitude and latitude, shape (..., 3)."""
-    sl, cl, sb, cb = np.sin(lon_rad), np.cos(lon_rad), np.sin(lat_rad), np.cos(lat_rad)
-    return np.stack([-sl, cl, np.zeros_like(sl)], axis=-1), np.stack([-sb * cl, -sb * sl, cb], axis=-1)
-
-
-def icrs_from_galactic(l_deg, b_deg) -> tuple[np.ndarray, np.ndarray]:
-    """ICRS (ra, dec) in degrees of galactic directions (astropy's fixed rotation, transposed)."""
-    xyz = _unit(np.asarray(l_deg, float), np.asarray(b_deg, float)) @ icrs_to_galactic_matrix()
-    ra = np.degrees(np.arctan2(xyz[..., 1], xyz[..., 0])) % 360.0
-    dec = np.degrees(np.arctan2(xyz[..., 2], np.hypot(xyz[..., 0], xyz[..., 1])))
-    return ra, dec
-
-
-def pm_icrs_from_galactic(l_deg, b_deg, pml, pmb) -> tuple[np.ndarray, np.ndarray]:
-    """Proper motion (mu_l*, mu_b) at galactic directions as ICRS (mu_alpha*, mu_delta), same unit.
-
-    A proper motion is a tangent vector of the sphere. astropy's ICRS -> Galactic
-    transformation is a fixed rotation (:func:`mcsweep.galactic.icrs_to_galactic_matrix`),
-    so the vector built on the galactic east and north directions is rotated to ICRS
-    and projected on the ICRS east and north directions at the same point. Agrees with
-    ``SkyCoord(l, b, pm_l_cosb=, pm_b=, frame='galactic').icrs`` to rounding
-    (tests/prior/test_colour_mean.py).
-    """
-    l_deg, b_deg = np.asarray(l_deg, float), np.asarray(b_deg, float)
-    ge, gn = _east_north(np.radians(l_deg), np.radians(b_deg))
-    v = (np.asarray(pml, float)[..., None] * ge + np.asarray(pmb, float)[..., None] * gn) @ icrs_to_galactic_matrix()
-    ra, dec = icrs_from_galactic(l_deg, b_deg)
-    e, n = _east_north(np.radians(ra), np.radians(dec))
-    return np.sum(v * e, axis=-1), np.sum(v * n, axis=-1)
 
 
 @dataclass(frozen=True, eq=False)
@@ -214,7 +177,7 @@ class PriorMeans:
             lon, lat = (l_deg, b_deg) if self.sky["frame"] == "galactic" else icrs_from_galactic(l_deg, b_deg)
             return bilinear_interpolation_weights(lon * u.deg, lat * u.deg, nside=self.sky["nside"],
                                                   order=self.sky["order"])
-        _, idx = _tree(self.sky).query(_unit(l_deg, b_deg))
+        _, idx = _tree(self.sky).query(unit_vector(l_deg, b_deg))
         return np.asarray(idx)[None, :], np.ones((1, l_deg.size))
 
 
@@ -252,7 +215,7 @@ def _tree(sky):
 
     if "tree" not in sky:
         d = sky["directions_gal"]
-        sky["tree"] = cKDTree(_unit(d[:, 0], d[:, 1]))
+        sky["tree"] = cKDTree(unit_vector(d[:, 0], d[:, 1]))
     return sky["tree"]
 
 
@@ -266,10 +229,10 @@ def _direction_index(sky, l_deg, b_deg, path) -> np.ndarray:
         hp = HEALPix(nside=sky["nside"], order=sky["order"])
         idx = hp.lonlat_to_healpix(lon * u.deg, lat * u.deg)
         c_lon, c_lat = hp.healpix_to_lonlat(idx)
-        centre = _unit(c_lon.deg, c_lat.deg)
-        dist = np.degrees(np.arccos(np.clip(np.sum(centre * _unit(lon, lat), axis=-1), -1.0, 1.0)))
+        centre = unit_vector(c_lon.deg, c_lat.deg)
+        dist = np.degrees(np.arccos(np.clip(np.sum(centre * unit_vector(lon, lat), axis=-1), -1.0, 1.0)))
     else:
-        dist_chord, idx = _tree(sky).query(_unit(l_deg, b_deg))
+        dist_chord, idx = _tree(sky).query(unit_vector(l_deg, b_deg))
         dist = np.degrees(2.0 * np.arcsin(np.clip(dist_chord / 2.0, 0.0, 1.0)))
     if np.any(dist > _DIRECTION_TOL_DEG):
         i = int(np.argmax(dist))

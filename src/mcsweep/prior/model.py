@@ -272,7 +272,7 @@ class Prior:
         if self.means is None:
             z = self._zeros(l_deg, b_deg, G, bp_rp)
             return z, z.copy()
-        from .means import pm_icrs_from_galactic
+        from ..galactic import pm_icrs_from_galactic
 
         _, pml, pmb = self._mean_galactic(l_deg, b_deg, G, bp_rp)
         return pm_icrs_from_galactic(l_deg, b_deg, pml, pmb)

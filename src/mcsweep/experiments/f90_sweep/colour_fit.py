@@ -131,9 +131,10 @@ def fit_forms(compared: pd.DataFrame, blind_fitted: dict) -> pd.DataFrame:
     rows = []
     for form, r in resid.items():
         for b in bins + ["all"]:
-            m = np.ones(len(r), bool) if b == "all" else lab == b
+            # Cells of a bin without its own fit (too few G bins) have no per_bin residual.
+            m = (np.ones(len(r), bool) if b == "all" else lab == b) & np.isfinite(r)
             rows.append(dict(form=form, colour_bin=b, n_cells=int(m.sum()), n_parameters=n_par[form],
-                             rms_dex=float(np.sqrt(np.nanmean(r[m] ** 2)))))
+                             rms_dex=float(np.sqrt(np.mean(r[m] ** 2))) if m.any() else np.nan))
     return pd.DataFrame(rows)
 
 

@@ -195,6 +195,15 @@ def test_the_per_colour_fit_recovers_known_coefficients():
             np.testing.assert_allclose([got[f"{name}_c{k}"] for k in range(deg + 1)], want[name], atol=1e-8)
     forms = tables["colour_fit_forms.csv"].set_index(["form", "colour_bin"])["rms_dex"]
     assert forms["per_bin", "all"] < 1e-10
+    # The prior's form, Eq. 14 per G bin: each bin's terms are the polynomials at its centre.
+    terms = tables["colour_terms.csv"]
+    for (c0, _), want in truth.items():
+        t = terms[terms["bp_rp_min"] == c0].sort_values("g")
+        for name in ("s0", "s1", "s2"):
+            np.testing.assert_allclose(t[name], np.polynomial.polynomial.polyval(t["g"], want[name]), atol=1e-8)
+    assert forms["per_bin_g", "all"] < 1e-10
+    cells = tables["f90_colour_cells.csv"]
+    np.testing.assert_allclose(cells["fitted_sigma_f90_mas"], cells["sigma_f90_mas"], rtol=1e-8)
     assert forms["colour_blind", "0.56..6"] == pytest.approx(0.2, abs=1e-9)  # the s0 offset
     assert forms["offset", "0.56..6"] < 1e-10  # a constant offset is that form exactly
 

@@ -3,6 +3,7 @@ coefficients), NaN colours -> the colour-blind prior, the interpolated means, th
 motion rotated to ICRS, and the maps of such a prior."""
 
 import numpy as np
+import pandas as pd
 import pytest
 from astropy import units as u
 from astropy.coordinates import SkyCoord
@@ -251,3 +252,29 @@ def test_undetermined_bins_and_fit_ranges(colour_run, synth):
     # a bin fitted over the whole range keeps the prior's bright rule (extrapolation)
     np.testing.assert_allclose(prior.sigma_parallax_mas(l_deg, b_deg, 4.0, bp_rp=0.0),
                                closed_form(l_deg, b_deg, 4.0, synth.PER_BIN[0]), rtol=RTOL_CLOSED_FORM)
+
+
+def test_g_bin_terms_take_over_from_the_polynomials(colour_run, synth):
+    # colour_terms.csv (Eq. 14 per colour bin and G bin): at a G bin's centre the prior is Eq. 14
+    # with that bin's terms, between centres the terms are interpolated, a bin without rows keeps
+    # its polynomials.
+    edges = synth.COLOUR_EDGES
+    g_centres = [7.0, 9.0, 11.0]
+    rows = [(lo, hi, g - 1.0, g + 1.0, g, 0.5 - 0.05 * g + 0.1 * k, 0.1 * k, -0.02)
+            for k, (lo, hi) in enumerate(zip(edges, edges[1:])) if k < 2 for g in g_centres]
+    pd.DataFrame(rows, columns=["bp_rp_min", "bp_rp_max", "g_min", "g_max", "g", "s0", "s1", "s2"]) \
+        .to_csv(colour_run / "colour_terms.csv", index=False)
+    prior = Prior.from_run(colour_run)
+    l_deg, b_deg = np.array([10.0, 250.0]), np.array([5.0, -60.0])
+    for k, colour in ((0, 0.0), (1, 1.0)):
+        for g in g_centres:
+            s0, s1, s2 = 0.5 - 0.05 * g + 0.1 * k, 0.1 * k, -0.02
+            want = 10 ** (s0 + s1 * np.abs(np.sin(np.radians(b_deg))) + s2 * np.cos(np.radians(b_deg))
+                          * np.cos(np.radians(l_deg)))
+            np.testing.assert_allclose(prior.sigma_parallax_mas(l_deg, b_deg, g, bp_rp=colour), want,
+                                       rtol=RTOL_CLOSED_FORM)
+    mid = prior.sigma_parallax_mas(l_deg, b_deg, 8.0, bp_rp=0.0)
+    ends = [prior.sigma_parallax_mas(l_deg, b_deg, g, bp_rp=0.0) for g in (7.0, 9.0)]
+    np.testing.assert_allclose(np.log10(mid), np.mean(np.log10(ends), axis=0), rtol=RTOL_CLOSED_FORM)
+    last = prior.sigma_parallax_mas(l_deg, b_deg, 12.0, bp_rp=3.0)  # no rows: the polynomials
+    np.testing.assert_allclose(last, closed_form(l_deg, b_deg, 12.0, synth.PER_BIN[2]), rtol=RTOL_CLOSED_FORM)

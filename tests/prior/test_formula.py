@@ -97,3 +97,23 @@ def test_coefficients_table_and_reuse_for_other_fits():
         sigma_from_coefficients(0.0, 0.0, 10.0, {"s0": (1.0,), "s1": (0.0,)})
     with pytest.raises(UserInputError, match="NaN"):
         sigma_f90(0.0, 0.0, np.nan)
+
+
+def test_eq14_between_g_nodes_is_linear_in_its_terms_and_constant_beyond():
+    from mcsweep.prior.formula import sigma_from_nodes, sigma_from_coefficients
+
+    g_nodes = np.array([6.5, 7.5, 8.5])
+    s_nodes = np.array([[1.0, 0.2, 0.05], [0.8, 0.1, 0.0], [0.5, -0.1, 0.02]])
+    l_deg, b_deg = np.array([30.0, 200.0]), np.array([-40.0, 10.0])
+    at = sigma_from_nodes(l_deg, b_deg, 7.5, g_nodes, s_nodes)
+    # At a node: Eq. 14 with that node's terms (constant polynomials).
+    const = {k: (v,) for k, v in zip(("s0", "s1", "s2"), s_nodes[1])}
+    np.testing.assert_allclose(at, sigma_from_coefficients(l_deg, b_deg, 7.5, const), rtol=1e-12)
+    # Half-way: the terms' mean, so log10 sigma is the mean of the two nodes' log10 sigma.
+    half = sigma_from_nodes(l_deg, b_deg, 8.0, g_nodes, s_nodes)
+    ends = [sigma_from_nodes(l_deg, b_deg, g, g_nodes, s_nodes) for g in (7.5, 8.5)]
+    np.testing.assert_allclose(np.log10(half), np.mean(np.log10(ends), axis=0), rtol=1e-12)
+    # Beyond the outer nodes: the outer node's value.
+    np.testing.assert_allclose(sigma_from_nodes(l_deg, b_deg, 20.0, g_nodes, s_nodes), ends[1], rtol=1e-12)
+    np.testing.assert_allclose(sigma_from_nodes(l_deg, b_deg, 3.0, g_nodes, s_nodes),
+                               sigma_from_nodes(l_deg, b_deg, 6.5, g_nodes, s_nodes), rtol=1e-12)

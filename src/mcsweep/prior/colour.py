@@ -14,7 +14,12 @@ of each star:
   (index -1, label :data:`COLOUR_BLIND`);
 * a bin whose coefficients are not determined (NaN: none of its cells had enough stars)
   also gives the colour-blind prior (index -1);
-* a bin's polynomials hold over the G range of the cells that determined them
+* where the run wrote ``colour_terms.csv`` (Eq. 14 per colour bin and G bin, the first of
+  Sect. 3.4's two least-squares steps), the prior interpolates those terms linearly in G
+  between the G bins' centres, constant beyond the outer ones
+  (:func:`mcsweep.prior.formula.sigma_from_nodes`): a colour bin's mix of giants and dwarfs
+  changes with G faster than the polynomials of Eqs. 15-17 follow (docs/prior_colour.md);
+* otherwise a bin's polynomials hold over the G range of the cells that determined them
   (columns ``g_fit_min``, ``g_fit_max`` when present): fainter than ``g_fit_max`` the
   value at ``g_fit_max`` (the paper's rule at its faint end, Sect. 3.4), brighter than a
   ``g_fit_min`` above the run's own G range the value at ``g_fit_min`` (the polynomial is
@@ -34,12 +39,15 @@ from astropy import units as u
 
 from ..errors import UserInputError
 from .columns import unit_scale
+from .formula import sigma_from_coefficients, sigma_from_nodes
 
-__all__ = ["COLOUR_COEFFICIENTS_FILE", "COLOUR_BLIND", "TERMS", "ColourBins", "colour_values",
+__all__ = ["COLOUR_COEFFICIENTS_FILE", "COLOUR_TERMS_FILE", "COLOUR_BLIND", "TERMS", "ColourBins", "colour_values",
            "coefficients_from_terms"]
 
 #: Per-colour coefficients in a run directory.
 COLOUR_COEFFICIENTS_FILE = "colour_coefficients.csv"
+#: Per-colour Eq. 14 terms per G bin in a run directory (the prior's form where present).
+COLOUR_TERMS_FILE = "colour_terms.csv"
 #: Label of the colour-blind prior (a star without BP-RP, or a prior without colour axis).
 COLOUR_BLIND = "colour_blind"
 #: Number of polynomial coefficients of s0, s1, s2 (Eqs. 15-17).
@@ -94,6 +102,9 @@ class ColourBins:
     edges: tuple[float, ...]
     coefficients: tuple[Mapping[str, tuple[float, ...]] | None, ...]
     g_ranges: tuple[tuple[float, float], ...] | None = None
+    #: Per bin, the Eq. 14 terms per G bin (rows g, s0, s1, s2; ``colour_terms.csv``), which the
+    #: prior uses instead of the polynomials where present (:func:`~mcsweep.prior.formula.sigma_from_nodes`).
+    nodes: tuple[np.ndarray | None, ...] | None = None
 
     def __post_init__(self):
         edges = tuple(float(e) for e in self.edges)
@@ -119,6 +130,11 @@ class ColourBins:
         ranges = self.g_ranges if self.g_ranges is not None else [(np.nan, np.nan)] * len(frozen)
         if len(ranges) != len(frozen):
             raise UserInputError(f"{len(ranges)} G ranges for {len(frozen)} colour bins; expected one per bin")
+        nodes = self.nodes if self.nodes is not None else [None] * len(frozen)
+        if len(nodes) != len(frozen):
+            raise UserInputError(f"{len(nodes)} sets of G-bin terms for {len(frozen)} colour bins; expected one per bin")
+        object.__setattr__(self, "nodes", tuple(None if n is None or len(n) == 0 else np.asarray(n, float)
+                                                for n in nodes))
         object.__setattr__(self, "edges", edges)
         object.__setattr__(self, "coefficients", tuple(frozen))
         object.__setattr__(self, "g_ranges", tuple((float(a), float(b)) for a, b in ranges))
@@ -141,8 +157,17 @@ class ColourBins:
         undetermined (colour-blind)."""
         c = colour_values(bp_rp)
         idx = np.searchsorted(np.asarray(self.edges[1:-1]), c, side="right")
-        determined = np.array([k is not None for k in self.coefficients])
+        determined = np.array([c is not None or n is not None for c, n in zip(self.coefficients, self.nodes)])
         return np.where(np.isnan(c) | ~determined[idx], -1, idx)
+
+    def sigma_mas(self, k: int, l_deg, b_deg, g, g_min: float, g_max: float, bright: str) -> np.ndarray:
+        """sigma_F90 [mas] of colour bin ``k``: from its G-bin terms where the run wrote them,
+        else from its Eqs. 15-17 polynomials within :meth:`g_limits`."""
+        if self.nodes[k] is not None:
+            n = self.nodes[k]
+            return sigma_from_nodes(l_deg, b_deg, g, n[:, 0], n[:, 1:4])
+        g_low, g_high = self.g_limits(k, g_min, g_max, bright)
+        return sigma_from_coefficients(l_deg, b_deg, g, self.coefficients[k], g_min=g_low, g_max=g_high)
 
     def g_limits(self, k: int, g_min: float, g_max: float, bright: str) -> tuple[float | None, float]:
         """(lower, upper) G clamp of bin ``k`` for a prior fitted over ``g_min``-``g_max`` (module notes)."""
@@ -195,4 +220,27 @@ class ColourBins:
         if unknown:
             raise UserInputError(f"{path}: colour bin {_label(*sorted(unknown)[0])} is not one of the run's "
                                  f"prior_model.colour_edges {edges}; expected contiguous bins between those edges")
-        return cls(tuple(edges), tuple(blocks), tuple(ranges))
+        return cls(tuple(edges), tuple(blocks), tuple(ranges), _read_nodes(path.parent / COLOUR_TERMS_FILE, edges))
+
+
+def _read_nodes(path: Path, edges: list[float]) -> tuple[np.ndarray | None, ...] | None:
+    """Per colour bin, the determined rows (g, s0, s1, s2) of ``colour_terms.csv``, sorted by
+    G; None when the run has no such file (the polynomials of ``colour_coefficients.csv``)."""
+    import pandas as pd
+
+    if not path.is_file():
+        return None
+    try:
+        table = pd.read_csv(path)
+        cols = {c: table[c].to_numpy(dtype=float) for c in ("bp_rp_min", "bp_rp_max", "g", "s0", "s1", "s2")}
+    except (ValueError, OSError, KeyError, TypeError) as exc:
+        raise UserInputError(f"{path}: cannot be read ({type(exc).__name__}); expected the columns bp_rp_min, "
+                             "bp_rp_max, g, s0, s1, s2") from None
+    out = []
+    for lo, hi in zip(edges, edges[1:]):
+        sel = (np.isclose(cols["bp_rp_min"], lo, rtol=0, atol=_EDGE_ATOL)
+               & np.isclose(cols["bp_rp_max"], hi, rtol=0, atol=_EDGE_ATOL))
+        rows = np.column_stack([cols[c][sel] for c in ("g", "s0", "s1", "s2")])
+        rows = rows[np.all(np.isfinite(rows), axis=1)]
+        out.append(rows[np.argsort(rows[:, 0])] if len(rows) else None)
+    return tuple(out)

@@ -45,6 +45,7 @@ __all__ = [
     "G_FIT_MAX",
     "s_coefficients",
     "sigma_from_coefficients",
+    "sigma_from_nodes",
     "BRIGHT_CHOICES",
     "check_bright",
 ]
@@ -129,4 +130,38 @@ def sigma_from_coefficients(l_deg, b_deg, G, coefficients: Mapping[str, Sequence
     if g_min is not None or g_max is not None:
         g = np.clip(g, g_min, g_max)
     s0, s1, s2 = s_coefficients(g, coefficients)
+    return 10.0 ** (s0 + s1 * np.abs(np.sin(b_rad)) + s2 * np.cos(b_rad) * np.cos(l_rad))
+
+
+def sigma_from_nodes(l_deg, b_deg, G, g_nodes, s_nodes) -> np.ndarray:
+    """Eq. 14 with s0, s1, s2 interpolated linearly in G between nodes, in mas.
+
+    The paper's first least-squares step (Sect. 3.4) gives s0, s1, s2 per G bin; Eqs. 15-17
+    then smooth them with polynomials in G. ``g_nodes`` (increasing, the bins' centres) and
+    ``s_nodes`` (shape (len(g_nodes), 3)) are that first step's result; between two nodes the
+    terms are interpolated linearly, beyond the outer nodes they keep the outer node's value
+    (the paper's rule at its faint end, Sect. 3.4).
+
+    Parameters
+    ----------
+    l_deg, b_deg : array_like
+        Galactic longitude and latitude, degrees.
+    G : array_like
+        G magnitude; broadcast with ``l_deg`` and ``b_deg``.
+    g_nodes : array_like, shape (k,)
+    s_nodes : array_like, shape (k, 3)
+
+    Returns
+    -------
+    ndarray
+        sigma in mas, broadcast shape of the inputs.
+    """
+    g = np.asarray(G, dtype=float)
+    if np.any(np.isnan(g)):
+        raise UserInputError("G magnitude NaN is not accepted; expected finite magnitudes")
+    nodes = np.asarray(g_nodes, float)
+    s = np.asarray(s_nodes, float)
+    s0, s1, s2 = (np.interp(g, nodes, s[:, j]) for j in range(3))
+    b_rad = np.radians(np.asarray(b_deg, dtype=float))
+    l_rad = np.radians(np.asarray(l_deg, dtype=float))
     return 10.0 ** (s0 + s1 * np.abs(np.sin(b_rad)) + s2 * np.cos(b_rad) * np.cos(l_rad))

@@ -243,9 +243,8 @@ class Prior:
             if k < 0:
                 out[sel] = self._sigma(l_deg[sel], b_deg[sel], g[sel], self.coefficients)
             else:
-                g_low, g_high = self.colour.g_limits(int(k), self.g_min, self.g_max, self.bright)
-                out[sel] = sigma_from_coefficients(l_deg[sel], b_deg[sel], g[sel], self.colour.coefficients[k],
-                                                   g_min=g_low, g_max=g_high)
+                out[sel] = self.colour.sigma_mas(int(k), l_deg[sel], b_deg[sel], g[sel], self.g_min, self.g_max,
+                                                 self.bright)
         return out
 
     def _mean_galactic(self, l_deg, b_deg, G, bp_rp):

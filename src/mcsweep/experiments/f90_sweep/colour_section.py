@@ -17,11 +17,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ...prior import Prior
 from ...runtime.document import FIG_DIR, Document, counts_text
 from ..global_solution.table import FRACTION_INTERVAL, fraction_from_counts
 from . import colour_figures
 from .colour_fit import COLOUR_FILES, MEANS_FILE
-from .fit import POLY_DEGREES, evaluate_formula, read_fit
+from .fit import POLY_DEGREES, read_fit
 
 __all__ = ["colour_section", "read_colour_run", "ColourRun", "COLOUR_BLIND", "TARGET_BAND", "bin_stats",
            "forms_table", "fraction_table", "mean_table", "fitted_curves", "intro_sentence", "forms_sentence",
@@ -50,6 +51,8 @@ class ColourRun:
     case: str
     confidence: float
     mean: bool
+    #: The run's prior (:meth:`mcsweep.prior.Prior.from_run`): what a user of the run gets.
+    prior: object = None
 
 
 def _label(lo: float, hi: float) -> str:
@@ -98,7 +101,7 @@ def read_colour_run(run_dir: Path, prov: dict) -> ColourRun | None:
     mean = (run_dir / MEANS_FILE).exists() and "quasar_fraction_inside" in cells
     return ColourRun(dict(cfg.get("prior_model") or {}), labels, cells, _read_csv(run_dir / "colour_fit_forms.csv"),
                      _read_csv(run_dir / "colour_coefficients.csv"), fit.fitted, case,
-                     float(cfg.get("confidence", 0.9)), bool(mean))
+                     float(cfg.get("confidence", 0.9)), bool(mean), Prior.from_run(run_dir))
 
 
 def colour_section(doc: Document, run_dir: Path, prov: dict, figdir: Path) -> None:
@@ -122,7 +125,7 @@ def colour_section(doc: Document, run_dir: Path, prov: dict, figdir: Path) -> No
                                            figdir / "colour_fraction.png")
     doc.figure_row([(f"{FIG_DIR}/colour_sigma_f90.png", "sigma_F90 against G per BP-RP bin: median over the "
                      "directions of the cells with a sigma_F90, bars 16-84 % across directions; black: the "
-                     "colour-blind cells; lines: the fitted surfaces (per_bin form, Eqs. 14-17 per bin), median "
+                     "colour-blind cells; lines: the run's prior per bin (per_bin_g form) and colour-blind, median "
                      "over the same directions, over each bin's fitted G range"),
                     (f"{FIG_DIR}/colour_fraction.png", "Fraction inside the P ellipse per BP-RP bin and G bin at "
                      "the bin's fitted width (colour) and at the colour-blind fitted width (grey), median over "
@@ -180,26 +183,32 @@ def _coefficients(coefs: pd.DataFrame) -> dict[str, tuple[dict, float, float]]:
 
 
 def fitted_curves(run: ColourRun, n_g: int = 60) -> pd.DataFrame:
-    """The fitted sigma_F90 surfaces against G (colour, g, sigma_mas): each BP-RP bin's own
-    (``colour_coefficients.csv``, over its fitted G range where recorded) and the colour-blind
-    one, each the median over the run's directions; no row where a surface is undetermined."""
+    """The run's prior against G (colour, g, sigma_mas): each BP-RP bin's own (queried with the
+    bin's mid colour, over its fitted G range where recorded) and the colour-blind one, each the
+    median over the run's directions; no row for a bin whose prior is the colour-blind one."""
     cells = run.cells
     dirs = cells[["l_deg", "b_deg"]].drop_duplicates().to_numpy(float)
     g_lo, g_hi = float(cells["g_min"].min()), float(cells["g_max"].max())
-    surfaces = _coefficients(run.coefficients) | {COLOUR_BLIND: (run.blind_fitted, np.nan, np.nan)}
+    ranges = {lab: (g0, g1) for lab, (_, g0, g1) in _coefficients(run.coefficients).items()}
     rows = []
-    for colour, (coef, g0, g1) in surfaces.items():
+    for colour, mid in [(lab, _mid(lab)) for lab in run.labels if _determined(run).get(lab)] + [(COLOUR_BLIND, None)]:
+        g0, g1 = ranges.get(colour, (np.nan, np.nan))
         g = np.linspace(g0 if np.isfinite(g0) else g_lo, g1 if np.isfinite(g1) else g_hi, n_g)
-        sigma = evaluate_formula(coef, dirs[:, :1], dirs[:, 1:], g[None, :])
-        if np.all(np.isfinite(sigma)):
-            rows.append(pd.DataFrame({"colour": colour, "g": g, "sigma_mas": np.median(sigma, axis=0)}))
-    return pd.concat(rows, ignore_index=True) if rows else pd.DataFrame(columns=["colour", "g", "sigma_mas"])
+        sigma = run.prior.sigma_parallax_mas(dirs[:, :1], dirs[:, 1:], g[None, :],
+                                             bp_rp=None if mid is None else np.full((1, n_g), mid))
+        rows.append(pd.DataFrame({"colour": colour, "g": g, "sigma_mas": np.median(sigma, axis=0)}))
+    return pd.concat(rows, ignore_index=True)
+
+
+def _mid(label: str) -> float:
+    lo, hi = (float(v) for v in label.split(".."))
+    return (lo + hi) / 2
 
 
 def _determined(run: ColourRun) -> dict[str, bool]:
-    """Per BP-RP label: whether Eqs. 15-17 were determined for the bin (every coefficient finite)."""
-    return {lab: all(np.all(np.isfinite(v)) for v in coef.values())
-            for lab, (coef, _, _) in _coefficients(run.coefficients).items()}
+    """Per BP-RP label: whether the run's prior has a width of its own for the bin (else a star
+    of that colour gets the colour-blind prior)."""
+    return {lab: bool(run.prior.colour_bin(_mid(lab)) >= 0) for lab in run.labels}
 
 
 def intro_sentence(run: ColourRun) -> str:
@@ -219,12 +228,12 @@ def intro_sentence(run: ColourRun) -> str:
     done = [lab for lab, ok in _determined(run).items() if ok]
     missing = [lab for lab, ok in _determined(run).items() if not ok]
     if done:
-        text += " Eqs. 14-17 fitted per bin for " + ", ".join(
+        text += " Eq. 14 fitted per bin and G bin (interpolated in G) for " + ", ".join(
             lab + (f" (G {ranges[lab][0]:g}-{ranges[lab][1]:g})" if np.all(np.isfinite(ranges[lab])) else "")
             for lab in done) + "."
     if missing:
-        text += (f" Not determined for {', '.join(missing)} (too few G bins with an Eq. 14 fit: the "
-                 "polynomials need 4): stars of such a bin get this run's colour-blind prior.")
+        text += (f" Not determined for {', '.join(missing)} (no G bin with an Eq. 14 fit): stars of such a "
+                 "bin get this run's colour-blind prior.")
     return text
 
 
@@ -260,14 +269,15 @@ def forms_sentence(run: ColourRun) -> str:
     if rms.dropna().empty:
         return "No colour cell has a sigma_F90, so no form of the colour term could be judged."
     best = rms.idxmin()
-    text = ("The prior uses the per_bin form: Eqs. 14-17 fitted separately to each BP-RP bin's cells, the only "
-            "form whose direction terms s1, s2 differ between colours.")
-    if "per_bin" in rms and np.isfinite(rms["per_bin"]):
-        text += (f" Over all the colour cells its RMS is {rms['per_bin']:.3f} dex ({int(n_par['per_bin'])} "
+    text = ("The prior uses the per_bin_g form: Eq. 14 fitted to each BP-RP bin's cells per G bin (the first of "
+            "Sect. 3.4's two steps), the terms interpolated linearly in G; with per_bin (Eqs. 14-17 per bin) "
+            "the only forms whose direction terms s1, s2 differ between colours.")
+    if "per_bin_g" in rms and np.isfinite(rms["per_bin_g"]):
+        text += (f" Over all the colour cells its RMS is {rms['per_bin_g']:.3f} dex ({int(n_par['per_bin_g'])} "
                  "parameters; over the bins it fits)")
         if "colour_blind" in rms:
             text += f", against {rms['colour_blind']:.3f} dex about the colour-blind surface (0 parameters)"
-        text += "; " + ("it has the lowest RMS of the forms" if best == "per_bin" else
+        text += "; " + ("it has the lowest RMS of the forms" if best == "per_bin_g" else
                         f"the lowest RMS, {rms[best]:.3f} dex, is the '{best}' form's ({int(n_par[best])} parameters)")
     ok = _ok(run.cells)
     noise = _noise_dex(ok[ok["colour"] != COLOUR_BLIND])

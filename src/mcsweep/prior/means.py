@@ -22,8 +22,9 @@ and ``bp_rp_min = bp_rp_max = NaN`` for the colour-blind cells.
   star's position (:func:`mcsweep.galactic.pm_icrs_from_galactic`).
 
 A colour cell whose mean is NaN (no stars drawn in it) or that has no row takes the
-colour-blind mean of the same direction x G, and such a colour-blind cell is centred on
-zero (the paper's choice); :attr:`PriorMeans.n_filled` counts them.
+colour-blind mean of the same direction x G (:attr:`PriorMeans.n_filled` counts them); every
+colour-blind cell must have a finite mean (a sweep draws stars in each), else the file is
+refused.
 """
 
 from __future__ import annotations
@@ -130,8 +131,11 @@ class PriorMeans:
         values.reshape(-1, 3)[flat] = np.stack([t["mean_parallax_mas"], t["mean_pml_masyr"],
                                                 t["mean_pmb_masyr"]], axis=-1)
         nan = np.isnan(values)
+        if nan[0].any():  # a sweep draws stars in every colour-blind cell: a gap is a damaged file
+            g_i, d_i = (int(v[0]) for v in np.nonzero(nan[0].any(axis=-1)))
+            raise UserInputError(f"{path}: the colour-blind cell at G {centres[g_i]:g}, direction {d_i} of the "
+                                 "run's sky has no finite mean; expected one per direction x G bin")
         n_filled = int(nan.any(axis=-1).sum())
-        values[0] = np.where(nan[0], 0.0, values[0])  # the paper's centre
         values[1:] = np.where(nan[1:], values[0][None], values[1:])
         values.setflags(write=False)
         return cls(values, centres, sky, n_filled)

@@ -32,6 +32,14 @@ FRACTION_TOL = 3 * math.sqrt(P * (1 - P) / N_STARS)
 MEAN_PLX, MEAN_PMRA, MEAN_PMDEC, SIGMA_PLX, RATIO_R = 5.0, 20.0, -12.0, 1.0, 10.0
 #: 4 standard errors of a mean of N_STARS draws of a unit-sigma variable.
 MEAN_TOL = 4 / math.sqrt(N_STARS)
+#: Rotations of mas/yr-sized proper motions between frames agree with astropy to rounding.
+ROTATION_TOL_MASYR = 1e-9
+#: Two exact solutions of the same 5 x 5 systems (condition ~1e3): rounding only.
+SOLVE_TOL = 1e-9
+#: Least squares on noise-free cells reproduce the coefficients to rounding.
+FIT_TOL = 1e-8
+#: Radius over which the toy's stars are spread (Table 1's beam).
+BEAM_DEG = 1.0
 
 
 class OffsetGaussianSource:
@@ -51,8 +59,12 @@ class OffsetGaussianSource:
         n = N_STARS
         plx = rng.normal(self.mean[0], self.sigma, n)
         pm = rng.normal(0, RATIO_R * self.sigma, (2, n)) + np.array(self.mean[1:])[:, None]
-        c = SkyCoord(l=l_deg * u.deg, b=b_deg * u.deg, frame="galactic").icrs
-        df = pd.DataFrame({"ra": c.ra.deg, "dec": c.dec.deg, "l": l_deg, "b": b_deg, "parallax": plx,
+        # Spread over the beam, so a mean over the stars rotates each star's own proper motion.
+        centre = SkyCoord(l=l_deg * u.deg, b=b_deg * u.deg, frame="galactic")
+        c = centre.directional_offset_by(rng.uniform(0, 360, n) * u.deg,
+                                         BEAM_DEG * np.sqrt(rng.uniform(0, 1, n)) * u.deg).icrs
+        gal = c.galactic
+        df = pd.DataFrame({"ra": c.ra.deg, "dec": c.dec.deg, "l": gal.l.deg, "b": gal.b.deg, "parallax": plx,
                            "pmra": pm[0], "pmdec": pm[1], "phot_g_mean_mag": rng.uniform(g_min, g_max, n),
                            "distance_pc": np.inf, "population": "test"})
         if self.colours is not None:
@@ -82,11 +94,16 @@ def test_cell_mean_is_the_population_mean_in_closed_form(beam):
     assert m["mean_parallax_mas"] == pytest.approx(MEAN_PLX, abs=MEAN_TOL * SIGMA_PLX)
     assert m["mean_pmra_masyr"] == pytest.approx(MEAN_PMRA, abs=MEAN_TOL * RATIO_R * SIGMA_PLX)
     assert m["mean_pmdec_masyr"] == pytest.approx(MEAN_PMDEC, abs=MEAN_TOL * RATIO_R * SIGMA_PLX)
-    # The galactic components are astropy's rotation of the ICRS mean at the beam centre.
-    ref = SkyCoord(ra=d.ra_deg * u.deg, dec=d.dec_deg * u.deg, pm_ra_cosdec=stars["pmra"].mean() * u.mas / u.yr,
-                   pm_dec=stars["pmdec"].mean() * u.mas / u.yr).galactic
-    assert m["mean_pml_masyr"] == pytest.approx(ref.pm_l_cosb.to_value(u.mas / u.yr), abs=1e-9)
-    assert m["mean_pmb_masyr"] == pytest.approx(ref.pm_b.to_value(u.mas / u.yr), abs=1e-9)
+    # The galactic components are the mean of astropy's rotation of each star's proper motion.
+    ref = SkyCoord(ra=stars["ra"].to_numpy() * u.deg, dec=stars["dec"].to_numpy() * u.deg,
+                   pm_ra_cosdec=stars["pmra"].to_numpy() * u.mas / u.yr,
+                   pm_dec=stars["pmdec"].to_numpy() * u.mas / u.yr).galactic
+    assert m["mean_pml_masyr"] == pytest.approx(ref.pm_l_cosb.to_value(u.mas / u.yr).mean(), abs=ROTATION_TOL_MASYR)
+    assert m["mean_pmb_masyr"] == pytest.approx(ref.pm_b.to_value(u.mas / u.yr).mean(), abs=ROTATION_TOL_MASYR)
+    # ... given in ICRS at the beam centre (astropy's rotation back).
+    back = SkyCoord(l=d.l_deg * u.deg, b=d.b_deg * u.deg, pm_l_cosb=m["mean_pml_masyr"] * u.mas / u.yr,
+                    pm_b=m["mean_pmb_masyr"] * u.mas / u.yr, frame="galactic").icrs
+    assert m["mean_pmra_masyr"] == pytest.approx(back.pm_ra_cosdec.to_value(u.mas / u.yr), abs=ROTATION_TOL_MASYR)
 
 
 def test_a_shifted_truth_gives_the_errors_of_a_prior_centred_on_the_mean():
@@ -103,7 +120,7 @@ def test_a_shifted_truth_gives_the_errors_of_a_prior_centred_on_the_mean():
     w = np.diag([0, 0, sigma**-2, (RATIO_R * sigma) ** -2, (RATIO_R * sigma) ** -2])
     direct = np.linalg.solve(n0 + w, (np.einsum("nij,nj->ni", n0, truth) + noise + w @ m)[..., None])[..., 0]
     shifted = solve_with_prior(n0, np.einsum("nij,nj->ni", n0, truth - m) + noise, sigma, RATIO_R).x
-    np.testing.assert_allclose(shifted, direct - m, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(shifted, direct - m, rtol=SOLVE_TOL, atol=SOLVE_TOL)
 
 
 def test_the_mean_centred_prior_is_honest_where_the_zero_centred_is_not(beam):
@@ -192,20 +209,20 @@ def test_the_per_colour_fit_recovers_known_coefficients():
     for (c0, _), want in truth.items():
         got = coef[coef["bp_rp_min"] == c0].set_index("term")["fitted"]
         for name, deg in POLY_DEGREES.items():
-            np.testing.assert_allclose([got[f"{name}_c{k}"] for k in range(deg + 1)], want[name], atol=1e-8)
+            np.testing.assert_allclose([got[f"{name}_c{k}"] for k in range(deg + 1)], want[name], atol=FIT_TOL)
     forms = tables["colour_fit_forms.csv"].set_index(["form", "colour_bin"])["rms_dex"]
-    assert forms["per_bin", "all"] < 1e-10
+    assert forms["per_bin", "all"] < FIT_TOL
     # The prior's form, Eq. 14 per G bin: each bin's terms are the polynomials at its centre.
     terms = tables["colour_terms.csv"]
     for (c0, _), want in truth.items():
         t = terms[terms["bp_rp_min"] == c0].sort_values("g")
         for name in ("s0", "s1", "s2"):
-            np.testing.assert_allclose(t[name], np.polynomial.polynomial.polyval(t["g"], want[name]), atol=1e-8)
-    assert forms["per_bin_g", "all"] < 1e-10
+            np.testing.assert_allclose(t[name], np.polynomial.polynomial.polyval(t["g"], want[name]), atol=FIT_TOL)
+    assert forms["per_bin_g", "all"] < FIT_TOL
     cells = tables["f90_colour_cells.csv"]
-    np.testing.assert_allclose(cells["fitted_sigma_f90_mas"], cells["sigma_f90_mas"], rtol=1e-8)
-    assert forms["colour_blind", "0.56..6"] == pytest.approx(0.2, abs=1e-9)  # the s0 offset
-    assert forms["offset", "0.56..6"] < 1e-10  # a constant offset is that form exactly
+    np.testing.assert_allclose(cells["fitted_sigma_f90_mas"], cells["sigma_f90_mas"], rtol=FIT_TOL)
+    assert forms["colour_blind", "0.56..6"] == pytest.approx(0.2, abs=FIT_TOL)  # the s0 offset
+    assert forms["offset", "0.56..6"] < FIT_TOL  # a constant offset is that form exactly
 
 
 def test_prior_models_hash_apart_and_the_default_as_before():

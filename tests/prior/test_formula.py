@@ -99,6 +99,10 @@ def test_coefficients_table_and_reuse_for_other_fits():
         sigma_f90(0.0, 0.0, np.nan)
 
 
+#: Two evaluations of the same Eq. 14 (interpolation at or between nodes): rounding only.
+NODE_RTOL = 1e-12
+
+
 def test_eq14_between_g_nodes_is_linear_in_its_terms_and_constant_beyond():
     from mcsweep.prior.formula import sigma_from_nodes, sigma_from_coefficients
 
@@ -108,12 +112,12 @@ def test_eq14_between_g_nodes_is_linear_in_its_terms_and_constant_beyond():
     at = sigma_from_nodes(l_deg, b_deg, 7.5, g_nodes, s_nodes)
     # At a node: Eq. 14 with that node's terms (constant polynomials).
     const = {k: (v,) for k, v in zip(("s0", "s1", "s2"), s_nodes[1])}
-    np.testing.assert_allclose(at, sigma_from_coefficients(l_deg, b_deg, 7.5, const), rtol=1e-12)
+    np.testing.assert_allclose(at, sigma_from_coefficients(l_deg, b_deg, 7.5, const), rtol=NODE_RTOL)
     # Half-way: the terms' mean, so log10 sigma is the mean of the two nodes' log10 sigma.
     half = sigma_from_nodes(l_deg, b_deg, 8.0, g_nodes, s_nodes)
     ends = [sigma_from_nodes(l_deg, b_deg, g, g_nodes, s_nodes) for g in (7.5, 8.5)]
-    np.testing.assert_allclose(np.log10(half), np.mean(np.log10(ends), axis=0), rtol=1e-12)
+    np.testing.assert_allclose(np.log10(half), np.mean(np.log10(ends), axis=0), rtol=NODE_RTOL)
     # Beyond the outer nodes: the outer node's value.
-    np.testing.assert_allclose(sigma_from_nodes(l_deg, b_deg, 20.0, g_nodes, s_nodes), ends[1], rtol=1e-12)
+    np.testing.assert_allclose(sigma_from_nodes(l_deg, b_deg, 20.0, g_nodes, s_nodes), ends[1], rtol=NODE_RTOL)
     np.testing.assert_allclose(sigma_from_nodes(l_deg, b_deg, 3.0, g_nodes, s_nodes),
-                               sigma_from_nodes(l_deg, b_deg, 6.5, g_nodes, s_nodes), rtol=1e-12)
+                               sigma_from_nodes(l_deg, b_deg, 6.5, g_nodes, s_nodes), rtol=NODE_RTOL)

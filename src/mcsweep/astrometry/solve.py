@@ -189,7 +189,7 @@ def solve_with_prior(N0, b0, sigma_plx_prior_mas, ratio_R=DEFAULT_RATIO_R, *,
     prior_mean : array_like, shape (5,) or (n, 5), keyword-only
         Centre x_p of the prior, parameter order as ``x`` (mas, mas/yr); its position
         components are multiplied by the prior's zero weights and so have no effect.
-        None (default): centred on zero, the paper's prior (Sect. 2.4).
+        None (default): centred on zero, the paper's prior (Sect. 3.1).
 
     Returns
     -------
@@ -202,7 +202,8 @@ def solve_with_prior(N0, b0, sigma_plx_prior_mas, ratio_R=DEFAULT_RATIO_R, *,
     if prior_mean is not None:
         m = np.asarray(prior_mean, dtype=float)
         if m.shape not in ((5,), (N0.shape[0], 5)):
-            raise ValueError(f"prior_mean must have shape (5,) or {(N0.shape[0], 5)}, got {m.shape}")
+            raise UserInputError(f"prior_mean of shape {m.shape} is not accepted; expected (5,) or "
+                                 f"{(N0.shape[0], 5)} (mas, mas/yr per parameter)")
         if not np.all(np.isfinite(m)):
             raise UserInputError("prior_mean has NaN or infinite values; expected finite mas and mas/yr")
         b0 = b0 + diag * m

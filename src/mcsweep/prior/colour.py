@@ -210,7 +210,9 @@ class ColourBins:
                                      "row per term and bin")
             fitted = dict(zip(rows["term"].astype(str), rows["fitted"].astype(float)))
             c = coefficients_from_terms(fitted, f"{path} (colour bin {_label(lo, hi)})")
-            undetermined = all(math.isnan(v) for v in fitted.values())
+            # One undetermined polynomial (too few G bins for its degree) leaves the bin's
+            # Eqs. 15-17 undetermined; its G-bin terms (colour_terms.csv) may still give it a width.
+            undetermined = any(math.isnan(v) for v in fitted.values())
             blocks.append(None if undetermined else c)
             ranges.append(tuple(float(rows[col].iloc[0]) if col in rows and len(rows) else np.nan
                                 for col in ("g_fit_min", "g_fit_max")))

@@ -1,6 +1,6 @@
 """The prior's centre: the galaxy model's mean parallax and proper motion per cell.
 
-The paper centres its prior on zero (Sect. 2.4, "since any other choice would
+The paper centres its prior on zero (Sect. 3.1; Sect. 5: "since any other choice would
 necessarily involve additional assumptions"). A sweep run with ``prior_model.mean``
 centres it instead on the galaxy model's mean parallax and proper motion of each
 direction x G (x colour) cell and measures the F90 width around that mean. The means

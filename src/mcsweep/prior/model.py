@@ -11,8 +11,10 @@ paper's Sect. 3.4); every query then takes ``bp_rp=`` and a star of unknown colo
 gets the colour-blind prior of the same run. A run with ``prior_model.mean`` centres the
 prior on the galaxy model's mean parallax and proper motion per cell
 (:mod:`mcsweep.prior.means`; :meth:`Prior.mean_parallax`, :meth:`Prior.mean_pm`), zero for
-every other prior, as in the paper (Sect. 2.4). ``bp_rp`` given to a prior without a
-colour axis is ignored.
+every other prior, as in the paper (Sect. 3.1). ``bp_rp`` given to a prior without a
+colour axis is ignored. A colour bin's width is held constant beyond the centres of its
+outer G bins with a fit (:mod:`mcsweep.prior.colour`), whatever ``bright`` says: a colour's
+population changes with G too fast to extrapolate (docs/prior_colour.md).
 
 Magnitudes outside the fit range follow the rules of :mod:`mcsweep.prior.formula`
 for both kinds: fainter than ``g_max`` the value at ``g_max`` (the paper's rule at

@@ -32,6 +32,7 @@ import numpy as np
 import pandas as pd
 
 from ...prior.formula import sigma_from_nodes
+from .pencil_beam import COLOUR_MIN_STARS
 from .fit import POLY_DEGREES, coefficient_table, compare_cells, evaluate_formula, fit_all
 
 __all__ = ["COLOUR_FILES", "MEANS_FILE", "colour_cells", "colour_tables", "fraction_at", "fit_forms", "means_table"]
@@ -180,4 +181,8 @@ def means_table(f90: pd.DataFrame) -> pd.DataFrame:
     for c in ("bp_rp_min", "bp_rp_max"):
         if c not in out:
             out[c] = np.nan
+    # A colour cell whose width is not determined (too few stars, COLOUR_MIN_STARS) gets no
+    # centre either: its stars take the colour-blind cell's, not a mean of a handful of stars.
+    few = out["bp_rp_min"].notna() & (out["n_mean_stars"] < COLOUR_MIN_STARS)
+    out.loc[few, _MEANS] = np.nan
     return out[cols].reset_index(drop=True)

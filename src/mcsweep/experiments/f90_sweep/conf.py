@@ -150,13 +150,6 @@ class PriorMapsConf:
                  "prior_maps.nside", self.nside, f"a power of two from 1 to {MAX_NSIDE}")
 
 
-#: BP-RP bin edges of ``prior_model=colour`` and ``colour_mean`` (mag). 0.56 and 1.23 split the
-#: early types, the F-K dwarfs and the giants and M dwarfs (the terciles of the G = 6-8 stars that
-#: the real-sky validation reports); 2.0 separates the M stars from the K giants and red clump
-#: (intrinsic BP-RP 1.1-1.4, Pecaut & Mamajek 2013 Table 5 via the model's colours).
-COLOUR_EDGES = (-1.0, 0.56, 1.23, 2.0, 6.0)
-
-
 @dataclass
 class PriorModelConf:
     """What the sweep's prior depends on and where it is centred.
@@ -165,8 +158,8 @@ class PriorModelConf:
     ``colour_edges`` adds the star's BP-RP as an axis (the paper's suggested next step,
     Sect. 3.4: "blue stars have on average smaller parallaxes than red stars"): each
     direction x G cell is also run per colour bin. ``mean`` centres the prior on the model's
-    mean parallax and proper motion of the cell instead of zero (Sect. 3.1 keeps zero "since
-    any other choice would necessarily involve additional assumptions"); the F90 criterion
+    mean parallax and proper motion of the cell instead of zero (Sect. 3.1; Sect. 5 keeps zero
+    "since any other choice would necessarily involve additional assumptions"); the F90 criterion
     then sets the width around that mean.
     """
 

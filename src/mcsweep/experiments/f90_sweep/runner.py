@@ -269,7 +269,7 @@ def _aggregate(run_dir: Path, cells: list[Cell], store: ResultStore, prov, *, ns
     return out
 
 
-def write_fit(run_dir: Path, cells: pd.DataFrame, *, nside: int, f90_case: str = "two") -> None:
+def write_fit(run_dir: Path, cells: pd.DataFrame, *, nside: int, f90_case: str) -> None:
     """Fit Eqs. 14-17 to a sweep's cells (Sect. 3.4) and write the fit's tables and
     ``prior_maps.fits`` into ``run_dir`` (each file whole or not at all).
 

@@ -281,3 +281,20 @@ def test_g_bin_terms_take_over_from_the_polynomials(colour_run, synth):
     np.testing.assert_allclose(np.log10(mid), np.mean(np.log10(ends), axis=0), rtol=RTOL_CLOSED_FORM)
     last = prior.sigma_parallax_mas(l_deg, b_deg, 12.0, bp_rp=3.0)  # no rows: the polynomials
     np.testing.assert_allclose(last, closed_form(l_deg, b_deg, 12.0, synth.PER_BIN[2]), rtol=RTOL_CLOSED_FORM)
+
+
+def test_a_bin_without_its_own_width_is_flagged_in_the_maps(colour_run, synth):
+    import io
+
+    from mcsweep.prior.colour import COLOUR_COEFFICIENTS_FILE
+
+    path = colour_run / COLOUR_COEFFICIENTS_FILE
+    table = pd.read_csv(path)
+    table.loc[table["bp_rp_min"] == synth.COLOUR_EDGES[0], "fitted"] = np.nan  # the bluest bin undetermined
+    table.to_csv(path, index=False)
+    prior = Prior.from_run(colour_run)
+    hdus = fits.open(io.BytesIO(prior_maps_bytes(prior, [10.0], nside=1)))
+    flags = [h.header["CBINFIT"] for h in hdus if h.name.startswith("SIGMA_F90_C")]
+    assert flags == [False] + [True] * (len(synth.COLOUR_EDGES) - 2)
+    # ... and its map is the colour-blind prior, which its stars get.
+    np.testing.assert_array_equal(hdus["SIGMA_F90_C1"].data.field(0), hdus["SIGMA_F90"].data.field(0))

@@ -14,8 +14,9 @@
 
 A prior with a colour axis (:attr:`Prior.has_colour`) adds, after these, one HDU per
 BP-RP bin k = 1..K, ``SIGMA_F90_C<k>``, laid out as ``SIGMA_F90`` (same columns, G and
-HEALPix keywords) with the bin in ``BPRPMIN``, ``BPRPMAX`` [mag] and ``CBINLAB``
-(``'lo..hi'``); ``SIGMA_F90`` itself stays the colour-blind prior. A mean-centred prior
+HEALPix keywords) with the bin in ``BPRPMIN``, ``BPRPMAX`` [mag], ``CBINLAB``
+(``'lo..hi'``) and ``CBINFIT`` (F: the bin has no width of its own and the map is the
+colour-blind prior its stars get); ``SIGMA_F90`` itself stays the colour-blind prior. A mean-centred prior
 (:attr:`Prior.has_mean`) adds the prior's centre, ``MEAN_PARALLAX`` [mas], ``MEAN_PMRA``
 and ``MEAN_PMDEC`` [mas/yr, ICRS components, pmra = mu_alpha*] (colour-blind), and with a
 colour axis the same per bin (``MEAN_PARALLAX_C<k>`` ...). Every map HDU carries
@@ -142,6 +143,8 @@ def _extra_map_hdus(prior: Prior, g_values, nside: int, l_deg, b_deg) -> list:
             h["BPRPMIN"] = (lo, "[mag] lower edge (first bin: all bluer too)")
             h["BPRPMAX"] = (hi, "[mag] upper edge (last bin: all redder too)")
             h["CBINLAB"] = (prior.colour.labels[k - 1], "BP-RP bin label")
+            # A bin without a width of its own maps the colour-blind prior (what its stars get).
+            h["CBINFIT"] = (bool(prior.colour_bin(colour) >= 0), "T: the bin's own prior; F: colour-blind")
         h["PRIORSRC"] = (str(prior.origin)[-40:], "origin of the prior")
         for i, g in enumerate(g_values, start=1):
             h[f"GMAG{i}"] = (g, f"G magnitude of column {i}")

@@ -38,7 +38,7 @@ import numpy as np
 from astropy import units as u
 
 from ..errors import UserInputError
-from .columns import unit_scale
+from .columns import read_run_table, unit_scale
 from .formula import sigma_from_coefficients, sigma_from_nodes
 
 __all__ = ["COLOUR_COEFFICIENTS_FILE", "COLOUR_TERMS_FILE", "COLOUR_BLIND", "TERMS", "ColourBins", "colour_values",
@@ -185,20 +185,9 @@ class ColourBins:
     @classmethod
     def read(cls, path, edges: Sequence[float]) -> "ColourBins":
         """The bins of ``colour_coefficients.csv``, checked against the config's ``colour_edges``."""
-        import pandas as pd
-
         path = Path(path)
-        if not path.is_file():
-            raise UserInputError(f"run directory {path.parent} has no {path.name}; expected it in a sweep "
-                                 "with a colour axis (prior_model.colour_edges not empty)")
-        try:
-            table = pd.read_csv(path)
-        except (ValueError, OSError) as exc:
-            raise UserInputError(f"{path}: cannot be read as CSV ({type(exc).__name__}); expected "
-                                 "bp_rp_min, bp_rp_max, term, fitted") from None
-        need = {"bp_rp_min", "bp_rp_max", "term", "fitted"}
-        if not need <= set(table.columns):
-            raise UserInputError(f"{path} has columns {list(table.columns)}; expected {sorted(need)}")
+        table = read_run_table(path, ("bp_rp_min", "bp_rp_max", "term", "fitted"),
+                               "with a colour axis (prior_model.colour_edges not empty)")
         edges = [float(e) for e in edges]
         blocks, ranges = [], []
         for lo, hi in zip(edges, edges[1:]):

@@ -7,9 +7,30 @@ from astropy import units as u
 
 from ..errors import UserInputError
 
-__all__ = ["finite_column", "unit_scale"]
+__all__ = ["finite_column", "unit_scale", "read_run_table"]
 
 _EXPECTED = {"angle": "an angle (deg)", "mag": "magnitudes (mag or plain numbers)"}
+
+
+def read_run_table(path, columns, needed_for: str):
+    """A CSV table of a sweep's run directory with at least ``columns``, or a one-line
+    :class:`UserInputError`: the file is missing (``needed_for`` says which runs write it), is
+    not CSV, or lacks columns."""
+    import pandas as pd
+    from pathlib import Path
+
+    path = Path(path)
+    if not path.is_file():
+        raise UserInputError(f"run directory {path.parent} has no {path.name}; expected it in a sweep {needed_for}")
+    try:
+        table = pd.read_csv(path)
+    except (ValueError, OSError) as exc:
+        raise UserInputError(f"{path}: cannot be read as CSV ({type(exc).__name__}); expected the columns "
+                             f"{', '.join(columns)}") from None
+    missing = [c for c in columns if c not in table.columns]
+    if missing:
+        raise UserInputError(f"{path} lacks the columns {missing}; expected {', '.join(columns)}")
+    return table
 
 
 def finite_column(values, name: str, source: str, where: str = "") -> np.ndarray:

@@ -36,6 +36,7 @@ from typing import Sequence
 import numpy as np
 
 from ..errors import UserInputError
+from .columns import read_run_table
 from ..galactic import icrs_from_galactic, pm_icrs_from_galactic, unit_vector
 
 __all__ = ["MEANS_FILE", "MEAN_COLUMNS", "PriorMeans"]
@@ -77,20 +78,8 @@ class PriorMeans:
     @classmethod
     def read(cls, path, sky_config: dict, colour_edges: Sequence[float] = ()) -> "PriorMeans":
         """The means of ``prior_means.csv`` on the grid of the run's ``config["sky"]``."""
-        import pandas as pd
-
         path = Path(path)
-        if not path.is_file():
-            raise UserInputError(f"run directory {path.parent} has no {path.name}; expected it in a sweep "
-                                 "with prior_model.mean true")
-        try:
-            table = pd.read_csv(path)
-        except (ValueError, OSError) as exc:
-            raise UserInputError(f"{path}: cannot be read as CSV ({type(exc).__name__}); expected the "
-                                 f"columns {', '.join(MEAN_COLUMNS)}") from None
-        missing = [c for c in MEAN_COLUMNS if c not in table.columns]
-        if missing:
-            raise UserInputError(f"{path} lacks the columns {missing}; expected {', '.join(MEAN_COLUMNS)}")
+        table = read_run_table(path, MEAN_COLUMNS, "with prior_model.mean true")
         try:
             t = {c: table[c].to_numpy(dtype=float) for c in MEAN_COLUMNS}
         except (TypeError, ValueError):

@@ -48,7 +48,8 @@ _ANY = object()
 def _drop(out: dict, dotted: str, only_if=_ANY) -> None:
     """Remove the dotted key from ``out`` (where it exists, and with ``only_if`` only where
     its value equals that), copying the dicts on its path: the config they came from stays
-    whole."""
+    whole. A section left empty goes too: a config group whose every key is at its value
+    from before the group existed hashes as the configs made before it."""
     *parents, leaf = dotted.split(".")
     node = out
     for k in parents:
@@ -57,11 +58,16 @@ def _drop(out: dict, dotted: str, only_if=_ANY) -> None:
         node = node[k]
     if leaf not in node or (only_if is not _ANY and node[leaf] != only_if):
         return
-    node = out
+    path, node = [out], out
     for k in parents:
         node[k] = dict(node[k])
         node = node[k]
+        path.append(node)
     node.pop(leaf)
+    for parent, k, child in zip(reversed(path[:-1]), reversed(parents), reversed(path[1:])):
+        if child:
+            break
+        parent.pop(k)
 
 
 def _science_part(cfg: dict) -> dict:
@@ -78,8 +84,6 @@ def _science_part(cfg: dict) -> dict:
     for dotted, needs in hash_only_with().items():
         if _value(cfg, needs) is None:
             _drop(out, dotted)
-    if out.get("prior_model") == {}:  # the paper's model: hashed as before the group existed
-        out.pop("prior_model")
     _segments_as_before(out, _observed_span_jd(cfg))
     return out
 

@@ -176,8 +176,3 @@ class PriorModelConf:
                 "prior_model.colour_edges", list(self.colour_edges),
                 "[] (no colour axis) or at least two strictly increasing BP-RP edges within -5..10 mag")
         self.colour_edges = e
-
-    @property
-    def is_default(self) -> bool:
-        """The paper's model: no colour axis, centred on zero (config hash as before the option)."""
-        return not self.colour_edges and not self.mean

@@ -29,6 +29,7 @@ from ...astrometry.design import JULIAN_YEAR_DAYS, design_matrix, reference_epoc
 from ...astrometry.noise import NoiseModel
 from ...astrometry.prior_scan import PriorScan, prior_scan
 from ...astrometry.solve import solve_with_prior
+from ...galactic import pm_galactic_from_icrs, pm_icrs_from_galactic
 from ...scanning import observer_position_au
 from ..f90_curve import ill_determined, sigma_f90_from_curve, sigma_f90_interval
 
@@ -383,7 +384,8 @@ def run_cell(cell, transits: pd.DataFrame, source, s: CellSettings,
         centre = cell_mean(cell_stars(cell, source, s, radius, _MEAN_STREAM), d)
         base.update(centre)
     solved = stars if centre is None else _shifted(stars, centre)
-    normals = _case_normals(cell, transits, solved, s) if len(stars) >= _min_stars(cell) else {}
+    columns = _transit_columns(transits)
+    normals = _case_normals(cell, columns, solved, s) if len(stars) >= _min_stars(cell) else {}
     scans = {case: prior_scan(*nrm, s.ratio_R) for case, nrm in normals.items()}
     curves, f90_flags = {}, None
     for case, scan in scans.items():
@@ -393,7 +395,7 @@ def run_cell(cell, transits: pd.DataFrame, source, s: CellSettings,
     f90 = _cell_f90(cell, grid, curves, f90_flags, s, has_stars=len(stars) > 0,
                     enough_stars=len(stars) >= _min_stars(cell))
     if centre is not None:
-        base.update(_quasars(cell, transits, stars, centre, f90["sigma_f90_mas"], s))
+        base.update(_quasars(cell, columns, stars, centre, f90["sigma_f90_mas"], s))
     table = _cell_table(grid, curves, scans, s, dict(base, **f90))
     scatter = None
     if keep_scatter and s.f90_case in normals:
@@ -446,8 +448,6 @@ def cell_mean(stars: pd.DataFrame, d) -> dict:
     """The mean parallax and proper motion of a cell's stars: the centre of a mean-centred
     prior. The proper motion is averaged in galactic components (each star's own rotation)
     and given in ICRS at the beam centre too, the frame the cell's solutions use."""
-    from ...galactic import pm_galactic_from_icrs, pm_icrs_from_galactic
-
     if len(stars) == 0:
         nan = float("nan")
         return dict(mean_parallax_mas=nan, mean_pml_masyr=nan, mean_pmb_masyr=nan, mean_pmra_masyr=nan,
@@ -470,12 +470,12 @@ def _shifted(stars: pd.DataFrame, centre: dict) -> pd.DataFrame:
         pmdec=stars["pmdec"].to_numpy(float) - centre["mean_pmdec_masyr"])
 
 
-def _quasars(cell, transits: pd.DataFrame, stars: pd.DataFrame, centre: dict, f90: float, s: CellSettings) -> dict:
+def _quasars(cell, columns: dict, stars: pd.DataFrame, centre: dict, f90: float, s: CellSettings) -> dict:
     """Sources with zero parallax and proper motion (quasars) at the cell's stars' G, solved in
     the F90 case with the mean-centred prior of width sigma_F90: fraction inside the P ellipse
     and P-th percentile position error. Their truth relative to the prior's centre is -m."""
     out = dict(quasar_fraction_inside=np.nan, quasar_n_valid=0, quasar_p_error_mas=np.nan)
-    geom = case_geometry(_transit_columns(transits), tuple(s.cases[s.f90_case])) if len(transits) else None
+    geom = case_geometry(columns, tuple(s.cases[s.f90_case])) if len(columns["group"]) else None
     if geom is None or not math.isfinite(f90) or len(stars) == 0:
         return out
     zero = {"parallax": 0.0, "pmra": 0.0, "pmdec": 0.0}
@@ -487,10 +487,10 @@ def _quasars(cell, transits: pd.DataFrame, stars: pd.DataFrame, centre: dict, f9
                 quasar_p_error_mas=float(row["p_error_mas"][0]))
 
 
-def _case_normals(cell, transits: pd.DataFrame, stars: pd.DataFrame, s: CellSettings) -> dict:
-    """The normal equations of every observation case with transits (and stars), by case."""
+def _case_normals(cell, columns: dict, stars: pd.DataFrame, s: CellSettings) -> dict:
+    """The normal equations of every observation case with transits (and stars), by case;
+    ``columns``: the direction's transits as :func:`_transit_columns` gives them."""
     normals = {}
-    columns = _transit_columns(transits)
     for case, groups in s.cases.items():
         geom = case_geometry(columns, tuple(groups))
         if geom is not None and len(stars) > 0:

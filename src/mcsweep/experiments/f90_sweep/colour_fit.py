@@ -124,18 +124,21 @@ def _node_sigma(terms: pd.DataFrame, cells: pd.DataFrame) -> np.ndarray:
 def fraction_at(curves: pd.DataFrame, case: str, cell_ids, sigma_mas) -> np.ndarray:
     """Fraction inside the P ellipse of each cell's ``case`` at a prior ``sigma_mas``, read off
     the cell's curve over the prior grid (linear in log sigma, as sigma_F90 is found,
-    Sect. 3.3); NaN outside the grid or where the width is undetermined."""
+    Sect. 3.3); NaN outside the grid or where the width is undetermined. Every cell of a
+    sweep has the same grid (``prior_grid``), so the curves are one cells x grid table."""
     grid = curves[(curves["case"] == case) & ~curves["at_f90"].astype(bool)]
-    by_cell = {cid: g.sort_values("sigma_prior_mas") for cid, g in grid.groupby("cell_id", sort=False)}
-    out = np.full(len(cell_ids), np.nan)
-    for i, (cid, sig) in enumerate(zip(cell_ids, np.asarray(sigma_mas, float))):
-        g = by_cell.get(cid)
-        if g is None or not np.isfinite(sig) or sig <= 0:
-            continue
-        x, y = np.log10(g["sigma_prior_mas"].to_numpy(float)), g["fraction_inside"].to_numpy(float)
-        if x[0] <= np.log10(sig) <= x[-1]:
-            out[i] = np.interp(np.log10(sig), x, y)
-    return out
+    table = grid.pivot(index="cell_id", columns="sigma_prior_mas", values="fraction_inside")
+    x = np.log10(table.columns.to_numpy(float))
+    f = table.reindex(pd.Index(cell_ids)).to_numpy(float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        q = np.log10(np.asarray(sigma_mas, float))
+    ok = np.isfinite(q) & (q >= x[0]) & (q <= x[-1])
+    j = np.clip(np.searchsorted(x, np.where(ok, q, x[0]), side="right") - 1, 0, len(x) - 2)
+    rows = np.arange(len(f))
+    # np.interp's own arithmetic (slope from the left node), row by row at once.
+    slope = (f[rows, j + 1] - f[rows, j]) / (x[j + 1] - x[j])
+    at = np.where(q == x[j + 1], f[rows, j + 1], slope * (q - x[j]) + f[rows, j])
+    return np.where(ok, at, np.nan)
 
 
 def fit_forms(compared: pd.DataFrame, blind_fitted: dict) -> pd.DataFrame:

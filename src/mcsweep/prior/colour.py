@@ -217,16 +217,11 @@ class ColourBins:
 def _read_nodes(path: Path, edges: list[float]) -> tuple[np.ndarray | None, ...] | None:
     """Per colour bin, the determined rows (g, s0, s1, s2) of ``colour_terms.csv``, sorted by
     G; None when the run has no such file (the polynomials of ``colour_coefficients.csv``)."""
-    import pandas as pd
-
     if not path.is_file():
         return None
-    try:
-        table = pd.read_csv(path)
-        cols = {c: table[c].to_numpy(dtype=float) for c in ("bp_rp_min", "bp_rp_max", "g", "s0", "s1", "s2")}
-    except (ValueError, OSError, KeyError, TypeError) as exc:
-        raise UserInputError(f"{path}: cannot be read ({type(exc).__name__}); expected the columns bp_rp_min, "
-                             "bp_rp_max, g, s0, s1, s2") from None
+    names = ("bp_rp_min", "bp_rp_max", "g", "s0", "s1", "s2")
+    table = read_run_table(path, names, "with a colour axis (prior_model.colour_edges not empty)", numeric=names)
+    cols = {c: table[c].to_numpy() for c in names}
     out = []
     for lo, hi in zip(edges, edges[1:]):
         sel = (np.isclose(cols["bp_rp_min"], lo, rtol=0, atol=_EDGE_ATOL)

@@ -12,10 +12,11 @@ __all__ = ["finite_column", "unit_scale", "read_run_table"]
 _EXPECTED = {"angle": "an angle (deg)", "mag": "magnitudes (mag or plain numbers)"}
 
 
-def read_run_table(path, columns, needed_for: str):
+def read_run_table(path, columns, needed_for: str, numeric=()):
     """A CSV table of a sweep's run directory with at least ``columns``, or a one-line
     :class:`UserInputError`: the file is missing (``needed_for`` says which runs write it), is
-    not CSV, or lacks columns."""
+    not CSV, lacks columns, or has non-numbers in the ``numeric`` ones (NaN allowed), which
+    are returned as float64."""
     import pandas as pd
     from pathlib import Path
 
@@ -30,6 +31,12 @@ def read_run_table(path, columns, needed_for: str):
     missing = [c for c in columns if c not in table.columns]
     if missing:
         raise UserInputError(f"{path} lacks the columns {missing}; expected {', '.join(columns)}")
+    for c in numeric:
+        try:
+            table[c] = table[c].to_numpy(dtype=float)
+        except (TypeError, ValueError):
+            raise UserInputError(f"{path}: column {c} has non-numeric values; expected numbers (NaN where "
+                                 "undetermined)") from None
     return table
 
 

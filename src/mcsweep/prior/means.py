@@ -79,12 +79,8 @@ class PriorMeans:
     def read(cls, path, sky_config: dict, colour_edges: Sequence[float] = ()) -> "PriorMeans":
         """The means of ``prior_means.csv`` on the grid of the run's ``config["sky"]``."""
         path = Path(path)
-        table = read_run_table(path, MEAN_COLUMNS, "with prior_model.mean true")
-        try:
-            t = {c: table[c].to_numpy(dtype=float) for c in MEAN_COLUMNS}
-        except (TypeError, ValueError):
-            raise UserInputError(f"{path} has non-numeric values; expected numbers (NaN for the colour-blind "
-                                 "cells' bp_rp_min, bp_rp_max)") from None
+        table = read_run_table(path, MEAN_COLUMNS, "with prior_model.mean true", numeric=MEAN_COLUMNS)
+        t = {c: table[c].to_numpy() for c in MEAN_COLUMNS}
         sky = _grid(sky_config, path)
         n_dir = _n_directions(sky)
         direction = _direction_index(sky, t["l_deg"], t["b_deg"], path)

@@ -91,6 +91,25 @@ def write_run(run_dir, *, colour=True, mean=True, sky=None, nan_cells=()):
     return cfg
 
 
+def source_normal_equations(grp, s):
+    """One source's normal equations (Eqs. 2-3) from its rows of an observation table, straight
+    from the library's astrometry stage (design matrix, normal equations), at the mean epoch of
+    its transits: (N0, b0, epoch), the reference the ``solve`` command is checked against."""
+    from mcsweep.astrometry.design import design_matrix, reference_epoch, years_since
+    from mcsweep.astrometry.solve import normal_equations
+
+    tcb = grp["tcb_jd"].to_numpy()[None, :]
+    ep = reference_epoch(tcb)
+    A = design_matrix([s["ra"]], [s["dec"]], years_since(tcb, ep), grp["scan_angle_deg"].to_numpy()[None],
+                      grp[["obs_x_au", "obs_y_au", "obs_z_au"]].to_numpy()[None],
+                      sigma_al_mas=grp["al_sigma_mas"].to_numpy()[None],
+                      sigma_ac_mas=grp["ac_sigma_mas"].to_numpy()[None])
+    h = np.concatenate([grp["al_residual_mas"] / grp["al_sigma_mas"],
+                        grp["ac_residual_mas"] / grp["ac_sigma_mas"]])[None]
+    N0, b0 = normal_equations(A, h)
+    return N0, b0, ep
+
+
 @pytest.fixture
 def colour_mean_run(tmp_path):
     d = tmp_path / "colour_mean"

@@ -12,7 +12,6 @@ import pytest
 from astropy import units as u
 from astropy.table import Table
 
-from mcsweep.astrometry.design import design_matrix, reference_epoch, years_since
 from mcsweep.astrometry.solve import normal_equations, solve_with_prior
 from mcsweep.galactic import galactic_from_icrs
 from mcsweep.prior import Prior
@@ -118,21 +117,13 @@ def test_annotate_without_colour_columns_gets_the_colour_blind_prior(colour_run,
     assert r.returncode == 2 and "bp_rp" in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr
 
 
-def _direct(obs, src, prior):
+def _direct(obs, src, prior, normals):
     """Per source: the 5 x 5 normal equations of the library's design matrix, plus the
     prior N_p (Eq. 18) and N_p m in the right-hand side (Eqs. 11-12), solved by numpy."""
     out = {}
     for sid, grp in obs.groupby("source_id", sort=True):
         s = src.set_index("source_id").loc[sid]
-        tcb = grp["tcb_jd"].to_numpy()[None, :]
-        ep = reference_epoch(tcb)
-        A = design_matrix([s["ra"]], [s["dec"]], years_since(tcb, ep), grp["scan_angle_deg"].to_numpy()[None],
-                          grp[["obs_x_au", "obs_y_au", "obs_z_au"]].to_numpy()[None],
-                          sigma_al_mas=grp["al_sigma_mas"].to_numpy()[None],
-                          sigma_ac_mas=grp["ac_sigma_mas"].to_numpy()[None])
-        h = np.concatenate([grp["al_residual_mas"] / grp["al_sigma_mas"],
-                            grp["ac_residual_mas"] / grp["ac_sigma_mas"]])[None]
-        N0, b0 = normal_equations(A, h)
+        N0, b0, _ = normals(grp, s)
         l_deg, b_deg = galactic_from_icrs(s["ra"], s["dec"])
         g, c = s["phot_g_mean_mag"], s["bp_rp"]
         sig = prior.sigma_parallax_mas(l_deg, b_deg, g, c)
@@ -143,7 +134,7 @@ def _direct(obs, src, prior):
     return out
 
 
-def test_solve_with_the_mean_is_the_direct_solve(colour_mean_run, tmp_path):
+def test_solve_with_the_mean_is_the_direct_solve(colour_mean_run, tmp_path, synth):
     obs, src = pd.read_csv(EXAMPLE / "observations.csv"), pd.read_csv(EXAMPLE / "sources.csv")
     src["bp_rp"] = np.linspace(-0.5, 3.0, len(src))
     src.loc[::3, "bp_rp"] = np.nan
@@ -154,7 +145,7 @@ def test_solve_with_the_mean_is_the_direct_solve(colour_mean_run, tmp_path):
     got = pd.read_csv(tmp_path / "sol.csv", keep_default_na=False, na_values=[""]).set_index("source_id")
     prior = Prior.from_run(colour_mean_run)
     names = ["dalpha_star_mas", "ddelta_mas", "parallax_mas", "pmra_mas_yr", "pmdec_mas_yr"]
-    ref = _direct(obs, src, prior)
+    ref = _direct(obs, src, prior, synth.source_normal_equations)
     assert len(ref) == len(got)
     shifted = 0
     for sid, (x, x_zero, m, cov) in ref.items():

@@ -9,8 +9,7 @@ import pandas as pd
 import pytest
 
 from mcsweep.astrometry.confidence import ellipse_position_angle_deg
-from mcsweep.astrometry.design import design_matrix, reference_epoch, years_since
-from mcsweep.astrometry.solve import normal_equations, solve_no_prior, solve_position_only, solve_with_prior
+from mcsweep.astrometry.solve import solve_no_prior, solve_position_only, solve_with_prior
 
 BIN = Path(sys.executable).parent
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "prior_solve"
@@ -37,21 +36,14 @@ def paper_sigma(ra, dec, g):
     return 10 ** (s0 + s1 * abs(np.sin(c.b.rad)) + s2 * np.cos(c.b.rad) * np.cos(c.l.rad))
 
 
-def reference_solutions(obs, src, factor):
-    """Source by source, straight from the library's astrometry stage."""
+def reference_solutions(obs, src, factor, normals):
+    """Source by source, straight from the library's astrometry stage (``normals``: the
+    conftest's ``source_normal_equations``)."""
     rows = []
     for sid, grp in obs.groupby("source_id", sort=True):
         s = src.set_index("source_id").loc[sid]
         k = len(grp)
-        tcb = grp["tcb_jd"].to_numpy()[None, :]
-        ep = reference_epoch(tcb)
-        A = design_matrix([s["ra"]], [s["dec"]], years_since(tcb, ep), grp["scan_angle_deg"].to_numpy()[None],
-                          grp[["obs_x_au", "obs_y_au", "obs_z_au"]].to_numpy()[None],
-                          sigma_al_mas=grp["al_sigma_mas"].to_numpy()[None],
-                          sigma_ac_mas=grp["ac_sigma_mas"].to_numpy()[None])
-        h = np.concatenate([grp["al_residual_mas"] / grp["al_sigma_mas"],
-                            grp["ac_residual_mas"] / grp["ac_sigma_mas"]])[None]
-        N0, b0 = normal_equations(A, h)
+        N0, b0, ep = normals(grp, s)
         sig = factor * paper_sigma(s["ra"], s["dec"], s["phot_g_mean_mag"])
         rows.append((sid, k, ep[0], sig, solve_with_prior(N0, b0, sig, 10.0), solve_position_only(N0, b0),
                      solve_no_prior(N0, b0)))
@@ -59,14 +51,14 @@ def reference_solutions(obs, src, factor):
 
 
 @pytest.mark.parametrize("factor", [1.0, 10.0])
-def test_command_reproduces_the_library_on_the_example(tmp_path, factor):
+def test_command_reproduces_the_library_on_the_example(tmp_path, factor, synth):
     out = tmp_path / "sol.csv"
     r = run("solve", EXAMPLE / "observations.csv", "--sources", EXAMPLE / "sources.csv", "--out", out,
             "--paper", "--factor", factor)
     assert r.returncode == 0, r.stderr
     got = pd.read_csv(out).set_index("source_id")
     obs, src = pd.read_csv(EXAMPLE / "observations.csv"), pd.read_csv(EXAMPLE / "sources.csv")
-    ref = reference_solutions(obs, src, factor)
+    ref = reference_solutions(obs, src, factor, synth.source_normal_equations)
     assert len(got) == len(ref) == src["source_id"].isin(obs["source_id"]).sum()
     names = ["dalpha_star_mas", "ddelta_mas", "parallax_mas", "pmra_mas_yr", "pmdec_mas_yr"]
     for sid, k, ep, sig, wp, two, free in ref:

@@ -22,7 +22,7 @@ from ...runtime.document import FIG_DIR, Document, counts_text
 from ..global_solution.table import FRACTION_INTERVAL, fraction_from_counts
 from . import colour_figures
 from .colour_fit import COLOUR_FILES, MEANS_FILE
-from .fit import POLY_DEGREES, read_fit
+from .fit import read_fit
 
 __all__ = ["colour_section", "read_colour_run", "ColourRun", "COLOUR_BLIND", "TARGET_BAND", "bin_stats",
            "forms_table", "fraction_table", "mean_table", "fitted_curves", "intro_sentence", "forms_sentence",
@@ -46,8 +46,6 @@ class ColourRun:
     labels: list
     cells: pd.DataFrame
     forms: pd.DataFrame
-    coefficients: pd.DataFrame
-    blind_fitted: dict
     case: str
     confidence: float
     mean: bool
@@ -100,8 +98,7 @@ def read_colour_run(run_dir: Path, prov: dict) -> ColourRun | None:
             cells[column] = np.nan
     mean = (run_dir / MEANS_FILE).exists() and "quasar_fraction_inside" in cells
     return ColourRun(dict(cfg.get("prior_model") or {}), labels, cells, _read_csv(run_dir / "colour_fit_forms.csv"),
-                     _read_csv(run_dir / "colour_coefficients.csv"), fit.fitted, case,
-                     float(cfg.get("confidence", 0.9)), bool(mean), Prior.from_run(run_dir))
+                     case, float(cfg.get("confidence", 0.9)), bool(mean), Prior.from_run(run_dir))
 
 
 def colour_section(doc: Document, run_dir: Path, prov: dict, figdir: Path) -> None:
@@ -168,18 +165,10 @@ def bin_stats(cells: pd.DataFrame, column: str, labels: list) -> pd.DataFrame:
                            ignore_index=True)
 
 
-def _coefficients(coefs: pd.DataFrame) -> dict[str, tuple[dict, float, float]]:
-    """Per BP-RP label: Eqs. 15-17's coefficients and the bin's fitted G range (NaN: unknown)."""
-    out = {}
-    if not {"bp_rp_min", "bp_rp_max", "term", "fitted"} <= set(coefs.columns):
-        return out
-    for (a, b), grp in coefs.groupby(["bp_rp_min", "bp_rp_max"], sort=True):
-        by_term = dict(zip(grp["term"].astype(str), grp["fitted"].astype(float)))
-        fitted = {k: np.array([by_term.get(f"{k}_c{i}", np.nan) for i in range(d + 1)])
-                  for k, d in POLY_DEGREES.items()}
-        g_range = [float(grp[c].iloc[0]) if c in grp else np.nan for c in ("g_fit_min", "g_fit_max")]
-        out[_label(a, b)] = (fitted, *g_range)
-    return out
+def _g_ranges(run: ColourRun) -> dict[str, tuple[float, float]]:
+    """Per BP-RP label: the G range of the cells that determined the bin's prior (NaN: not
+    recorded), as the run's prior holds it."""
+    return dict(zip(run.prior.colour.labels, run.prior.colour.g_ranges))
 
 
 def fitted_curves(run: ColourRun, n_g: int = 60) -> pd.DataFrame:
@@ -189,7 +178,7 @@ def fitted_curves(run: ColourRun, n_g: int = 60) -> pd.DataFrame:
     cells = run.cells
     dirs = cells[["l_deg", "b_deg"]].drop_duplicates().to_numpy(float)
     g_lo, g_hi = float(cells["g_min"].min()), float(cells["g_max"].max())
-    ranges = {lab: (g0, g1) for lab, (_, g0, g1) in _coefficients(run.coefficients).items()}
+    ranges = _g_ranges(run)
     rows = []
     for colour, mid in [(lab, _mid(lab)) for lab in run.labels if _determined(run).get(lab)] + [(COLOUR_BLIND, None)]:
         g0, g1 = ranges.get(colour, (np.nan, np.nan))
@@ -224,7 +213,7 @@ def intro_sentence(run: ColourRun) -> str:
         text += (" Each prior is centred on the galaxy model's mean parallax and proper motion of its cell "
                  f"(`{MEANS_FILE}`), and the width is the width around that mean; the paper's prior is "
                  "always centred on zero (Sect. 5).")
-    ranges = {lab: (g0, g1) for lab, (_, g0, g1) in _coefficients(run.coefficients).items()}
+    ranges = _g_ranges(run)
     done = [lab for lab, ok in _determined(run).items() if ok]
     missing = [lab for lab, ok in _determined(run).items() if not ok]
     if done:

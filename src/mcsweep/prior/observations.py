@@ -44,15 +44,16 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..astrometry.confidence import check_probability, ellipse_position_angle_deg, ellipse_semi_axes
-from ..astrometry.design import PARAMETER_NAMES, design_matrix, reference_epoch, years_since
-from ..astrometry.solve import normal_equations, solve_no_prior, solve_position_only, solve_with_prior
+from ..astrometry.design import JULIAN_YEAR_DAYS, PARAMETER_NAMES, design_matrix, reference_epoch, years_since
+from ..astrometry.solve import normal_equations
 from ..errors import UserInputError
 from ..scanning.ephemeris import gaia_position_au
-from .annotate import ASTROPY_FORMAT, detect_format
+from .. import tables as _tables
+from ..tables import ASTROPY_FORMAT, detect_format, integer_ids
 from .columns import finite_column
-from ..galactic import galactic_from_icrs
+from .epochs import reference_epoch_jd
 from .model import Prior
+from .solutions import check_factor, solutions_table
 
 __all__ = ["OBSERVATION_COLUMNS", "OPTIONAL_AC", "OBSERVER_COLUMNS", "SOURCE_COLUMNS", "read_table",
            "read_observations", "Observations", "pad_observations", "solve_observations", "write_solutions",
@@ -62,26 +63,11 @@ OBSERVATION_COLUMNS = ("source_id", "tcb_jd", "scan_angle_deg", "al_residual_mas
 OPTIONAL_AC = ("ac_residual_mas", "ac_sigma_mas")
 OBSERVER_COLUMNS = ("obs_x_au", "obs_y_au", "obs_z_au")
 SOURCE_COLUMNS = ("source_id", "ra", "dec", "phot_g_mean_mag")
-_SHORT = ("dalpha_star", "ddelta", "parallax", "pmra", "pmdec")
 
 
-def read_table(path) -> pd.DataFrame:
-    """A table file (format from the suffix) as a DataFrame; UserInputError if unreadable."""
-    path = Path(path)
-    fmt = detect_format(path)
-    if not path.is_file():
-        raise UserInputError(f"{path} does not exist; expected a readable table file")
-    try:
-        if fmt == "csv":
-            return pd.read_csv(path, comment="#")
-        if fmt == "parquet":
-            return pd.read_parquet(path)
-        from astropy.table import Table
-
-        return Table.read(path, format=ASTROPY_FORMAT[fmt]).to_pandas()
-    except Exception as exc:  # readers raise many types; one line for the user
-        raise UserInputError(f"{path.name}: cannot be read as {fmt} ({type(exc).__name__}); "
-                             f"expected a {fmt} table") from None
+def read_table(path, what: str = "") -> pd.DataFrame:
+    """A table file (format from the suffix) as a DataFrame, identifiers exact; UserInputError if unreadable."""
+    return _tables.read_table(path, what=what).frame()
 
 
 def _source_colour(src: pd.DataFrame, source: str) -> np.ndarray:
@@ -119,7 +105,7 @@ class Observations(dict):
 
 def read_observations(obs_path, sources_path=None) -> Observations:
     """Read and check the observation table (and the sources table, if separate)."""
-    obs = read_table(obs_path)
+    obs = read_table(obs_path, "observations")
     name = Path(obs_path).name
     obs = _require_columns(obs, OBSERVATION_COLUMNS, name,
                            "source_id, tcb_jd, scan_angle_deg, al_residual_mas, al_sigma_mas")
@@ -133,20 +119,22 @@ def read_observations(obs_path, sources_path=None) -> Observations:
     cols = OBSERVATION_COLUMNS + (OPTIONAL_AC if has_ac else ()) + (OBSERVER_COLUMNS if has_obs else ())
     obs = _require_columns(obs, cols, name, str(cols))
     if sources_path is not None:
-        src = read_table(sources_path)
+        src = read_table(sources_path, "--sources")
         sname = Path(sources_path).name
         src = _require_columns(src, SOURCE_COLUMNS, sname, "source_id, ra, dec [deg] and phot_g_mean_mag")
-        if src["source_id"].duplicated().any():
-            dup = src.loc[src["source_id"].duplicated(), "source_id"].iloc[0]
-            raise UserInputError(f"{sname}: source_id {dup} appears twice; expected one row per source")
+        sid = pd.Series(integer_ids(src["source_id"].to_numpy(), "source_id", sname))
+        if sid.duplicated().any():
+            raise UserInputError(f"{sname}: source_id {sid[sid.duplicated()].iloc[0]} appears twice; expected one "
+                                 "row per source")
     else:
         src = _require_columns(obs, SOURCE_COLUMNS, name, "source_id, ra, dec [deg] and phot_g_mean_mag "
                                "(or a separate --sources table)")
         colour = [c for c in obs.columns if str(c).lower() in ("bp_rp", "phot_bp_mean_mag", "phot_rp_mean_mag")]
-        src = src[list(SOURCE_COLUMNS) + colour].drop_duplicates("source_id")
+        src = src[list(SOURCE_COLUMNS) + colour]
+        src = src[~pd.Series(integer_ids(src["source_id"].to_numpy(), "source_id", name)).duplicated().to_numpy()]
         sname = name
-    vals = _numeric(obs, cols, name)
-    svals = _numeric(src, SOURCE_COLUMNS, sname)
+    vals = _numeric(obs, cols[1:], name)
+    svals = _numeric(src, SOURCE_COLUMNS[1:], sname)
     svals["bp_rp"] = _source_colour(src, sname)
     for key, ok, accepted in (("al_sigma_mas", vals["al_sigma_mas"] > 0, "positive uncertainties in mas"),
                               ("ac_sigma_mas", vals.get("ac_sigma_mas", np.ones(1)) > 0, "positive uncertainties in mas")):
@@ -154,8 +142,9 @@ def read_observations(obs_path, sources_path=None) -> Observations:
             raise UserInputError(f"{name}: column {key} has {int((~ok).sum())} value(s) <= 0; expected {accepted}")
     if np.any(np.abs(svals["dec"]) > 90):
         raise UserInputError(f"{sname}: column dec has values beyond +-90; expected degrees")
-    ids = svals["source_id"].astype(np.int64)
-    obs_ids = vals["source_id"].astype(np.int64)
+    # Gaia source_ids exceed 2**53: never through float64 (mcsweep.tables.ids).
+    ids = integer_ids(src["source_id"].to_numpy(), "source_id", sname)
+    obs_ids = integer_ids(obs["source_id"].to_numpy(), "source_id", name)
     order = np.argsort(ids, kind="stable")
     ids_sorted = ids[order]
     where = np.searchsorted(ids_sorted, obs_ids)
@@ -207,19 +196,12 @@ def pad_observations(obs: Observations) -> dict[str, np.ndarray]:
 def _epochs(setting: str, padded) -> np.ndarray:
     if setting == "star_mean":
         return reference_epoch(padded["tcb_jd"], padded["mask"])
-    from astropy.time import Time
-
-    try:
-        jd = float(Time(setting, scale="tcb").jd)
-    except (ValueError, TypeError):
-        raise UserInputError(f"--reference-epoch {setting!r} is not accepted; expected 'star_mean' or an "
-                             "ISO date (TCB) such as '2015-01-01T00:00:00'") from None
-    return np.full(padded["mask"].shape[0], jd)
+    return np.full(padded["mask"].shape[0], reference_epoch_jd(setting))
 
 
 def solve_observations(obs: Observations, prior: Prior, *, factor: float = 1.0, confidence: float | None = None,
                        reference_epoch: str = "star_mean") -> pd.DataFrame:
-    """One row per source: prior, two-parameter and no-prior solutions, the P ellipse.
+    """One row per source: prior, two-parameter and no-prior solutions, the P ellipse, which to use.
 
     Parameters
     ----------
@@ -228,17 +210,21 @@ def solve_observations(obs: Observations, prior: Prior, *, factor: float = 1.0, 
     prior : Prior
         sigma_plx = ``factor`` x sigma_F90 at the source's (l, b, G) and, for a prior with
         a colour axis, BP-RP; sigma_mu = R sigma_plx; centred on the prior's mean where it
-        has one (module notes).
+        has one (:mod:`mcsweep.prior.solutions`).
     factor : float, keyword-only
         K (Sect. 3.3: up to ~10 keeps the errors and gives conservative uncertainties).
     confidence : float, keyword-only
         P of the ellipse; default the prior's own P.
     reference_epoch : str, keyword-only
-        'star_mean' (Sect. 2.1: mean epoch of each source's transits) or an ISO date (TCB).
+        'star_mean' (Sect. 2.1: mean epoch of each source's transits), or a date
+        (:func:`mcsweep.prior.epochs.reference_epoch_jd`: ISO, 'J2017.5' or 2017.5, TCB).
+
+    Returns
+    -------
+    pandas.DataFrame
+        The columns of :func:`mcsweep.prior.solutions.solutions_table`.
     """
-    if not (np.isscalar(factor) and factor > 0 and np.isfinite(factor)):
-        raise UserInputError(f"--factor {factor!r} is not accepted; expected a positive finite number")
-    p = check_probability(prior.confidence if confidence is None else confidence)
+    check_factor(factor)
     padded = pad_observations(obs)
     mask = padded["mask"]
     epoch = _epochs(reference_epoch, padded)
@@ -252,50 +238,22 @@ def solve_observations(obs: Observations, prior: Prior, *, factor: float = 1.0, 
         h = np.concatenate([h, padded["ac_res"] / padded["ac_sig"]], axis=1)
     h = np.where(np.concatenate([mask, mask], axis=1) if has_ac else mask, h, 0.0)
     N0, b0 = normal_equations(A, h)
-    l_deg, b_deg = galactic_from_icrs(ra, dec)
-    bp_rp = obs.get("source_bp_rp") if prior.has_colour else None
-    sigma_plx = factor * prior.sigma_parallax_mas(l_deg, b_deg, g, bp_rp)
-    centre = None
-    if prior.has_mean:
-        m_plx = prior.mean_parallax_mas(l_deg, b_deg, g, bp_rp)
-        m_pmra, m_pmdec = prior.mean_pm_masyr(l_deg, b_deg, g, bp_rp)
-        centre = np.stack([np.zeros_like(m_plx), np.zeros_like(m_plx), m_plx, m_pmra, m_pmdec], axis=-1)
-    with_prior = solve_with_prior(N0, b0, sigma_plx, prior.ratio_R, prior_mean=centre)
-    two = solve_position_only(N0, b0)
-    free = solve_no_prior(N0, b0)
-    a_mas, b_mas = ellipse_semi_axes(with_prior.position_cov, p)
+    tcb = padded["tcb_jd"]
+    span = (np.nanmax(tcb, axis=1) - np.nanmin(tcb, axis=1)) / JULIAN_YEAR_DAYS
+    return solutions_table(obs["source_ids"], ra, dec, g, obs.get("source_bp_rp"), N0, b0,
+                           n_transits=padded["counts"], reference_epoch_jd=epoch,
+                           n_visibility_periods=_visibility_periods(obs), time_span_yr=span, prior=prior,
+                           factor=factor, confidence=confidence)
 
-    out = {"source_id": obs["source_ids"], "ra": ra, "dec": dec, "phot_g_mean_mag": g,
-           "n_transits": padded["counts"], "reference_epoch_tcb_jd": epoch,
-           "sigma_prior_parallax_mas": sigma_plx, "sigma_prior_pm_mas_yr": prior.ratio_R * sigma_plx,
-           "prior_ok": with_prior.ok}
-    if prior.has_colour:
-        out["prior_colour_bin"] = prior.colour_bin_label(bp_rp)
-    if centre is not None:
-        out["prior_mean_parallax_mas"], out["prior_mean_pmra_mas_yr"], out["prior_mean_pmdec_mas_yr"] = centre[:, 2:].T
-    units = dict(zip(_SHORT, ("mas", "mas", "mas", "mas_yr", "mas_yr")))
-    for i, name in enumerate(_SHORT):
-        out[f"{name}_{units[name]}"] = with_prior.x[:, i]
-        out[f"{name}_error_{units[name]}"] = np.sqrt(with_prior.cov[:, i, i])
-    for i in range(5):
-        for j in range(i + 1, 5):
-            with np.errstate(invalid="ignore", divide="ignore"):
-                out[f"{_SHORT[i]}_{_SHORT[j]}_corr"] = with_prior.cov[:, i, j] / np.sqrt(
-                    with_prior.cov[:, i, i] * with_prior.cov[:, j, j])
-    out["confidence"] = np.full(len(ra), p)
-    out["ellipse_semi_major_mas"] = a_mas
-    out["ellipse_semi_minor_mas"] = b_mas
-    out["ellipse_position_angle_deg"] = ellipse_position_angle_deg(with_prior.position_cov)
-    out["two_param_ok"] = two.ok
-    for i, name in enumerate(_SHORT[:2]):
-        out[f"two_param_{name}_mas"] = two.x[:, i]
-        out[f"two_param_{name}_error_mas"] = np.sqrt(two.cov[:, i, i])
-    out["no_prior_ok"] = free.ok
-    out["no_prior_condition"] = free.condition
-    for i, name in enumerate(_SHORT):
-        out[f"no_prior_{name}_{units[name]}"] = free.x[:, i]
-        out[f"no_prior_{name}_error_{units[name]}"] = np.sqrt(free.cov[:, i, i])
-    return pd.DataFrame(out)
+
+def _visibility_periods(obs: Observations) -> np.ndarray:
+    """Visibility periods per source: its transits in groups more than 4 days apart."""
+    from ..astrometry.source_update import VISIBILITY_GAP_DAYS
+
+    sid, t = obs["source_id"], obs["tcb_jd"]
+    new = np.r_[True, (sid[1:] != sid[:-1]) | (np.diff(t) > VISIBILITY_GAP_DAYS)]
+    src = np.searchsorted(obs["source_ids"], sid)
+    return np.bincount(src[new], minlength=obs["source_ids"].size)
 
 
 def write_solutions(table: pd.DataFrame, path, fmt: str) -> None:

@@ -1,0 +1,242 @@
+"""Gaia epoch astrometry (DR4): the archive's files read into per-CCD observations.
+
+Gaia DR4 publishes, per source, one row per field-of-view (FoV) transit with per-CCD
+arrays (SM, then AF1-AF9). Two column conventions exist: the archive's snake_case
+(DataLink products in CSV, ECSV, FITS, VOTable and Parquet) and DPAC's camelCase (Parquet
+files of the data processing). The columns used (facts of the files: Gaia Collaboration,
+DR4 documentation of ``epoch_astrometry``; ESA's gaiasupdate, which reads the same files):
+
+=============================  ==========  =============================================
+column (snake / camel)          per         meaning
+=============================  ==========  =============================================
+source_id / sourceId            transit     Gaia source identifier (int64, kept exact)
+obs_time_tcb / obsTimeTcb       CCD         time at Gaia, ns since 2010-01-01T00:00 TCB
+obs_time_bary_corr / ...Corr    transit     barycentric correction of that time, ns
+scan_pos_angle / scanPosAngle   CCD         scan position angle theta, deg
+parallax_factor_al / ...FactorAl transit    AL parallax factor P_AL (exact, with Gaia's orbit)
+centroid_pos_al / centroidPosAl CCD         AL local-plane coordinate w, mas, relative to the
+                                            source's reference position with zero parallax
+                                            and proper motion
+centroid_pos_error_al / ...     CCD         its standard error, mas
+used_by_agis_al / usedByAgisAl  CCD         whether AGIS used the CCD in AL
+agis_source_excess_noise / ...  source      AGIS's excess source noise, mas
+colour_factor_al / ...          CCD or      AL colour factor (six-parameter model only)
+                                transit
+=============================  ==========  =============================================
+
+The archive's CSV writes the header ``used_by_agis_al`` twice, the second where
+``used_by_agis_ac`` belongs: the second is read as ``used_by_agis_ac``. Per-CCD arrays may
+arrive as 2-D columns, lists, tuples, variable-length arrays or text
+(:func:`mcsweep.tables.as_ragged`).
+
+A CCD observation is kept, as AGIS keeps it, where ``used_by_agis_al`` is true and its
+time, barycentric correction, scan angle, centroid and a positive error are all present.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import UserInputError
+from ..tables import Ragged, TableChunk, as_ragged, integer_ids
+
+__all__ = ["COLUMNS", "OPTIONAL_COLUMNS", "CcdObservations", "is_epoch_astrometry", "ccd_observations",
+           "TCB_ORIGIN_JD", "concatenate", "fix_archive_header"]
+
+#: Our name -> (archive snake_case, DPAC camelCase), the columns every model needs.
+COLUMNS = {
+    "source_id": ("source_id", "sourceId"),
+    "obs_time_tcb": ("obs_time_tcb", "obsTimeTcb"),
+    "obs_time_bary_corr": ("obs_time_bary_corr", "obsTimeBaryCorr"),
+    "scan_pos_angle": ("scan_pos_angle", "scanPosAngle"),
+    "parallax_factor_al": ("parallax_factor_al", "parallaxFactorAl"),
+    "centroid_pos_al": ("centroid_pos_al", "centroidPosAl"),
+    "centroid_pos_error_al": ("centroid_pos_error_al", "centroidPosErrorAl"),
+    "used_by_agis_al": ("used_by_agis_al", "usedByAgisAl"),
+    "agis_source_excess_noise": ("agis_source_excess_noise", "agisSourceExcessNoise"),
+}
+#: Read when present: the six-parameter model's colour factor.
+OPTIONAL_COLUMNS = {"colour_factor_al": ("colour_factor_al", "colourFactorAl")}
+#: The origin of ``obs_time_tcb``: 2010-01-01T00:00:00 TCB as a Julian date (TCB), the
+#: TIMESYS origin of the DR4 epoch-astrometry files.
+TCB_ORIGIN_JD = 2455197.5
+_PER_CCD = ("obs_time_tcb", "scan_pos_angle", "centroid_pos_al", "centroid_pos_error_al", "used_by_agis_al")
+_NS_PER_DAY = 86400e9
+
+
+@dataclass(frozen=True)
+class CcdObservations:
+    """The kept AL CCD observations of a batch of transits, sorted by (source_id, time).
+
+    Arrays are per CCD observation (length m) unless named per transit.
+
+    Attributes
+    ----------
+    source_id : int64 (m,)
+    tcb_jd : float (m,)
+        Barycentric time of the observation, ``obs_time_tcb + obs_time_bary_corr``, as a
+        TCB Julian date: the time argument of the proper motion in AGIS's model.
+    scan_angle_deg, parallax_factor_al, centroid_al_mas, sigma_al_mas : float (m,)
+    excess_noise_mas : float (m,)
+        The source's AGIS excess noise (the same on all its observations).
+    colour_factor_al : float (m,) or None
+        None when the file has no colour factor.
+    transit : int64 (m,)
+        Index of the observation's FoV transit (row of the file) within the batch.
+    """
+
+    source_id: np.ndarray
+    tcb_jd: np.ndarray
+    scan_angle_deg: np.ndarray
+    parallax_factor_al: np.ndarray
+    centroid_al_mas: np.ndarray
+    sigma_al_mas: np.ndarray
+    excess_noise_mas: np.ndarray
+    colour_factor_al: np.ndarray | None
+    transit: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.source_id.size)
+
+    def take(self, idx) -> "CcdObservations":
+        """The observations ``idx`` (indices or mask)."""
+        return CcdObservations(**{k: (None if v is None else v[idx]) for k, v in self.__dict__.items()})
+
+
+def concatenate(parts: list[CcdObservations]) -> CcdObservations:
+    """One :class:`CcdObservations` of several, transits renumbered, sorted by (source_id, time)."""
+    parts = [p for p in parts if len(p)]
+    if not parts:
+        return _empty()
+    offset, transits = 0, []
+    for p in parts:
+        transits.append(p.transit + offset)
+        offset += int(p.transit.max()) + 1
+    colour = None if any(p.colour_factor_al is None for p in parts) else \
+        np.concatenate([p.colour_factor_al for p in parts])
+    out = CcdObservations(**{k: np.concatenate([getattr(p, k) for p in parts])
+                             for k in ("source_id", "tcb_jd", "scan_angle_deg", "parallax_factor_al",
+                                       "centroid_al_mas", "sigma_al_mas", "excess_noise_mas")},
+                          colour_factor_al=colour, transit=np.concatenate(transits))
+    order = np.lexsort((out.tcb_jd, out.source_id))
+    return out.take(order)
+
+
+def _empty() -> CcdObservations:
+    z = np.empty(0)
+    return CcdObservations(np.empty(0, np.int64), z, z, z, z, z, z, None, np.empty(0, np.int64))
+
+
+def _names(chunk: TableChunk) -> dict[str, str]:
+    """Our name -> the file's column, for the columns the file has (either convention)."""
+    found = {}
+    for ours, (snake, camel) in {**COLUMNS, **OPTIONAL_COLUMNS}.items():
+        name = chunk.find(snake, camel)
+        if name is not None:
+            found[ours] = name
+    return found
+
+
+def fix_archive_header(chunk: TableChunk) -> None:
+    """The archive CSV's repeated ``used_by_agis_al`` header, in place.
+
+    pandas reads the second as ``used_by_agis_al.1``, astropy as ``used_by_agis_al_1``. It
+    stands where ``used_by_agis_ac`` belongs, so it is renamed ``used_by_agis_ac``; but in
+    the archive's DR4 CSV seen so far its values repeat the AL flags row for row (the other
+    five formats of the same source have different AC flags), so where they are identical
+    the column is dropped: AC flags that are a copy of AL's are not AC flags. Only the AL
+    flags enter the AL solution.
+    """
+    for dup in ("used_by_agis_al.1", "used_by_agis_al_1"):
+        if dup not in chunk.columns or chunk.find("used_by_agis_ac") is not None:
+            continue
+        first = chunk.find("used_by_agis_al")
+        copy = first is not None and np.array_equal(np.asarray(chunk[first]).astype(str),
+                                                    np.asarray(chunk[dup]).astype(str))
+        cols, units = {}, {}
+        for k, v in chunk.columns.items():
+            if k == dup and copy:
+                continue
+            key = "used_by_agis_ac" if k == dup else k
+            cols[key], units[key] = v, chunk.units.get(k)
+        chunk.columns, chunk.units = cols, units
+
+
+def is_epoch_astrometry(chunk: TableChunk) -> bool:
+    """Whether the table looks like epoch astrometry (has an AL centroid column in either convention)."""
+    return chunk.find("centroid_pos_al", "centroidPosAl") is not None
+
+
+def _per_transit(values, n: int, name: str, source: str) -> np.ndarray:
+    v = np.asarray(values)
+    if v.ndim != 1 or v.dtype.kind == "O":
+        raise UserInputError(f"{source}: column {name} has an array per row; expected one value per FoV transit")
+    return v.astype(float)
+
+
+def _per_ccd(chunk: TableChunk, name: str, source: str, lengths=None) -> Ragged:
+    r = as_ragged(chunk[name], name=name, source=source)
+    if lengths is not None and not np.array_equal(r.lengths, lengths):
+        row = int(np.argmax(r.lengths != lengths))
+        raise UserInputError(f"{source}: column {name} has {int(r.lengths[row])} elements in row "
+                             f"{chunk.first_row + row}, where the times have {int(lengths[row])}; expected one "
+                             "element per CCD in every per-CCD column")
+    return r
+
+
+def ccd_observations(chunk: TableChunk, *, need_colour: bool = False) -> CcdObservations:
+    """The AL CCD observations AGIS used, from a batch of an epoch-astrometry table (module notes).
+
+    Raises :class:`UserInputError` naming the file and column when a needed column is
+    missing (in both conventions) or holds something else than described above.
+    """
+    source = chunk.source
+    fix_archive_header(chunk)
+    names = _names(chunk)
+    missing = [f"{COLUMNS[k][0]} (or {COLUMNS[k][1]})" for k in COLUMNS if k not in names]
+    if missing:
+        raise UserInputError(f"{source}: not Gaia epoch astrometry, lacks {', '.join(missing)}; expected the "
+                             "columns of the archive's epoch_astrometry (snake_case) or DPAC's (camelCase)")
+    if need_colour and "colour_factor_al" not in names:
+        raise UserInputError(f"{source}: has no colour_factor_al (or colourFactorAl); expected it for the "
+                             "six-parameter model (or use --model 5p)")
+    n = len(chunk)
+    ids = integer_ids(chunk[names["source_id"]], names["source_id"], source)
+    time = _per_ccd(chunk, names["obs_time_tcb"], source)
+    lengths = time.lengths
+    cols = {k: _per_ccd(chunk, names[k], source, lengths).values for k in _PER_CCD if k != "obs_time_tcb"}
+    cols["obs_time_tcb"] = time.values
+    transit = np.repeat(np.arange(n, dtype=np.int64), lengths)
+    per_transit = {k: _per_transit(chunk[names[k]], n, names[k], source)[transit]
+                   for k in ("obs_time_bary_corr", "parallax_factor_al", "agis_source_excess_noise")}
+    colour = None
+    if "colour_factor_al" in names:
+        c = chunk[names["colour_factor_al"]]
+        if isinstance(c, Ragged) or np.asarray(c).ndim == 2 or np.asarray(c).dtype.kind in "OUS":
+            colour = _per_ccd(chunk, names["colour_factor_al"], source, lengths).values.astype(float)
+        else:
+            # Some files hold one colour factor per transit: the same for its CCDs.
+            colour = np.asarray(c, dtype=float)[transit]
+    t_ns = np.asarray(cols["obs_time_tcb"], dtype=float)
+    used = np.asarray(cols["used_by_agis_al"]).astype(float)
+    sigma = np.asarray(cols["centroid_pos_error_al"], dtype=float)
+    keep = ((used == 1) & np.isfinite(t_ns) & np.isfinite(per_transit["obs_time_bary_corr"])
+            & np.isfinite(np.asarray(cols["scan_pos_angle"], dtype=float))
+            & np.isfinite(np.asarray(cols["centroid_pos_al"], dtype=float)) & (sigma > 0)
+            & np.isfinite(per_transit["parallax_factor_al"]))
+    if need_colour:
+        keep &= np.isfinite(colour)
+    # Barycentric time in days from the TCB origin; summed in ns first (both ~1e17 and 1e11 ns).
+    days = (t_ns[keep] + per_transit["obs_time_bary_corr"][keep]) / _NS_PER_DAY
+    excess = per_transit["agis_source_excess_noise"][keep]
+    excess = np.where(np.isfinite(excess), excess, 0.0)
+    out = CcdObservations(
+        source_id=ids[transit][keep], tcb_jd=TCB_ORIGIN_JD + days,
+        scan_angle_deg=np.asarray(cols["scan_pos_angle"], dtype=float)[keep],
+        parallax_factor_al=per_transit["parallax_factor_al"][keep],
+        centroid_al_mas=np.asarray(cols["centroid_pos_al"], dtype=float)[keep], sigma_al_mas=sigma[keep],
+        excess_noise_mas=excess, colour_factor_al=None if colour is None else colour[keep], transit=transit[keep])
+    order = np.lexsort((out.tcb_jd, out.source_id))
+    return out.take(order)

@@ -81,18 +81,69 @@ def _annotate(args) -> str:
     return f"{n[0]} rows annotated with the {prior.origin} prior in {dt:.2f} s -> {args.out}"
 
 
+def _execution(args):
+    """The execution backend's settings for ``--jobs`` / ``--dask`` (:mod:`mcsweep.runtime.execution`)."""
+    from types import SimpleNamespace
+
+    if args.jobs < 1:
+        raise UserInputError(f"--jobs {args.jobs} is not accepted; expected a positive number of processes")
+    if args.dask is not None:
+        return SimpleNamespace(backend="dask", n_jobs=args.jobs,
+                               scheduler_address=None if args.dask == "local" else args.dask)
+    return SimpleNamespace(backend="loky" if args.jobs > 1 else "sequential", n_jobs=args.jobs,
+                           scheduler_address=None)
+
+
 def _solve(args) -> str:
+    from .prior.epoch_solve import looks_like_epoch_astrometry
+
+    if looks_like_epoch_astrometry(args.observations):
+        return _solve_epochs(args)
     from .prior.observations import read_observations, solve_observations, write_solutions
 
+    if args.model is not None:
+        raise UserInputError(f"--model {args.model} is not accepted for {args.observations.name}; expected it only "
+                             "with Gaia epoch astrometry (one row per transit with per-CCD arrays)")
     prior = _prior(args)
     fmt_out = detect_format(args.out)
     t0 = time.perf_counter()
     obs = read_observations(args.observations, args.sources)
     sol = solve_observations(obs, prior, factor=args.factor, confidence=args.confidence,
-                             reference_epoch=args.reference_epoch)
+                             reference_epoch=args.reference_epoch or "star_mean")
     _publish(args.out, lambda tmp: write_solutions(sol, tmp, fmt_out))
     dt = time.perf_counter() - t0
     return f"{len(sol)} sources solved with the {prior.origin} prior in {dt:.2f} s -> {args.out}"
+
+
+def _solve_epochs(args) -> str:
+    from .prior.epoch_solve import solve_epoch_file
+    from .prior.observations import TableWriter
+    from .runtime.execution import executor
+
+    if args.sources is None:
+        raise UserInputError(f"{args.observations.name} is Gaia epoch astrometry, which has no ra, dec or G; "
+                             "expected --sources SOURCES (a gaia_source extract: source_id, ra, dec, "
+                             "phot_g_mean_mag)")
+    prior = _prior(args)
+    conf = _execution(args)
+    fmt_out = detect_format(args.out)
+    t0 = time.perf_counter()
+    n = [0]
+
+    def write(tmp):
+        with executor(conf) as run, TableWriter(tmp, fmt_out) as out:
+            for table in solve_epoch_file(args.observations, args.sources, prior, model=args.model or "5p",
+                                          factor=args.factor, confidence=args.confidence,
+                                          reference_epoch=args.reference_epoch or "J2017.5",
+                                          run=None if conf.backend == "sequential" else run,
+                                          n_workers=conf.n_jobs):
+                out.write(table)
+                n[0] += len(table)
+
+    _publish(args.out, write)
+    dt = time.perf_counter() - t0
+    return (f"{n[0]} sources of Gaia epoch astrometry solved ({args.model or '5p'}) with the {prior.origin} prior "
+            f"in {dt:.2f} s -> {args.out}")
 
 
 def _simulate(args) -> str:
@@ -127,15 +178,23 @@ def _parser() -> argparse.ArgumentParser:
     a.set_defaults(run_command=_annotate)
 
     s = sub.add_parser("solve", help="solve your own FoV transits of a few sources with the prior")
-    s.add_argument("observations", type=Path, help="one row per FoV transit (README: 'Using the prior')")
+    s.add_argument("observations", type=Path, help="one row per FoV transit: our columns (README: 'Using the "
+                   "prior') or Gaia DR4 epoch astrometry (archive or DPAC files)")
     s.add_argument("--sources", type=Path, help="sources table (source_id, ra, dec, phot_g_mean_mag) if not "
                    "in the observations")
     prior_options(s)
     s.add_argument("--factor", type=float, default=1.0, help="use K x sigma_F90 as the prior (default 1)")
     s.add_argument("--confidence", type=float, default=None, help="P of the confidence ellipse "
                    "(default: the prior's, 0.9 for the paper)")
-    s.add_argument("--reference-epoch", default="star_mean",
-                   help="'star_mean' (each source's mean transit epoch, default) or an ISO date (TCB)")
+    s.add_argument("--reference-epoch", default=None,
+                   help="'star_mean' (each source's mean transit epoch; the default for per-transit input), "
+                   "a Julian year 'J2017.5' or '2017.5' (the default for Gaia epoch astrometry) or an ISO date, TCB")
+    s.add_argument("--model", default=None,
+                   help="Gaia epoch astrometry: '5p' (default) or '6p' (DR4's, with the pseudo-colour constrained)")
+    s.add_argument("--jobs", type=int, default=1, help="Gaia epoch astrometry: local processes (default 1)")
+    s.add_argument("--dask", nargs="?", const="local", default=None, metavar="ADDRESS",
+                   help="Gaia epoch astrometry: solve on a Dask cluster (a new local one, or the scheduler at "
+                   "ADDRESS); needs pip install 'mcsweep[dask]'")
     s.set_defaults(run_command=_solve)
 
     e = sub.add_parser("simulate", help="write an example observations and sources table (the project's simulator)")

@@ -106,17 +106,22 @@ def _segments(sorted_keys: np.ndarray) -> np.ndarray:
 
 
 def _visibility_periods(source_id, transit, tcb_jd, starts) -> tuple[np.ndarray, np.ndarray]:
-    """(FoV transits, visibility periods) per source from its observations' times."""
+    """(FoV transits, visibility periods) per source from its observations' times.
+
+    A transit is a row of the file: two rows of one source may share their CCD times (seen
+    in the DR4 sample: two windows read at once), and both count, as AGIS counts both rows'
+    observations.
+    """
     n = starts.size
-    first_of_transit = np.r_[True, (transit[1:] != transit[:-1]) | (source_id[1:] != source_id[:-1])]
-    t_tr = tcb_jd[first_of_transit]
-    src_tr = np.searchsorted(starts, np.flatnonzero(first_of_transit), side="right") - 1
+    src = np.repeat(np.arange(n), np.diff(np.r_[starts, source_id.size]))
+    order = np.lexsort((tcb_jd, transit, src))
+    s_o, tr_o, t_o = src[order], transit[order], tcb_jd[order]
+    first = np.r_[True, (tr_o[1:] != tr_o[:-1]) | (s_o[1:] != s_o[:-1])]
+    src_tr, t_tr = s_o[first], t_o[first]
     order = np.lexsort((t_tr, src_tr))
-    t_tr, src_tr = t_tr[order], src_tr[order]
+    src_tr, t_tr = src_tr[order], t_tr[order]
     new_period = np.r_[True, (src_tr[1:] != src_tr[:-1]) | (np.diff(t_tr) > VISIBILITY_GAP_DAYS)]
-    n_transits = np.bincount(src_tr, minlength=n)
-    periods = np.bincount(src_tr[new_period], minlength=n)
-    return n_transits, periods
+    return np.bincount(src_tr, minlength=n), np.bincount(src_tr[new_period], minlength=n)
 
 
 def source_normals(obs: CcdObservations, *, model: str = "5p",

@@ -57,6 +57,7 @@ from .solutions import check_factor, solutions_table
 
 __all__ = ["OBSERVATION_COLUMNS", "OPTIONAL_AC", "OBSERVER_COLUMNS", "SOURCE_COLUMNS", "read_table",
            "read_observations", "Observations", "pad_observations", "solve_observations", "write_solutions",
+           "TableWriter",
            "detect_format"]
 
 OBSERVATION_COLUMNS = ("source_id", "tcb_jd", "scan_angle_deg", "al_residual_mas", "al_sigma_mas")
@@ -275,6 +276,54 @@ def write_solutions(table: pd.DataFrame, path, fmt: str) -> None:
             elif c.endswith("_deg") or c in ("ra", "dec"):
                 t[c].unit = "deg"
         t.write(path, format=ASTROPY_FORMAT[fmt])
+
+
+class TableWriter:
+    """Writes a solutions table given in pieces: CSV and Parquet streamed piece by piece (flat
+    memory), the astropy formats (FITS, VOTable, ECSV) gathered and written on closing."""
+
+    def __init__(self, path, fmt: str):
+        self.path, self.fmt = Path(path), fmt
+        self._pieces: list[pd.DataFrame] = []
+        self._parquet = None
+        self._csv = None
+        self._columns = None
+
+    def __enter__(self):
+        return self
+
+    def write(self, table: pd.DataFrame) -> None:
+        if self._columns is None:
+            self._columns = list(table.columns)
+        if self.fmt == "csv":
+            if self._csv is None:
+                self._csv = open(self.path, "w", newline="")
+            table.to_csv(self._csv, index=False, header=self._csv.tell() == 0)
+        elif self.fmt == "parquet":
+            import pyarrow as pa
+            import pyarrow.parquet as pq
+
+            batch = pa.Table.from_pandas(table, preserve_index=False)
+            if self._parquet is None:
+                self._parquet = pq.ParquetWriter(self.path, batch.schema)
+            self._parquet.write_table(batch.cast(self._parquet.schema))
+        else:
+            self._pieces.append(table)
+
+    def __exit__(self, exc_type, exc, tb):
+        if self._csv is not None:
+            self._csv.close()
+        if self._parquet is not None:
+            self._parquet.close()
+        if exc_type is not None:
+            return False
+        if self.fmt in ("csv", "parquet"):
+            if self._columns is None:  # no source at all: an empty table with no columns
+                write_solutions(pd.DataFrame(), self.path, self.fmt)
+        else:
+            write_solutions(pd.concat(self._pieces, ignore_index=True) if self._pieces else pd.DataFrame(),
+                            self.path, self.fmt)
+        return False
 
 
 # The parameter order of the astrometry stage is the one used above.

@@ -103,6 +103,28 @@ class TableChunk:
     def unit(self, name):
         return self.units.get(name)
 
+    def take(self, rows) -> "TableChunk":
+        """The rows ``rows`` (indices or a boolean mask), in that order."""
+        rows = np.flatnonzero(rows) if np.asarray(rows).dtype == bool else np.asarray(rows, dtype=np.int64)
+        return TableChunk({k: (v.take(rows) if isinstance(v, Ragged) else v[rows]) for k, v in self.columns.items()},
+                          self.units, self.source, self.first_row + (int(rows[0]) if rows.size else 0))
+
+    @staticmethod
+    def concat(chunks: list["TableChunk"]) -> "TableChunk":
+        """The rows of ``chunks`` one after the other (same columns)."""
+        chunks = [c for c in chunks if c is not None]
+        if len(chunks) == 1:
+            return chunks[0]
+        cols = {}
+        for name in chunks[0].names:
+            parts = [c[name] for c in chunks]
+            if any(isinstance(p, Ragged) for p in parts) or len({np.shape(p)[1:] for p in parts}) > 1:
+                rag = [as_ragged(p, name=name, source=chunks[0].source) for p in parts]
+                cols[name] = Ragged(np.concatenate([r.values for r in rag]), np.concatenate([r.lengths for r in rag]))
+            else:
+                cols[name] = np.concatenate(parts)
+        return TableChunk(cols, chunks[0].units, chunks[0].source, chunks[0].first_row)
+
     def frame(self):
         """The scalar columns as a pandas DataFrame (array columns as object columns of arrays)."""
         import pandas as pd
@@ -232,18 +254,7 @@ def read_table(path, *, fmt: str = "auto", what: str = "") -> TableChunk:
     ``what`` names the file's role in messages. Raises :class:`UserInputError` (one line)
     if the file is missing or unreadable in that format.
     """
-    chunks = list(iter_tables(path, fmt=fmt, what=what, batch_rows=None))
-    if len(chunks) == 1:
-        return chunks[0]
-    first = chunks[0]
-    cols = {}
-    for name in first.names:
-        parts = [c[name] for c in chunks]
-        if isinstance(parts[0], Ragged):
-            cols[name] = Ragged(np.concatenate([p.values for p in parts]), np.concatenate([p.lengths for p in parts]))
-        else:
-            cols[name] = np.concatenate(parts)
-    return TableChunk(cols, first.units, first.source)
+    return TableChunk.concat(list(iter_tables(path, fmt=fmt, what=what, batch_rows=None)))
 
 
 def iter_tables(path, *, fmt: str = "auto", what: str = "", batch_rows: int | None = DEFAULT_BATCH_ROWS,

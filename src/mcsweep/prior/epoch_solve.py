@@ -1,0 +1,252 @@
+"""Solve Gaia DR4 epoch astrometry with and without the prior (``mcsweep-prior solve EPOCH_FILE``).
+
+Input: an epoch-astrometry file of the Gaia archive or of DPAC (any format and either column
+convention, :mod:`mcsweep.astrometry.epoch_astrometry`) and a sources table, an extract of
+``gaia_source`` with ``source_id``, ``ra``, ``dec`` [deg] and ``phot_g_mean_mag``, and
+``bp_rp`` or ``phot_bp_mean_mag``/``phot_rp_mean_mag`` if present (for a prior with a colour
+axis). Each source's AL CCD observations give its normal equations as AGIS's source update
+forms them (:mod:`mcsweep.astrometry.source_update`: the file's parallax factor,
+barycentric time, the CCDs AGIS used, weights with AGIS's excess noise; five parameters, or
+DR4's six with the constrained pseudo-colour), at the reference epoch J2017.5 (TCB) unless
+told otherwise. From them every source gets the columns of
+:func:`mcsweep.prior.solutions.solutions_table` (its ``no_prior_*`` columns are the
+source update without prior; ``solution`` says which to use), plus ``model``, ``n_ccd_al``,
+``excess_noise_mas`` and, for 6p, ``pseudocolour`` and ``pseudocolour_error`` [nm^-1].
+
+Large inputs. The file is read in batches of rows (Parquet by row groups, CSV in chunks) and
+each batch is solved on its own, so memory is flat in the number of sources; a ``run``
+callable (the execution backend of :mod:`mcsweep.runtime.execution`, given by the command)
+solves batches in parallel, in a window of a few batches at a time. A source's rows may not
+be split between batches: the rows of the batch's last source are carried into the next
+batch, so the file must hold each source's rows together (the archive's files do; a file
+that fits one batch may be in any order). A source seen again after its batch was solved is
+refused in one line naming it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import partial
+from pathlib import Path
+from typing import Callable, Iterator
+
+import numpy as np
+import pandas as pd
+
+from ..astrometry.epoch_astrometry import COLUMNS, ccd_observations, is_epoch_astrometry
+from ..astrometry.source_update import check_model, source_normals
+from ..errors import UserInputError
+from ..tables import TableChunk, integer_ids, iter_tables, read_table
+from .columns import finite_column
+from .epochs import reference_epoch_jd
+from .model import Prior
+from .solutions import check_factor, solutions_table
+
+__all__ = ["BATCH_ROWS", "SourceTable", "read_sources", "looks_like_epoch_astrometry", "epoch_batches",
+           "solve_epoch_batch", "solve_epoch_file"]
+
+#: FoV transits per batch (about 80 MB of per-CCD arrays at 10 CCDs and 10 columns).
+BATCH_ROWS = 100_000
+#: Batches in flight per worker when solving in parallel (bounded memory, workers kept busy).
+_WINDOW_PER_WORKER = 2
+
+
+@dataclass(frozen=True)
+class SourceTable:
+    """The sources table, sorted by ``source_id`` (int64, exact)."""
+
+    source_id: np.ndarray
+    ra: np.ndarray
+    dec: np.ndarray
+    phot_g_mean_mag: np.ndarray
+    bp_rp: np.ndarray
+    name: str
+
+    def rows_of(self, ids: np.ndarray, epoch_file: str) -> np.ndarray:
+        """Index of each of ``ids`` in this table; UserInputError naming the first one absent."""
+        where = np.searchsorted(self.source_id, ids)
+        found = (where < self.source_id.size) & (self.source_id[np.minimum(where, self.source_id.size - 1)] == ids)
+        if not found.all():
+            raise UserInputError(f"{epoch_file}: source_id {ids[~found][0]} has no row in {self.name}; expected "
+                                 "ra, dec and phot_g_mean_mag for every source of the epoch file")
+        return where
+
+    def subset(self, ids: np.ndarray, epoch_file: str) -> "SourceTable":
+        rows = self.rows_of(np.unique(ids), epoch_file)
+        return SourceTable(self.source_id[rows], self.ra[rows], self.dec[rows], self.phot_g_mean_mag[rows],
+                           self.bp_rp[rows], self.name)
+
+
+def read_sources(path) -> SourceTable:
+    """The ``--sources`` table (module notes), checked: exact ids, once each, finite ra, dec, G."""
+    t = read_table(path, what="--sources")
+    name = Path(path).name
+    cols = {k: t.find(k) for k in ("source_id", "ra", "dec", "phot_g_mean_mag")}
+    missing = [k for k, v in cols.items() if v is None]
+    if missing:
+        raise UserInputError(f"{name}: columns {t.names[:12]} lack {missing}; expected a gaia_source extract with "
+                             "source_id, ra, dec [deg] and phot_g_mean_mag")
+    ids = integer_ids(t[cols["source_id"]], cols["source_id"], name)
+    order = np.argsort(ids, kind="stable")
+    ids = ids[order]
+    dup = ids[1:][ids[1:] == ids[:-1]]
+    if dup.size:
+        raise UserInputError(f"{name}: source_id {dup[0]} appears twice; expected one row per source")
+    vals = {k: finite_column(t[cols[k]], cols[k], name)[order] for k in ("ra", "dec", "phot_g_mean_mag")}
+    if np.any(np.abs(vals["dec"]) > 90):
+        raise UserInputError(f"{name}: column {cols['dec']} has values beyond +-90; expected degrees")
+    bp_rp = np.full(ids.size, np.nan)
+    c = t.find("bp_rp")
+    bp, rp = t.find("phot_bp_mean_mag"), t.find("phot_rp_mean_mag")
+    try:
+        if c is not None:
+            bp_rp = np.asarray(t[c], dtype=float)[order]
+        elif bp is not None and rp is not None:
+            bp_rp = (np.asarray(t[bp], dtype=float) - np.asarray(t[rp], dtype=float))[order]
+    except (TypeError, ValueError):
+        raise UserInputError(f"{name}: the colour columns have non-numeric values; expected magnitudes (empty or "
+                             "NaN where unknown)") from None
+    return SourceTable(ids, vals["ra"], vals["dec"], vals["phot_g_mean_mag"], bp_rp, name)
+
+
+def looks_like_epoch_astrometry(path) -> bool:
+    """Whether the table at ``path`` is epoch astrometry (from its first rows only)."""
+    for chunk in iter_tables(path, what="observations", batch_rows=16):
+        return is_epoch_astrometry(chunk)
+    return False
+
+
+def _source_ids(chunk: TableChunk) -> np.ndarray:
+    name = chunk.find(*COLUMNS["source_id"])
+    if name is None:
+        raise UserInputError(f"{chunk.source}: not Gaia epoch astrometry, lacks source_id (or sourceId); expected "
+                             "the columns of the archive's epoch_astrometry")
+    return integer_ids(chunk[name], name, chunk.source)
+
+
+def epoch_batches(path, *, batch_rows: int = BATCH_ROWS) -> Iterator[tuple[TableChunk, np.ndarray]]:
+    """Batches of the epoch file that hold whole sources, with each row's source_id (module notes)."""
+    carry: TableChunk | None = None
+    done: list[np.ndarray] = []
+    source = Path(path).name
+    for chunk in iter_tables(path, what="epoch astrometry", batch_rows=batch_rows):
+        if not len(chunk):
+            continue
+        chunk = TableChunk.concat([carry, chunk]) if carry is not None else chunk
+        ids = _source_ids(chunk)
+        last = ids == ids[-1]
+        if last.all():
+            carry = chunk
+            continue
+        carry = chunk.take(last)
+        ready = chunk.take(~last)
+        yield ready, _checked_once(ids[~last], done, source)
+    if carry is not None:
+        ids = _source_ids(carry)
+        yield carry, _checked_once(ids, done, source)
+
+
+def _checked_once(ids: np.ndarray, done: list[np.ndarray], source: str) -> np.ndarray:
+    """``ids``, after checking that none of its sources was in an earlier batch (8 bytes per source kept)."""
+    unique = np.unique(ids)
+    for earlier in done:
+        pos = np.searchsorted(earlier, unique)
+        seen = (pos < earlier.size) & (earlier[np.minimum(pos, earlier.size - 1)] == unique)
+        if seen.any():
+            raise UserInputError(f"{source}: the rows of source_id {unique[seen][0]} are not together (it appears "
+                                 "again after other sources); expected each source's rows in one block, as the "
+                                 "archive writes them (sort the file by source_id)")
+    done.append(unique)
+    return ids
+
+
+def solve_epoch_batch(chunk: TableChunk, sources: SourceTable, prior: Prior, *, model: str, factor: float,
+                      confidence: float | None, reference_epoch: float | None) -> pd.DataFrame:
+    """The solutions table (module notes) of the sources of one batch of an epoch file."""
+    obs = ccd_observations(chunk, need_colour=(model == "6p"))
+    all_ids = np.unique(_source_ids(chunk))
+    sn = source_normals(obs, model=model, reference_epoch_jd=reference_epoch)
+    if sn.source_id.size != all_ids.size:
+        lost = np.setdiff1d(all_ids, sn.source_id)[0]
+        raise UserInputError(f"{chunk.source}: source_id {lost} has no usable AL CCD observation (none with "
+                             "used_by_agis_al true and time, barycentric correction, scan angle, centroid and a "
+                             "positive error present); expected at least one per source")
+    src = sources.subset(sn.source_id, chunk.source)
+    table = solutions_table(sn.source_id, src.ra, src.dec, src.phot_g_mean_mag, src.bp_rp, sn.N, sn.b,
+                            n_transits=sn.n_transits, reference_epoch_jd=sn.reference_epoch_jd,
+                            n_visibility_periods=sn.n_visibility_periods, time_span_yr=sn.time_span_yr,
+                            prior=prior, factor=factor, confidence=confidence)
+    table.insert(1, "model", model)
+    table.insert(table.columns.get_loc("n_transits") + 1, "n_ccd_al", sn.n_ccd)
+    table["excess_noise_mas"] = sn.excess_noise_mas
+    if sn.pseudocolour is not None:
+        table["pseudocolour"] = sn.pseudocolour
+        table["pseudocolour_error"] = sn.pseudocolour_error
+    return table
+
+
+def _indexed(fn, item):
+    i, batch = item
+    return i, fn(*batch)
+
+
+def solve_epoch_file(epoch_path, sources_path, prior: Prior, *, model: str = "5p", factor: float = 1.0,
+                     confidence: float | None = None, reference_epoch: str = "J2017.5",
+                     batch_rows: int = BATCH_ROWS, run: Callable | None = None,
+                     n_workers: int = 1) -> Iterator[pd.DataFrame]:
+    """The solutions of every source of ``epoch_path``, one table per batch, in file order.
+
+    Parameters
+    ----------
+    epoch_path, sources_path : path-like
+    prior : Prior
+    model : {'5p', '6p'}
+    factor, confidence
+        As :func:`mcsweep.prior.solutions.solutions_table`.
+    reference_epoch : str
+        'J2017.5' (DR4's, default), another Julian year or ISO date (TCB), or 'star_mean'
+        (each source's mean epoch of observation, Sect. 2.1).
+    batch_rows : int
+        FoV transits read per batch.
+    run : callable, optional
+        ``run(fn, items)`` yielding ``fn(item)`` in completion order (the command's execution
+        backend); None solves the batches here, one after the other.
+    n_workers : int
+        Workers behind ``run``: the window of batches in flight is a few per worker.
+    """
+    check_model(model)
+    check_factor(factor)
+    epoch = None if str(reference_epoch) == "star_mean" else reference_epoch_jd(reference_epoch)
+    sources = read_sources(sources_path)
+    name = Path(epoch_path).name
+    solve = partial(solve_epoch_batch, prior=prior, model=model, factor=factor, confidence=confidence,
+                    reference_epoch=epoch)
+
+    def items():
+        for chunk, ids in epoch_batches(epoch_path, batch_rows=batch_rows):
+            yield chunk, sources.subset(ids, name)
+
+    if run is None:
+        for chunk, src in items():
+            yield solve(chunk, src)
+        return
+    window = max(1, n_workers * _WINDOW_PER_WORKER)
+    pending: dict[int, pd.DataFrame] = {}
+    next_out = 0
+    batch: list = []
+    fn = partial(_indexed, solve)
+    for i, item in enumerate(items()):
+        batch.append((i, item))
+        if len(batch) == window:
+            for j, table in run(fn, batch):
+                pending[j] = table
+            batch = []
+            while next_out in pending:
+                yield pending.pop(next_out)
+                next_out += 1
+    if batch:
+        for j, table in run(fn, batch):
+            pending[j] = table
+    while next_out in pending:
+        yield pending.pop(next_out)
+        next_out += 1

@@ -30,23 +30,27 @@ unweighted (every transit's factor is exact):
    offsets about each start, so the poles are no special case; the lowest minimum wins.
 
 There is no exact two-fold ambiguity: at the antipode ``p`` changes sign and ``q`` does
-not, so its factors are not ``-P_AL`` and the fit's minimum there is poor; with several
-years of scans (many theta and ``b`` at once) the minimum is unique in practice.
+not, so its factors are not ``-P_AL`` and the fit is poor there. Other local minima do
+occur, but far worse than the solution (on the vendored sample: one near a pole with an
+RMS of 0.09 against 9e-4 at the solution), hence the several starts.
 
 Accuracy. The files' factors hold Gaia's real orbit, a Lissajous orbit about L2 of a few
 1e-3 au amplitude with a period of ~180 days; the model here is L2 itself (1.01 x the
 Sun-EMB vector), so the model's ``b`` is wrong by ~1e-3 au, slowly varying, and so are
 the modelled factors. A change of direction by ``x`` rad changes ``P_AL`` by up to
-``|b| x ~ x`` (|b| ~ 1 au), hence the direction is biased by ~1e-3 rad (~0.1 deg at
-worst; measured on simulated scans with a Lissajous-like offset of that size: a few
-hundredths of a degree) and the residual RMS of ``P_AL`` at the solution is ~1e-3, the
-size of the orbit's offset, not of the direction's error. A second, smaller cause: the
-time used is the barycentric ``obs_time_tcb + obs_time_bary_corr`` (what
+``|b| x ~ x`` (|b| ~ 1 au), and the orbit's offset, semi-annual like the scans' sampling
+of each source, does not average out: the direction is biased by ~1e-3 rad, ~0.1 deg.
+Measured: 0.02-0.2 deg on simulated scans whose factors hold a Lissajous-like offset of
+Gaia's size (semi-amplitudes 0.9, 2.4, 1.2 x 1e-3 au; ``tests/astrometry/test_direction.py``),
+and 0.07 and 0.10 deg for the two sample sources that are Hipparcos stars (HIP 983 and
+114046). The residual RMS of ``P_AL`` at the solution is ~1e-3, the size of the orbit's
+offset, not of the direction's error. A second, smaller cause: the time used is the
+barycentric ``obs_time_tcb + obs_time_bary_corr`` (what
 :func:`~mcsweep.astrometry.epoch_astrometry.ccd_observations` gives), not the time at
 Gaia; the difference (< 500 s) moves Gaia by < 1e-4 au. With the model's own ``b``
-(simulated data) the direction is recovered to ~1e-9 deg. Enough to place a source on
-the sky (its Galactic latitude, the prior's sigma_F90 at its direction), not as
-astrometry.
+(simulated data) the direction is recovered to rounding error (< 1e-12 deg). Enough to
+place a source on the sky (its Galactic latitude, the prior's sigma_F90 at its
+direction), not as astrometry.
 
 ``python -m mcsweep.astrometry.direction`` regenerates ``sample_sources.csv`` beside the
 vendored sample (:func:`main`): each source's recovered direction, its G (AGIS's

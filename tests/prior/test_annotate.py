@@ -112,7 +112,7 @@ def _bad_cases(p):
     km["ra"].unit = u.km
     km.write(p / "km.fits")
     (p / "junk.fits").write_bytes(b"not a fits file")
-    (p / "table.txt").write_text("x")
+    (p / "table.dat").write_text("x")
     s = t.astype({"dec": object})
     s.loc[3, "dec"] = "north"
     s.to_csv(p / "str.csv", index=False)
@@ -121,7 +121,7 @@ def _bad_cases(p):
         (["annotate", p / "nan.parquet", "--out", p / "o2.parquet"], "NaN"),
         (["annotate", p / "km.fits", "--out", p / "o3.fits"], "km"),
         (["annotate", p / "junk.fits", "--out", p / "o4.fits"], "junk.fits"),
-        (["annotate", p / "table.txt", "--out", p / "o5.csv"], "suffix"),
+        (["annotate", p / "table.dat", "--out", p / "o5.csv"], "suffix"),
         (["annotate", p / "missing.csv", "--out", p / "o6.csv"], "missing.csv"),
         (["annotate", p / "str.csv", "--out", p / "o7.csv"], "dec"),
         (["annotate", p / "nog.csv", "--out", p / "o8.csv", "--run", p], "coefficients.csv"),

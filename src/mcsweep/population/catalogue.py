@@ -21,9 +21,9 @@ import numpy as np
 import pandas as pd
 from astropy import units as u
 from astropy.coordinates import ICRS, Galactic, SkyCoord
-from astropy.table import Table
 
 from ..errors import UserInputError
+from ..tables import FORMATS, detect_format
 from . import sky
 from .query import COLUMNS, ConeQuery
 
@@ -49,54 +49,18 @@ UNITS = {
     "pmdec": (u.mas / u.yr, "mas/yr"), "phot_g_mean_mag": (u.mag, "mag"),
     "distance_pc": (u.pc, "pc"),
 }
-#: Accepted values of ``format`` and the file suffixes that select them under 'auto'.
-FORMATS = {
-    "fits": (".fits", ".fit", ".fits.gz", ".fz"),
-    "votable": (".vot", ".votable", ".xml"),
-    "ecsv": (".ecsv",),
-    "csv": (".csv", ".csv.gz", ".txt", ".tsv"),
-    "parquet": (".parquet", ".pq"),
-}
-
-
-def _detect(path, fmt):
-    if fmt != "auto":
-        if fmt not in FORMATS:
-            raise UserInputError(f"catalogue {path.name}: format={fmt!r} is not accepted; "
-                                 f"expected 'auto' or one of {sorted(FORMATS)}")
-        return fmt
-    name = path.name.lower()
-    for f, suffixes in FORMATS.items():
-        if name.endswith(suffixes):
-            return f
-    raise UserInputError(f"catalogue {path.name}: cannot tell the format from the file name; "
-                         f"expected a suffix in {sorted(s for v in FORMATS.values() for s in v)} "
-                         "or population.format set")
-
-
 def _read(path, fmt):
-    """Read the file: dict name -> (values, astropy unit or None)."""
+    """Read the file with the one table reader: dict name -> (values, astropy unit or None)."""
+    from ..tables import read_table
+
     try:
-        if fmt in ("csv", "parquet"):
-            if fmt == "csv":
-                sep = "\t" if path.name.lower().endswith(".tsv") else ","
-                df = pd.read_csv(path, sep=sep, comment="#")
-            else:
-                df = pd.read_parquet(path)
-            return {str(c): (df[c].to_numpy(), None) for c in df.columns}
-        t = Table.read(path, format={"fits": "fits", "votable": "votable",
-                                     "ecsv": "ascii.ecsv"}[fmt])
-    except FileNotFoundError:
-        raise UserInputError(f"catalogue {path.name}: file not found at {path}") from None
-    except Exception as exc:  # the readers raise many types; report them on one line
-        raise UserInputError(f"catalogue {path.name}: cannot be read as {fmt} "
-                             f"({type(exc).__name__}: {exc})") from None
-    out = {}
-    for name in t.colnames:
-        col = t[name]
-        vals = col.filled(np.nan) if hasattr(col, "filled") and col.dtype.kind in "fiu" else col
-        out[name] = (np.asarray(vals), col.unit)
-    return out
+        t = read_table(path, fmt=fmt, what="catalogue")
+    except UserInputError as exc:
+        if not path.is_file():
+            raise UserInputError(f"catalogue {path.name}: file not found at {path}") from None
+        raise exc
+    return {str(n): (np.asarray(t[n]), u.Unit(t.unit(n), parse_strict="silent") if t.unit(n) else None) for n in t.names
+            if getattr(t[n], "ndim", 2) == 1}
 
 
 class CatalogueSource:
@@ -128,7 +92,7 @@ class CatalogueSource:
         if on_missing not in ("error", "drop"):
             raise UserInputError(f"catalogue {self.path.name}: on_missing={on_missing!r} is not "
                                  "accepted; expected 'error' or 'drop'")
-        self.format = _detect(self.path, format)
+        self.format = detect_format(self.path, format, what="catalogue")
         if not self.path.is_file():
             raise UserInputError(f"catalogue {self.path.name}: file not found at {self.path}")
         raw = _read(self.path, self.format)

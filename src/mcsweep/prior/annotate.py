@@ -28,6 +28,9 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserInputError
+from ..tables import FORMATS, detect_format
+from ..tables.formats import ASTROPY_FORMAT
+from ..tables.read import arrow_batches, astropy_table, csv_batches
 from .columns import finite_column, unit_scale
 from ..galactic import galactic_from_icrs
 from .model import Prior
@@ -44,28 +47,8 @@ MEAN_COLUMNS = ("prior_mean_parallax", "prior_mean_pmra", "prior_mean_pmdec")
 #: Units of the added columns (None: a string column).
 _UNITS = {PARALLAX_COLUMN: "mas", PM_COLUMN: "mas / yr", COLOUR_BIN_COLUMN: None, MEAN_COLUMNS[0]: "mas",
           MEAN_COLUMNS[1]: "mas / yr", MEAN_COLUMNS[2]: "mas / yr"}
-#: Accepted formats and the suffixes that select them.
-FORMATS = {
-    "fits": (".fits", ".fit", ".fits.gz"),
-    "votable": (".vot", ".votable", ".xml"),
-    "ecsv": (".ecsv",),
-    "csv": (".csv",),
-    "parquet": (".parquet", ".pq"),
-}
-ASTROPY_FORMAT = {"fits": "fits", "votable": "votable", "ecsv": "ascii.ecsv", "csv": "ascii.csv",
-                   "parquet": "parquet"}
 #: Rows per batch when streaming (about 25 MB of float64 columns at 12 columns).
 BATCH_ROWS = 262_144
-
-
-def detect_format(path: Path) -> str:
-    """Format name from the file suffix, or UserInputError naming the accepted suffixes."""
-    name = Path(path).name.lower()
-    for fmt, suffixes in FORMATS.items():
-        if name.endswith(suffixes):
-            return fmt
-    accepted = sorted(s for v in FORMATS.values() for s in v)
-    raise UserInputError(f"{Path(path).name}: cannot tell the format from the suffix; expected one of {accepted}")
 
 
 def _find(names, wanted: str):
@@ -187,32 +170,25 @@ def _parquet_stream(src, dst, prior, source, batch_rows) -> int:
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    try:
-        # pre_buffer=False: with pre-buffering, pyarrow keeps read-ahead buffers of
-        # past row groups and the peak memory grows with the file (measured: 276 MB at
-        # 1e6 rows, 413 MB at 4e6; without it 276 MB for both).
-        pf = pq.ParquetFile(src, pre_buffer=False)
-    except Exception as exc:  # pyarrow raises ArrowInvalid, OSError, ...
-        raise UserInputError(f"{source}: cannot be read as Parquet ({type(exc).__name__}); "
-                             "expected a Parquet file") from None
-    names = pf.schema_arrow.names
+    schema_in, batches = arrow_batches(src, batch_rows, what="catalogue")
+    names = schema_in.names
     added = output_columns(prior)
     kind, pos, gcol = _columns(names, source, added)
     colour_cols = _colour_columns(names)
     # Units a writer may have stored as field metadata (astropy, our own files) are honoured.
     units = {}
-    for f in pf.schema_arrow:
+    for f in schema_in:
         meta = f.metadata or {}
         if b"unit" in meta:
             units[f.name] = meta[b"unit"].decode()
-    schema = pf.schema_arrow
+    schema = schema_in
     for name in added:
         unit = _UNITS[name]
         schema = schema.append(pa.field(name, pa.float64(), metadata={"unit": unit}) if unit
                                else pa.field(name, pa.string()))
     n = 0
     with pq.ParquetWriter(dst, schema) as writer:
-        for batch in pf.iter_batches(batch_size=batch_rows):
+        for batch in batches:
             cols = _prior_of_table(prior, kind, pos, gcol, lambda c: batch.column(c).to_numpy(zero_copy_only=False),
                                    units, source, colour_cols)
             out = pa.RecordBatch.from_arrays([*batch.columns, *(pa.array(cols[c]) for c in added)], schema=schema)
@@ -222,38 +198,25 @@ def _parquet_stream(src, dst, prior, source, batch_rows) -> int:
 
 
 def _csv_stream(src, dst, prior, source, batch_rows) -> int:
-    import pandas as pd
-
     n = 0
-    try:
-        reader = pd.read_csv(src, chunksize=batch_rows, comment="#")
-        with open(dst, "w", newline="") as f:
-            added = output_columns(prior)
-            for i, chunk in enumerate(reader):
-                kind, pos, gcol = _columns(chunk.columns, source, added)
-                cols = _prior_of_table(prior, kind, pos, gcol, lambda c: chunk[c].to_numpy(), {}, source,
-                                       _colour_columns(chunk.columns))
-                for name in added:
-                    chunk[name] = cols[name]
-                chunk.to_csv(f, index=False, header=(i == 0))
-                n += len(chunk)
-    except UserInputError:
-        raise
-    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
-        raise UserInputError(f"{source}: cannot be read as CSV ({type(exc).__name__}); expected a CSV table "
-                             "with a header line") from None
+    added = output_columns(prior)
+    with open(dst, "w", newline="") as f:
+        for i, chunk in enumerate(csv_batches(src, batch_rows, what="catalogue")):
+            frame = chunk.frame()
+            kind, pos, gcol = _columns(frame.columns, source, added)
+            cols = _prior_of_table(prior, kind, pos, gcol, lambda c: frame[c].to_numpy(), {}, source,
+                                   _colour_columns(frame.columns))
+            for name in added:
+                frame[name] = cols[name]
+            frame.to_csv(f, index=False, header=(i == 0))
+            n += len(frame)
     return n
 
 
 def _astropy_whole(src, dst, prior, source, fmt_in, fmt_out) -> int:
     from astropy import units as u
-    from astropy.table import Table
 
-    try:
-        t = Table.read(src, format=ASTROPY_FORMAT[fmt_in])
-    except Exception as exc:  # the readers raise many types; report them on one line
-        raise UserInputError(f"{source}: cannot be read as {fmt_in} ({type(exc).__name__}); "
-                             f"expected a {fmt_in} table") from None
+    t = astropy_table(src, fmt_in, what="catalogue")
     added = output_columns(prior)
     kind, pos, gcol = _columns(t.colnames, source, added)
 

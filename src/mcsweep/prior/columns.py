@@ -17,17 +17,14 @@ def read_run_table(path, columns, needed_for: str, numeric=()):
     :class:`UserInputError`: the file is missing (``needed_for`` says which runs write it), is
     not CSV, lacks columns, or has non-numbers in the ``numeric`` ones (NaN allowed), which
     are returned as float64."""
-    import pandas as pd
     from pathlib import Path
+
+    from ..tables import read_table
 
     path = Path(path)
     if not path.is_file():
         raise UserInputError(f"run directory {path.parent} has no {path.name}; expected it in a sweep {needed_for}")
-    try:
-        table = pd.read_csv(path)
-    except (ValueError, OSError) as exc:
-        raise UserInputError(f"{path}: cannot be read as CSV ({type(exc).__name__}); expected the columns "
-                             f"{', '.join(columns)}") from None
+    table = read_table(path, fmt="csv", what="run table").frame()
     missing = [c for c in columns if c not in table.columns]
     if missing:
         raise UserInputError(f"{path} lacks the columns {missing}; expected {', '.join(columns)}")

@@ -62,13 +62,13 @@ OPTIONAL_COLUMNS = {"colour_factor_al": ("colour_factor_al", "colourFactorAl")}
 #: The origin of ``obs_time_tcb``: 2010-01-01T00:00:00 TCB as a Julian date (TCB), the
 #: TIMESYS origin of the DR4 epoch-astrometry files.
 TCB_ORIGIN_JD = 2455197.5
-_PER_CCD = ("obs_time_tcb", "scan_pos_angle", "centroid_pos_al", "centroid_pos_error_al", "used_by_agis_al")
 _NS_PER_DAY = 86400e9
 
 
 @dataclass(frozen=True)
 class CcdObservations:
-    """The kept AL CCD observations of a batch of transits, sorted by (source_id, time).
+    """The kept AL CCD observations of a batch of transits, grouped by source_id (increasing),
+    in file order within a source (a transit's CCDs together).
 
     Arrays are per CCD observation (length m) unless named per transit.
 
@@ -106,7 +106,7 @@ class CcdObservations:
 
 
 def concatenate(parts: list[CcdObservations]) -> CcdObservations:
-    """One :class:`CcdObservations` of several, transits renumbered, sorted by (source_id, time)."""
+    """One :class:`CcdObservations` of several, transits renumbered, grouped by source_id."""
     parts = [p for p in parts if len(p)]
     if not parts:
         return _empty()
@@ -120,8 +120,7 @@ def concatenate(parts: list[CcdObservations]) -> CcdObservations:
                              for k in ("source_id", "tcb_jd", "scan_angle_deg", "parallax_factor_al",
                                        "centroid_al_mas", "sigma_al_mas", "excess_noise_mas")},
                           colour_factor_al=colour, transit=np.concatenate(transits))
-    order = np.lexsort((out.tcb_jd, out.source_id))
-    return out.take(order)
+    return out.take(np.argsort(out.source_id, kind="stable"))
 
 
 def _empty() -> CcdObservations:
@@ -206,37 +205,37 @@ def ccd_observations(chunk: TableChunk, *, need_colour: bool = False) -> CcdObse
     ids = integer_ids(chunk[names["source_id"]], names["source_id"], source)
     time = _per_ccd(chunk, names["obs_time_tcb"], source)
     lengths = time.lengths
-    cols = {k: _per_ccd(chunk, names[k], source, lengths).values for k in _PER_CCD if k != "obs_time_tcb"}
-    cols["obs_time_tcb"] = time.values
+    f64 = {k: np.asarray(_per_ccd(chunk, names[k], source, lengths).values, dtype=float)
+           for k in ("scan_pos_angle", "centroid_pos_al", "centroid_pos_error_al")}
+    used = _per_ccd(chunk, names["used_by_agis_al"], source, lengths).values
+    t_ns = np.asarray(time.values, dtype=float)
+    row = {k: _per_transit(chunk[names[k]], n, names[k], source)
+           for k in ("obs_time_bary_corr", "parallax_factor_al", "agis_source_excess_noise")}
     transit = np.repeat(np.arange(n, dtype=np.int64), lengths)
-    per_transit = {k: _per_transit(chunk[names[k]], n, names[k], source)[transit]
-                   for k in ("obs_time_bary_corr", "parallax_factor_al", "agis_source_excess_noise")}
+    row_ok = np.isfinite(row["obs_time_bary_corr"]) & np.isfinite(row["parallax_factor_al"])
+    keep = ((used == 1) & np.isfinite(t_ns) & np.isfinite(f64["scan_pos_angle"])
+            & np.isfinite(f64["centroid_pos_al"]) & (f64["centroid_pos_error_al"] > 0) & row_ok[transit])
     colour = None
     if "colour_factor_al" in names:
         c = chunk[names["colour_factor_al"]]
         if isinstance(c, Ragged) or np.asarray(c).ndim == 2 or np.asarray(c).dtype.kind in "OUS":
-            colour = _per_ccd(chunk, names["colour_factor_al"], source, lengths).values.astype(float)
+            colour = np.asarray(_per_ccd(chunk, names["colour_factor_al"], source, lengths).values, dtype=float)
         else:
             # Some files hold one colour factor per transit: the same for its CCDs.
             colour = np.asarray(c, dtype=float)[transit]
-    t_ns = np.asarray(cols["obs_time_tcb"], dtype=float)
-    used = np.asarray(cols["used_by_agis_al"]).astype(float)
-    sigma = np.asarray(cols["centroid_pos_error_al"], dtype=float)
-    keep = ((used == 1) & np.isfinite(t_ns) & np.isfinite(per_transit["obs_time_bary_corr"])
-            & np.isfinite(np.asarray(cols["scan_pos_angle"], dtype=float))
-            & np.isfinite(np.asarray(cols["centroid_pos_al"], dtype=float)) & (sigma > 0)
-            & np.isfinite(per_transit["parallax_factor_al"]))
-    if need_colour:
-        keep &= np.isfinite(colour)
+        if need_colour:
+            keep &= np.isfinite(colour)
+    rows = transit[keep]
     # Barycentric time in days from the TCB origin; summed in ns first (both ~1e17 and 1e11 ns).
-    days = (t_ns[keep] + per_transit["obs_time_bary_corr"][keep]) / _NS_PER_DAY
-    excess = per_transit["agis_source_excess_noise"][keep]
-    excess = np.where(np.isfinite(excess), excess, 0.0)
+    days = (t_ns[keep] + row["obs_time_bary_corr"][rows]) / _NS_PER_DAY
+    excess = row["agis_source_excess_noise"]
+    excess = np.where(np.isfinite(excess), excess, 0.0)[rows]
     out = CcdObservations(
-        source_id=ids[transit][keep], tcb_jd=TCB_ORIGIN_JD + days,
-        scan_angle_deg=np.asarray(cols["scan_pos_angle"], dtype=float)[keep],
-        parallax_factor_al=per_transit["parallax_factor_al"][keep],
-        centroid_al_mas=np.asarray(cols["centroid_pos_al"], dtype=float)[keep], sigma_al_mas=sigma[keep],
-        excess_noise_mas=excess, colour_factor_al=None if colour is None else colour[keep], transit=transit[keep])
-    order = np.lexsort((out.tcb_jd, out.source_id))
-    return out.take(order)
+        source_id=ids[rows], tcb_jd=TCB_ORIGIN_JD + days, scan_angle_deg=f64["scan_pos_angle"][keep],
+        parallax_factor_al=row["parallax_factor_al"][rows], centroid_al_mas=f64["centroid_pos_al"][keep],
+        sigma_al_mas=f64["centroid_pos_error_al"][keep], excess_noise_mas=excess,
+        colour_factor_al=None if colour is None else colour[keep], transit=rows)
+    if ids.size and np.all(ids[1:] >= ids[:-1]):
+        return out  # the archive's files: already grouped by source
+    # int64 keys: numpy's stable sort is a radix sort, linear in the observations.
+    return out.take(np.argsort(out.source_id, kind="stable"))

@@ -105,19 +105,19 @@ def _segments(sorted_keys: np.ndarray) -> np.ndarray:
         np.empty(0, np.int64)
 
 
-def _visibility_periods(source_id, transit, tcb_jd, starts) -> tuple[np.ndarray, np.ndarray]:
+def _visibility_periods(transit, tcb_jd, starts) -> tuple[np.ndarray, np.ndarray]:
     """(FoV transits, visibility periods) per source from its observations' times.
 
-    A transit is a row of the file: two rows of one source may share their CCD times (seen
-    in the DR4 sample: two windows read at once), and both count, as AGIS counts both rows'
-    observations.
+    A transit is a row of the file (its CCDs are consecutive within the source's block): two
+    rows of one source may share their CCD times (seen in the DR4 sample: two windows read
+    at once), and both count, as AGIS counts both rows' observations.
     """
     n = starts.size
-    src = np.repeat(np.arange(n), np.diff(np.r_[starts, source_id.size]))
-    order = np.lexsort((tcb_jd, transit, src))
-    s_o, tr_o, t_o = src[order], transit[order], tcb_jd[order]
-    first = np.r_[True, (tr_o[1:] != tr_o[:-1]) | (s_o[1:] != s_o[:-1])]
-    src_tr, t_tr = s_o[first], t_o[first]
+    m = transit.size
+    src = np.repeat(np.arange(n), np.diff(np.r_[starts, m]))
+    first = np.r_[True, (transit[1:] != transit[:-1]) | (src[1:] != src[:-1])]
+    src_tr = src[first]
+    t_tr = np.minimum.reduceat(tcb_jd, np.flatnonzero(first))
     order = np.lexsort((t_tr, src_tr))
     src_tr, t_tr = src_tr[order], t_tr[order]
     new_period = np.r_[True, (src_tr[1:] != src_tr[:-1]) | (np.diff(t_tr) > VISIBILITY_GAP_DAYS)]
@@ -131,7 +131,8 @@ def source_normals(obs: CcdObservations, *, model: str = "5p",
     Parameters
     ----------
     obs : CcdObservations
-        Sorted by source (as :func:`~.epoch_astrometry.ccd_observations` returns them).
+        Grouped by source, a transit's CCDs together (as
+        :func:`~.epoch_astrometry.ccd_observations` returns them).
     model : {'5p', '6p'}
     reference_epoch_jd : float or None
         TCB Julian date of the reference epoch; None: each source's mean epoch of
@@ -178,7 +179,7 @@ def source_normals(obs: CcdObservations, *, model: str = "5p",
         b = b[:, :5] - k * b[:, 5][:, None]
         N = N[:, :5, :5] - k[:, :, None] * N[:, 5, :5][:, None, :]
         N = 0.5 * (N + np.swapaxes(N, 1, 2))
-    n_tr, periods = _visibility_periods(sid, obs.transit, obs.tcb_jd, starts) if n else (np.empty(0, int),) * 2
+    n_tr, periods = _visibility_periods(obs.transit, obs.tcb_jd, starts) if n else (np.empty(0, int),) * 2
     span = ((np.maximum.reduceat(obs.tcb_jd, starts) - np.minimum.reduceat(obs.tcb_jd, starts)) / _JULIAN_YEAR_DAYS
             if n else np.empty(0))
     return SourceNormals(source_id=sid[starts], N=N, b=b, reference_epoch_jd=epoch, n_ccd=counts,

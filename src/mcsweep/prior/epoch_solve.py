@@ -33,16 +33,17 @@ from typing import Callable, Iterator
 import numpy as np
 import pandas as pd
 
-from ..astrometry.epoch_astrometry import COLUMNS, ccd_observations, is_epoch_astrometry
+from ..astrometry.epoch_astrometry import COLUMNS, OPTIONAL_COLUMNS, ccd_observations, is_epoch_astrometry
 from ..astrometry.source_update import check_model, source_normals
 from ..errors import UserInputError
-from ..tables import TableChunk, integer_ids, iter_tables, read_table
+from ..tables import TableChunk, detect_format, integer_ids, iter_tables, read_table
+from ..tables.read import arrow_batches, parquet_rows
 from .columns import finite_column
 from .epochs import reference_epoch_jd
 from .model import Prior
 from .solutions import check_factor, solutions_table
 
-__all__ = ["BATCH_ROWS", "SourceTable", "read_sources", "looks_like_epoch_astrometry", "epoch_batches",
+__all__ = ["BATCH_ROWS", "RowRange", "SourceTable", "read_sources", "looks_like_epoch_astrometry", "epoch_batches",
            "solve_epoch_batch", "solve_epoch_file"]
 
 #: FoV transits per batch (about 80 MB of per-CCD arrays at 10 CCDs and 10 columns).
@@ -124,8 +125,29 @@ def _source_ids(chunk: TableChunk) -> np.ndarray:
     return integer_ids(chunk[name], name, chunk.source)
 
 
-def epoch_batches(path, *, batch_rows: int = BATCH_ROWS) -> Iterator[tuple[TableChunk, np.ndarray]]:
-    """Batches of the epoch file that hold whole sources, with each row's source_id (module notes)."""
+@dataclass(frozen=True)
+class RowRange:
+    """Rows ``start:stop`` of a Parquet epoch file, read by whoever solves them (a worker reads
+    its own rows: nothing but the range travels to it)."""
+
+    path: str
+    start: int
+    stop: int
+    columns: tuple | None = None
+
+    def load(self) -> TableChunk:
+        return parquet_rows(self.path, self.start, self.stop, columns=self.columns, what="epoch astrometry")
+
+
+def epoch_batches(path, *, batch_rows: int = BATCH_ROWS) -> Iterator[tuple[TableChunk | RowRange, np.ndarray]]:
+    """Batches of the epoch file that hold whole sources, with each row's source_id (module notes).
+
+    A Parquet file is scanned by its source_id column alone and handed out as
+    :class:`RowRange` s; other formats as the batches' rows themselves.
+    """
+    if detect_format(path, what="epoch astrometry") == "parquet":
+        yield from _parquet_ranges(Path(path), batch_rows)
+        return
     carry: TableChunk | None = None
     done: list[np.ndarray] = []
     source = Path(path).name
@@ -146,6 +168,36 @@ def epoch_batches(path, *, batch_rows: int = BATCH_ROWS) -> Iterator[tuple[Table
         yield carry, _checked_once(ids, done, source)
 
 
+def _parquet_ranges(path: Path, batch_rows: int) -> Iterator[tuple[RowRange, np.ndarray]]:
+    schema, _ = arrow_batches(path, 1, what="epoch astrometry")
+    name = next((n for n in schema.names if n.lower() in ("source_id", "sourceid")), None)
+    if name is None:
+        raise UserInputError(f"{path.name}: not Gaia epoch astrometry, lacks source_id (or sourceId); expected "
+                             "the columns of the archive's epoch_astrometry")
+    # Only the columns the source update reads (a file has ~14, of which 10 are used).
+    wanted = {n.lower() for pair in (*COLUMNS.values(), *OPTIONAL_COLUMNS.values()) for n in pair}
+    wanted |= {"used_by_agis_al.1", "used_by_agis_ac"}
+    columns = tuple(n for n in schema.names if n.lower() in wanted)
+    done: list[np.ndarray] = []
+    pending: list[np.ndarray] = []
+    start = 0  # first row of the pending ids
+    for chunk in iter_tables(path, what="epoch astrometry", batch_rows=batch_rows, columns=[name]):
+        if not len(chunk):
+            continue
+        pending.append(integer_ids(chunk[name], name, path.name))
+        ids = np.concatenate(pending)
+        cut = int(np.flatnonzero(ids == ids[-1])[0])  # the last source may go on in the next rows
+        if cut == 0:
+            pending = [ids]
+            continue
+        yield RowRange(str(path), start, start + cut, columns), _checked_once(ids[:cut], done, path.name)
+        start += cut
+        pending = [ids[cut:]]
+    if pending and pending[0].size:
+        ids = np.concatenate(pending)
+        yield RowRange(str(path), start, start + ids.size, columns), _checked_once(ids, done, path.name)
+
+
 def _checked_once(ids: np.ndarray, done: list[np.ndarray], source: str) -> np.ndarray:
     """``ids``, after checking that none of its sources was in an earlier batch (8 bytes per source kept)."""
     unique = np.unique(ids)
@@ -160,9 +212,11 @@ def _checked_once(ids: np.ndarray, done: list[np.ndarray], source: str) -> np.nd
     return ids
 
 
-def solve_epoch_batch(chunk: TableChunk, sources: SourceTable, prior: Prior, *, model: str, factor: float,
-                      confidence: float | None, reference_epoch: float | None) -> pd.DataFrame:
+def solve_epoch_batch(chunk: TableChunk | RowRange, sources: SourceTable, prior: Prior, *, model: str,
+                      factor: float, confidence: float | None, reference_epoch: float | None) -> pd.DataFrame:
     """The solutions table (module notes) of the sources of one batch of an epoch file."""
+    if isinstance(chunk, RowRange):
+        chunk = chunk.load()
     obs = ccd_observations(chunk, need_colour=(model == "6p"))
     all_ids = np.unique(_source_ids(chunk))
     sn = source_normals(obs, model=model, reference_epoch_jd=reference_epoch)

@@ -34,7 +34,7 @@ from ..errors import UserInputError
 from .formats import ASTROPY_FORMAT, detect_format
 
 __all__ = ["Ragged", "TableChunk", "read_table", "iter_tables", "as_ragged", "is_identifier", "arrow_batches",
-           "astropy_table", "csv_batches"]
+           "astropy_table", "csv_batches", "parquet_rows"]
 
 #: Rows per batch when a caller does not say (about 25 MB of float64 at 12 columns).
 DEFAULT_BATCH_ROWS = 262_144
@@ -310,6 +310,32 @@ def arrow_batches(path, batch_rows: int | None, *, columns=None, what: str = "")
             raise _unreadable(path, "parquet", exc, what) from None
 
     return pf.schema_arrow, batches()
+
+
+def parquet_rows(path, start: int, stop: int, *, columns=None, what: str = "") -> TableChunk:
+    """Rows ``start`` to ``stop`` (exclusive) of a Parquet file, reading only the row groups
+    that hold them (and only ``columns``, if given): a worker reads its own part of a file
+    shared with others."""
+    import pyarrow.parquet as pq
+
+    path = Path(path)
+    try:
+        pf = pq.ParquetFile(path, pre_buffer=False)
+        sizes = np.array([pf.metadata.row_group(i).num_rows for i in range(pf.num_row_groups)], dtype=np.int64)
+        ends = np.cumsum(sizes)
+        first = int(np.searchsorted(ends, start, side="right"))
+        last = int(np.searchsorted(ends, max(stop - 1, start), side="right"))
+        table = pf.read_row_groups(list(range(first, last + 1)), columns=columns)
+    except Exception as exc:  # pyarrow raises ArrowInvalid, OSError, ...
+        raise _unreadable(path, "parquet", exc, what) from None
+    offset = int(ends[first - 1]) if first else 0
+    table = table.slice(start - offset, stop - start)
+    units = {}
+    for f in pf.schema_arrow:
+        meta = f.metadata or {}
+        units[f.name] = meta[b"unit"].decode() if b"unit" in meta else None
+    cols = {name: _arrow_column(table.column(i)) for i, name in enumerate(table.schema.names)}
+    return TableChunk(cols, {k: units.get(k) for k in cols}, path.name, start)
 
 
 def _parquet_batches(path: Path, batch_rows, columns, what) -> Iterator[TableChunk]:

@@ -44,7 +44,7 @@ from .model import Prior
 from .solutions import check_factor, solutions_table
 
 __all__ = ["BATCH_ROWS", "RowRange", "SourceTable", "read_sources", "looks_like_epoch_astrometry", "epoch_batches",
-           "solve_epoch_batch", "solve_epoch_file"]
+           "solve_epoch_batch", "solve_epoch_file", "epoch_files"]
 
 #: FoV transits per batch (about 80 MB of per-CCD arrays at 10 CCDs and 10 columns).
 BATCH_ROWS = 100_000
@@ -111,8 +111,8 @@ def read_sources(path) -> SourceTable:
 
 
 def looks_like_epoch_astrometry(path) -> bool:
-    """Whether the table at ``path`` is epoch astrometry (from its first rows only)."""
-    for chunk in iter_tables(path, what="observations", batch_rows=16):
+    """Whether the table at ``path`` (or a directory's first table) is epoch astrometry (from its first rows only)."""
+    for chunk in iter_tables(epoch_files(path)[0], what="observations", batch_rows=16):
         return is_epoch_astrometry(chunk)
     return False
 
@@ -139,18 +139,43 @@ class RowRange:
         return parquet_rows(self.path, self.start, self.stop, columns=self.columns, what="epoch astrometry")
 
 
+def epoch_files(path) -> list[Path]:
+    """``path`` itself, or the table files in the directory ``path`` (sorted by name)."""
+    path = Path(path)
+    if not path.is_dir():
+        return [path]
+    found = []
+    for f in sorted(path.iterdir()):
+        if f.is_file():
+            try:
+                detect_format(f)
+            except UserInputError:
+                continue  # README, checksums and the like next to the data
+            found.append(f)
+    if not found:
+        raise UserInputError(f"{path}: a directory without table files; expected Gaia epoch astrometry files "
+                             "(CSV, ECSV, FITS, VOTable or Parquet)")
+    return found
+
+
 def epoch_batches(path, *, batch_rows: int = BATCH_ROWS) -> Iterator[tuple[TableChunk | RowRange, np.ndarray]]:
-    """Batches of the epoch file that hold whole sources, with each row's source_id (module notes).
+    """Batches of the epoch file, or of each file of a directory, that hold whole sources, with
+    each row's source_id (module notes). A source is in one batch of one file only.
 
     A Parquet file is scanned by its source_id column alone and handed out as
     :class:`RowRange` s; other formats as the batches' rows themselves.
     """
-    if detect_format(path, what="epoch astrometry") == "parquet":
-        yield from _parquet_ranges(Path(path), batch_rows)
-        return
-    carry: TableChunk | None = None
     done: list[np.ndarray] = []
-    source = Path(path).name
+    for f in epoch_files(path):
+        if detect_format(f, what="epoch astrometry") == "parquet":
+            yield from _parquet_ranges(f, batch_rows, done)
+        else:
+            yield from _chunk_batches(f, batch_rows, done)
+
+
+def _chunk_batches(path: Path, batch_rows: int, done: list) -> Iterator[tuple[TableChunk, np.ndarray]]:
+    carry: TableChunk | None = None
+    source = path.name
     for chunk in iter_tables(path, what="epoch astrometry", batch_rows=batch_rows):
         if not len(chunk):
             continue
@@ -168,7 +193,7 @@ def epoch_batches(path, *, batch_rows: int = BATCH_ROWS) -> Iterator[tuple[Table
         yield carry, _checked_once(ids, done, source)
 
 
-def _parquet_ranges(path: Path, batch_rows: int) -> Iterator[tuple[RowRange, np.ndarray]]:
+def _parquet_ranges(path: Path, batch_rows: int, done: list) -> Iterator[tuple[RowRange, np.ndarray]]:
     schema, _ = arrow_batches(path, 1, what="epoch astrometry")
     name = next((n for n in schema.names if n.lower() in ("source_id", "sourceid")), None)
     if name is None:
@@ -178,7 +203,6 @@ def _parquet_ranges(path: Path, batch_rows: int) -> Iterator[tuple[RowRange, np.
     wanted = {n.lower() for pair in (*COLUMNS.values(), *OPTIONAL_COLUMNS.values()) for n in pair}
     wanted |= {"used_by_agis_al.1", "used_by_agis_ac"}
     columns = tuple(n for n in schema.names if n.lower() in wanted)
-    done: list[np.ndarray] = []
     pending: list[np.ndarray] = []
     start = 0  # first row of the pending ids
     for chunk in iter_tables(path, what="epoch astrometry", batch_rows=batch_rows, columns=[name]):
@@ -253,6 +277,7 @@ def solve_epoch_file(epoch_path, sources_path, prior: Prior, *, model: str = "5p
     Parameters
     ----------
     epoch_path, sources_path : path-like
+        ``epoch_path`` may be a directory: its table files are solved one after the other.
     prior : Prior
     model : {'5p', '6p'}
     factor, confidence

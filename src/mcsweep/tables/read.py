@@ -409,10 +409,11 @@ def as_ragged(column, *, name: str = "", source: str = "") -> Ragged:
 def _parse_text_arrays(text: np.ndarray, name: str, source: str) -> Ragged:
     import pandas as pd
 
-    s = pd.Series(text).str.strip().str.strip("()[]{}").str.strip()
-    empty = (s == "").to_numpy()
-    lengths = np.where(empty, 0, s.str.count(",").to_numpy(dtype=np.int64) + 1)
-    flat = s[~empty].str.split(",").explode().astype(str).str.strip().str.lower()
+    # '(1.5, 2.5)' (the archive's CSV), '[1.5,2.5]' (ECSV), '[1.5 2.5]' (numpy's text, as pandas
+    # writes an array cell): commas or white space between the elements.
+    s = pd.Series(text).str.strip().str.strip("()[]{}").str.replace(",", " ", regex=False).str.split()
+    lengths = s.str.len().fillna(0).to_numpy(dtype=np.int64)
+    flat = s[lengths > 0].explode().astype(str).str.lower()
     mapped = flat.replace({"true": "1", "false": "0", "t": "1", "f": "0"})
     mapped = mapped.where(~mapped.isin(("null", "", "none", "--", "nan")), None)
     try:

@@ -16,7 +16,7 @@ parallax column, whose sign the files follow). theta is measured at ``u`` (0 = l
 north, 90 deg = local east; AL direction ``(sin theta, cos theta)`` in (alpha*, delta)).
 
 Method. With ``b(t)`` from the project's observer model
-(:func:`mcsweep.scanning.ephemeris.gaia_position_au`), the direction is the nonlinear
+(:func:`mcsweep.scanning.gaia_position_au`), the direction is the nonlinear
 least-squares fit of the modelled to the given ``P_AL`` over the two coordinates of ``u``,
 unweighted (every transit's factor is exact):
 
@@ -220,7 +220,7 @@ def direction_from_parallax_factors(tcb_jd, scan_angle_deg, parallax_factor_al) 
     ra_deg, dec_deg : float
         Right ascension in [0, 360) and declination of the source [deg]; ~0.1 deg at
         worst on real files (module notes: the L2 observer model), exact on factors made
-        with :func:`mcsweep.scanning.ephemeris.gaia_position_au`.
+        with :func:`mcsweep.scanning.gaia_position_au`.
     rms : float
         Root mean square of the residuals of ``P_AL`` at that direction (same unit);
         ~1e-3 on real files, the size of Gaia's orbit about L2 in au.
@@ -229,7 +229,7 @@ def direction_from_parallax_factors(tcb_jd, scan_angle_deg, parallax_factor_al) 
     ------
     mcsweep.errors.UserInputError
         On arrays of different shapes, non-finite values, fewer than
-        :data:`MIN_TRANSITS` transits or epochs outside the ephemeris table.
+        ``MIN_TRANSITS`` (3) transits or epochs outside the ephemeris table.
     """
     t, theta, pfac = _check_transits(tcb_jd, scan_angle_deg, parallax_factor_al)
     b = gaia_position_au(t)

@@ -188,7 +188,7 @@ def _per_ccd(chunk: TableChunk, name: str, source: str, lengths=None) -> Ragged:
 def ccd_observations(chunk: TableChunk, *, need_colour: bool = False) -> CcdObservations:
     """The AL CCD observations AGIS used, from a batch of an epoch-astrometry table (module notes).
 
-    Raises :class:`UserInputError` naming the file and column when a needed column is
+    Raises :class:`~mcsweep.errors.UserInputError` naming the file and column when a needed column is
     missing (in both conventions) or holds something else than described above.
     """
     source = chunk.source

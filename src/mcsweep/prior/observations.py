@@ -211,14 +211,14 @@ def solve_observations(obs: Observations, prior: Prior, *, factor: float = 1.0, 
     prior : Prior
         sigma_plx = ``factor`` x sigma_F90 at the source's (l, b, G) and, for a prior with
         a colour axis, BP-RP; sigma_mu = R sigma_plx; centred on the prior's mean where it
-        has one (:mod:`mcsweep.prior.solutions`).
+        has one (:func:`mcsweep.prior.solutions.solutions_table`).
     factor : float, keyword-only
         K (Sect. 3.3: up to ~10 keeps the errors and gives conservative uncertainties).
     confidence : float, keyword-only
         P of the ellipse; default the prior's own P.
     reference_epoch : str, keyword-only
         'star_mean' (Sect. 2.1: mean epoch of each source's transits), or a date
-        (:func:`mcsweep.prior.epochs.reference_epoch_jd`: ISO, 'J2017.5' or 2017.5, TCB).
+        (ISO, 'J2017.5' or 2017.5, TCB).
 
     Returns
     -------

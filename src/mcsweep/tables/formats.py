@@ -32,7 +32,7 @@ def detect_format(path, fmt: str = "auto", *, what: str = "") -> str:
     """The format of ``path``: ``fmt`` itself if not 'auto', else from the file's suffix.
 
     ``what`` names the file's role in messages ('catalogue', '--sources', ...).
-    Raises :class:`UserInputError` naming the file and the accepted suffixes or formats.
+    Raises :class:`~mcsweep.errors.UserInputError` naming the file and the accepted suffixes or formats.
     """
     name = Path(path).name
     label = f"{what} {name}".strip()

@@ -26,7 +26,7 @@ def _refuse(value, name: str, source: str):
 
 
 def integer_ids(values, name: str, source: str) -> np.ndarray:
-    """``values`` as int64 identifiers, or a one-line :class:`UserInputError` naming the first bad value.
+    """``values`` as int64 identifiers, or a one-line :class:`~mcsweep.errors.UserInputError` naming the first bad value.
 
     Integer columns are taken as they are. Text is parsed digit by digit (so
     '4472832130942575873' stays exact). Floating-point values are accepted only if they are

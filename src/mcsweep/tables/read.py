@@ -254,7 +254,7 @@ def astropy_table(path, fmt: str, what: str = ""):
 def read_table(path, *, fmt: str = "auto", what: str = "") -> TableChunk:
     """The whole table in ``path`` (format from its suffix unless ``fmt`` says).
 
-    ``what`` names the file's role in messages. Raises :class:`UserInputError` (one line)
+    ``what`` names the file's role in messages. Raises :class:`~mcsweep.errors.UserInputError` (one line)
     if the file is missing or unreadable in that format.
     """
     return TableChunk.concat(list(iter_tables(path, fmt=fmt, what=what, batch_rows=None)))
@@ -387,7 +387,7 @@ def as_ragged(column, *, name: str = "", source: str = "") -> Ragged:
     Accepts a 2-D array, a :class:`Ragged`, an object array of sequences (lists, tuples,
     arrays) or of strings such as ``"(1.5, 2.5)"``, ``"[1.5,2.5]"`` or ``"(true, false)"``
     (the Gaia archive's CSV and ECSV text forms). Text values 'true'/'false' become 1/0 and
-    'null'/'' NaN. Raises :class:`UserInputError` naming the column if a value is neither.
+    'null'/'' NaN. Raises :class:`~mcsweep.errors.UserInputError` naming the column if a value is neither.
     """
     if isinstance(column, Ragged):
         return column

@@ -15,7 +15,7 @@ import dataclasses
 from typing import Any
 
 from ..errors import UserInputError
-from . import f90_sweep, primary, real_sky, secondary
+from . import f90_sweep, primary, real_epochs, real_sky, secondary
 from .spec import ExperimentSpec
 
 __all__ = ["EXPERIMENTS", "register", "get", "ignored_keys", "hash_defaults_from_before", "hash_only_with",
@@ -23,7 +23,8 @@ __all__ = ["EXPERIMENTS", "register", "get", "ignored_keys", "hash_defaults_from
 
 #: Every experiment by kind, in the order they are listed to a user.
 EXPERIMENTS: dict[str, ExperimentSpec] = {
-    e.kind: e for e in (f90_sweep.EXPERIMENT, secondary.EXPERIMENT, primary.EXPERIMENT, real_sky.EXPERIMENT)}
+    e.kind: e for e in (f90_sweep.EXPERIMENT, secondary.EXPERIMENT, primary.EXPERIMENT, real_sky.EXPERIMENT,
+                        real_epochs.EXPERIMENT)}
 
 _conf_class: list[type] = []
 

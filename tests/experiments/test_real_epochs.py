@@ -224,7 +224,7 @@ def test_inputs_changed_under_a_run_are_refused(tmp_path):
     (tmp_path / "provenance.json").write_text(json.dumps(
         {"derived": {"real_epochs": {"input_sha256": {"epoch_file": "a" * 64, "sources_file": "b" * 64}}}}))
     with pytest.raises(UserInputError, match="other input files .*epoch_file changed"):
-        runner._check_same_inputs(tmp_path, {"epoch_file": "c" * 64, "sources_file": "b" * 64})
+        runner.check_same_inputs(tmp_path, {"epoch_file": "c" * 64, "sources_file": "b" * 64})
 
 
 def test_config_mistakes_are_one_line():

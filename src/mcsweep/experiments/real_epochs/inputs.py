@@ -27,7 +27,8 @@ import numpy as np
 from ...astrometry.epoch_astrometry import CcdObservations, ccd_observations
 from ...errors import UserInputError
 from ...galactic import galactic_from_icrs
-from ...tables import integer_ids, read_table
+from ...prior.epoch_solve import read_sources
+from ...tables import read_table
 
 __all__ = ["SAMPLE_EPOCH_FILE", "SAMPLE_SOURCES_FILE", "SAMPLE_NOTE", "Sources", "Inputs", "read_inputs",
            "file_digest"]
@@ -41,7 +42,6 @@ SAMPLE_NOTE = ("the Gaia DR4-format epoch astrometry vendored from ESA's gaiasup
                "tests/test_data/heaviside_weighting; not a random sample of the sky); the files carry no "
                "position, so the directions at which sigma_F90 is taken were recovered from the parallax "
                "factors (mcsweep.astrometry.direction, ~0.1 deg) and G is AGIS's gMag")
-_SOURCE_COLUMNS = ("source_id", "ra", "dec", "phot_g_mean_mag")
 
 
 @dataclass(frozen=True)
@@ -82,44 +82,12 @@ def file_digest(path: Path) -> str:
     return h.hexdigest()
 
 
-def _numbers(values, key: str, name: str, column: str) -> np.ndarray:
-    try:
-        v = np.asarray(values, dtype=float)
-    except (TypeError, ValueError):
-        raise UserInputError(f"{key}: {name} column {column} has non-numeric values; expected numbers") from None
-    if not np.all(np.isfinite(v)):
-        raise UserInputError(f"{key}: {name} column {column} has a missing or non-finite value in row "
-                             f"{int(np.argmax(~np.isfinite(v)))}; expected a number for every source")
-    return v
-
-
-def _read_sources(path: Path, key: str, ids_needed: np.ndarray) -> Sources:
-    """The rows of ``ids_needed`` (sorted, unique) of the sources table at ``path``."""
-    t = read_table(path, what=key)
-    name = path.name
-    cols = {c: t.find(c) for c in _SOURCE_COLUMNS}
-    missing = [c for c, v in cols.items() if v is None]
-    if missing:
-        raise UserInputError(f"{key}: {name} has columns {t.names[:12]} and lacks {missing}; expected a gaia_source "
-                             "extract with source_id, ra, dec [deg] and phot_g_mean_mag")
-    ids = integer_ids(t[cols["source_id"]], cols["source_id"], name)
-    order = np.argsort(ids, kind="stable")
-    ids = ids[order]
-    dup = ids[1:][ids[1:] == ids[:-1]]
-    if dup.size:
-        raise UserInputError(f"{key}: {name} has source_id {dup[0]} twice; expected one row per source")
-    where = np.searchsorted(ids, ids_needed)
-    found = (where < ids.size) & (ids[np.minimum(where, max(ids.size - 1, 0))] == ids_needed) if ids.size else \
-        np.zeros(ids_needed.size, bool)
-    if not found.all():
-        raise UserInputError(f"{key}: {name} has no row for source_id {ids_needed[~found][0]} of the epoch file; "
-                             "expected ra, dec and phot_g_mean_mag of every source in the epoch file")
-    rows = order[where]
-    ra, dec, g = (_numbers(np.asarray(t[cols[c]])[rows], key, name, cols[c]) for c in ("ra", "dec", "phot_g_mean_mag"))
-    if np.any(np.abs(dec) > 90):
-        raise UserInputError(f"{key}: {name} column {cols['dec']} has values beyond +-90; expected degrees")
-    l_deg, b_deg = galactic_from_icrs(ra, dec)
-    return Sources(ids_needed, ra, dec, l_deg, b_deg, g)
+def _read_sources(path: Path, ids_needed: np.ndarray) -> Sources:
+    """The rows of ``ids_needed`` (sorted, unique) of the sources table at ``path``, read and
+    checked as ``mcsweep-prior solve`` reads it (:func:`mcsweep.prior.epoch_solve.read_sources`)."""
+    table = read_sources(path).subset(ids_needed, "the epoch file")
+    l_deg, b_deg = galactic_from_icrs(table.ra, table.dec)
+    return Sources(ids_needed, table.ra, table.dec, l_deg, b_deg, table.phot_g_mean_mag)
 
 
 def read_inputs(epoch_file: str | None, sources_file: str | None) -> Inputs:
@@ -144,7 +112,7 @@ def read_inputs(epoch_file: str | None, sources_file: str | None) -> Inputs:
                                  f"{int(obs.source_id[obs.source_id < 0][0])}; expected Gaia source identifiers "
                                  "(non-negative integers)")
         ids = np.unique(obs.source_id)
-        sources = _read_sources(Path(sources_path), "experiment.real_epochs.sources_file", ids)
+        sources = _read_sources(Path(sources_path), ids)
         digests = {"epoch_file": file_digest(Path(epoch_path)), "sources_file": file_digest(Path(sources_path))}
     return Inputs(obs=obs, sources=sources, epoch_file=shown[0], sources_file=shown[1], sample=sample,
                   digests=digests)

@@ -40,7 +40,8 @@ from .subsets import BOOTSTRAP_STREAM, DRAW_STREAM, TAG, UNITS, source_layout
 from .table import HOLD_LIMIT_SIGMA, NO_TRUTH, cell_rows, prior_order, source_rows, star_classes, \
     transit_unit_weight_variance
 
-__all__ = ["SOURCES_PER_CHUNK", "FITTED", "Prepared", "prepare", "chunk_plan", "compute", "aggregate", "run", "kept"]
+__all__ = ["SOURCES_PER_CHUNK", "FITTED", "Prepared", "prepare", "chunk_plan", "compute", "aggregate", "run", "kept",
+           "check_same_inputs"]
 
 #: Sources per chunk (task and store entry). Why: a chunk's largest array is sources x draws
 #: x CCD rows of its most-observed source (booleans, ~10 MB at 32 x 200 x 1555, the vendored
@@ -184,7 +185,7 @@ def aggregate(prep: Prepared, store: ResultStore, sec) -> dict[str, str]:
     return {TABLE: table.to_csv(index=False), SOURCES_TABLE: per_source.to_csv(index=False)}
 
 
-def _check_same_inputs(run_dir: Path, digests: dict) -> None:
+def check_same_inputs(run_dir: Path, digests: dict) -> None:
     """A run directory holding results of other input files is refused (step 1)."""
     path = run_dir / _PROVENANCE_FILE
     if not path.exists():
@@ -226,7 +227,7 @@ def run(config, raw_cfg: dict, run_dir, prov) -> Path:
     run_dir = Path(run_dir)
     prov.check_compatible()
     prep = prepare(config)
-    _check_same_inputs(run_dir, prep.inputs.digests)
+    check_same_inputs(run_dir, prep.inputs.digests)
     prov.derived["real_epochs"] = _derived(prep)
     prov.write(with_manifest=False)
     store = ResultStore(run_dir / CHUNKS_DIR, prov.hash, accept_other_versions=config.resume.accept_other_versions)

@@ -120,10 +120,6 @@ def _solve_epochs(args) -> str:
     from .prior.observations import TableWriter
     from .runtime.execution import executor
 
-    if args.sources is None:
-        raise UserInputError(f"{args.observations.name} is Gaia epoch astrometry, which has no ra, dec or G; "
-                             "expected --sources SOURCES (a gaia_source extract: source_id, ra, dec, "
-                             "phot_g_mean_mag)")
     prior = _prior(args)
     conf = _execution(args)
     fmt_out = detect_format(args.out)

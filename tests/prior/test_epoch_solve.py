@@ -186,3 +186,28 @@ def test_a_directory_of_files_is_one_input(tmp_path, sample_sources):
     df.to_parquet(folder / "part-2.parquet", index=False)  # every source again
     with pytest.raises(UserInputError, match="not together"):
         list(solve_epoch_file(folder, sample_sources, Prior.paper()))
+
+
+def test_dr4_format_with_ra0_dec0_g_mag_needs_no_sources_table(tmp_path):
+    """DR4's own format carries each transit's reference position and G (the pre-release's
+    ra0, dec0, g_mag): the file alone gives the solution with the prior."""
+    df = pd.read_parquet(SAMPLE)
+    src = pd.read_csv(Path(str(files("mcsweep") / "data" / "epoch_astrometry" / "sample_sources.csv")), comment="#")
+    by_id = src.set_index("source_id")
+    df["ra0"] = by_id.loc[df["sourceId"], "ra"].to_numpy()
+    df["dec0"] = by_id.loc[df["sourceId"], "dec"].to_numpy()
+    rng = np.random.default_rng(1)
+    g = by_id.loc[df["sourceId"], "phot_g_mean_mag"].to_numpy() + rng.normal(0, 0.01, len(df))
+    g[::7] = np.nan  # transits without a G: the median of the others
+    df["g_mag"] = g
+    path = tmp_path / "dr4.parquet"
+    df.to_parquet(path, index=False)
+    src_path = tmp_path / "src.csv"
+    src[["source_id", "ra", "dec", "phot_g_mean_mag"]].to_csv(src_path, index=False)
+    alone = pd.concat(solve_epoch_file(path, None, Prior.paper()), ignore_index=True)
+    given = pd.concat(solve_epoch_file(path, src_path, Prior.paper()), ignore_index=True)
+    assert np.allclose(alone["ra"], given["ra"], rtol=0, atol=1e-12)
+    assert np.all(np.abs(alone["phot_g_mean_mag"] - given["phot_g_mean_mag"]) < 0.02)
+    # The prior changes with G by much less than its own size over 0.02 mag.
+    assert np.allclose(alone["sigma_prior_parallax_mas"], given["sigma_prior_parallax_mas"], rtol=0.01)
+    pd.testing.assert_series_equal(alone["no_prior_parallax_mas"], given["no_prior_parallax_mas"])

@@ -44,7 +44,8 @@ from .model import Prior
 from .solutions import check_factor, solutions_table
 
 __all__ = ["BATCH_ROWS", "RowRange", "SourceTable", "read_sources", "looks_like_epoch_astrometry", "epoch_batches",
-           "solve_epoch_batch", "solve_epoch_file", "epoch_files"]
+           "solve_epoch_batch", "solve_epoch_file", "epoch_files",
+           "EPOCH_SOURCE_COLUMNS", "has_source_columns", "sources_of_batch"]
 
 #: FoV transits per batch (about 80 MB of per-CCD arrays at 10 CCDs and 10 columns).
 BATCH_ROWS = 100_000
@@ -201,7 +202,7 @@ def _parquet_ranges(path: Path, batch_rows: int, done: list) -> Iterator[tuple[R
                              "the columns of the archive's epoch_astrometry")
     # Only the columns the source update reads (a file has ~14, of which 10 are used).
     wanted = {n.lower() for pair in (*COLUMNS.values(), *OPTIONAL_COLUMNS.values()) for n in pair}
-    wanted |= {"used_by_agis_al.1", "used_by_agis_ac"}
+    wanted |= {"used_by_agis_al.1", "used_by_agis_ac", *EPOCH_SOURCE_COLUMNS}
     columns = tuple(n for n in schema.names if n.lower() in wanted)
     pending: list[np.ndarray] = []
     start = 0  # first row of the pending ids
@@ -236,11 +237,48 @@ def _checked_once(ids: np.ndarray, done: list[np.ndarray], source: str) -> np.nd
     return ids
 
 
-def solve_epoch_batch(chunk: TableChunk | RowRange, sources: SourceTable, prior: Prior, *, model: str,
+#: Columns of the DR4 epoch-astrometry format (the June 2026 public pre-release) that hold a
+#: source's reference position [deg] and G per transit: with them no sources table is needed.
+EPOCH_SOURCE_COLUMNS = ("ra0", "dec0", "g_mag")
+
+
+def has_source_columns(path) -> bool:
+    """Whether the epoch file (or a directory's first file) carries ``ra0``, ``dec0`` and ``g_mag``."""
+    for chunk in iter_tables(epoch_files(path)[0], what="epoch astrometry", batch_rows=16):
+        return all(chunk.find(c) is not None for c in EPOCH_SOURCE_COLUMNS)
+    return False
+
+
+def sources_of_batch(chunk: TableChunk) -> SourceTable:
+    """Each source's reference position (``ra0``, ``dec0`` of its first row) and G (the median of
+    its rows' finite ``g_mag``) from an epoch file that carries them (DR4's format)."""
+    names = {c: chunk.find(c) for c in EPOCH_SOURCE_COLUMNS}
+    ids = _source_ids(chunk)
+    order = np.argsort(ids, kind="stable")
+    ids_sorted = ids[order]
+    first = np.r_[True, ids_sorted[1:] != ids_sorted[:-1]]
+    starts = np.flatnonzero(first)
+    vals = {c: finite_column(chunk[names[c]], names[c], chunk.source)[order]
+            for c in ("ra0", "dec0")}
+    g = np.asarray(chunk[names["g_mag"]], dtype=float)[order]
+    frame = pd.DataFrame({"s": np.repeat(np.arange(starts.size), np.diff(np.r_[starts, ids.size])), "g": g})
+    g_src = frame.groupby("s")["g"].median().to_numpy()
+    bad = ~np.isfinite(g_src)
+    if bad.any():
+        raise UserInputError(f"{chunk.source}: source_id {ids_sorted[starts][bad][0]} has no finite {names['g_mag']}; "
+                             "expected G for every source (or give --sources)")
+    return SourceTable(ids_sorted[starts], vals["ra0"][starts], vals["dec0"][starts], g_src,
+                       np.full(starts.size, np.nan), chunk.source)
+
+
+def solve_epoch_batch(chunk: TableChunk | RowRange, sources: SourceTable | None, prior: Prior, *, model: str,
                       factor: float, confidence: float | None, reference_epoch: float | None) -> pd.DataFrame:
-    """The solutions table (module notes) of the sources of one batch of an epoch file."""
+    """The solutions table (module notes) of the sources of one batch of an epoch file;
+    ``sources`` None: from the file's own ``ra0``, ``dec0``, ``g_mag`` (:func:`sources_of_batch`)."""
     if isinstance(chunk, RowRange):
         chunk = chunk.load()
+    if sources is None:
+        sources = sources_of_batch(chunk)
     obs = ccd_observations(chunk, need_colour=(model == "6p"))
     all_ids = np.unique(_source_ids(chunk))
     sn = source_normals(obs, model=model, reference_epoch_jd=reference_epoch)
@@ -278,6 +316,8 @@ def solve_epoch_file(epoch_path, sources_path, prior: Prior, *, model: str = "5p
     ----------
     epoch_path, sources_path : path-like
         ``epoch_path`` may be a directory: its table files are solved one after the other.
+        ``sources_path`` None: each source's position and G from the file's ``ra0``, ``dec0``
+        and ``g_mag`` (DR4's format carries them).
     prior : Prior
     model : {'5p', '6p'}
     factor, confidence
@@ -296,14 +336,18 @@ def solve_epoch_file(epoch_path, sources_path, prior: Prior, *, model: str = "5p
     check_model(model)
     check_factor(factor)
     epoch = None if str(reference_epoch) == "star_mean" else reference_epoch_jd(reference_epoch)
-    sources = read_sources(sources_path)
+    if sources_path is None and not has_source_columns(epoch_path):
+        raise UserInputError(f"{Path(epoch_path).name} is Gaia epoch astrometry without ra0, dec0 and g_mag; "
+                             "expected --sources SOURCES (a gaia_source extract: source_id, ra, dec, "
+                             "phot_g_mean_mag)")
+    sources = None if sources_path is None else read_sources(sources_path)
     name = Path(epoch_path).name
     solve = partial(solve_epoch_batch, prior=prior, model=model, factor=factor, confidence=confidence,
                     reference_epoch=epoch)
 
     def items():
         for chunk, ids in epoch_batches(epoch_path, batch_rows=batch_rows):
-            yield chunk, sources.subset(ids, name)
+            yield chunk, (None if sources is None else sources.subset(ids, name))
 
     if run is None:
         for chunk, src in items():

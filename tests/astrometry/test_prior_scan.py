@@ -114,7 +114,6 @@ def test_batching_does_not_change_results():
 def test_inside_flags_equal_the_confidence_rule_on_the_direct_solution(rows):
     # The fused test of every prior against confidence.inside / mahalanobis_sq applied to
     # the 5 x 5 solver's solution; singular stars and the NaN rule included.
-    from mcsweep.astrometry import prior_scan as ps
     from mcsweep.astrometry.confidence import chi2_threshold, inside, mahalanobis_sq
 
     # Two float paths to the Mahalanobis distance: a star within this relative distance of
@@ -127,19 +126,55 @@ def test_inside_flags_equal_the_confidence_rule_on_the_direct_solution(rows):
     n0[:5] = 0.0  # no position: no confidence region at any prior
     b0[:5] = 0.0
     priors = np.geomspace(0.01, 1000.0, 17)
-    for block in (ps.INSIDE_FLAGS_BLOCK_STARS, 97):  # a block size that does not divide n
-        old = ps.INSIDE_FLAGS_BLOCK_STARS
-        ps.INSIDE_FLAGS_BLOCK_STARS = block
-        try:
-            ins, val = prior_scan(n0, b0, 10.0).inside_flags(priors, 0.9)
-        finally:
-            ps.INSIDE_FLAGS_BLOCK_STARS = old
-        for i, sigma in enumerate(priors):
-            sol = solve_with_prior(n0, b0, sigma, 10.0)
-            dpos, cov = np.ascontiguousarray(sol.x[:, :2]), np.ascontiguousarray(sol.cov[:, :2, :2])
-            q = mahalanobis_sq(dpos, cov)
-            np.testing.assert_array_equal(val[i], np.isfinite(q))
-            clear = ~np.isfinite(q) | (np.abs(q - k) > rtol_threshold * k)
-            assert clear.mean() > 0.99
-            np.testing.assert_array_equal(ins[i][clear], inside(dpos, cov, 0.9)[clear])
-        assert not val[:, :5].any()
+    ins, val = prior_scan(n0, b0, 10.0).inside_flags(priors, 0.9)
+    for i, sigma in enumerate(priors):
+        sol = solve_with_prior(n0, b0, sigma, 10.0)
+        dpos, cov = np.ascontiguousarray(sol.x[:, :2]), np.ascontiguousarray(sol.cov[:, :2, :2])
+        q = mahalanobis_sq(dpos, cov)
+        np.testing.assert_array_equal(val[i], np.isfinite(q))
+        clear = ~np.isfinite(q) | (np.abs(q - k) > rtol_threshold * k)
+        assert clear.mean() > 0.99
+        np.testing.assert_array_equal(ins[i][clear], inside(dpos, cov, 0.9)[clear])
+    assert not val[:, :5].any()
+
+
+def _numpy_inside_flags(scan, priors, P):
+    """The inside test as numpy vector operations, the arithmetic the compiled kernel must
+    reproduce bit for bit: y = X0 w0 + base + X1 w1 + X2 w2, then inside_components."""
+    from mcsweep.astrometry.confidence import inside_components
+    from mcsweep.astrometry.solve import prior_diagonal
+
+    ts = prior_diagonal(np.asarray(priors, float), scan.ratio_R)[:, 2]
+    g, c = scan.g, scan.c
+    base = np.stack([scan.x0[0], scan.x0[1], scan.ainv[0], scan.ainv[1], scan.ainv[2]])
+    X = np.stack([np.stack([-(g[0, k] * c[k]), -(g[1, k] * c[k]), g[0, k] * g[0, k], g[0, k] * g[1, k],
+                            g[1, k] * g[1, k]]) for k in range(3)])
+    worst = np.where(scan.ok, scan.lam.min(axis=0), -np.inf)
+    inside, valid = [], []
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        for t in ts:
+            w = 1.0 / (scan.lam + t)
+            y = X[0] * w[0]
+            y += base
+            y = y + X[1] * w[1]
+            y = y + X[2] * w[2]
+            ins, val = inside_components(*y, P)
+            bad = ~(worst + t > 0.0)
+            inside.append(ins & ~bad)
+            valid.append(val & ~bad)
+    return np.array(inside), np.array(valid)
+
+
+@pytest.mark.parametrize("rows", [2, 3, 12])
+def test_compiled_inside_flags_are_the_numpy_arithmetic_bit_for_bit(rows):
+    rng = np.random.default_rng(70 + rows)
+    n0, b0 = _normals(rng, 3000, rows)
+    n0[:5] = 0.0
+    b0[:5] = 0.0
+    priors = np.geomspace(0.01, 1000.0, 41)
+    scan = prior_scan(n0, b0, 10.0)
+    got = scan.inside_flags(priors, 0.9)
+    ref = _numpy_inside_flags(scan, priors, 0.9)
+    np.testing.assert_array_equal(got[0], ref[0])
+    np.testing.assert_array_equal(got[1], ref[1])
+

@@ -38,8 +38,9 @@ converged.
 For the pencil-beam search only the inside/outside test of every star and prior is
 needed on the whole grid (:meth:`PriorScan.inside_flags`): the five quantities of the
 test (error and covariance, above) are ``y_j + sum_k X_jk w_k`` with per-star
-``X`` built once, about 40 fused operations per star and prior in cache-sized blocks
-of stars, followed by the rule of :func:`mcsweep.astrometry.confidence.inside_components`.
+``X`` built once, about 40 operations per star and prior in one compiled pass per star
+(:mod:`mcsweep.astrometry.scan_kernel`), followed by the rule of
+:func:`mcsweep.astrometry.confidence.inside_components`.
 """
 
 from __future__ import annotations
@@ -48,11 +49,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .confidence import inside_components
+from .confidence import chi2_threshold
 from .linalg import PIVOT_TOLERANCE
+from .scan_kernel import inside_flags_grid
 from .solve import DEFAULT_RATIO_R, check_normal, prior_diagonal
 
-__all__ = ["JACOBI_SWEEPS", "JACOBI_NEGLIGIBLE", "INSIDE_FLAGS_BLOCK_STARS", "REDUCE_BLOCK", "PriorScan", "prior_scan"]
+__all__ = ["JACOBI_SWEEPS", "JACOBI_NEGLIGIBLE", "REDUCE_BLOCK", "PriorScan", "prior_scan"]
 
 #: Most cyclic Jacobi sweeps for a 3 x 3 symmetric matrix. Convergence is quadratic
 #: after the first sweep (Golub & Van Loan, Sect. 8.5.4); 3 x 3 matrices reach the
@@ -62,12 +64,6 @@ JACOBI_SWEEPS = 8
 #: two orders of magnitude below the rounding of the diagonal elements, so skipping it
 #: changes no eigenvalue or eigenvector beyond rounding.
 JACOBI_NEGLIGIBLE = 1e-18
-#: Stars per vectorised block of :meth:`PriorScan.inside_flags` (one prior at a time).
-#: Why this size: a block's ~30 work vectors of this many doubles fit about a core's L2
-#: cache, while the per-block NumPy call overhead stays small; larger blocks spill the
-#: cache, smaller ones pay the overhead more often. Speed only: every flag is computed per
-#: star, so any block size gives the same flags (tests/astrometry/test_prior_scan.py).
-INSIDE_FLAGS_BLOCK_STARS = 8192
 #: Stars per block of the reduction (:func:`prior_scan`): its temporaries (vectors of
 #: REDUCE_BLOCK doubles) stay in cache.
 REDUCE_BLOCK = 4096
@@ -195,54 +191,14 @@ class PriorScan:
         m, n = len(ts), self.n
         inside = np.zeros((m, n), dtype=bool)
         valid = np.zeros((m, n), dtype=bool)
-        g, c = self.g, self.c
         # The rule of _bad as one comparison per star and prior: no reliable solution
         # where min(lam) + t <= 0 or the star is not ok (then -inf).
-        lam_min = np.min(self.lam, axis=0)
-        worst = np.where(self.ok, lam_min, -np.inf)
-        bs = max(1, min(INSIDE_FLAGS_BLOCK_STARS, n))
-        # Work arrays allocated once (a fresh array per block would be an mmap each time).
-        X_all = np.empty((3, 5, bs))
-        base_all = np.empty((5, bs))
-        w_all, y_all, tmp_all = np.empty((3, bs)), np.empty((5, bs)), np.empty((5, bs))
-        work_all = (np.empty(bs), np.empty(bs), np.empty(bs), np.empty(bs, dtype=bool))
-        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-            for lo in range(0, n, bs):
-                sl = slice(lo, min(n, lo + bs))
-                nb = sl.stop - sl.start
-                # y_j + sum_k X_jk w_k for j = (dx, dy, caa, cad, cdd): X built once per block.
-                X, base = X_all[..., :nb], base_all[:, :nb]
-                for j, src in enumerate((self.x0[0], self.x0[1], self.ainv[0], self.ainv[1], self.ainv[2])):
-                    base[j] = src[sl]
-                for k in range(3):
-                    g0, g1 = g[0, k, sl], g[1, k, sl]
-                    np.multiply(g0, c[k, sl], out=X[k, 0])
-                    np.negative(X[k, 0], out=X[k, 0])
-                    np.multiply(g1, c[k, sl], out=X[k, 1])
-                    np.negative(X[k, 1], out=X[k, 1])
-                    np.multiply(g0, g0, out=X[k, 2])
-                    np.multiply(g0, g1, out=X[k, 3])
-                    np.multiply(g1, g1, out=X[k, 4])
-                lam = np.ascontiguousarray(self.lam[:, sl])
-                worst_b = worst[sl]
-                worst_min = worst_b.min()
-                w, y, tmp = w_all[:, :nb], y_all[:, :nb], tmp_all[:, :nb]
-                work = tuple(a[:nb] for a in work_all)
-                for i, t in enumerate(ts):
-                    np.add(lam, t, out=w)
-                    np.divide(1.0, w, out=w)
-                    np.multiply(X[0], w[0], out=y)
-                    y += base
-                    np.multiply(X[1], w[1], out=tmp)
-                    y += tmp
-                    np.multiply(X[2], w[2], out=tmp)
-                    y += tmp
-                    ins, val = inside_components(y[0], y[1], y[2], y[3], y[4], P, inside_out=inside[i, sl],
-                                                 valid_out=valid[i, sl], work=work)
-                    if not worst_min + t > 0.0:  # some star of the block has no solution (_bad)
-                        bad = ~(worst_b + t > 0.0)
-                        val[bad] = False
-                        ins[bad] = False
+        worst = np.where(self.ok, np.min(self.lam, axis=0), -np.inf) if n else np.zeros(0)
+        if m and n:
+            inside_flags_grid(np.ascontiguousarray(self.x0), np.ascontiguousarray(self.ainv),
+                              np.ascontiguousarray(self.g), np.ascontiguousarray(self.c),
+                              np.ascontiguousarray(self.lam), worst, np.ascontiguousarray(ts, dtype=float),
+                              chi2_threshold(P, 2), inside, valid)
         return inside, valid
 
 

@@ -10,7 +10,11 @@ the paper's statistics.
 The Sun and EMB come from astropy's built-in ephemeris (ERFA ``epv00``), so no
 download is needed. They are evaluated once on a regular grid and interpolated with
 cubic splines; every star and every transit then reads the same tabulation instead of
-calling the ephemeris again.
+calling the ephemeris again. The grid's values ship with the package
+(``scanning/data/observer_table.npz``, written by ``python -m mcsweep.scanning.ephemeris``
+from the same astropy call): evaluating ``epv00`` at its 26 000 epochs costs 1.3 s of
+every run's start, reading the table milliseconds, and the splines are built from the
+same numbers either way (tests/scanning compares the table with astropy).
 """
 
 from __future__ import annotations
@@ -26,6 +30,10 @@ from scipy.interpolate import CubicSpline
 from ..errors import UserInputError
 
 __all__ = [
+    "TABLE_FILE",
+    "table_path",
+    "compute_table",
+    "table_epochs",
     "L2_DISTANCE_FACTOR",
     "TABLE_START_JD_TCB",
     "TABLE_END_JD_TCB",
@@ -44,14 +52,43 @@ TABLE_END_JD_TCB = 2462867.5
 _STEP_DAYS = 0.25
 
 
-@lru_cache(maxsize=1)
-def _splines() -> tuple[CubicSpline, CubicSpline]:
-    jd = np.arange(TABLE_START_JD_TCB, TABLE_END_JD_TCB + _STEP_DAYS, _STEP_DAYS)
-    t = Time(jd, format="jd", scale="tcb")
+#: The shipped tabulation (module notes).
+TABLE_FILE = "observer_table.npz"
+
+
+def table_epochs() -> np.ndarray:
+    """The tabulation's epochs, TCB Julian dates."""
+    return np.arange(TABLE_START_JD_TCB, TABLE_END_JD_TCB + _STEP_DAYS, _STEP_DAYS)
+
+
+def compute_table(jd) -> tuple[np.ndarray, np.ndarray]:
+    """(Gaia, Sun) barycentric positions [au], shape (n, 3), at the TCB Julian dates ``jd``,
+    from astropy's built-in ephemeris and the L2 model (module notes)."""
+    t = Time(np.asarray(jd, dtype=float), format="jd", scale="tcb")
     with solar_system_ephemeris.set("builtin"):
         sun = get_body_barycentric("sun", t).xyz.to_value(u.au).T
         emb = get_body_barycentric("earth-moon-barycenter", t).xyz.to_value(u.au).T
-    gaia = sun + L2_DISTANCE_FACTOR * (emb - sun)
+    return sun + L2_DISTANCE_FACTOR * (emb - sun), sun
+
+
+def table_path():
+    """The shipped tabulation inside the installed package."""
+    from importlib.resources import files
+
+    return files("mcsweep") / "scanning" / "data" / TABLE_FILE
+
+
+@lru_cache(maxsize=1)
+def _splines() -> tuple[CubicSpline, CubicSpline]:
+    jd = table_epochs()
+    try:
+        with table_path().open("rb") as f:
+            table = np.load(f)
+            gaia, sun = table["gaia_au"], table["sun_au"]
+    except (FileNotFoundError, OSError, KeyError):  # a source tree without the table: compute it
+        gaia, sun = compute_table(jd)
+    if gaia.shape != (jd.size, 3):
+        gaia, sun = compute_table(jd)
     return CubicSpline(jd, gaia, axis=0), CubicSpline(jd, sun, axis=0)
 
 
@@ -88,3 +125,18 @@ def sun_position_au(t) -> np.ndarray:
     """Barycentric position of the Sun in au (same conventions as :func:`gaia_position_au`)."""
     jd = _as_tcb_jd(t)
     return _splines()[1](jd)
+
+
+def main() -> None:
+    """Write the shipped tabulation (``python -m mcsweep.scanning.ephemeris``)."""
+    from pathlib import Path
+
+    gaia, sun = compute_table(table_epochs())
+    out = Path(__file__).resolve().parent / "data" / TABLE_FILE
+    out.parent.mkdir(exist_ok=True)
+    np.savez_compressed(out, gaia_au=gaia, sun_au=sun)
+    print(f"{out}: {gaia.shape[0]} epochs")
+
+
+if __name__ == "__main__":
+    main()

@@ -211,3 +211,14 @@ def test_dr4_format_with_ra0_dec0_g_mag_needs_no_sources_table(tmp_path):
     # The prior changes with G by much less than its own size over 0.02 mag.
     assert np.allclose(alone["sigma_prior_parallax_mas"], given["sigma_prior_parallax_mas"], rtol=0.01)
     pd.testing.assert_series_equal(alone["no_prior_parallax_mas"], given["no_prior_parallax_mas"])
+
+
+def test_dask_cluster_gives_the_same_table(tmp_path, sample_sources):
+    pytest.importorskip("dask.distributed", reason="--dask needs the dask extra")
+    outs = []
+    for extra in ((), ("--dask", "--jobs", "2")):
+        out = tmp_path / f"sol{len(extra)}.parquet"
+        r = run("solve", SAMPLE, "--sources", sample_sources, "--out", out, *extra)
+        assert r.returncode == 0, r.stderr
+        outs.append(pd.read_parquet(out))
+    pd.testing.assert_frame_equal(*outs, check_exact=True)

@@ -222,3 +222,47 @@ def test_dask_cluster_gives_the_same_table(tmp_path, sample_sources):
         assert r.returncode == 0, r.stderr
         outs.append(pd.read_parquet(out))
     pd.testing.assert_frame_equal(*outs, check_exact=True)
+
+
+@pytest.mark.parametrize("suffix", [".fits", ".vot", ".ecsv"])
+def test_astropy_outputs_keep_exact_ids(tmp_path, suffix):
+    from astropy.table import Table
+
+    df = pd.read_parquet(SAMPLE)
+    df["sourceId"] = df["sourceId"] + BIG
+    epoch = tmp_path / "epochs.parquet"
+    df.to_parquet(epoch, index=False)
+    src = sources([BIG + i for i in range(10)], tmp_path / "src.csv")
+    out = tmp_path / f"sol{suffix}"
+    r = run("solve", epoch, "--sources", src, "--out", out)
+    assert r.returncode == 0, r.stderr
+    assert list(Table.read(out)["source_id"]) == [BIG + i for i in range(10)]
+
+
+def test_shuffled_parquet_in_one_batch_and_null_arrays(tmp_path, sample_sources):
+    df = pd.read_parquet(SAMPLE)
+    whole = pd.concat(solve_epoch_file(SAMPLE, sample_sources, Prior.paper()), ignore_index=True)
+    shuffled = df.sample(frac=1.0, random_state=3)
+    path = tmp_path / "shuffled.parquet"
+    shuffled.to_parquet(path, index=False)
+    got = pd.concat(solve_epoch_file(path, sample_sources, Prior.paper()), ignore_index=True)
+    sigma = whole["no_prior_parallax_error_mas"]
+    assert np.all(np.abs(got["no_prior_parallax_mas"] - whole["no_prior_parallax_mas"]) <= 1e-9 * sigma)
+    # A transit whose centroids are null (an empty array) is not used; the file is still solved.
+    nulled = df.copy()
+    nulled["centroidPosAl"] = [np.array([], float) if i == 5 else v for i, v in enumerate(nulled["centroidPosAl"])]
+    path = tmp_path / "null.parquet"
+    nulled.to_parquet(path, index=False)
+    got = pd.concat(solve_epoch_file(path, sample_sources, Prior.paper()), ignore_index=True)
+    row = got["source_id"] == df["sourceId"].iloc[5]
+    n_used = int(np.sum(np.asarray(df["usedByAgisAl"].iloc[5], bool)))
+    assert int(got.loc[row, "n_ccd_al"].iloc[0]) == int(whole.loc[row, "n_ccd_al"].iloc[0]) - n_used
+
+
+def test_times_in_another_unit_are_refused(tmp_path, sample_sources):
+    df = pd.read_parquet(SAMPLE)
+    df["obsTimeTcb"] = [np.asarray(v, float) / 86400e9 for v in df["obsTimeTcb"]]  # days, not ns
+    path = tmp_path / "days.parquet"
+    df.to_parquet(path, index=False)
+    with pytest.raises(UserInputError, match="outside Gaia's mission"):
+        list(solve_epoch_file(path, sample_sources, Prior.paper()))

@@ -63,6 +63,22 @@ OPTIONAL_COLUMNS = {"colour_factor_al": ("colour_factor_al", "colourFactorAl")}
 #: TIMESYS origin of the DR4 epoch-astrometry files.
 TCB_ORIGIN_JD = 2455197.5
 _NS_PER_DAY = 86400e9
+#: Days after the TCB origin that any Gaia observation falls between: launch (2013-12-19)
+#: and the end of the extended mission's table (2031), with margin. An epoch outside means
+#: the time column is not ns since 2010.0 TCB (days, another origin).
+_MISSION_DAYS = (1300.0, 7700.0)
+#: Units the files may state for the columns read (the archive writes 'ns', 'deg', 'mas').
+_UNITS = {"obs_time_tcb": ("ns",), "obs_time_bary_corr": ("ns",), "scan_pos_angle": ("deg",),
+          "centroid_pos_al": ("mas",), "centroid_pos_error_al": ("mas",), "agis_source_excess_noise": ("mas",)}
+
+
+def _check_units(chunk: TableChunk, names: dict, source: str) -> None:
+    """Refuse a column whose stated unit is not the convention's (a file without units passes)."""
+    for ours, accepted in _UNITS.items():
+        unit = chunk.unit(names.get(ours)) if names.get(ours) else None
+        if unit and str(unit).replace(" ", "") not in accepted:
+            raise UserInputError(f"{source}: column {names[ours]} is in {unit}; expected {accepted[0]} (the Gaia "
+                                 "DR4 epoch-astrometry convention)")
 
 
 @dataclass(frozen=True)
@@ -176,13 +192,42 @@ def _per_transit(values, n: int, name: str, source: str) -> np.ndarray:
 
 
 def _per_ccd(chunk: TableChunk, name: str, source: str, lengths=None) -> Ragged:
+    """A per-CCD column aligned with the times' ``lengths``. A null array in a transit (stored
+    as an empty array, or as one empty or NaN value in text) becomes NaN for each of that
+    transit's CCDs, so the transit is not used; a transit without times has no CCDs."""
     r = as_ragged(chunk[name], name=name, source=source)
-    if lengths is not None and not np.array_equal(r.lengths, lengths):
-        row = int(np.argmax(r.lengths != lengths))
+    if lengths is None or np.array_equal(r.lengths, lengths):
+        return r
+    starts = np.concatenate([[0], np.cumsum(r.lengths)[:-1]]).astype(np.int64)
+    first = r.values[np.minimum(starts, max(r.values.size - 1, 0))] if r.values.size else np.zeros(r.lengths.size)
+    null = (r.lengths == 0) | ((r.lengths == 1) & _isnan(first))
+    fits = (r.lengths == lengths) | (lengths == 0) | null
+    if not fits.all():
+        row = int(np.argmax(~fits))
         raise UserInputError(f"{source}: column {name} has {int(r.lengths[row])} elements in row "
                              f"{chunk.first_row + row}, where the times have {int(lengths[row])}; expected one "
                              "element per CCD in every per-CCD column")
-    return r
+    same = r.lengths == lengths
+    out = np.full(int(lengths.sum()), np.nan)
+    out_starts = np.concatenate([[0], np.cumsum(lengths)[:-1]]).astype(np.int64)
+    rows = np.flatnonzero(same & (lengths > 0))
+    take = np.repeat(starts[rows], lengths[rows]) + _ramp(lengths[rows])
+    put = np.repeat(out_starts[rows], lengths[rows]) + _ramp(lengths[rows])
+    out[put] = np.asarray(r.values, dtype=float)[take]
+    return Ragged(out, np.asarray(lengths, dtype=np.int64))
+
+
+def _ramp(lengths) -> np.ndarray:
+    """0..n-1 for each n of ``lengths``, concatenated."""
+    total = int(np.sum(lengths))
+    return np.arange(total) - np.repeat(np.cumsum(lengths) - lengths, lengths)
+
+
+def _isnan(values) -> np.ndarray:
+    try:
+        return np.isnan(np.asarray(values, dtype=float))
+    except (TypeError, ValueError):
+        return np.zeros(np.shape(values), dtype=bool)
 
 
 def ccd_observations(chunk: TableChunk, *, need_colour: bool = False) -> CcdObservations:
@@ -202,6 +247,7 @@ def ccd_observations(chunk: TableChunk, *, need_colour: bool = False) -> CcdObse
         raise UserInputError(f"{source}: has no colour_factor_al (or colourFactorAl); expected it for the "
                              "six-parameter model (or use --model 5p)")
     n = len(chunk)
+    _check_units(chunk, names, source)
     ids = integer_ids(chunk[names["source_id"]], names["source_id"], source)
     time = _per_ccd(chunk, names["obs_time_tcb"], source)
     lengths = time.lengths
@@ -228,6 +274,11 @@ def ccd_observations(chunk: TableChunk, *, need_colour: bool = False) -> CcdObse
     rows = transit[keep]
     # Barycentric time in days from the TCB origin; summed in ns first (both ~1e17 and 1e11 ns).
     days = (t_ns[keep] + row["obs_time_bary_corr"][rows]) / _NS_PER_DAY
+    if days.size and not ((days.min() > _MISSION_DAYS[0]) and (days.max() < _MISSION_DAYS[1])):
+        bad = days[(days <= _MISSION_DAYS[0]) | (days >= _MISSION_DAYS[1])][0]
+        raise UserInputError(f"{source}: column {names['obs_time_tcb']} gives an epoch {bad:.1f} days after "
+                             "2010-01-01 TCB, outside Gaia's mission; expected nanoseconds since "
+                             "2010-01-01T00:00:00 TCB (the DR4 epoch-astrometry convention)")
     excess = row["agis_source_excess_noise"]
     excess = np.where(np.isfinite(excess), excess, 0.0)[rows]
     out = CcdObservations(

@@ -65,7 +65,11 @@ class SourceTable:
     name: str
 
     def rows_of(self, ids: np.ndarray, epoch_file: str) -> np.ndarray:
-        """Index of each of ``ids`` in this table; UserInputError naming the first one absent."""
+        """Index of each of ``ids`` in this table; UserInputError naming the first one absent
+        or without a finite ra, dec and G."""
+        if not self.source_id.size:
+            raise UserInputError(f"{self.name} has no rows; expected ra, dec and phot_g_mean_mag for every source "
+                                 f"of {epoch_file}")
         where = np.searchsorted(self.source_id, ids)
         found = (where < self.source_id.size) & (self.source_id[np.minimum(where, self.source_id.size - 1)] == ids)
         if not found.all():
@@ -80,7 +84,8 @@ class SourceTable:
 
 
 def read_sources(path) -> SourceTable:
-    """The ``--sources`` table (module notes), checked: exact ids, once each, finite ra, dec, G."""
+    """The ``--sources`` table (module notes), checked: exact ids, once each, numeric ra, dec, G
+    (finite for every source that is solved)."""
     t = read_table(path, what="--sources")
     name = Path(path).name
     cols = {k: t.find(k) for k in ("source_id", "ra", "dec", "phot_g_mean_mag")}
@@ -94,7 +99,14 @@ def read_sources(path) -> SourceTable:
     dup = ids[1:][ids[1:] == ids[:-1]]
     if dup.size:
         raise UserInputError(f"{name}: source_id {dup[0]} appears twice; expected one row per source")
-    vals = {k: finite_column(t[cols[k]], cols[k], name)[order] for k in ("ra", "dec", "phot_g_mean_mag")}
+    # NaN allowed here (gaia_source has sources without G): refused only for a source that
+    # is solved (SourceTable.rows_of).
+    vals = {}
+    for k in ("ra", "dec", "phot_g_mean_mag"):
+        try:
+            vals[k] = np.asarray(t[cols[k]], dtype=float)[order]
+        except (TypeError, ValueError):
+            raise UserInputError(f"{name}: column {cols[k]} has non-numeric values; expected numbers") from None
     if np.any(np.abs(vals["dec"]) > 90):
         raise UserInputError(f"{name}: column {cols['dec']} has values beyond +-90; expected degrees")
     bp_rp = np.full(ids.size, np.nan)
@@ -168,6 +180,7 @@ def epoch_batches(path, *, batch_rows: int = BATCH_ROWS) -> Iterator[tuple[Table
     """
     done: list[np.ndarray] = []
     for f in epoch_files(path):
+        f = f.resolve()  # a worker elsewhere (Dask) reads the same file by this path
         if detect_format(f, what="epoch astrometry") == "parquet":
             yield from _parquet_ranges(f, batch_rows, done)
         else:
@@ -204,11 +217,18 @@ def _parquet_ranges(path: Path, batch_rows: int, done: list) -> Iterator[tuple[R
     wanted = {n.lower() for pair in (*COLUMNS.values(), *OPTIONAL_COLUMNS.values()) for n in pair}
     wanted |= {"used_by_agis_al.1", "used_by_agis_ac", *EPOCH_SOURCE_COLUMNS}
     columns = tuple(n for n in schema.names if n.lower() in wanted)
+    batches = iter_tables(path, what="epoch astrometry", batch_rows=batch_rows, columns=[name])
+    first = next((c for c in batches if len(c)), None)
+    if first is None:
+        return
+    second = next((c for c in batches if len(c)), None)
+    if second is None:  # the whole file is one batch: its rows may be in any order
+        ids = integer_ids(first[name], name, path.name)
+        yield RowRange(str(path), 0, ids.size, columns), _checked_once(ids, done, path.name)
+        return
     pending: list[np.ndarray] = []
     start = 0  # first row of the pending ids
-    for chunk in iter_tables(path, what="epoch astrometry", batch_rows=batch_rows, columns=[name]):
-        if not len(chunk):
-            continue
+    for chunk in _chain([first, second], batches):
         pending.append(integer_ids(chunk[name], name, path.name))
         ids = np.concatenate(pending)
         cut = int(np.flatnonzero(ids == ids[-1])[0])  # the last source may go on in the next rows
@@ -221,6 +241,11 @@ def _parquet_ranges(path: Path, batch_rows: int, done: list) -> Iterator[tuple[R
     if pending and pending[0].size:
         ids = np.concatenate(pending)
         yield RowRange(str(path), start, start + ids.size, columns), _checked_once(ids, done, path.name)
+
+
+def _chain(head, tail):
+    yield from head
+    yield from (c for c in tail if len(c))
 
 
 def _checked_once(ids: np.ndarray, done: list[np.ndarray], source: str) -> np.ndarray:
@@ -253,6 +278,9 @@ def sources_of_batch(chunk: TableChunk) -> SourceTable:
     """Each source's reference position (``ra0``, ``dec0`` of its first row) and G (the median of
     its rows' finite ``g_mag``) from an epoch file that carries them (DR4's format)."""
     names = {c: chunk.find(c) for c in EPOCH_SOURCE_COLUMNS}
+    if None in names.values():
+        raise UserInputError(f"{chunk.source}: has no {', '.join(c for c, v in names.items() if v is None)} (other "
+                             "files of the input have them); expected --sources SOURCES for files without them")
     ids = _source_ids(chunk)
     order = np.argsort(ids, kind="stable")
     ids_sorted = ids[order]

@@ -275,7 +275,8 @@ def write_solutions(table: pd.DataFrame, path, fmt: str) -> None:
                 t[c].unit = "mas"
             elif c.endswith("_deg") or c in ("ra", "dec"):
                 t[c].unit = "deg"
-        t.write(path, format=ASTROPY_FORMAT[fmt])
+        # path is the command's own temporary file (made empty by mkstemp): overwrite it.
+        t.write(path, format=ASTROPY_FORMAT[fmt], overwrite=True)
 
 
 class TableWriter:

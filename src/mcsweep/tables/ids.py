@@ -41,6 +41,9 @@ def integer_ids(values, name: str, source: str) -> np.ndarray:
     if arr.dtype.kind == "b":
         _refuse(arr.flat[0] if arr.size else None, name, source)
     if arr.dtype.kind == "f":
+        if np.isnan(arr).any():
+            raise UserInputError(f"{source}: column {name} has a missing value in row {int(np.argmax(np.isnan(arr)))}; "
+                                 "expected an integer identifier in every row")
         bad = ~np.isfinite(arr) | (np.abs(arr) >= FLOAT64_EXACT_LIMIT) | (arr != np.round(arr))
         if bad.any():
             _refuse(float(arr[np.argmax(bad)]), name, source)

@@ -178,7 +178,9 @@ def _arrow_scalar(col) -> np.ndarray:
 
     if col.null_count and (pa.types.is_floating(col.type) or pa.types.is_integer(col.type)):
         if pa.types.is_integer(col.type):
-            return col.cast(pa.float64()).to_numpy(zero_copy_only=False)
+            # NaN for the nulls; an unsafe cast, as integers beyond 2**53 (nanosecond times)
+            # round to float64's 53 bits (32 ns at 1.7e17 ns) instead of raising.
+            return col.cast(pa.float64(), safe=False).to_numpy(zero_copy_only=False)
         return col.to_numpy(zero_copy_only=False)
     if pa.types.is_boolean(col.type) and col.null_count:
         return col.fill_null(False).to_numpy(zero_copy_only=False)
@@ -396,6 +398,9 @@ def as_ragged(column, *, name: str = "", source: str = "") -> Ragged:
         return Ragged(arr.reshape(-1), np.full(arr.shape[0], arr.shape[1], dtype=np.int64))
     if arr.size == 0:
         return Ragged(np.empty(0), np.zeros(0, dtype=np.int64))
+    if arr.dtype.kind == "O" and any(isinstance(v, str) for v in arr[:64]):
+        # Text arrays with empty cells (pandas reads an empty CSV cell as NaN): empty text.
+        arr = np.where(pd_isna(arr), "", arr)
     if arr.dtype.kind in "US" or (arr.dtype.kind == "O" and isinstance(arr[0], str)):
         return _parse_text_arrays(arr.astype(str), name, source)
     if arr.dtype.kind == "O":
@@ -404,6 +409,13 @@ def as_ragged(column, *, name: str = "", source: str = "") -> Ragged:
         return Ragged(np.concatenate(cells) if cells else np.empty(0), lengths)
     raise UserInputError(f"{source}: column {name} holds one value per row; expected an array per row "
                          "(one element per CCD)")
+
+
+def pd_isna(values) -> np.ndarray:
+    """Element-wise missing-value test of an object array (None and float NaN)."""
+    import pandas as pd
+
+    return pd.isna(values)
 
 
 def _parse_text_arrays(text: np.ndarray, name: str, source: str) -> Ragged:

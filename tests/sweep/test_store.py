@@ -23,8 +23,9 @@ def test_roundtrip(tmp_path):
 @pytest.mark.parametrize("damage", ["truncate", "garbage", "empty"])
 def test_damaged_file_is_recomputed_with_warning(tmp_path, damage):
     store = ResultStore(tmp_path, "abc")
-    path = store.write("cell_1", _table())
-    data = path.read_bytes()
+    data = store.write("cell_1", _table())
+    path = store.path("cell_1")
+    assert path.read_bytes() == data
     path.write_bytes({"truncate": data[: len(data) // 2], "garbage": b"not parquet at all", "empty": b""}[damage])
     with pytest.warns(UserWarning, match="recomputing"):
         assert store.read("cell_1") is None
@@ -165,3 +166,9 @@ def test_a_cell_store_clears_only_unheld_temporaries(tmp_path):
     finally:
         proc.send_signal(signal.SIGKILL)
         proc.wait(timeout=60)
+
+
+def test_decoded_bytes_are_what_read_gives(tmp_path):
+    store = ResultStore(tmp_path, "abc")
+    data = store.write("cell_1", _table())
+    pd.testing.assert_frame_equal(store.decode(data), store.read("cell_1"), check_exact=True)

@@ -43,7 +43,7 @@ from ..errors import UserInputError
 from ..tables import Ragged, TableChunk, as_ragged, integer_ids
 
 __all__ = ["COLUMNS", "OPTIONAL_COLUMNS", "CcdObservations", "is_epoch_astrometry", "ccd_observations",
-           "TCB_ORIGIN_JD", "concatenate", "fix_archive_header"]
+           "TCB_ORIGIN_JD", "fix_archive_header"]
 
 #: Our name -> (archive snake_case, DPAC camelCase), the columns every model needs.
 COLUMNS = {
@@ -119,29 +119,6 @@ class CcdObservations:
     def take(self, idx) -> "CcdObservations":
         """The observations ``idx`` (indices or mask)."""
         return CcdObservations(**{k: (None if v is None else v[idx]) for k, v in self.__dict__.items()})
-
-
-def concatenate(parts: list[CcdObservations]) -> CcdObservations:
-    """One :class:`CcdObservations` of several, transits renumbered, grouped by source_id."""
-    parts = [p for p in parts if len(p)]
-    if not parts:
-        return _empty()
-    offset, transits = 0, []
-    for p in parts:
-        transits.append(p.transit + offset)
-        offset += int(p.transit.max()) + 1
-    colour = None if any(p.colour_factor_al is None for p in parts) else \
-        np.concatenate([p.colour_factor_al for p in parts])
-    out = CcdObservations(**{k: np.concatenate([getattr(p, k) for p in parts])
-                             for k in ("source_id", "tcb_jd", "scan_angle_deg", "parallax_factor_al",
-                                       "centroid_al_mas", "sigma_al_mas", "excess_noise_mas")},
-                          colour_factor_al=colour, transit=np.concatenate(transits))
-    return out.take(np.argsort(out.source_id, kind="stable"))
-
-
-def _empty() -> CcdObservations:
-    z = np.empty(0)
-    return CcdObservations(np.empty(0, np.int64), z, z, z, z, z, z, None, np.empty(0, np.int64))
 
 
 def _names(chunk: TableChunk) -> dict[str, str]:

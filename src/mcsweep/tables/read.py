@@ -400,7 +400,7 @@ def as_ragged(column, *, name: str = "", source: str = "") -> Ragged:
         return Ragged(np.empty(0), np.zeros(0, dtype=np.int64))
     if arr.dtype.kind == "O" and any(isinstance(v, str) for v in arr[:64]):
         # Text arrays with empty cells (pandas reads an empty CSV cell as NaN): empty text.
-        arr = np.where(pd_isna(arr), "", arr)
+        arr = np.where(_isna(arr), "", arr)
     if arr.dtype.kind in "US" or (arr.dtype.kind == "O" and isinstance(arr[0], str)):
         return _parse_text_arrays(arr.astype(str), name, source)
     if arr.dtype.kind == "O":
@@ -411,7 +411,7 @@ def as_ragged(column, *, name: str = "", source: str = "") -> Ragged:
                          "(one element per CCD)")
 
 
-def pd_isna(values) -> np.ndarray:
+def _isna(values) -> np.ndarray:
     """Element-wise missing-value test of an object array (None and float NaN)."""
     import pandas as pd
 

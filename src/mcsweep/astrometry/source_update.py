@@ -32,10 +32,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import UserInputError
+from .design import JULIAN_YEAR_DAYS
 from .epoch_astrometry import CcdObservations
 
 __all__ = ["MODELS", "DR4_REFERENCE_EPOCH_JD", "PSEUDOCOLOUR_PRIOR_PER_NM", "COLOUR_FACTOR_SCALE",
-           "VISIBILITY_GAP_DAYS", "SourceNormals", "source_normals", "check_model"]
+           "VISIBILITY_GAP_DAYS", "SourceNormals", "source_normals", "check_model", "visibility_periods"]
 
 #: Models solved: five astrometric parameters, or DR4's six with the constrained pseudo-colour.
 MODELS = ("5p", "6p")
@@ -50,7 +51,6 @@ COLOUR_FACTOR_SCALE = -1e3
 #: A visibility period is a group of transits separated from the next by more than 4 days
 #: (the definition of gaia_source.visibility_periods_used, Lindegren et al. 2018, A&A 616, A2).
 VISIBILITY_GAP_DAYS = 4.0
-_JULIAN_YEAR_DAYS = 365.25
 
 
 def check_model(model: str) -> str:
@@ -105,7 +105,19 @@ def _segments(sorted_keys: np.ndarray) -> np.ndarray:
         np.empty(0, np.int64)
 
 
-def _visibility_periods(transit, tcb_jd, starts) -> tuple[np.ndarray, np.ndarray]:
+def visibility_periods(source_index, tcb_jd, n_sources: int) -> np.ndarray:
+    """Visibility periods per source from its FoV transits' times (any order): groups of
+    transits more than :data:`VISIBILITY_GAP_DAYS` apart.
+
+    ``source_index`` (int, one per transit) numbers the sources 0..n_sources-1."""
+    order = np.lexsort((tcb_jd, source_index))
+    src, t = np.asarray(source_index)[order], np.asarray(tcb_jd)[order]
+    new_period = np.r_[True, (src[1:] != src[:-1]) | (np.diff(t) > VISIBILITY_GAP_DAYS)] if src.size else \
+        np.zeros(0, bool)
+    return np.bincount(src[new_period], minlength=n_sources)
+
+
+def _transit_counts(transit, tcb_jd, starts) -> tuple[np.ndarray, np.ndarray]:
     """(FoV transits, visibility periods) per source from its observations' times.
 
     A transit is a row of the file (its CCDs are consecutive within the source's block): two
@@ -113,15 +125,11 @@ def _visibility_periods(transit, tcb_jd, starts) -> tuple[np.ndarray, np.ndarray
     at once), and both count, as AGIS counts both rows' observations.
     """
     n = starts.size
-    m = transit.size
-    src = np.repeat(np.arange(n), np.diff(np.r_[starts, m]))
+    src = np.repeat(np.arange(n), np.diff(np.r_[starts, transit.size]))
     first = np.r_[True, (transit[1:] != transit[:-1]) | (src[1:] != src[:-1])]
     src_tr = src[first]
     t_tr = np.minimum.reduceat(tcb_jd, np.flatnonzero(first))
-    order = np.lexsort((t_tr, src_tr))
-    src_tr, t_tr = src_tr[order], t_tr[order]
-    new_period = np.r_[True, (src_tr[1:] != src_tr[:-1]) | (np.diff(t_tr) > VISIBILITY_GAP_DAYS)]
-    return np.bincount(src_tr, minlength=n), np.bincount(src_tr[new_period], minlength=n)
+    return np.bincount(src_tr, minlength=n), visibility_periods(src_tr, t_tr, n)
 
 
 def source_normals(obs: CcdObservations, *, model: str = "5p",
@@ -154,7 +162,7 @@ def source_normals(obs: CcdObservations, *, model: str = "5p",
         epoch = np.add.reduceat(obs.tcb_jd, starts) / counts if n else np.empty(0)
     else:
         epoch = np.full(n, float(reference_epoch_jd))
-    t_yr = (obs.tcb_jd - np.repeat(epoch, counts)) / _JULIAN_YEAR_DAYS
+    t_yr = (obs.tcb_jd - np.repeat(epoch, counts)) / JULIAN_YEAR_DAYS
     theta = np.deg2rad(obs.scan_angle_deg)
     sw = 1.0 / np.sqrt(obs.sigma_al_mas ** 2 + obs.excess_noise_mas ** 2)
     s, c = np.sin(theta) * sw, np.cos(theta) * sw
@@ -179,8 +187,8 @@ def source_normals(obs: CcdObservations, *, model: str = "5p",
         b = b[:, :5] - k * b[:, 5][:, None]
         N = N[:, :5, :5] - k[:, :, None] * N[:, 5, :5][:, None, :]
         N = 0.5 * (N + np.swapaxes(N, 1, 2))
-    n_tr, periods = _visibility_periods(obs.transit, obs.tcb_jd, starts) if n else (np.empty(0, int),) * 2
-    span = ((np.maximum.reduceat(obs.tcb_jd, starts) - np.minimum.reduceat(obs.tcb_jd, starts)) / _JULIAN_YEAR_DAYS
+    n_tr, periods = _transit_counts(obs.transit, obs.tcb_jd, starts) if n else (np.empty(0, int),) * 2
+    span = ((np.maximum.reduceat(obs.tcb_jd, starts) - np.minimum.reduceat(obs.tcb_jd, starts)) / JULIAN_YEAR_DAYS
             if n else np.empty(0))
     return SourceNormals(source_id=sid[starts], N=N, b=b, reference_epoch_jd=epoch, n_ccd=counts,
                          n_transits=n_tr, n_visibility_periods=periods, time_span_yr=span,

@@ -46,6 +46,7 @@ import pandas as pd
 
 from ..astrometry.design import JULIAN_YEAR_DAYS, PARAMETER_NAMES, design_matrix, reference_epoch, years_since
 from ..astrometry.solve import normal_equations
+from ..astrometry.source_update import visibility_periods
 from ..errors import UserInputError
 from ..scanning.ephemeris import gaia_position_au
 from .. import tables as _tables
@@ -249,12 +250,8 @@ def solve_observations(obs: Observations, prior: Prior, *, factor: float = 1.0, 
 
 def _visibility_periods(obs: Observations) -> np.ndarray:
     """Visibility periods per source: its transits in groups more than 4 days apart."""
-    from ..astrometry.source_update import VISIBILITY_GAP_DAYS
-
-    sid, t = obs["source_id"], obs["tcb_jd"]
-    new = np.r_[True, (sid[1:] != sid[:-1]) | (np.diff(t) > VISIBILITY_GAP_DAYS)]
-    src = np.searchsorted(obs["source_ids"], sid)
-    return np.bincount(src[new], minlength=obs["source_ids"].size)
+    src = np.searchsorted(obs["source_ids"], obs["source_id"])
+    return visibility_periods(src, obs["tcb_jd"], obs["source_ids"].size)
 
 
 def write_solutions(table: pd.DataFrame, path, fmt: str) -> None:

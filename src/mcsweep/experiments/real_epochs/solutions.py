@@ -29,17 +29,16 @@ import pandas as pd
 from ...astrometry.confidence import inside as inside_ellipse
 from ...astrometry.confidence import mahalanobis_sq
 from ...astrometry.epoch_astrometry import CcdObservations
+from ...astrometry.design import JULIAN_YEAR_DAYS
 from ...astrometry.solve import solve_no_prior, solve_position_only, solve_with_prior
 from ...astrometry.source_update import DR4_REFERENCE_EPOCH_JD, source_normals
 from .subsets import UNITS, choose_items, source_layout, subset_observations, subset_rows
 
-__all__ = ["TRUTH_EPOCH_JD", "JULIAN_YEAR_DAYS", "POSITION_ONLY", "Truth", "solve_truth", "ChunkSettings",
+__all__ = ["TRUTH_EPOCH_JD", "POSITION_ONLY", "Truth", "solve_truth", "ChunkSettings",
            "SubsetSolutions", "solve_subsets", "solve_chunk"]
 
 #: The truth's reference epoch: J2017.5 TCB, Gaia DR4's (source_update.DR4_REFERENCE_EPOCH_JD).
 TRUTH_EPOCH_JD = DR4_REFERENCE_EPOCH_JD
-#: Days per Julian year (IAU): the unit of time of the proper motion.
-JULIAN_YEAR_DAYS = 365.25
 #: The prior name of the position-only solution (Table 2's "none (2 parameters)").
 POSITION_ONLY = "none"
 

@@ -27,7 +27,8 @@ import pandas as pd
 
 from ...astrometry.confidence import binomial_interval
 from ..global_solution.table import FRACTION_INTERVAL, error_percentile, fraction_from_counts
-from .solutions import JULIAN_YEAR_DAYS, POSITION_ONLY, TRUTH_EPOCH_JD, Truth
+from ...astrometry.design import JULIAN_YEAR_DAYS
+from .solutions import POSITION_ONLY, TRUTH_EPOCH_JD, Truth
 from .subsets import BOOTSTRAP_STREAM, TAG, UNITS
 
 __all__ = ["HOLD_LIMIT_SIGMA", "CLASSES", "NO_TRUTH", "INTERVAL_QUANTILES", "star_classes",

@@ -175,8 +175,7 @@ def _per_ccd(chunk: TableChunk, name: str, source: str, lengths=None) -> Ragged:
     r = as_ragged(chunk[name], name=name, source=source)
     if lengths is None or np.array_equal(r.lengths, lengths):
         return r
-    starts = np.concatenate([[0], np.cumsum(r.lengths)[:-1]]).astype(np.int64)
-    first = r.values[np.minimum(starts, max(r.values.size - 1, 0))] if r.values.size else np.zeros(r.lengths.size)
+    first = r.values[np.minimum(r.starts, max(r.values.size - 1, 0))] if r.values.size else np.zeros(r.lengths.size)
     null = (r.lengths == 0) | ((r.lengths == 1) & _isnan(first))
     fits = (r.lengths == lengths) | (lengths == 0) | null
     if not fits.all():
@@ -185,19 +184,10 @@ def _per_ccd(chunk: TableChunk, name: str, source: str, lengths=None) -> Ragged:
                              f"{chunk.first_row + row}, where the times have {int(lengths[row])}; expected one "
                              "element per CCD in every per-CCD column")
     same = r.lengths == lengths
-    out = np.full(int(lengths.sum()), np.nan)
-    out_starts = np.concatenate([[0], np.cumsum(lengths)[:-1]]).astype(np.int64)
+    aligned = Ragged(np.full(int(lengths.sum()), np.nan), np.asarray(lengths, dtype=np.int64))
     rows = np.flatnonzero(same & (lengths > 0))
-    take = np.repeat(starts[rows], lengths[rows]) + _ramp(lengths[rows])
-    put = np.repeat(out_starts[rows], lengths[rows]) + _ramp(lengths[rows])
-    out[put] = np.asarray(r.values, dtype=float)[take]
-    return Ragged(out, np.asarray(lengths, dtype=np.int64))
-
-
-def _ramp(lengths) -> np.ndarray:
-    """0..n-1 for each n of ``lengths``, concatenated."""
-    total = int(np.sum(lengths))
-    return np.arange(total) - np.repeat(np.cumsum(lengths) - lengths, lengths)
+    aligned.values[aligned.element_index(rows)] = np.asarray(r.values, dtype=float)[r.element_index(rows)]
+    return aligned
 
 
 def _isnan(values) -> np.ndarray:

@@ -34,7 +34,7 @@ from ..errors import UserInputError
 from .formats import ASTROPY_FORMAT, detect_format
 
 __all__ = ["Ragged", "TableChunk", "read_table", "iter_tables", "as_ragged", "is_identifier", "arrow_batches",
-           "astropy_table", "csv_batches", "parquet_rows"]
+           "astropy_table", "csv_batches", "parquet_rows", "row_starts", "ramp"]
 
 #: Rows per batch when a caller does not say (about 25 MB of float64 at 12 columns).
 DEFAULT_BATCH_ROWS = 262_144
@@ -50,13 +50,32 @@ class Ragged:
     def __len__(self) -> int:
         return int(self.lengths.size)
 
+    @property
+    def starts(self) -> np.ndarray:
+        """Index in ``values`` of each row's first element."""
+        return row_starts(self.lengths)
+
+    def element_index(self, rows) -> np.ndarray:
+        """Indices in ``values`` of the elements of ``rows``, row after row."""
+        rows = np.asarray(rows, dtype=np.int64)
+        lengths = self.lengths[rows]
+        return np.repeat(self.starts[rows], lengths) + ramp(lengths)
+
     def take(self, rows: np.ndarray) -> "Ragged":
         """The rows ``rows`` (indices) of this column, in that order."""
-        starts = np.concatenate([[0], np.cumsum(self.lengths)[:-1]]).astype(np.int64)
-        lengths = self.lengths[rows]
-        idx = np.repeat(starts[rows] - np.concatenate([[0], np.cumsum(lengths)[:-1]]), lengths) \
-            + np.arange(int(lengths.sum()))
-        return Ragged(self.values[idx], lengths)
+        return Ragged(self.values[self.element_index(rows)], self.lengths[rows])
+
+
+def row_starts(lengths) -> np.ndarray:
+    """Start of each row in the concatenation of rows of ``lengths`` elements."""
+    lengths = np.asarray(lengths, dtype=np.int64)
+    return np.cumsum(lengths) - lengths
+
+
+def ramp(lengths) -> np.ndarray:
+    """0 .. n - 1 for each n of ``lengths``, concatenated (an element's place in its row)."""
+    lengths = np.asarray(lengths, dtype=np.int64)
+    return np.arange(int(lengths.sum()), dtype=np.int64) - np.repeat(row_starts(lengths), lengths)
 
 
 def is_identifier(name: str) -> bool:
@@ -133,8 +152,7 @@ class TableChunk:
         data = {}
         for k, v in self.columns.items():
             if isinstance(v, Ragged):
-                starts = np.concatenate([[0], np.cumsum(v.lengths)[:-1]])
-                data[k] = [v.values[s:s + n] for s, n in zip(starts, v.lengths)]
+                data[k] = [v.values[s:s + n] for s, n in zip(v.starts, v.lengths)]
             elif getattr(v, "ndim", 1) > 1:
                 data[k] = list(v)
             else:

@@ -7,7 +7,7 @@ from astropy import units as u
 
 from ..errors import UserInputError
 
-__all__ = ["finite_column", "unit_scale", "read_run_table"]
+__all__ = ["finite_column", "unit_scale", "read_run_table", "source_bp_rp"]
 
 _EXPECTED = {"angle": "an angle (deg)", "mag": "magnitudes (mag or plain numbers)"}
 
@@ -72,3 +72,24 @@ def unit_scale(unit, kind: str, what: str) -> float:
     except (u.UnitConversionError, ValueError, TypeError):
         pass
     raise UserInputError(f"{what} in {unit} is not accepted; expected {_EXPECTED[kind]}")
+
+
+def source_bp_rp(src, source: str) -> np.ndarray:
+    """BP-RP per row of the DataFrame ``src`` from ``bp_rp`` or ``phot_bp_mean_mag -
+    phot_rp_mean_mag`` (names matched case-insensitively); NaN where unknown or without
+    those columns; a one-line :class:`~mcsweep.errors.UserInputError` for non-numbers."""
+    import pandas as pd
+
+    lower = {str(c).lower(): c for c in src.columns}
+    if "bp_rp" in lower:
+        cols = [lower["bp_rp"]]
+    elif "phot_bp_mean_mag" in lower and "phot_rp_mean_mag" in lower:
+        cols = [lower["phot_bp_mean_mag"], lower["phot_rp_mean_mag"]]
+    else:
+        return np.full(len(src), np.nan)
+    try:
+        v = [pd.to_numeric(src[c], errors="raise").to_numpy(dtype=float) for c in cols]
+    except (TypeError, ValueError):
+        raise UserInputError(f"{source}: column {cols[0] if len(cols) == 1 else ' or '.join(cols)} has non-numeric "
+                             "values; expected magnitudes (empty or NaN where unknown)") from None
+    return v[0] if len(v) == 1 else v[0] - v[1]

@@ -38,7 +38,7 @@ from ..astrometry.source_update import check_model, source_normals
 from ..errors import UserInputError
 from ..tables import TableChunk, detect_format, integer_ids, iter_tables, read_table
 from ..tables.read import arrow_batches, parquet_rows
-from .columns import finite_column
+from .columns import finite_column, source_bp_rp
 from .epochs import reference_epoch_jd
 from .model import Prior
 from .solutions import check_factor, solutions_table
@@ -109,17 +109,8 @@ def read_sources(path) -> SourceTable:
             raise UserInputError(f"{name}: column {cols[k]} has non-numeric values; expected numbers") from None
     if np.any(np.abs(vals["dec"]) > 90):
         raise UserInputError(f"{name}: column {cols['dec']} has values beyond +-90; expected degrees")
-    bp_rp = np.full(ids.size, np.nan)
-    c = t.find("bp_rp")
-    bp, rp = t.find("phot_bp_mean_mag"), t.find("phot_rp_mean_mag")
-    try:
-        if c is not None:
-            bp_rp = np.asarray(t[c], dtype=float)[order]
-        elif bp is not None and rp is not None:
-            bp_rp = (np.asarray(t[bp], dtype=float) - np.asarray(t[rp], dtype=float))[order]
-    except (TypeError, ValueError):
-        raise UserInputError(f"{name}: the colour columns have non-numeric values; expected magnitudes (empty or "
-                             "NaN where unknown)") from None
+    colour = [c for c in (t.find("bp_rp"), t.find("phot_bp_mean_mag"), t.find("phot_rp_mean_mag")) if c]
+    bp_rp = source_bp_rp(pd.DataFrame({c: t[c] for c in colour}, index=np.arange(len(t))), name)[order]
     return SourceTable(ids, vals["ra"], vals["dec"], vals["phot_g_mean_mag"], bp_rp, name)
 
 

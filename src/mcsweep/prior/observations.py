@@ -51,7 +51,7 @@ from ..errors import UserInputError
 from ..scanning.ephemeris import gaia_position_au
 from .. import tables as _tables
 from ..tables import ASTROPY_FORMAT, detect_format, integer_ids
-from .columns import finite_column
+from .columns import finite_column, source_bp_rp
 from .epochs import reference_epoch_jd
 from .model import Prior
 from .solutions import check_factor, solutions_table
@@ -70,23 +70,6 @@ SOURCE_COLUMNS = ("source_id", "ra", "dec", "phot_g_mean_mag")
 def read_table(path, what: str = "") -> pd.DataFrame:
     """A table file (format from the suffix) as a DataFrame, identifiers exact; UserInputError if unreadable."""
     return _tables.read_table(path, what=what).frame()
-
-
-def _source_colour(src: pd.DataFrame, source: str) -> np.ndarray:
-    """BP-RP per source from ``bp_rp`` or ``phot_bp_mean_mag - phot_rp_mean_mag``; NaN where unknown."""
-    lower = {str(c).lower(): c for c in src.columns}
-    if "bp_rp" in lower:
-        cols = [lower["bp_rp"]]
-    elif "phot_bp_mean_mag" in lower and "phot_rp_mean_mag" in lower:
-        cols = [lower["phot_bp_mean_mag"], lower["phot_rp_mean_mag"]]
-    else:
-        return np.full(len(src), np.nan)
-    try:
-        v = [pd.to_numeric(src[c], errors="raise").to_numpy(dtype=float) for c in cols]
-    except (TypeError, ValueError):
-        raise UserInputError(f"{source}: column {cols[0] if len(cols) == 1 else ' or '.join(cols)} has non-numeric "
-                             "values; expected magnitudes (empty or NaN where unknown)") from None
-    return v[0] if len(v) == 1 else v[0] - v[1]
 
 
 def _numeric(df: pd.DataFrame, cols, source: str) -> dict[str, np.ndarray]:
@@ -137,7 +120,7 @@ def read_observations(obs_path, sources_path=None) -> Observations:
         sname = name
     vals = _numeric(obs, cols[1:], name)
     svals = _numeric(src, SOURCE_COLUMNS[1:], sname)
-    svals["bp_rp"] = _source_colour(src, sname)
+    svals["bp_rp"] = source_bp_rp(src, sname)
     for key, ok, accepted in (("al_sigma_mas", vals["al_sigma_mas"] > 0, "positive uncertainties in mas"),
                               ("ac_sigma_mas", vals.get("ac_sigma_mas", np.ones(1)) > 0, "positive uncertainties in mas")):
         if not ok.all():

@@ -27,8 +27,8 @@ so no step divides by a singular quantity. A singular position block ``A`` (AL d
 one scan direction only) leaves the position undetermined with any prior of Eq. 18,
 as in :func:`mcsweep.astrometry.solve.solve_with_prior`: such stars get NaN.
 
-The 3 x 3 eigen-decompositions use cyclic Jacobi rotations vectorised across stars
-(Golub & Van Loan, Sect. 8.5): Jacobi is accurate to the rounding level for every
+The 3 x 3 eigen-decompositions use cyclic Jacobi rotations, compiled and vectorised
+across stars (:mod:`mcsweep.astrometry.scan_kernel`; Golub & Van Loan, Sect. 8.5): Jacobi is accurate to the rounding level for every
 eigenvalue relative to the matrix norm. A rotation is skipped for a star whose
 off-diagonal element is already negligible (below ``JACOBI_NEGLIGIBLE`` times its two
 diagonal elements), a per-star test, so every star's arithmetic is independent of the
@@ -51,66 +51,11 @@ import numpy as np
 
 from .confidence import chi2_threshold
 from .linalg import PIVOT_TOLERANCE
-from .scan_kernel import inside_flags_grid
+from .scan_kernel import JACOBI_NEGLIGIBLE, JACOBI_SWEEPS, REDUCE_BLOCK, inside_flags_grid, reduce_normals
 from .solve import DEFAULT_RATIO_R, check_normal, prior_diagonal
 
 __all__ = ["JACOBI_SWEEPS", "JACOBI_NEGLIGIBLE", "REDUCE_BLOCK", "PriorScan", "prior_scan"]
 
-#: Most cyclic Jacobi sweeps for a 3 x 3 symmetric matrix. Convergence is quadratic
-#: after the first sweep (Golub & Van Loan, Sect. 8.5.4); 3 x 3 matrices reach the
-#: rounding level in 4-5 sweeps.
-JACOBI_SWEEPS = 8
-#: A rotation is skipped where ``|a_pq| <= JACOBI_NEGLIGIBLE * (|a_pp| + |a_qq|)``:
-#: two orders of magnitude below the rounding of the diagonal elements, so skipping it
-#: changes no eigenvalue or eigenvector beyond rounding.
-JACOBI_NEGLIGIBLE = 1e-18
-#: Stars per block of the reduction (:func:`prior_scan`): its temporaries (vectors of
-#: REDUCE_BLOCK doubles) stay in cache.
-REDUCE_BLOCK = 4096
-
-
-def _jacobi3(t):
-    """Eigen-decomposition of symmetric 3 x 3 matrices ``t`` (3, 3, n), star-last.
-
-    Returns ``lam (3, n)`` and ``v (3, 3, n)`` with ``T = V diag(lam) V'`` (columns of
-    ``v[:, i]`` are the eigenvectors).
-    """
-    a = t.copy()
-    v = np.zeros_like(a)
-    for i in range(3):
-        v[i, i] = 1.0
-    # theta overflows to inf for a negligible off-diagonal element: the rotation is then
-    # the identity (t = 0), as it should be.
-    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        for _ in range(JACOBI_SWEEPS):
-            active = False
-            for p, q in ((0, 1), (0, 2), (1, 2)):
-                apq = a[p, q]
-                nz = np.abs(apq) > JACOBI_NEGLIGIBLE * (np.abs(a[p, p]) + np.abs(a[q, q]))
-                if not nz.any():
-                    continue  # identity rotations for every star
-                active = True
-                # Numerical Recipes Sect. 11.1 rotation: t = sgn(theta)/(|theta| + sqrt(theta^2+1)).
-                theta = (a[q, q] - a[p, p]) / (2.0 * np.where(nz, apq, 1.0))
-                tr = np.copysign(1.0, theta) / (np.abs(theta) + np.hypot(theta, 1.0))
-                tr[~nz] = 0.0
-                c = 1.0 / np.sqrt(tr * tr + 1.0)
-                s = tr * c
-                tapq = tr * apq
-                a[p, p] -= tapq
-                a[q, q] += tapq
-                a[p, q] = a[q, p] = np.where(nz, 0.0, apq)
-                r = 3 - p - q
-                arp = c * a[r, p] - s * a[r, q]
-                arq = s * a[r, p] + c * a[r, q]
-                a[r, p] = a[p, r] = arp
-                a[r, q] = a[q, r] = arq
-                vp = c * v[:, p] - s * v[:, q]
-                vq = s * v[:, p] + c * v[:, q]
-                v[:, p], v[:, q] = vp, vq
-            if not active:
-                break
-    return np.stack([a[0, 0], a[1, 1], a[2, 2]]), v
 
 
 @dataclass(frozen=True)
@@ -223,52 +168,8 @@ def prior_scan(N0, b0, ratio_R: float = DEFAULT_RATIO_R) -> PriorScan:
     prior_diagonal(1.0, ratio_R)  # validates ratio_R
     r_ = float(ratio_R)
     n = N0.shape[0]
-    N = np.moveaxis(N0, 0, -1)  # (5, 5, n) views
-    b = b0.T
     out = dict(x0=np.empty((2, n)), ainv=np.empty((3, n)), g=np.empty((2, 3, n)), c=np.empty((3, n)),
                lam=np.empty((3, n)), ok=np.empty(n, dtype=bool))
-    # Blocks of stars: every temporary stays small (cache-resident, no mmap per array);
-    # each star's arithmetic is the same in any block (bit-identical results).
-    for lo in range(0, n, REDUCE_BLOCK):
-        sl = slice(lo, min(n, lo + REDUCE_BLOCK))
-        for key, value in _reduce(N[:, :, sl], b[:, sl], r_).items():
-            out[key][..., sl] = value
+    reduce_normals(np.moveaxis(N0, 0, -1), b0.T, r_, PIVOT_TOLERANCE, out["x0"], out["ainv"], out["g"], out["c"],
+                   out["lam"], out["ok"])
     return PriorScan(ratio_R=r_, **out)
-
-
-def _reduce(N, b, r_: float) -> dict:
-    """The reduction of :func:`prior_scan` for star-last ``N (5, 5, n)``, ``b (5, n)``."""
-    a11, a12, a22 = N[0, 0], 0.5 * (N[0, 1] + N[1, 0]), N[1, 1]
-    det = a11 * a22 - a12 * a12
-    # Same singularity test as the Cholesky solver: the second pivot det / a11 relative
-    # to a22 (mcsweep.astrometry.linalg notes).
-    with np.errstate(invalid="ignore", divide="ignore"):
-        ok = (a11 > 0) & (a22 > 0) & (det > PIVOT_TOLERANCE * a11 * a22) & np.isfinite(det)
-        det_safe = np.where(ok, det, 1.0)
-        ainv = np.stack([a22 / det_safe, -a12 / det_safe, a11 / det_safe])
-    ai = ((ainv[0], ainv[1]), (ainv[1], ainv[2]))
-    B = [[np.ascontiguousarray(N[i, 2 + k]) for k in range(3)] for i in range(2)]
-    bp = [np.ascontiguousarray(b[i]) for i in range(2)]
-    # Explicit 2 x 3 products (faster than einsum on star-last vectors).
-    aib = [[ai[i][0] * B[0][k] + ai[i][1] * B[1][k] for k in range(3)] for i in range(2)]
-    x0 = np.stack([ai[i][0] * bp[0] + ai[i][1] * bp[1] for i in range(2)])
-    scale = (1.0, r_, r_)
-    # T = W3^-1/2 S W3^-1/2 with W3^-1/2 = diag(1, R, R), S = C - B' A^-1 B symmetrised.
-    T = np.empty((3, 3, N.shape[-1]))
-    for j in range(3):
-        for k in range(j, 3):
-            sjk = N[2 + j, 2 + k] - (B[0][j] * aib[0][k] + B[1][j] * aib[1][k])
-            skj = N[2 + k, 2 + j] - (B[0][k] * aib[0][j] + B[1][k] * aib[1][j])
-            v = 0.5 * (sjk + skj) * (scale[j] * scale[k])
-            T[j, k] = v
-            T[k, j] = v
-    r = [b[2 + k] - (B[0][k] * x0[0] + B[1][k] * x0[1]) for k in range(3)]
-    T[:, :, ~ok] = 0.0  # keep NaN of singular stars out of the rotations
-    lam, V = _jacobi3(T)
-    U = V * np.asarray(scale)[:, None, None]
-    g = np.empty((2, 3, N.shape[-1]))
-    for i in range(2):
-        for k in range(3):
-            g[i, k] = aib[i][0] * U[0, k] + aib[i][1] * U[1, k] + aib[i][2] * U[2, k]
-    c = np.stack([U[0, k] * r[0] + U[1, k] * r[1] + U[2, k] * r[2] for k in range(3)])
-    return dict(x0=x0, ainv=ainv, g=g, c=c, lam=lam, ok=ok)

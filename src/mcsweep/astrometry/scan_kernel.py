@@ -1,17 +1,27 @@
-"""The prior scan's inside test over the whole prior grid, compiled: one pass per star.
+"""The prior scan's compiled passes: the reduction of each star's normal equations, and the
+inside test over the whole prior grid.
 
-:meth:`mcsweep.astrometry.prior_scan.PriorScan.inside_flags` evaluates, for every star and
-every prior t of the grid, the five quantities ``y_j = base_j + sum_k X_jk w_k`` (position
-error and covariance, ``w_k = 1 / (lam_k + t)``) and the ellipse test of
-:func:`mcsweep.astrometry.confidence.inside_components`. As numpy vector operations that is
-some 25 passes over star-length arrays per prior; here one pass per prior computes each
-star's five quantities and test in registers.
+:func:`reduce_normals` and :func:`reduce_shared_design` do the reduction of
+:mod:`mcsweep.astrometry.prior_scan` (Schur complement of the position block, 3 x 3 Jacobi
+eigen-decomposition) for blocks of :data:`REDUCE_BLOCK` stars: every step is one loop over
+the block's stars with no branch, so it compiles to SIMD over stars, and the block's
+vectors stay in cache. :func:`reduce_shared_design` forms each star's normal equations in the
+same pass from the factored form of stars observed with one design
+(:class:`mcsweep.astrometry.shared_design.SharedDesignNormals`), so no ``(n, 5, 5)`` array
+is written.
 
-Same numbers as the numpy path, bit for bit: every expression is evaluated in the order
-and with the roundings the numpy code uses (``y = X0 w0 + base``, then ``+ X1 w1``, then
-``+ X2 w2``; ``Q det = ((cdd dx - 2 (cad dy)) dx) + (caa dy) dy``), and numba compiles
-without ``fastmath``, so LLVM neither reassociates nor contracts into fused multiply-adds
-(tests/astrometry/test_prior_scan.py compares the flags of both paths).
+:func:`inside_flags_grid` evaluates, for every star and every prior t of the grid, the five
+quantities ``y_j = base_j + sum_k X_jk w_k`` (position error and covariance,
+``w_k = 1 / (lam_k + t)``) and the ellipse test of
+:func:`mcsweep.astrometry.confidence.inside_components`, one pass per prior with each
+star's quantities in registers.
+
+Rounding. Numba compiles without ``fastmath``: LLVM neither reassociates nor contracts
+into fused multiply-adds, so the results do not depend on the block size, the machine's
+vector width or the order of the stars (tests/astrometry/test_prior_scan.py). The Jacobi
+rotation uses ``sqrt(theta^2 + 1)`` where Numerical Recipes writes ``hypot(theta, 1)``:
+the same to rounding, and vectorisable; where ``theta^2`` overflows (|theta| > 1e154) the
+rotation is the identity to within 1e-154.
 """
 
 from __future__ import annotations
@@ -19,9 +29,242 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["inside_flags_grid"]
+__all__ = ["REDUCE_BLOCK", "JACOBI_SWEEPS", "JACOBI_NEGLIGIBLE", "reduce_normals", "reduce_shared_design",
+           "inside_flags_grid"]
 
 _jit = numba.njit(cache=True, nogil=True, fastmath=False, error_model="numpy", boundscheck=False)
+
+#: Stars per block of the compiled reduction: the block's ~40 vectors stay in L1/L2 cache.
+REDUCE_BLOCK = 256
+#: Most cyclic Jacobi sweeps for a 3 x 3 symmetric matrix. Convergence is quadratic
+#: after the first sweep (Golub & Van Loan, Matrix Computations, Sect. 8.5.4); 3 x 3
+#: matrices reach the rounding level in 4-5 sweeps.
+JACOBI_SWEEPS = 8
+#: A rotation is skipped where ``|a_pq| <= JACOBI_NEGLIGIBLE * (|a_pp| + |a_qq|)``:
+#: two orders of magnitude below the rounding of the diagonal elements, so skipping it
+#: changes no eigenvalue or eigenvector beyond rounding.
+JACOBI_NEGLIGIBLE = 1e-18
+
+
+@_jit
+def _rotate(m, app, aqq, apq, arp, arq, v0p, v1p, v2p, v0q, v1q, v2q):
+    """One Jacobi rotation in the (p, q) plane of the first ``m`` stars (Numerical Recipes,
+    Sect. 11.1); r is the third index. Returns how many stars needed it."""
+    active = 0
+    for s in range(m):
+        a_pq = apq[s]
+        nz = abs(a_pq) > JACOBI_NEGLIGIBLE * (abs(app[s]) + abs(aqq[s]))
+        theta = (aqq[s] - app[s]) / (2.0 * (a_pq if nz else 1.0))
+        tr = np.copysign(1.0, theta) / (abs(theta) + np.sqrt(theta * theta + 1.0))
+        tr = tr if nz else 0.0
+        cr = 1.0 / np.sqrt(tr * tr + 1.0)
+        sr = tr * cr
+        tapq = tr * a_pq
+        app[s] = app[s] - tapq
+        aqq[s] = aqq[s] + tapq
+        apq[s] = 0.0 if nz else a_pq
+        rp = arp[s]
+        rq = arq[s]
+        arp[s] = cr * rp - sr * rq
+        arq[s] = sr * rp + cr * rq
+        p0 = v0p[s]
+        q0 = v0q[s]
+        v0p[s] = cr * p0 - sr * q0
+        v0q[s] = sr * p0 + cr * q0
+        p1 = v1p[s]
+        q1 = v1q[s]
+        v1p[s] = cr * p1 - sr * q1
+        v1q[s] = sr * p1 + cr * q1
+        p2 = v2p[s]
+        q2 = v2q[s]
+        v2p[s] = cr * p2 - sr * q2
+        v2q[s] = sr * p2 + cr * q2
+        active += nz
+    return active
+
+
+@_jit
+def _reduce_block(N, b, m, r_, pivot, w, lo, x0, ainv, g, c, lam, ok):
+    """The reduction of the first ``m`` stars of ``N (5, 5, B)``, ``b (5, B)`` into the output
+    arrays at ``lo``; ``w (24, B)``: scratch."""
+    t00, t11, t22, t01, t02, t12 = w[0], w[1], w[2], w[3], w[4], w[5]
+    v00, v01, v02, v10, v11, v12, v20, v21, v22 = w[6], w[7], w[8], w[9], w[10], w[11], w[12], w[13], w[14]
+    h00, h01, h02, h10, h11, h12 = w[15], w[16], w[17], w[18], w[19], w[20]
+    r0, r1, r2 = w[21], w[22], w[23]
+    sc1 = r_
+    sc2 = r_ * r_
+    for s in range(m):
+        a11 = N[0, 0, s]
+        a12 = 0.5 * (N[0, 1, s] + N[1, 0, s])
+        a22 = N[1, 1, s]
+        det = a11 * a22 - a12 * a12
+        good = (a11 > 0.0) & (a22 > 0.0) & (det > pivot * a11 * a22) & (abs(det) < np.inf)
+        ds = det if good else 1.0
+        i0 = a22 / ds
+        i1 = -a12 / ds
+        i2 = a11 / ds
+        b00 = N[0, 2, s]
+        b01 = N[0, 3, s]
+        b02 = N[0, 4, s]
+        b10 = N[1, 2, s]
+        b11 = N[1, 3, s]
+        b12 = N[1, 4, s]
+        # A^-1 B (2 x 3) and x0 = A^-1 b_p
+        q00 = i0 * b00 + i1 * b10
+        q01 = i0 * b01 + i1 * b11
+        q02 = i0 * b02 + i1 * b12
+        q10 = i1 * b00 + i2 * b10
+        q11 = i1 * b01 + i2 * b11
+        q12 = i1 * b02 + i2 * b12
+        x_a = i0 * b[0, s] + i1 * b[1, s]
+        x_d = i1 * b[0, s] + i2 * b[1, s]
+        # T = W3^-1/2 S W3^-1/2, S = C - B' A^-1 B symmetrised, W3^-1/2 = diag(1, R, R)
+        s00 = N[2, 2, s] - (b00 * q00 + b10 * q10)
+        s11 = N[3, 3, s] - (b01 * q01 + b11 * q11)
+        s22 = N[4, 4, s] - (b02 * q02 + b12 * q12)
+        s01 = 0.5 * ((N[2, 3, s] - (b00 * q01 + b10 * q11)) + (N[3, 2, s] - (b01 * q00 + b11 * q10)))
+        s02 = 0.5 * ((N[2, 4, s] - (b00 * q02 + b10 * q12)) + (N[4, 2, s] - (b02 * q00 + b12 * q10)))
+        s12 = 0.5 * ((N[3, 4, s] - (b01 * q02 + b11 * q12)) + (N[4, 3, s] - (b02 * q01 + b12 * q11)))
+        # NaN of a singular star kept out of the rotations
+        t00[s] = s00 if good else 0.0
+        t11[s] = s11 * sc2 if good else 0.0
+        t22[s] = s22 * sc2 if good else 0.0
+        t01[s] = s01 * sc1 if good else 0.0
+        t02[s] = s02 * sc1 if good else 0.0
+        t12[s] = s12 * sc2 if good else 0.0
+        r0[s] = b[2, s] - (b00 * x_a + b10 * x_d)
+        r1[s] = b[3, s] - (b01 * x_a + b11 * x_d)
+        r2[s] = b[4, s] - (b02 * x_a + b12 * x_d)
+        h00[s] = q00
+        h01[s] = q01
+        h02[s] = q02
+        h10[s] = q10
+        h11[s] = q11
+        h12[s] = q12
+        v00[s] = 1.0
+        v01[s] = 0.0
+        v02[s] = 0.0
+        v10[s] = 0.0
+        v11[s] = 1.0
+        v12[s] = 0.0
+        v20[s] = 0.0
+        v21[s] = 0.0
+        v22[s] = 1.0
+        x0[0, lo + s] = x_a
+        x0[1, lo + s] = x_d
+        ainv[0, lo + s] = i0
+        ainv[1, lo + s] = i1
+        ainv[2, lo + s] = i2
+        ok[lo + s] = good
+    for _ in range(JACOBI_SWEEPS):
+        active = _rotate(m, t00, t11, t01, t02, t12, v00, v10, v20, v01, v11, v21)   # (p, q) = (0, 1)
+        active += _rotate(m, t00, t22, t02, t01, t12, v00, v10, v20, v02, v12, v22)  # (0, 2)
+        active += _rotate(m, t11, t22, t12, t01, t02, v01, v11, v21, v02, v12, v22)  # (1, 2)
+        if active == 0:
+            break
+    for s in range(m):
+        # U = diag(1, R, R) V; G = A^-1 B U; c = U' r
+        u00 = v00[s]
+        u01 = v01[s]
+        u02 = v02[s]
+        u10 = v10[s] * r_
+        u11 = v11[s] * r_
+        u12 = v12[s] * r_
+        u20 = v20[s] * r_
+        u21 = v21[s] * r_
+        u22 = v22[s] * r_
+        k = lo + s
+        lam[0, k] = t00[s]
+        lam[1, k] = t11[s]
+        lam[2, k] = t22[s]
+        g[0, 0, k] = h00[s] * u00 + h01[s] * u10 + h02[s] * u20
+        g[0, 1, k] = h00[s] * u01 + h01[s] * u11 + h02[s] * u21
+        g[0, 2, k] = h00[s] * u02 + h01[s] * u12 + h02[s] * u22
+        g[1, 0, k] = h10[s] * u00 + h11[s] * u10 + h12[s] * u20
+        g[1, 1, k] = h10[s] * u01 + h11[s] * u11 + h12[s] * u21
+        g[1, 2, k] = h10[s] * u02 + h11[s] * u12 + h12[s] * u22
+        c[0, k] = u00 * r0[s] + u10 * r1[s] + u20 * r2[s]
+        c[1, k] = u01 * r0[s] + u11 * r1[s] + u21 * r2[s]
+        c[2, k] = u02 * r0[s] + u12 * r1[s] + u22 * r2[s]
+
+
+@_jit
+def reduce_normals(N, b, r_, pivot, x0, ainv, g, c, lam, ok):
+    """The prior-scan reduction of star-last normal equations ``N (5, 5, n)``, ``b (5, n)``
+    into ``x0 (2, n)``, ``ainv (3, n)``, ``g (2, 3, n)``, ``c (3, n)``, ``lam (3, n)``,
+    ``ok (n,)`` (:class:`mcsweep.astrometry.prior_scan.PriorScan`); ``pivot``: the
+    singularity tolerance of the position block."""
+    n = b.shape[1]
+    Nb = np.empty((5, 5, REDUCE_BLOCK))
+    bb = np.empty((5, REDUCE_BLOCK))
+    w = np.empty((24, REDUCE_BLOCK))
+    for lo in range(0, n, REDUCE_BLOCK):
+        m = min(REDUCE_BLOCK, n - lo)
+        for i in range(5):
+            for j in range(5):
+                for s in range(m):
+                    Nb[i, j, s] = N[i, j, lo + s]
+            for s in range(m):
+                bb[i, s] = b[i, lo + s]
+        _reduce_block(Nb, bb, m, r_, pivot, w, lo, x0, ainv, g, c, lam, ok)
+
+
+@_jit
+def reduce_shared_design(unit, weight, truth, noise, r_, pivot, x0, ainv, g, c, lam, ok):
+    """:func:`reduce_normals` of stars observed with one design up to per-star weights.
+
+    ``unit (n_blk, k, 5)``: the rows of each block at unit weight (AL, then AC), the design
+    or its triangular factor; ``weight (n_blk, n)``: each star's 1 / sigma per block;
+    ``truth (3, n)``: parallax and proper motion (the position's truth is zero);
+    ``noise (n_blk, k, n)``: standard normals. Star i's normal equations (Eqs. 2-3) are
+    ``N_i = sum_blk w_blk,i^2 U_blk' U_blk`` and
+    ``b_i = sum_blk (w_blk,i^2 U_blk' U_blk x_i + w_blk,i U_blk' e_blk,i)``.
+    """
+    n_blk, k = unit.shape[0], unit.shape[1]
+    n = truth.shape[1]
+    nu = np.zeros((n_blk, 5, 5))
+    for q in range(n_blk):
+        for i in range(5):
+            for j in range(5):
+                acc = 0.0
+                for r in range(k):
+                    acc += unit[q, r, i] * unit[q, r, j]
+                nu[q, i, j] = acc
+    Nb = np.empty((5, 5, REDUCE_BLOCK))
+    bb = np.empty((5, REDUCE_BLOCK))
+    proj = np.empty((5, REDUCE_BLOCK))
+    w = np.empty((24, REDUCE_BLOCK))
+    for lo in range(0, n, REDUCE_BLOCK):
+        m = min(REDUCE_BLOCK, n - lo)
+        for i in range(5):
+            for j in range(5):
+                for s in range(m):
+                    Nb[i, j, s] = 0.0
+            for s in range(m):
+                bb[i, s] = 0.0
+        for q in range(n_blk):
+            for i in range(5):
+                for s in range(m):
+                    proj[i, s] = 0.0
+            for r in range(k):
+                for i in range(5):
+                    u = unit[q, r, i]
+                    for s in range(m):
+                        proj[i, s] += u * noise[q, r, lo + s]
+            for i in range(5):
+                for j in range(5):
+                    nij = nu[q, i, j]
+                    for s in range(m):
+                        wt = weight[q, lo + s]
+                        Nb[i, j, s] += nij * (wt * wt)
+                n2 = nu[q, i, 2]
+                n3 = nu[q, i, 3]
+                n4 = nu[q, i, 4]
+                for s in range(m):
+                    wt = weight[q, lo + s]
+                    sig = n2 * truth[0, lo + s] + n3 * truth[1, lo + s] + n4 * truth[2, lo + s]
+                    bb[i, s] += sig * (wt * wt) + proj[i, s] * wt
+        _reduce_block(Nb, bb, m, r_, pivot, w, lo, x0, ainv, g, c, lam, ok)
 
 
 @_jit
@@ -35,7 +278,7 @@ def inside_flags_grid(x0, ainv, g, c, lam, worst, ts, k_threshold, inside, valid
     """
     m = ts.shape[0]
     n = worst.shape[0]
-    # X[k] = (-(g0 c_k), -(g1 c_k), g0 g0, g0 g1, g1 g1) as in the numpy arithmetic.
+    # X[k] = (-(g0 c_k), -(g1 c_k), g0 g0, g0 g1, g1 g1) as in PriorScan.position.
     X = np.empty((3, 5, n))
     for k in range(3):
         for s in range(n):

@@ -104,7 +104,7 @@ def main(argv=None):
         normals = []
         for groups in s.cases.values():
             geom = pb.case_geometry(transits, tuple(groups))
-            normals.append(pb.cell_normal_equations(geom, d.ra_deg, d.dec_deg, stars, s, np.random.default_rng(2)))
+            normals.append(pb.cell_normals(geom, d.ra_deg, d.dec_deg, stars, s, np.random.default_rng(2)).matrices())
         t_old, m_old = _measure(old_curve, normals, priors, s, args.repeat)
         t_new, m_new = _measure(new_curve, normals, priors, s, args.repeat)
         t_all, m_all = _measure(new_curve_stats, normals, priors, s, args.repeat)

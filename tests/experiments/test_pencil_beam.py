@@ -64,13 +64,14 @@ def test_truth_drawn_from_the_prior_gives_fraction_p(table1):
 def test_zero_parallax_stars_are_never_under_covered(table1):
     # Truth at the prior's centre: the error covariance C N0 C is <= C (Loewner order), so
     # the fraction is >= P at every prior (equal only in the limits of a negligible or an
-    # infinitely tight prior, which the grid's ends approach but need not reach).
+    # infinitely tight prior, which the grid's ends approach but need not reach). Whether
+    # sigma_F90 is flagged below the grid is left to noise: at the tightest prior the expected
+    # fraction exceeds P by less than one binomial sigma of N_STARS stars.
     config, cell, transits = table1
     curves, _ = run_cell(cell, transits, GaussianAstrometrySource(0.0), build_settings(config))
     grid = curves[~curves["at_f90"]]
     assert np.all(grid["fraction_inside"] > P - FRACTION_TOL)
     assert grid["fraction_inside"].min() < P + FRACTION_TOL  # some prior is near a limit
-    assert curves["f90_flag"].iloc[0] == "below_grid"
 
 
 def test_table1_beam_behaves_as_the_paper_describes(table1):
@@ -157,7 +158,7 @@ def test_prior_scan_leaves_the_cell_statistics_unchanged(table1):
                                       max_stars=N_STARS)
     for case, groups in s.cases.items():
         geom = pb.case_geometry(transits, tuple(groups))
-        n0, b0 = pb.cell_normal_equations(geom, d.ra_deg, d.dec_deg, stars, s, np.random.default_rng(2))
+        n0, b0 = pb.cell_normals(geom, d.ra_deg, d.dec_deg, stars, s, np.random.default_rng(2)).matrices()
         direct = pb.prior_curve(n0, b0, s.prior_grid_mas, s, method="direct")
         scan = pb.prior_curve(n0, b0, s.prior_grid_mas, s)
         np.testing.assert_array_equal(scan["n_inside"], direct["n_inside"])
@@ -196,18 +197,23 @@ def test_bootstrap_interval_covers_the_truth_at_its_nominal_rate(table1):
     assert abs(hits / N_COVERAGE_CELLS - 0.68) <= COVERAGE_TOL, hits
 
 
-#: The cell's normal equations from the shared beam geometry against the general path
-#: (design_matrix + simulate + normal_equations, star by star): same random draws,
-#: different summation order only.
+#: The cell's normal matrices from the shared beam geometry against the general path
+#: (design_matrix + normal_equations, star by star): different summation order only.
 RTOL_NORMALS = 1e-12
+#: Stars for the distribution of the cell's noise (below): the whitened noise's mean and
+#: covariance have standard errors 1/sqrt(n) and sqrt(2/n), 0.007 and 0.01 at 20 000 stars.
+N_NOISE_STARS = 20_000
+#: Standard errors allowed for those moments (15 means and 25 covariance elements are tested).
+NOISE_SIGMAS = 5.0
 
 
 @pytest.mark.parametrize("use_ac", [True, False])
 def test_shared_geometry_normals_equal_the_general_path(table1, use_ac):
+    """N0 as design_matrix + normal_equations give it; b0 - N0 x as simulate + normal_equations
+    give it in distribution: N(0, N0), so L^-1 (b0 - N0 x) is standard normal (N0 = L L')."""
     import dataclasses
 
     from mcsweep.astrometry.design import JULIAN_YEAR_DAYS, design_matrix, reference_epoch
-    from mcsweep.astrometry.measurements import simulate
     from mcsweep.astrometry.noise import NoiseModel
     from mcsweep.astrometry.solve import normal_equations
     from mcsweep.experiments.f90_sweep import pencil_beam as pb
@@ -215,12 +221,16 @@ def test_shared_geometry_normals_equal_the_general_path(table1, use_ac):
     config, cell, transits = table1
     s = dataclasses.replace(build_settings(config), noise=NoiseModel(use_ac=use_ac))
     d = cell.direction
-    stars = GaussianAstrometrySource(2.0).sample_cone(d.l_deg, d.b_deg, 1.0, 14.5, 15.5, np.random.default_rng(4))
-    stars = stars.iloc[:300]
+    rng = np.random.default_rng(4)
+    n = N_NOISE_STARS
+    stars = pd.DataFrame({"parallax": rng.normal(0, 2.0, n), "pmra": rng.normal(0, 20.0, n),
+                          "pmdec": rng.normal(0, 20.0, n), "phot_g_mean_mag": rng.uniform(14.5, 15.5, n)})
+    x = np.column_stack([np.zeros(n), np.zeros(n), stars["parallax"], stars["pmra"], stars["pmdec"]])
+    regular = 0
     for groups in s.cases.values():
         geom = pb.case_geometry(transits, tuple(groups))
-        n0, b0 = pb.cell_normal_equations(geom, d.ra_deg, d.dec_deg, stars, s, np.random.default_rng(9))
-        n, k = len(stars), len(geom.tcb_jd)
+        n0, b0 = pb.cell_normals(geom, d.ra_deg, d.dec_deg, stars, s, np.random.default_rng(9)).matrices()
+        k = len(geom.tcb_jd)
         tcb = np.broadcast_to(geom.tcb_jd, (n, k))
         t_yr = (tcb - reference_epoch(tcb, np.ones((n, k), bool))[:, None]) / JULIAN_YEAR_DAYS
         g = stars["phot_g_mean_mag"].to_numpy()
@@ -228,8 +238,14 @@ def test_shared_geometry_normals_equal_the_general_path(table1, use_ac):
                           np.broadcast_to(geom.obs_au, (n, k, 3)),
                           sigma_al_mas=s.noise.sigma_al_mas(g)[:, None],
                           sigma_ac_mas=s.noise.sigma_ac_mas(g)[:, None] if use_ac else None)
-        x = np.column_stack([np.zeros(n), np.zeros(n), stars["parallax"], stars["pmra"], stars["pmdec"]])
-        ref_n0, ref_b0 = normal_equations(a, simulate(a, x, np.random.default_rng(9)))
+        ref_n0, _ = normal_equations(a, np.zeros(a.shape[:2]))
         scale_n = np.abs(ref_n0).max(axis=(1, 2))
         assert (np.abs(n0 - ref_n0).max(axis=(1, 2)) <= RTOL_NORMALS * scale_n).all()
-        assert (np.abs(b0 - ref_b0).max(axis=1) <= RTOL_NORMALS * np.abs(ref_b0).max(axis=1)).all()
+        if np.linalg.matrix_rank(ref_n0[0]) < 5:
+            continue  # one or two transits: N0 singular, no whitening
+        regular += 1
+        noise = b0 - np.einsum("nij,nj->ni", ref_n0, x)
+        z = np.linalg.solve(np.linalg.cholesky(ref_n0), noise[:, :, None])[:, :, 0]
+        assert np.all(np.abs(z.mean(axis=0)) <= NOISE_SIGMAS / np.sqrt(n))
+        assert np.all(np.abs(np.cov(z.T) - np.eye(5)) <= NOISE_SIGMAS * np.sqrt(2.0 / n))
+    assert regular >= 2

@@ -28,6 +28,7 @@ from ...astrometry.confidence import ellipse_semi_axes, inside, inside_counts, m
 from ...astrometry.design import JULIAN_YEAR_DAYS, design_matrix, reference_epoch
 from ...astrometry.noise import NoiseModel
 from ...astrometry.prior_scan import PriorScan, prior_scan
+from ...astrometry.shared_design import SharedDesignNormals
 from ...astrometry.solve import solve_with_prior
 from ...galactic import pm_galactic_from_icrs, pm_icrs_from_galactic
 from ...scanning import observer_position_au
@@ -43,6 +44,7 @@ __all__ = [
     "scan_curve",
     "run_cell",
     "cell_stars",
+    "cell_normals",
     "cell_mean",
     "CURVE_COLUMNS",
     "COLOUR_COLUMNS",
@@ -51,10 +53,12 @@ __all__ = [
 ]
 
 _STAR_STREAM, _NOISE_STREAM, _BOOTSTRAP_STREAM, _MEAN_STREAM, _QUASAR_STREAM = 0, 1, 2, 3, 4
+#: The colour cells' batches (:class:`ColourBatches`): a sub-stream of the star and mean streams.
+COLOUR_BATCH_STREAM = 5
 
-#: A colour cell draws the direction x G population in batches of ``min_stars`` and keeps the
-#: stars of its BP-RP bin, up to this many batches: a bin holding under 1/COLOUR_DRAW_BATCHES
-#: of the stars gets fewer than ``min_stars``.
+#: A colour cell takes the stars of its BP-RP bin from batches of ``min_stars`` drawn for its
+#: direction x G bin (:class:`ColourBatches`), up to this many batches: a bin holding under
+#: 1/COLOUR_DRAW_BATCHES of the stars gets fewer than ``min_stars``.
 COLOUR_DRAW_BATCHES = 10
 #: Below this many stars a colour cell's sigma_F90 is not determined (flag ``few_stars``): the
 #: binomial standard error of its fraction inside would exceed 1 point at P = 0.9.
@@ -196,21 +200,17 @@ def case_geometry(transits: pd.DataFrame | dict, groups: tuple[int, ...]) -> Cas
     return CaseGeometry(tcb_jd=tcb[order], psi_deg=cols["scan_angle_deg"][idx], obs_au=cols["obs_au"][idx])
 
 
-def cell_normal_equations(geom: CaseGeometry, ra_deg, dec_deg, stars: pd.DataFrame,
-                      s: CellSettings, rng: np.random.Generator):
-    """Normal equations (Eqs. 2-3) of every star of the cell, star-last (n, 5, 5), (n, 5).
+def cell_normals(geom: CaseGeometry, ra_deg, dec_deg, stars: pd.DataFrame, s: CellSettings,
+                 rng: np.random.Generator) -> SharedDesignNormals:
+    """Normal equations (Eqs. 2-3) of every star of the cell, in factored form.
 
     All stars of a cell are observed with the transits of the beam centre, so their
-    design matrices differ only by the per-star uncertainties: ``A_i = diag(1/sigma_i) A_1``
-    with ``A_1`` the design of unit uncertainties (AL rows, then AC rows). Hence
-    ``N0_i = N_AL / sigma_AL,i^2 + N_AC / sigma_AC,i^2`` and
-    ``b0_i = N0_i x_i + A_1' diag(1/sigma_i) e_i``, with the measurement noise ``e``
-    drawn exactly as :func:`mcsweep.astrometry.measurements.simulate` draws it (one
-    ``(m, n)`` array of standard normals): the result equals ``design_matrix`` +
-    ``simulate`` + ``normal_equations`` to rounding, in O(n) instead of O(n m) work
-    per matrix element.
+    design matrices differ only by the per-star uncertainties, and the measurement noise
+    is drawn in the normal equations' own space (:mod:`mcsweep.astrometry.shared_design`):
+    ``N0`` equals ``design_matrix`` + ``normal_equations`` to rounding, and ``b0 - N0 x``
+    has the distribution that ``simulate`` gives it.
     """
-    n, k = len(stars), len(geom.tcb_jd)
+    k = len(geom.tcb_jd)
     tcb = geom.tcb_jd[None, :]
     if s.reference_epoch == "mean":
         t_ep = reference_epoch(tcb, np.ones((1, k), dtype=bool))  # Sect. 2.1: mean epoch of observation
@@ -220,33 +220,14 @@ def cell_normal_equations(geom: CaseGeometry, ra_deg, dec_deg, stars: pd.DataFra
     use_ac = s.noise.use_ac
     a1 = design_matrix(np.array([ra_deg], float), np.array([dec_deg], float), t_yr, geom.psi_deg[None, :],
                        geom.obs_au[None, :, :], sigma_al_mas=1.0, sigma_ac_mas=1.0 if use_ac else None)[0]
-    a1 = np.ascontiguousarray(a1)  # (m, 5); contiguous, so the products below go to BLAS
     g = stars["phot_g_mean_mag"].to_numpy(float)
-    blocks = [(a1[:k], 1.0 / s.noise.sigma_al_mas(g))]
-    if use_ac:
-        blocks.append((a1[k:], 1.0 / s.noise.sigma_ac_mas(g)))
-    e = rng.standard_normal((len(a1), n))
-    xt = np.stack([stars[c].to_numpy(float) for c in ("parallax", "pmra", "pmdec")])  # x_true[2:], Sect. 3.2
-    # N0 (25, n) = sum over blocks of vec(A_blk' A_blk) w_blk^2: one BLAS product.
-    w2 = np.stack([w * w for _, w in blocks])
-    N0 = np.ascontiguousarray(np.stack([(a_blk.T @ a_blk).ravel() for a_blk, _ in blocks], axis=1)) @ w2
-    b0 = np.zeros((5, n))
-    row = 0
-    for (a_blk, w), w2_blk in zip(blocks, w2):
-        n_blk = a_blk.T @ a_blk
-        signal = np.ascontiguousarray(n_blk[:, 2:]) @ xt  # N_blk x_true (x_true[:2] = 0)
-        signal *= w2_blk
-        b0 += signal
-        noise = np.ascontiguousarray(a_blk.T) @ e[row:row + len(a_blk)]  # (5, n)
-        noise *= w
-        b0 += noise
-        row += len(a_blk)
-    N0 = N0.reshape(5, 5, n)
-    return np.moveaxis(N0, -1, 0), b0.T
+    weights = [1.0 / s.noise.sigma_al_mas(g)] + ([1.0 / s.noise.sigma_ac_mas(g)] if use_ac else [])
+    truth = np.stack([stars[c].to_numpy(float) for c in ("parallax", "pmra", "pmdec")])  # x_true[2:], Sect. 3.2
+    return SharedDesignNormals.simulate(a1, weights, truth, rng)
 
 
-def _evaluate(n0, b0, sigma_mas: float, s: CellSettings):
-    sol = solve_with_prior(n0, b0, sigma_mas, ratio_R=s.ratio_R)
+def _evaluate(normals: SharedDesignNormals, sigma_mas: float, s: CellSettings):
+    sol = solve_with_prior(*normals.matrices(), sigma_mas, ratio_R=s.ratio_R)
     # True position offsets are zero at the reference epoch, so x[:, :2] are the
     # actual position errors (estimated minus true), Sect. 3.2.
     dpos = sol.x[:, :2]
@@ -355,7 +336,8 @@ def prior_curve(n0, b0, priors_mas, s: CellSettings, *, method: str = "scan", re
 
 def run_cell(cell, transits: pd.DataFrame, source, s: CellSettings,
              *, keep_scatter: bool = False, radius_deg: float | None = None,
-             grid_statistics: bool | None = None) -> tuple[pd.DataFrame, pd.DataFrame | None]:
+             grid_statistics: bool | None = None, draws: dict | None = None,
+             ) -> tuple[pd.DataFrame, pd.DataFrame | None]:
     """Run one cell; returns its curve table and (optionally) per-star errors (Fig. 2).
 
     ``cell`` is a :class:`mcsweep.experiments.f90_sweep.cells.Cell`; ``transits`` the FoV transits of
@@ -364,12 +346,14 @@ def run_cell(cell, transits: pd.DataFrame, source, s: CellSettings,
     ``grid_statistics``: compute ``p_error_mas`` and ``median_semi_major_mas`` at every
     prior of the grid (True) or only at sigma_F90 (False; NaN on the grid rows); None
     follows ``s.grid_statistics``. The fraction inside is always on the whole grid.
+    ``draws``: a dict shared by the colour cells of one direction x G bin run together, so
+    they draw its batches once (:func:`cell_stars`); the results do not depend on it.
     """
     d = cell.direction
     # Streams keyed by content (cell, and case *name* for the noise), never by position in
     # a list, so adding, removing or reordering cases or cells changes no other result.
     radius = cell_radius(source, cell, s)[0] if radius_deg is None else radius_deg
-    stars = cell_stars(cell, source, s, radius, _STAR_STREAM)
+    stars = cell_stars(cell, source, s, radius, _STAR_STREAM, draws)
     grid = np.asarray(s.prior_grid_mas, float)
     stats_on_grid = s.grid_statistics if grid_statistics is None else bool(grid_statistics)
     base = dict(cell_id=cell.cell_id, l_deg=d.l_deg, b_deg=d.b_deg, ra_deg=d.ra_deg,
@@ -381,12 +365,12 @@ def run_cell(cell, transits: pd.DataFrame, source, s: CellSettings,
                     bp_rp_max=np.nan if cell.bp_rp_max is None else cell.bp_rp_max)
     centre = None
     if s.mean:
-        centre = cell_mean(cell_stars(cell, source, s, radius, _MEAN_STREAM), d)
+        centre = cell_mean(cell_stars(cell, source, s, radius, _MEAN_STREAM, draws), d)
         base.update(centre)
     solved = stars if centre is None else _shifted(stars, centre)
     columns = _transit_columns(transits)
     normals = _case_normals(cell, columns, solved, s) if len(stars) >= _min_stars(cell) else {}
-    scans = {case: prior_scan(*nrm, s.ratio_R) for case, nrm in normals.items()}
+    scans = {case: nrm.prior_scan(s.ratio_R) for case, nrm in normals.items()}
     curves, f90_flags = {}, None
     for case, scan in scans.items():
         curves[case], *flags = scan_arrays(scan, grid, s, statistics=stats_on_grid)
@@ -407,30 +391,30 @@ def _min_stars(cell) -> int:
     return COLOUR_MIN_STARS if cell.has_colour else 1
 
 
-def cell_stars(cell, source, s: CellSettings, radius: float, stream: int) -> pd.DataFrame:
+def cell_stars(cell, source, s: CellSettings, radius: float, stream: int,
+               draws: dict | None = None) -> pd.DataFrame:
     """The stars of a cell from stream ``stream`` of its key.
 
     A colour-blind cell is one draw of the beam and G bin (at least ``min_stars`` from a
-    density, :func:`cell_radius`). A colour cell draws the same way in batches from one
-    generator and keeps the stars of its BP-RP bin until it holds ``min_stars`` (at most
-    :data:`COLOUR_DRAW_BATCHES` batches; a catalogue has one), capped at ``max_stars``.
-    ``attrs["n_in_cone"]`` is then the first batch's one-realisation count scaled by the share
-    of the bin in it.
+    density, :func:`cell_radius`). A colour cell takes the stars of its BP-RP bin from the
+    batches of its direction x G bin (:class:`ColourBatches`, at most
+    :data:`COLOUR_DRAW_BATCHES`; a catalogue has one) until it holds ``min_stars``, capped at
+    ``max_stars``. ``attrs["n_in_cone"]`` is then the first batch's one-realisation count
+    scaled by the share of the bin in it. ``draws``: batches already drawn, shared by the
+    colour cells of one direction x G bin (filled here; the stars do not depend on it).
     """
-    d = cell.direction
-    rng = np.random.default_rng(np.random.SeedSequence(s.seed, spawn_key=(*cell.key, stream)))
-    density = getattr(source, "draws_from_density", False)
-    more = {"min_draw": s.min_stars} if density else {}
-
-    def draw():
-        return source.sample_cone(d.l_deg, d.b_deg, radius, cell.g_min, cell.g_max, rng, max_stars=s.max_stars,
-                                  **more)
-
     if not cell.has_colour:
-        return draw()
+        rng = np.random.default_rng(np.random.SeedSequence(s.seed, spawn_key=(*cell.key, stream)))
+        return _draw_cone(cell, source, s, radius, rng)
+    slot = (cell.key[:4], stream, radius)
+    batches = draws.get(slot) if draws is not None else None
+    if batches is None:
+        batches = ColourBatches(cell, source, s, radius, stream)
+        if draws is not None:
+            draws[slot] = batches
     kept, n_kept, n_in_cone = [], 0, None
-    for _ in range(COLOUR_DRAW_BATCHES if density else 1):
-        batch = draw()
+    for i in range(COLOUR_DRAW_BATCHES if getattr(source, "draws_from_density", False) else 1):
+        batch = batches.batch(i)
         c = batch["bp_rp"].to_numpy(float)
         sel = batch[(c >= cell.bp_rp_min) & (c < cell.bp_rp_max)]
         if n_in_cone is None:
@@ -442,6 +426,36 @@ def cell_stars(cell, source, s: CellSettings, radius: float, stream: int) -> pd.
     out = pd.concat(kept, ignore_index=True).iloc[:s.max_stars]
     out.attrs["n_in_cone"] = n_in_cone
     return out
+
+
+def _draw_cone(cell, source, s: CellSettings, radius: float, rng: np.random.Generator) -> pd.DataFrame:
+    d = cell.direction
+    more = {"min_draw": s.min_stars} if getattr(source, "draws_from_density", False) else {}
+    return source.sample_cone(d.l_deg, d.b_deg, radius, cell.g_min, cell.g_max, rng, max_stars=s.max_stars, **more)
+
+
+class ColourBatches:
+    """The batches of stars of one direction x G bin from which its colour cells take theirs.
+
+    Batch ``i`` is one draw of the beam and G bin (as a colour-blind cell draws) from its own
+    generator, ``SeedSequence(seed, spawn_key=(*direction_g_key, stream, COLOUR_BATCH_STREAM, i))``:
+    keyed by content, so every colour cell of the direction x G bin sees the same batches
+    whichever asks first, and a task that runs them together draws each batch once. The bins
+    are disjoint, so the cells' stars are disjoint subsets of one draw: independent
+    realisations of the density restricted to each bin (thinning of a Poisson process).
+    """
+
+    def __init__(self, cell, source, s: CellSettings, radius: float, stream: int):
+        self._args = (cell, source, s, radius)
+        self._key = (*cell.key[:4], stream, COLOUR_BATCH_STREAM)
+        self._drawn: dict[int, pd.DataFrame] = {}
+
+    def batch(self, i: int) -> pd.DataFrame:
+        if i not in self._drawn:
+            cell, source, s, radius = self._args
+            rng = np.random.default_rng(np.random.SeedSequence(s.seed, spawn_key=(*self._key, i)))
+            self._drawn[i] = _draw_cone(cell, source, s, radius, rng)
+        return self._drawn[i]
 
 
 def cell_mean(stars: pd.DataFrame, d) -> dict:
@@ -481,8 +495,8 @@ def _quasars(cell, columns: dict, stars: pd.DataFrame, centre: dict, f90: float,
     zero = {"parallax": 0.0, "pmra": 0.0, "pmdec": 0.0}
     quasars = _shifted(stars.assign(**zero), centre)
     rng = np.random.default_rng(np.random.SeedSequence(s.seed, spawn_key=(*cell.key, _QUASAR_STREAM)))
-    n0, b0 = cell_normal_equations(geom, cell.direction.ra_deg, cell.direction.dec_deg, quasars, s, rng)
-    row = scan_arrays(prior_scan(n0, b0, s.ratio_R), [f90], s, statistics=True)[0]
+    normals = cell_normals(geom, cell.direction.ra_deg, cell.direction.dec_deg, quasars, s, rng)
+    row = scan_arrays(normals.prior_scan(s.ratio_R), [f90], s, statistics=True)[0]
     return dict(quasar_fraction_inside=float(row["fraction_inside"][0]), quasar_n_valid=int(row["n_valid"][0]),
                 quasar_p_error_mas=float(row["p_error_mas"][0]))
 
@@ -496,7 +510,7 @@ def _case_normals(cell, columns: dict, stars: pd.DataFrame, s: CellSettings) -> 
         if geom is not None and len(stars) > 0:
             case_ss = np.random.SeedSequence(s.seed, spawn_key=(*cell.key, _NOISE_STREAM,
                                                                 zlib.crc32(case.encode())))
-            normals[case] = cell_normal_equations(geom, cell.direction.ra_deg, cell.direction.dec_deg, stars, s,
+            normals[case] = cell_normals(geom, cell.direction.ra_deg, cell.direction.dec_deg, stars, s,
                                                   np.random.default_rng(case_ss))
     return normals
 
@@ -554,7 +568,7 @@ def _scatter(normals, stars: pd.DataFrame, f90: float, s: CellSettings) -> pd.Da
     labels = [f"{p:g} mas" for p in s.scatter_priors_mas] + (["F90"] if math.isfinite(f90) else [])
     parts = []
     for label, sigma in zip(labels, priors):
-        dpos, cov2 = _evaluate(*normals, float(sigma), s)
+        dpos, cov2 = _evaluate(normals, float(sigma), s)
         parts.append(pd.DataFrame({
             "prior": label, "sigma_prior_mas": float(sigma),
             "dra_mas": dpos[:, 0], "ddec_mas": dpos[:, 1],

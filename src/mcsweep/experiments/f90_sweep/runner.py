@@ -127,17 +127,33 @@ def _pop_dict(config) -> dict:
 
 
 def _cell_task(job):
+    """Run the cells of one direction x G bin (the colour-blind cell and its colour cells,
+    which share their batches of stars); returns (cell_id, showcase, table bytes) per cell."""
     # The store travels with the job so a worker stamps the parent's code version.
-    cell, transits, pop_frozen, settings, store, keep_scatter, radius = job
+    cells, transits, pop_frozen, settings, store, keep_scatter, radii = job
     source = _source(pop_frozen)
-    # The showcase cell (keep_scatter) feeds Figs. 1 and 3: statistics on its whole grid.
-    table, scatter = run_cell(cell, transits, source, settings, keep_scatter=keep_scatter, radius_deg=radius,
-                              grid_statistics=True if keep_scatter else None)
-    if scatter is not None:
-        store.write(cell.cell_id + "_scatter", scatter)
-    # The written bytes travel back: the aggregate reads them instead of the file (1.5 ms of
-    # checksum and read per cell, 13 s of the colour sweep's 3361 cells).
-    return cell.cell_id, keep_scatter, store.write(cell.cell_id, table)
+    draws: dict = {}
+    out = []
+    for cell, radius in zip(cells, radii):
+        # The showcase cell (keep_scatter) feeds Figs. 1 and 3: statistics on its whole grid.
+        table, scatter = run_cell(cell, transits, source, settings, keep_scatter=keep_scatter, radius_deg=radius,
+                                  grid_statistics=True if keep_scatter else None, draws=draws)
+        if scatter is not None:
+            store.write(cell.cell_id + "_scatter", scatter)
+        # The written bytes travel back: the aggregate reads them instead of the file (1.5 ms of
+        # checksum and read per cell, 13 s of the colour sweep's 3361 cells).
+        out.append((cell.cell_id, keep_scatter, store.write(cell.cell_id, table)))
+    return out
+
+
+def _direction_g_jobs(cells, transits, pop, settings, store, radii) -> list[tuple]:
+    """One job per direction x G bin: its cells in the order given (a resumed run's kept cells
+    left out)."""
+    groups: dict[tuple, list] = {}
+    for c in cells:
+        groups.setdefault(c.key[:4], []).append(c)
+    return [(group, transits[group[0].direction.index], pop, settings, store, False,
+             [radii.get(c.cell_id) for c in group]) for group in groups.values()]
 
 
 def run_sweep(config, raw_cfg: dict, run_dir: Path, *, prov) -> Path:
@@ -175,19 +191,20 @@ def run_sweep(config, raw_cfg: dict, run_dir: Path, *, prov) -> Path:
         atomic_write_bytes(run_dir / SHOWCASE_DIR / SHOWCASE_GROUPS_FILE,
                            showcase_groups(transits[show.direction.index], law).to_csv(index=False).encode())
     pop = _freeze(_pop_dict(config))
-    jobs = [(c, transits[c.direction.index], pop, settings, store, False, radii.get(c.cell_id)) for c in todo]
+    jobs = _direction_g_jobs(todo, transits, pop, settings, store, radii)
     if show_todo:
-        jobs.insert(0, (show, transits[show.direction.index], pop, settings, show_store, True,
-                        radii.get(show.cell_id)))
+        jobs.insert(0, ([show], transits[show.direction.index], pop, settings, show_store, True,
+                        [radii.get(show.cell_id)]))
     n_all = len(cells) + (show is not None)
     fresh: dict[str, bytes] = {}
     with prov.stage("cells"), executor(config.execution) as run:
-        bar = progress(n_all, initial=n_all - len(jobs), desc="cells", unit="cells",
+        bar = progress(n_all, initial=n_all - sum(len(j[0]) for j in jobs), desc="cells", unit="cells",
                        enabled=config.execution.progress)
-        for cell_id, showcase, data in run(_cell_task, jobs):
-            if not showcase:
-                fresh[cell_id] = data
-            bar.update(1)
+        for done in run(_cell_task, jobs):
+            for cell_id, showcase, data in done:
+                if not showcase:
+                    fresh[cell_id] = data
+            bar.update(len(done))
         bar.close()
     with prov.stage("aggregate"):
         tables = [kept[c.cell_id] if c.cell_id in kept else store.decode(fresh.pop(c.cell_id)) for c in cells]

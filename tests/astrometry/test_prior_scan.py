@@ -178,3 +178,37 @@ def test_compiled_inside_flags_are_the_numpy_arithmetic_bit_for_bit(rows):
     np.testing.assert_array_equal(got[0], ref[0])
     np.testing.assert_array_equal(got[1], ref[1])
 
+
+
+@pytest.mark.parametrize("rows", [2, 3, 12])
+def test_inside_counts_and_keys_are_the_flags(rows):
+    # The counts per prior and each star's flags as integer bits, without the (m, n) flags.
+    rng = np.random.default_rng(90 + rows)
+    n0, b0 = _normals(rng, 2000, rows)
+    n0[:5] = 0.0
+    b0[:5] = 0.0
+    priors = np.geomspace(0.01, 1000.0, 41)
+    scan = prior_scan(n0, b0, 10.0)
+    inside, valid = scan.inside_flags(priors, 0.9)
+    n_in, n_val, (k_in, k_val) = scan.inside_counts(priors, 0.9, keys=True)
+    np.testing.assert_array_equal(n_in, inside.sum(axis=1))
+    np.testing.assert_array_equal(n_val, valid.sum(axis=1))
+    bits = np.uint64(1) << np.arange(41, dtype=np.uint64)
+    np.testing.assert_array_equal((k_in[None, :] & bits[:, None]) != 0, inside)
+    np.testing.assert_array_equal((k_val[None, :] & bits[:, None]) != 0, valid)
+    again = scan.inside_counts(priors, 0.9)
+    np.testing.assert_array_equal(again[0], n_in)
+    assert again[2] is None
+    with pytest.raises(ValueError, match="at most 64"):
+        scan.inside_counts(np.geomspace(0.01, 1000.0, 65), 0.9, keys=True)
+
+
+def test_compiled_reduction_does_not_depend_on_the_block_of_a_star():
+    # Blocks of REDUCE_BLOCK stars: a star's result is the same wherever it falls.
+    from mcsweep.astrometry.scan_kernel import REDUCE_BLOCK
+
+    n0, b0 = _normals(np.random.default_rng(8), 3 * REDUCE_BLOCK + 17, 4)
+    whole = prior_scan(n0, b0)
+    shifted = prior_scan(n0[37:], b0[37:])
+    for name in ("x0", "ainv", "g", "c", "lam", "ok"):
+        np.testing.assert_array_equal(getattr(whole, name)[..., 37:], getattr(shifted, name))

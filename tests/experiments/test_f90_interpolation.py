@@ -112,3 +112,18 @@ def test_bootstrap_interval_does_not_depend_on_the_order_of_the_stars():
     b = sigma_f90_interval(GRID, inside[:, perm], valid[:, perm], 0.9, "log", 200, np.random.default_rng(5))
     assert a == b
     assert a[0] < a[1]
+
+
+def test_patterns_from_integer_keys_are_the_patterns_of_the_flags():
+    from mcsweep.experiments.f90_curve import flag_patterns, key_patterns
+
+    rng = np.random.default_rng(12)
+    score = rng.normal(size=5000)
+    inside = (score[None, :] < np.linspace(-2, 2, 41)[:, None]) & (rng.random((41, 5000)) < 0.97)
+    valid = rng.random((41, 5000)) < 0.99
+    inside &= valid
+    bits = np.uint64(1) << np.arange(41, dtype=np.uint64)
+    k_in = (inside.astype(np.uint64) * bits[:, None]).sum(axis=0, dtype=np.uint64)
+    k_val = (valid.astype(np.uint64) * bits[:, None]).sum(axis=0, dtype=np.uint64)
+    assert key_patterns(k_in, k_val, 41) == flag_patterns(inside, valid)
+    assert key_patterns(k_in[:0], k_val[:0], 41) == {} == flag_patterns(inside[:, :0], valid[:, :0])

@@ -257,3 +257,17 @@ def test_a_catalogue_has_no_colours_for_the_colour_axis(tmp_path):
     lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
     assert len(lines) == 1 and "prior_model.colour_edges" in lines[0] and "population=galaxy_model" in lines[0]
     assert not (tmp_path / "run" / "cells").exists()
+
+
+def test_colour_cells_are_the_same_bits_with_their_batches_shared_or_not(galaxy_beam):
+    # One task runs a direction x G bin's colour cells with one set of batches; each cell
+    # alone draws the same batches (content-keyed), so the tables are identical, in any order.
+    config, d, transits = galaxy_beam
+    s = _settings(config, colour_axis=True)
+    cells = [Cell(d, 14.5, 15.5, c0, c1) for c0, c1 in ((-1.0, 0.56), (0.56, 1.23), (1.23, 6.0))]
+    alone = [run_cell(c, transits, GalaxyModel(), s)[0] for c in cells]
+    draws: dict = {}
+    shared = [run_cell(c, transits, GalaxyModel(), s, draws=draws)[0] for c in reversed(cells)][::-1]
+    for a, b in zip(alone, shared):
+        pd.testing.assert_frame_equal(a, b, check_exact=True)
+    assert len(draws) == 1

@@ -51,10 +51,13 @@ import numpy as np
 
 from .confidence import chi2_threshold
 from .linalg import PIVOT_TOLERANCE
-from .scan_kernel import JACOBI_NEGLIGIBLE, JACOBI_SWEEPS, REDUCE_BLOCK, inside_flags_grid, reduce_normals
+from .scan_kernel import JACOBI_NEGLIGIBLE, JACOBI_SWEEPS, REDUCE_BLOCK, inside_counts_grid, inside_flags_grid, reduce_normals
 from .solve import DEFAULT_RATIO_R, check_normal, prior_diagonal
 
-__all__ = ["JACOBI_SWEEPS", "JACOBI_NEGLIGIBLE", "REDUCE_BLOCK", "PriorScan", "prior_scan"]
+__all__ = ["JACOBI_SWEEPS", "JACOBI_NEGLIGIBLE", "REDUCE_BLOCK", "MAX_KEY_PRIORS", "PriorScan", "prior_scan"]
+
+#: Most priors whose per-star flags fit the bits of one integer (:meth:`PriorScan.inside_counts`).
+MAX_KEY_PRIORS = 64
 
 
 
@@ -145,6 +148,33 @@ class PriorScan:
                               np.ascontiguousarray(self.lam), worst, np.ascontiguousarray(ts, dtype=float),
                               chi2_threshold(P, 2), inside, valid)
         return inside, valid
+
+    def inside_counts(self, priors_mas, P, *, keys: bool = False):
+        """The counts of :meth:`inside_flags` per prior, without the per-star flags.
+
+        Returns
+        -------
+        n_inside, n_valid : ndarray of int64, shape (n_priors,)
+        key_inside, key_valid : ndarray of uint64, shape (n,), or None
+            With ``keys`` (at most 64 priors): each star's ``inside`` and ``valid`` flags
+            over the priors as the bits of one integer (bit i: prior i).
+        """
+        priors = np.atleast_1d(np.asarray(priors_mas, float))
+        ts = prior_diagonal(priors, self.ratio_R)[:, 2] if priors.size else np.zeros(0)
+        m, n = len(ts), self.n
+        if keys and m > MAX_KEY_PRIORS:
+            raise ValueError(f"{m} priors: per-star keys hold at most {MAX_KEY_PRIORS}")
+        n_in = np.zeros(m, dtype=np.int64)
+        n_val = np.zeros(m, dtype=np.int64)
+        k_in = np.zeros(n if keys else 0, dtype=np.uint64)
+        k_val = np.zeros(n if keys else 0, dtype=np.uint64)
+        if m and n:
+            worst = np.where(self.ok, np.min(self.lam, axis=0), -np.inf)
+            inside_counts_grid(np.ascontiguousarray(self.x0), np.ascontiguousarray(self.ainv),
+                               np.ascontiguousarray(self.g), np.ascontiguousarray(self.c),
+                               np.ascontiguousarray(self.lam), worst, np.ascontiguousarray(ts, dtype=float),
+                               chi2_threshold(P, 2), n_in, n_val, k_in, k_val)
+        return n_in, n_val, (k_in, k_val) if keys else None
 
 
 def prior_scan(N0, b0, ratio_R: float = DEFAULT_RATIO_R) -> PriorScan:

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["prior_crossings", "sigma_f90_from_curve", "sigma_f90_interval", "bootstrap_fractions", "flag_patterns",
-           "merge_patterns", "pattern_fractions", "pattern_interval", "ill_determined", "INTERVAL_QUANTILES",
+           "key_patterns", "merge_patterns", "pattern_fractions", "pattern_interval", "ill_determined", "INTERVAL_QUANTILES",
            "ILL_BAND_SIGMAS", "ILL_RANGE_DEX"]
 
 #: Bootstrap interval of sigma_F90: the 16th and 84th percentiles (a 68 % interval,
@@ -83,6 +83,23 @@ def flag_patterns(inside_flags, valid_flags) -> dict[bytes, int]:
     keys = np.ascontiguousarray(packed.T).view(np.dtype((np.void, packed.shape[0]))).ravel()
     unique, counts = np.unique(keys, return_counts=True)
     return {k.tobytes(): int(c) for k, c in zip(unique, counts)}
+
+
+def key_patterns(key_inside, key_valid, n_priors: int) -> dict[bytes, int]:
+    """:func:`flag_patterns` of stars whose flags over ``n_priors`` priors are given as the
+    bits of one integer each (bit i: prior i; :meth:`mcsweep.astrometry.prior_scan.PriorScan.inside_counts`):
+    the same patterns under the same keys."""
+    k_in, k_val = np.asarray(key_inside, np.uint64), np.asarray(key_valid, np.uint64)
+    if k_in.size == 0:
+        return {}
+    order = np.lexsort((k_val, k_in))
+    k_in, k_val = k_in[order], k_val[order]
+    first = np.flatnonzero(np.r_[True, (k_in[1:] != k_in[:-1]) | (k_val[1:] != k_val[:-1])])
+    counts = np.diff(np.r_[first, k_in.size])
+    bit = np.uint64(1) << np.arange(n_priors, dtype=np.uint64)
+    flags = np.concatenate([(k_in[first, None] & bit) != 0, (k_val[first, None] & bit) != 0], axis=1)  # (u, 2 m)
+    packed = np.packbits(flags, axis=1)
+    return {row.tobytes(): int(c) for row, c in zip(packed, counts)}
 
 
 def merge_patterns(total: dict[bytes, int], more: dict[bytes, int]) -> dict[bytes, int]:

@@ -27,12 +27,12 @@ import pandas as pd
 from ...astrometry.confidence import ellipse_semi_axes, inside, inside_counts, mahalanobis_sq
 from ...astrometry.design import JULIAN_YEAR_DAYS, design_matrix, reference_epoch
 from ...astrometry.noise import NoiseModel
-from ...astrometry.prior_scan import PriorScan, prior_scan
+from ...astrometry.prior_scan import MAX_KEY_PRIORS, PriorScan, prior_scan
 from ...astrometry.shared_design import SharedDesignNormals
 from ...astrometry.solve import solve_with_prior
 from ...galactic import pm_galactic_from_icrs, pm_icrs_from_galactic
 from ...scanning import observer_position_au
-from ..f90_curve import ill_determined, sigma_f90_from_curve, sigma_f90_interval
+from ..f90_curve import flag_patterns, ill_determined, key_patterns, pattern_interval, sigma_f90_from_curve
 
 __all__ = [
     "CellSettings",
@@ -248,25 +248,41 @@ def scan_curve(scan: PriorScan, priors_mas, s: CellSettings, *, statistics: bool
     table : pandas.DataFrame
     inside, valid : ndarray of bool, shape (n_priors, n_stars)
     """
-    arrays, inside_flags, valid_flags = scan_arrays(scan, priors_mas, s, statistics=statistics)
+    priors = np.atleast_1d(np.asarray(priors_mas, float))
+    inside_flags, valid_flags = scan.inside_flags(priors, s.confidence)
+    err, semi = _statistics(scan, priors, s) if statistics else (None, None)
+    arrays = _curve_arrays(priors, np.count_nonzero(inside_flags, axis=1), np.count_nonzero(valid_flags, axis=1),
+                           err, semi, s)
     return pd.DataFrame(arrays), inside_flags, valid_flags
 
 
-def scan_arrays(scan: PriorScan, priors_mas, s: CellSettings, *, statistics: bool):
+def scan_arrays(scan: PriorScan, priors_mas, s: CellSettings, *, statistics: bool, patterns: bool = False):
+    """The columns of :func:`scan_curve`'s table, and with ``patterns`` the stars' patterns of
+    flags over the priors (:func:`mcsweep.experiments.f90_curve.flag_patterns`, for the
+    bootstrap), else None; the per-star flags are never formed."""
     priors = np.atleast_1d(np.asarray(priors_mas, float))
-    inside_flags, valid_flags = scan.inside_flags(priors, s.confidence)
-    err = semi = None
-    if statistics:
-        err = np.empty((len(priors), scan.n))
-        semi = np.empty((len(priors), scan.n))
-        for i, p in enumerate(priors):
-            dpos, cov2 = scan.position(p)
-            # True position offsets are zero at the reference epoch, so the solved
-            # position is the actual error (Sect. 3.2).
-            err[i] = np.hypot(dpos[:, 0], dpos[:, 1])
-            semi[i] = ellipse_semi_axes(cov2, s.confidence)[0]
-    return _curve_arrays(priors, inside_flags.sum(axis=1), valid_flags.sum(axis=1), err, semi, s), \
-        inside_flags, valid_flags
+    if patterns and len(priors) > MAX_KEY_PRIORS:
+        inside_flags, valid_flags = scan.inside_flags(priors, s.confidence)
+        n_in, n_valid = np.count_nonzero(inside_flags, axis=1), np.count_nonzero(valid_flags, axis=1)
+        found = flag_patterns(inside_flags, valid_flags)
+    else:
+        n_in, n_valid, keys = scan.inside_counts(priors, s.confidence, keys=patterns)
+        found = key_patterns(*keys, len(priors)) if patterns else None
+    err, semi = _statistics(scan, priors, s) if statistics else (None, None)
+    return _curve_arrays(priors, n_in, n_valid, err, semi, s), found
+
+
+def _statistics(scan: PriorScan, priors, s: CellSettings):
+    """Each star's actual position error and its ellipse's semi-major axis at every prior."""
+    err = np.empty((len(priors), scan.n))
+    semi = np.empty((len(priors), scan.n))
+    for i, p in enumerate(priors):
+        dpos, cov2 = scan.position(p)
+        # True position offsets are zero at the reference epoch, so the solved
+        # position is the actual error (Sect. 3.2).
+        err[i] = np.hypot(dpos[:, 0], dpos[:, 1])
+        semi[i] = ellipse_semi_axes(cov2, s.confidence)[0]
+    return err, semi
 
 
 def _curve_arrays(priors, n_in, n_valid, err, semi_major, s: CellSettings) -> dict:
@@ -371,12 +387,12 @@ def run_cell(cell, transits: pd.DataFrame, source, s: CellSettings,
     columns = _transit_columns(transits)
     normals = _case_normals(cell, columns, solved, s) if len(stars) >= _min_stars(cell) else {}
     scans = {case: nrm.prior_scan(s.ratio_R) for case, nrm in normals.items()}
-    curves, f90_flags = {}, None
+    curves, f90_patterns = {}, None
     for case, scan in scans.items():
-        curves[case], *flags = scan_arrays(scan, grid, s, statistics=stats_on_grid)
+        curves[case], patterns = scan_arrays(scan, grid, s, statistics=stats_on_grid, patterns=case == s.f90_case)
         if case == s.f90_case:
-            f90_flags = flags
-    f90 = _cell_f90(cell, grid, curves, f90_flags, s, has_stars=len(stars) > 0,
+            f90_patterns = patterns
+    f90 = _cell_f90(cell, grid, curves, f90_patterns, s, has_stars=len(stars) > 0,
                     enough_stars=len(stars) >= _min_stars(cell))
     if centre is not None:
         base.update(_quasars(cell, columns, stars, centre, f90["sigma_f90_mas"], s))
@@ -515,10 +531,10 @@ def _case_normals(cell, columns: dict, stars: pd.DataFrame, s: CellSettings) -> 
     return normals
 
 
-def _cell_f90(cell, grid, curves: dict, f90_flags, s: CellSettings, *, has_stars: bool,
+def _cell_f90(cell, grid, curves: dict, f90_patterns, s: CellSettings, *, has_stars: bool,
               enough_stars: bool = True) -> dict:
     """sigma_F90 of the cell from the F90 case's curve (Sect. 3.3), its flag, its bootstrap
-    interval and whether it is ill-determined."""
+    interval (over the stars' ``f90_patterns`` of flags) and whether it is ill-determined."""
     if s.f90_case not in curves:
         flag = "no_stars" if not has_stars else "few_stars" if not enough_stars else "no_transits"
         return dict(sigma_f90_mas=float("nan"), f90_flag=flag,
@@ -526,7 +542,7 @@ def _cell_f90(cell, grid, curves: dict, f90_flags, s: CellSettings, *, has_stars
     c = curves[s.f90_case]
     f90, flag = sigma_f90_from_curve(grid, c["fraction_inside"], s.confidence, s.interpolation)
     boot_rng = np.random.default_rng(np.random.SeedSequence(s.seed, spawn_key=(*cell.key, _BOOTSTRAP_STREAM)))
-    lo, hi = sigma_f90_interval(grid, *f90_flags, s.confidence, s.interpolation, s.n_bootstrap, boot_rng)
+    lo, hi = pattern_interval(grid, f90_patterns, s.confidence, s.interpolation, s.n_bootstrap, boot_rng)
     return dict(sigma_f90_mas=f90, f90_flag=flag, sigma_f90_lo_mas=lo, sigma_f90_hi_mas=hi,
                 ill_determined=ill_determined(grid, c["fraction_inside"], c["n_valid"], s.confidence))
 

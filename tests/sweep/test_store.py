@@ -6,7 +6,7 @@ import pytest
 import os
 from pathlib import Path
 
-from mcsweep.runtime.store import ResultStore, atomic_write_bytes, current_umask
+from mcsweep.runtime.store import ResultStore, atomic_write_bytes, concat_tables, current_umask
 
 
 def _table():
@@ -23,9 +23,9 @@ def test_roundtrip(tmp_path):
 @pytest.mark.parametrize("damage", ["truncate", "garbage", "empty"])
 def test_damaged_file_is_recomputed_with_warning(tmp_path, damage):
     store = ResultStore(tmp_path, "abc")
-    data = store.write("cell_1", _table())
+    store.write("cell_1", _table())
     path = store.path("cell_1")
-    assert path.read_bytes() == data
+    data = path.read_bytes()
     path.write_bytes({"truncate": data[: len(data) // 2], "garbage": b"not parquet at all", "empty": b""}[damage])
     with pytest.warns(UserWarning, match="recomputing"):
         assert store.read("cell_1") is None
@@ -171,4 +171,14 @@ def test_a_cell_store_clears_only_unheld_temporaries(tmp_path):
 def test_decoded_bytes_are_what_read_gives(tmp_path):
     store = ResultStore(tmp_path, "abc")
     data = store.write("cell_1", _table())
-    pd.testing.assert_frame_equal(store.decode(data), store.read("cell_1"), check_exact=True)
+    assert store.decode(data).equals(store.read_table("cell_1"))
+    pd.testing.assert_frame_equal(concat_tables([store.decode(data)]), store.read("cell_1"), check_exact=True)
+
+
+def test_concatenated_tables_are_the_concatenated_frames(tmp_path):
+    store = ResultStore(tmp_path, "abc")
+    frames = [_table().assign(cell=f"c{i}", x=float(i)) for i in range(3)]
+    tables = [store.decode(store.write(f"c{i}", df)) for i, df in enumerate(frames[:2])]
+    store.write("c2", frames[2])
+    tables.append(store.read_table("c2"))
+    pd.testing.assert_frame_equal(concat_tables(tables), pd.concat(frames, ignore_index=True), check_exact=True)

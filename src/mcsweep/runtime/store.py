@@ -36,7 +36,7 @@ import pyarrow.parquet as pq
 from ..errors import UserInputError
 from .version import code_version
 
-__all__ = ["ResultStore", "atomic_write_bytes", "atomic_write_via", "current_umask", "remove_temporaries", "table_checksum"]
+__all__ = ["ResultStore", "concat_tables", "atomic_write_bytes", "atomic_write_via", "current_umask", "remove_temporaries", "table_checksum"]
 
 _META_KEY = b"mcsweep"
 
@@ -194,6 +194,17 @@ def atomic_write_bytes(path: Path, data: bytes) -> None:
     atomic_write_via(path, lambda tmp: tmp.write_bytes(data))
 
 
+def concat_tables(tables) -> pd.DataFrame:
+    """One DataFrame of the Arrow tables of many entries (:meth:`ResultStore.read_table`,
+    :meth:`ResultStore.decode`), in order: what ``pd.concat`` of their DataFrames gives, with
+    one conversion to pandas instead of one per entry."""
+    bare = []
+    for t in tables:
+        meta = {k: v for k, v in (t.schema.metadata or {}).items() if k != _META_KEY}
+        bare.append(t.replace_schema_metadata(meta))
+    return pa.concat_tables(bare).to_pandas()
+
+
 class ResultStore:
     """Directory of one Parquet file per entry for one config (identified by its hash); an
     entry's id names its file (``<id>.parquet``) and is recorded in it (metadata ``cell_id``,
@@ -212,8 +223,9 @@ class ResultStore:
         return self.directory / f"{entry_id}.parquet"
 
     def write(self, entry_id: str, df: pd.DataFrame) -> bytes:
-        """Write the entry atomically; returns the file's bytes (:meth:`decode` reads them back
-        without going to the disk again)."""
+        """Write the entry atomically; returns the table as Arrow IPC bytes (:meth:`decode`
+        gives it back without going to the disk, in microseconds rather than the
+        milliseconds of reading Parquet)."""
         df = df.reset_index(drop=True)
         meta = {"config_hash": self.config_hash, "cell_id": entry_id,
                 "checksum": table_checksum(df), "n_rows": len(df), "code_version": self.version}
@@ -222,24 +234,36 @@ class ResultStore:
                                                _META_KEY: json.dumps(meta).encode()})
         sink = pa.BufferOutputStream()
         pq.write_table(table, sink)
-        data = sink.getvalue().to_pybytes()
-        atomic_write_bytes(self.path(entry_id), data)
-        return data
+        atomic_write_bytes(self.path(entry_id), sink.getvalue().to_pybytes())
+        ipc = pa.BufferOutputStream()
+        with pa.ipc.new_stream(ipc, table.schema) as writer:
+            writer.write_table(table)
+        return ipc.getvalue().to_pybytes()
 
-    def decode(self, data: bytes) -> pd.DataFrame:
-        """The table of bytes :meth:`write` returned in this run: what :meth:`read` gives for the
-        file, without reading and checksumming it again (it was just written by this code)."""
+    def decode(self, data: bytes) -> pa.Table:
+        """The table of bytes :meth:`write` returned in this run, as :meth:`read_table` gives
+        it from the file, without reading and checksumming it again (it was just written by
+        this code)."""
         self.versions_read[self.version] += 1
-        return pq.read_table(pa.BufferReader(data)).to_pandas()
+        return pa.ipc.open_stream(pa.BufferReader(data)).read_all()
 
     def read(self, entry_id: str) -> pd.DataFrame | None:
         """The finished cell's table, or None (with a warning if a bad file was there)."""
+        found = self._finished(entry_id)
+        return None if found is None else found[1]
+
+    def read_table(self, entry_id: str) -> pa.Table | None:
+        """:meth:`read` as the Arrow table of the file (:func:`concat_tables` joins many)."""
+        found = self._finished(entry_id)
+        return None if found is None else found[0]
+
+    def _finished(self, entry_id: str):
         path = self.path(entry_id)
         if not path.exists():
             return None
-        df, meta, problem = self._verified(entry_id)
+        table, df, meta, problem = self._verified(entry_id)
         if problem:
-            warnings.warn(f"recomputing {path.name}: {problem}", stacklevel=2)
+            warnings.warn(f"recomputing {path.name}: {problem}", stacklevel=3)
             return None
         written_by = meta.get("code_version") or "an mcsweep too old to record its version"
         if written_by != self.version and not self.accept_other_versions:
@@ -248,7 +272,7 @@ class ResultStore:
                 "expected cells of one code version: resume with resume.accept_other_versions=true to keep "
                 "them, or use a new hydra.run.dir")
         self.versions_read[written_by] += 1
-        return df
+        return table, df
 
     def finished(self) -> list[str]:
         """Ids of the whole results of this config (name order), whatever code version wrote them.
@@ -260,12 +284,13 @@ class ResultStore:
         """
         if not self.directory.is_dir():
             return []
-        return [p.stem for p in sorted(self.directory.glob("*.parquet")) if self._verified(p.stem)[2] is None]
+        return [p.stem for p in sorted(self.directory.glob("*.parquet")) if self._verified(p.stem)[3] is None]
 
     def _verified(self, entry_id: str):
-        """``(table, metadata, problem)``; ``problem`` is None when the file is a finished result."""
+        """``(arrow table, table, metadata, problem)``; ``problem`` is None when the file is a
+        finished result."""
         path = self.path(entry_id)
-        df, meta = None, {}
+        table, df, meta = None, None, {}
         try:
             table = pq.read_table(path)
             meta = json.loads((table.schema.metadata or {})[_META_KEY])
@@ -279,7 +304,7 @@ class ResultStore:
                 problem = "its checksum does not match its content"
         except Exception as exc:  # truncated, not Parquet, no metadata
             problem = f"it is unreadable ({type(exc).__name__})"
-        return df, meta, problem
+        return table, df, meta, problem
 
     def remove_stale_temporaries(self) -> int:
         """Delete temporaries left by writes that were killed (never valid results)."""

@@ -38,7 +38,7 @@ from .cells import Cell, Direction, enumerate_cells, sky_directions
 from .conf import SkyConf
 from ...runtime.execution import executor
 from ...runtime.progress import progress, stage_line
-from ...runtime.store import ResultStore, atomic_write_bytes
+from ...runtime.store import ResultStore, atomic_write_bytes, concat_tables
 
 __all__ = ["build_settings", "run_sweep", "write_fit", "showcase_cell", "showcase_groups", "SHOWCASE_GROUPS_FILE"]
 
@@ -177,7 +177,7 @@ def run_sweep(config, raw_cfg: dict, run_dir: Path, *, prov) -> Path:
         st.remove_stale_temporaries()
 
     # Cells kept from an earlier run, read and verified once (the aggregate reuses them).
-    kept = {c.cell_id: df for c in cells if (df := store.read(c.cell_id)) is not None}
+    kept = {c.cell_id: t for c in cells if (t := store.read_table(c.cell_id)) is not None}
     todo = [c for c in cells if c.cell_id not in kept]
     radii = _catalogue_radii(source, todo + ([show] if show is not None else []), settings)
     show_todo = show is not None and (show_store.read(show.cell_id) is None
@@ -275,17 +275,22 @@ def _aggregate(run_dir: Path, cells: list[Cell], tables: list, store: ResultStor
     if missing:  # pragma: no cover - would mean a worker wrote a bad file
         raise RuntimeError(f"{len(missing)} cells have no valid result, e.g. {missing[0]}")
     out = run_dir / "cells.parquet"
-    data = pd.concat(tables, ignore_index=True).to_parquet(index=False)
+    # One conversion to pandas for all cells' Arrow tables (one per cell cost 5.4 s of the
+    # colour sweep's 3361 cells).
+    data = concat_tables(tables).to_parquet(index=False)
     atomic_write_bytes(out, data)
     # The fit reads the cells as cells.parquet holds them (what a later reader gets).
     write_fit(run_dir, pd.read_parquet(io.BytesIO(data)), nside=nside, f90_case=settings.f90_case)
-    prov.seeds["cells"] = ("stars: SeedSequence(seed, spawn_key=(*key, 0)); noise of a case: "
+    prov.seeds["cells"] = ("stars: SeedSequence(seed, spawn_key=(*key, 0)); noise of a case (min(k, 5) "
+                           "standard normals per star and block of k rows, astrometry.shared_design): "
                            "SeedSequence(seed, spawn_key=(*key, 1, crc32(case name))); bootstrap of "
                            "sigma_F90: SeedSequence(seed, spawn_key=(*key, 2)); "
                            "key = (l*1e4, (b+90)*1e4, 100*g_min, 100*g_max)")
     if settings.colour_axis:
         prov.seeds["colour_cells"] = ("a colour cell's key appends (100*(bp_rp_min+10), 100*(bp_rp_max+10)); its "
-                                      "stars are the stars of its BP-RP bin in batches drawn from the star stream")
+                                      "stars are the stars of its BP-RP bin in the batches of its direction x G "
+                                      "bin: batch i from SeedSequence(seed, spawn_key=(*key[:4], stream, 5, i)), "
+                                      "stream 0 for the stars and 3 for the prior's mean")
     if settings.mean:
         prov.seeds["prior_mean"] = ("the prior's centre: mean of an independent draw, SeedSequence(seed, "
                                     "spawn_key=(*key, 3)); quasars' noise: SeedSequence(seed, spawn_key=(*key, 4))")

@@ -28,12 +28,12 @@ one scan direction only) leaves the position undetermined with any prior of Eq. 
 as in :func:`mcsweep.astrometry.solve.solve_with_prior`: such stars get NaN.
 
 The 3 x 3 eigen-decompositions use cyclic Jacobi rotations, compiled and vectorised
-across stars (:mod:`mcsweep.astrometry.scan_kernel`; Golub & Van Loan, Sect. 8.5): Jacobi is accurate to the rounding level for every
-eigenvalue relative to the matrix norm. A rotation is skipped for a star whose
-off-diagonal element is already negligible (below ``JACOBI_NEGLIGIBLE`` times its two
-diagonal elements), a per-star test, so every star's arithmetic is independent of the
-others (results do not depend on batching); the sweeps stop once every star has
-converged.
+across stars (:mod:`mcsweep.astrometry.scan_kernel`; Golub & Van Loan, Sect. 8.5):
+Jacobi is accurate to the rounding level for every eigenvalue relative to the matrix
+norm. A rotation is skipped for a star whose off-diagonal element is already negligible
+(below ``scan_kernel.JACOBI_NEGLIGIBLE`` times its two diagonal elements), a per-star
+test, so every star's arithmetic is independent of the others (results do not depend on
+batching); the sweeps stop once every star of a block has converged.
 
 For the pencil-beam search only the inside/outside test of every star and prior is
 needed on the whole grid (:meth:`PriorScan.inside_flags`): the five quantities of the
@@ -51,10 +51,12 @@ import numpy as np
 
 from .confidence import chi2_threshold
 from .linalg import PIVOT_TOLERANCE
-from .scan_kernel import JACOBI_NEGLIGIBLE, JACOBI_SWEEPS, REDUCE_BLOCK, inside_counts_grid, inside_flags_grid, reduce_normals
 from .solve import DEFAULT_RATIO_R, check_normal, prior_diagonal
 
-__all__ = ["JACOBI_SWEEPS", "JACOBI_NEGLIGIBLE", "REDUCE_BLOCK", "MAX_KEY_PRIORS", "PriorScan", "prior_scan"]
+__all__ = ["MAX_KEY_PRIORS", "PriorScan", "prior_scan"]
+
+# The compiled passes (mcsweep.astrometry.scan_kernel) are imported where they run: loading
+# numba costs a process 54 MB and 0.14 s, and the sweep's parent process never runs them.
 
 #: Most priors whose per-star flags fit the bits of one integer (:meth:`PriorScan.inside_counts`).
 MAX_KEY_PRIORS = 64
@@ -143,6 +145,8 @@ class PriorScan:
         # where min(lam) + t <= 0 or the star is not ok (then -inf).
         worst = np.where(self.ok, np.min(self.lam, axis=0), -np.inf) if n else np.zeros(0)
         if m and n:
+            from .scan_kernel import inside_flags_grid
+
             inside_flags_grid(np.ascontiguousarray(self.x0), np.ascontiguousarray(self.ainv),
                               np.ascontiguousarray(self.g), np.ascontiguousarray(self.c),
                               np.ascontiguousarray(self.lam), worst, np.ascontiguousarray(ts, dtype=float),
@@ -169,6 +173,8 @@ class PriorScan:
         k_in = np.zeros(n if keys else 0, dtype=np.uint64)
         k_val = np.zeros(n if keys else 0, dtype=np.uint64)
         if m and n:
+            from .scan_kernel import inside_counts_grid
+
             worst = np.where(self.ok, np.min(self.lam, axis=0), -np.inf)
             inside_counts_grid(np.ascontiguousarray(self.x0), np.ascontiguousarray(self.ainv),
                                np.ascontiguousarray(self.g), np.ascontiguousarray(self.c),
@@ -194,6 +200,8 @@ def prior_scan(N0, b0, ratio_R: float = DEFAULT_RATIO_R) -> PriorScan:
     -------
     PriorScan
     """
+    from .scan_kernel import reduce_normals
+
     N0, b0 = check_normal(N0, b0)
     prior_diagonal(1.0, ratio_R)  # validates ratio_R
     r_ = float(ratio_R)

@@ -31,7 +31,6 @@ import numpy as np
 
 from .linalg import PIVOT_TOLERANCE
 from .prior_scan import PriorScan
-from .scan_kernel import reduce_shared_design
 from .solve import prior_diagonal
 
 __all__ = ["SharedDesignNormals"]
@@ -88,6 +87,8 @@ class SharedDesignNormals:
     def prior_scan(self, ratio_R: float) -> PriorScan:
         """The prior-scan reduction of every star (:func:`mcsweep.astrometry.prior_scan.prior_scan`),
         without forming the ``(n, 5, 5)`` normal matrices."""
+        from .scan_kernel import reduce_shared_design  # numba only where it runs (prior_scan notes)
+
         prior_diagonal(1.0, ratio_R)  # validates ratio_R
         n = self.n
         out = dict(x0=np.empty((2, n)), ainv=np.empty((3, n)), g=np.empty((2, 3, n)), c=np.empty((3, n)),

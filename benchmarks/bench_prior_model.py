@@ -41,8 +41,11 @@ def run(model: str, directions, g_values, transits, source) -> tuple[float, floa
     s = build_settings(config)
     cells = cells_of(config, directions, g_values)
     t0 = time.process_time()
+    draws: dict = {}
     for c in cells:
-        run_cell(c, transits[c.direction.index], source, s)
+        if not c.has_colour:
+            draws = {}  # a new direction x G bin: its colour cells share its batches, as in a sweep's job
+        run_cell(c, transits[c.direction.index], source, s, draws=draws)
     seconds = time.process_time() - t0
     tracemalloc.start()
     run_cell(cells[-1], transits[cells[-1].direction.index], source, s)

@@ -165,14 +165,18 @@ def _numpy_inside_flags(scan, priors, P):
     return np.array(inside), np.array(valid)
 
 
-@pytest.mark.parametrize("rows", [2, 3, 12])
-def test_compiled_inside_flags_are_the_numpy_arithmetic_bit_for_bit(rows):
-    rng = np.random.default_rng(70 + rows)
-    n0, b0 = _normals(rng, 3000, rows)
+def _grid_scan(seed, n, rows):
+    """A prior scan of ``n`` random stars, the first five without a position, and the sweep's
+    grid of 41 priors."""
+    n0, b0 = _normals(np.random.default_rng(seed), n, rows)
     n0[:5] = 0.0
     b0[:5] = 0.0
-    priors = np.geomspace(0.01, 1000.0, 41)
-    scan = prior_scan(n0, b0, 10.0)
+    return prior_scan(n0, b0, 10.0), np.geomspace(0.01, 1000.0, 41)
+
+
+@pytest.mark.parametrize("rows", [2, 3, 12])
+def test_compiled_inside_flags_are_the_numpy_arithmetic_bit_for_bit(rows):
+    scan, priors = _grid_scan(70 + rows, 3000, rows)
     got = scan.inside_flags(priors, 0.9)
     ref = _numpy_inside_flags(scan, priors, 0.9)
     np.testing.assert_array_equal(got[0], ref[0])
@@ -183,12 +187,7 @@ def test_compiled_inside_flags_are_the_numpy_arithmetic_bit_for_bit(rows):
 @pytest.mark.parametrize("rows", [2, 3, 12])
 def test_inside_counts_and_keys_are_the_flags(rows):
     # The counts per prior and each star's flags as integer bits, without the (m, n) flags.
-    rng = np.random.default_rng(90 + rows)
-    n0, b0 = _normals(rng, 2000, rows)
-    n0[:5] = 0.0
-    b0[:5] = 0.0
-    priors = np.geomspace(0.01, 1000.0, 41)
-    scan = prior_scan(n0, b0, 10.0)
+    scan, priors = _grid_scan(90 + rows, 2000, rows)
     inside, valid = scan.inside_flags(priors, 0.9)
     n_in, n_val, (k_in, k_val) = scan.inside_counts(priors, 0.9, keys=True)
     np.testing.assert_array_equal(n_in, inside.sum(axis=1))

@@ -46,6 +46,15 @@ JACOBI_SWEEPS = 8
 JACOBI_NEGLIGIBLE = 1e-18
 
 
+@numba.njit(inline="always")
+def _givens(cr, sr, x, y, s):
+    """Rotate element ``s`` of the pair of rows (or columns) ``x``, ``y`` by (cos, sin) = (cr, sr)."""
+    p = x[s]
+    q = y[s]
+    x[s] = cr * p - sr * q
+    y[s] = sr * p + cr * q
+
+
 @_jit
 def _rotate(m, app, aqq, apq, arp, arq, v0p, v1p, v2p, v0q, v1q, v2q):
     """One Jacobi rotation in the (p, q) plane of the first ``m`` stars (Numerical Recipes,
@@ -63,22 +72,10 @@ def _rotate(m, app, aqq, apq, arp, arq, v0p, v1p, v2p, v0q, v1q, v2q):
         app[s] = app[s] - tapq
         aqq[s] = aqq[s] + tapq
         apq[s] = 0.0 if nz else a_pq
-        rp = arp[s]
-        rq = arq[s]
-        arp[s] = cr * rp - sr * rq
-        arq[s] = sr * rp + cr * rq
-        p0 = v0p[s]
-        q0 = v0q[s]
-        v0p[s] = cr * p0 - sr * q0
-        v0q[s] = sr * p0 + cr * q0
-        p1 = v1p[s]
-        q1 = v1q[s]
-        v1p[s] = cr * p1 - sr * q1
-        v1q[s] = sr * p1 + cr * q1
-        p2 = v2p[s]
-        q2 = v2q[s]
-        v2p[s] = cr * p2 - sr * q2
-        v2q[s] = sr * p2 + cr * q2
+        _givens(cr, sr, arp, arq, s)
+        _givens(cr, sr, v0p, v0q, s)
+        _givens(cr, sr, v1p, v1q, s)
+        _givens(cr, sr, v2p, v2q, s)
         active += nz
     return active
 
@@ -200,12 +197,8 @@ def reduce_normals(N, b, r_, pivot, x0, ainv, g, c, lam, ok):
     w = np.empty((24, REDUCE_BLOCK))
     for lo in range(0, n, REDUCE_BLOCK):
         m = min(REDUCE_BLOCK, n - lo)
-        for i in range(5):
-            for j in range(5):
-                for s in range(m):
-                    Nb[i, j, s] = N[i, j, lo + s]
-            for s in range(m):
-                bb[i, s] = b[i, lo + s]
+        Nb[:, :, :m] = N[:, :, lo:lo + m]
+        bb[:, :m] = b[:, lo:lo + m]
         _reduce_block(Nb, bb, m, r_, pivot, w, lo, x0, ainv, g, c, lam, ok)
 
 
@@ -236,12 +229,8 @@ def reduce_shared_design(unit, weight, truth, noise, r_, pivot, x0, ainv, g, c, 
     w = np.empty((24, REDUCE_BLOCK))
     for lo in range(0, n, REDUCE_BLOCK):
         m = min(REDUCE_BLOCK, n - lo)
-        for i in range(5):
-            for j in range(5):
-                for s in range(m):
-                    Nb[i, j, s] = 0.0
-            for s in range(m):
-                bb[i, s] = 0.0
+        Nb[:] = 0.0
+        bb[:] = 0.0
         for q in range(n_blk):
             for i in range(5):
                 for s in range(m):

@@ -48,6 +48,7 @@ import tracemalloc  # noqa: E402
 
 import numpy as np  # noqa: E402
 import scipy.sparse as sp  # noqa: E402
+from scipy.linalg import cho_solve_banded, cholesky_banded  # noqa: E402
 from scipy.sparse.linalg import lsqr  # noqa: E402
 
 from mcsweep.astrometry.noise import NoiseModel  # noqa: E402
@@ -57,7 +58,7 @@ from mcsweep.scanning import find_transits  # noqa: E402
 from mcsweep.scanning.ephemeris import gaia_position_au  # noqa: E402
 from mcsweep.solver import AttitudeSpline, GlobalProblem, build_observations, solve_global  # noqa: E402
 from mcsweep.solver import kernels  # noqa: E402
-from mcsweep.solver.attitude_update import BandedAttitudeSolver, attitude_band  # noqa: E402
+from mcsweep.solver.attitude_update import attitude_band, free_coefficients  # noqa: E402
 from mcsweep.solver.problem import SOLVER_BLOCK_STARS, make_blocks  # noqa: E402
 from mcsweep.solver.direct import solve_direct  # noqa: E402
 
@@ -95,6 +96,29 @@ def make_obs(n_stars: int, days: float, knot_days: float, keep: float, seed: int
 def data_for(problem, x, a, rng):
     a = np.where(problem.free, a, 0.0)
     return problem.forward(problem.join(x, a)) + rng.standard_normal(problem.n_measurements)
+
+
+class BandedAttitudeSolver:
+    """Cholesky factor of the attitude block, reused for every solve (the baseline's
+    preconditioner; the solver no longer uses it).
+
+    Parameters
+    ----------
+    ab : ndarray
+        Upper band storage of the attitude normal matrix (:func:`attitude_band`).
+    """
+
+    def __init__(self, ab):
+        ab = np.array(ab, dtype=float)
+        self.free = free_coefficients(ab)
+        fixed = ~self.free.ravel()
+        ab[-1, fixed] = 1.0  # rows/columns of unobserved coefficients are already zero
+        self.cholesky = cholesky_banded(ab, lower=False)
+
+    def solve(self, rhs) -> np.ndarray:
+        """``N_aa^-1 rhs`` for ``rhs (n_coef, 3)``; unobserved coefficients stay zero."""
+        rhs = np.where(self.free, rhs, 0.0)
+        return cho_solve_banded((self.cholesky, False), rhs.ravel()).reshape(-1, 3)
 
 
 def wall(fn, *args, **kwargs):

@@ -9,7 +9,7 @@ candidate 4) and positions at each star's own mean epoch
 solution takes up to an hour here, so this runs ``mcsweep experiment=primary`` with the
 arguments given and evaluates each prior's solution, as it is made, in the run's own way and
 in those two, with the experiment's own evaluation
-(:func:`mcsweep.experiments.primary.evaluation.evaluate_solution`); each prior's three
+(:func:`evaluate_solution` below: the experiment's block functions composed in this process); each prior's three
 Table 3s go to ``evaluations_<prior>.csv`` in the run directory (columns of ``table3.csv``
 after ``evaluation``). The run's own evaluation must equal the run's ``table3.csv`` star by
 star (checked as it goes); the other two equal the runs with those config values (checked at
@@ -37,10 +37,26 @@ import pandas as pd  # noqa: E402
 EVALUATIONS = (("run", None, None), ("frame_fit=equal", True, False), ("evaluation_epoch=star_mean", False, True))
 
 
+def evaluate_solution(K, cov, dx, views, *, equal: bool, tau_yr, confidence: float):
+    """``(eps, omega, (inside, err_mas, err_parallax_mas))`` of a solution held in this process:
+    the frame rotator fitted to its errors ``dx (n, 5)`` block by block (``views``: the blocks'
+    slices, summed in the fixed tree as on a cluster; ``equal``: every star alike) and each
+    star's outcome after removing it (:func:`block_outcome`; ``tau_yr``: epochs of evaluation,
+    Julian years from the reference epoch, None for the reference epoch)."""
+    from mcsweep.experiments.primary.evaluation import block_frame_sums, block_outcome
+    from mcsweep.solver.frame import frame_from_sums
+    from mcsweep.solver.reduction import pairwise_sum
+
+    eps, omega = frame_from_sums(pairwise_sum(block_frame_sums(K[v], cov[v], dx[v], equal) for v in views)
+                                 if views else np.zeros(24))
+    parts = [block_outcome(K[v], cov[v], dx[v], eps, omega, None if tau_yr is None else tau_yr[v], confidence)
+             for v in views]
+    return eps, omega, tuple(np.concatenate([p[i] for p in parts]) if parts else np.zeros(0) for i in range(3))
+
+
 def evaluations(settings, data, problem, sol, run_result: pd.DataFrame, label: str) -> pd.DataFrame:
     """Table 3 rows of one solution under each of :data:`EVALUATIONS` (``None``: the run's
     setting), the first checked against the run's own per-star result."""
-    from mcsweep.experiments.primary.evaluation import evaluate_solution
     from mcsweep.experiments.primary.table import table3_rows
 
     s = data.solved

@@ -11,12 +11,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numpy as np
-import pandas as pd
 
 from ..errors import UserInputError
 
-__all__ = ["COLUMNS", "POPULATION_CATEGORIES", "ConeQuery", "empty_frame"]
+__all__ = ["COLUMNS", "POPULATION_CATEGORIES", "ConeQuery"]
 
 #: Columns of every table a source returns, in order (Gaia archive names where they exist).
 COLUMNS = ("ra", "dec", "l", "b", "parallax", "pmra", "pmdec", "phot_g_mean_mag",
@@ -79,9 +77,3 @@ class ConeQuery:
             cap = int(max_stars)
         return cls(l, b, r, g0, g1, cap)
 
-
-def empty_frame():
-    """An empty table with the standard columns and dtypes."""
-    data = {c: np.empty(0) for c in COLUMNS[:-1]}
-    data["population"] = pd.Categorical([], categories=POPULATION_CATEGORIES)
-    return pd.DataFrame(data, columns=list(COLUMNS))

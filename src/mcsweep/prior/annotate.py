@@ -36,7 +36,7 @@ from ..galactic import galactic_from_icrs
 from .model import Prior
 
 __all__ = ["FORMATS", "PARALLAX_COLUMN", "PM_COLUMN", "COLOUR_BIN_COLUMN", "MEAN_COLUMNS", "detect_format",
-           "prior_columns", "output_columns", "annotate_file"]
+           "output_columns", "annotate_file"]
 
 PARALLAX_COLUMN = "sigma_f90_parallax"
 PM_COLUMN = "sigma_f90_pm"
@@ -113,13 +113,6 @@ def _colour(get, cols, source, units) -> np.ndarray | None:
                                  "(empty or NaN where unknown)") from None
         vals.append(v * factor if factor != 1.0 else v)
     return vals[0] if len(vals) == 1 else vals[0] - vals[1]
-
-
-def prior_columns(prior: Prior, kind: str, lon, lat, g, bp_rp=None) -> tuple[np.ndarray, np.ndarray]:
-    """(sigma_F90 parallax [mas], proper motion [mas/yr]) for arrays of stars."""
-    l_deg, b_deg = galactic_from_icrs(lon, lat) if kind == "icrs" else (lon, lat)
-    sig = prior.sigma_parallax_mas(l_deg, b_deg, g, bp_rp)
-    return sig, prior.ratio_R * sig
 
 
 def _all_columns(prior: Prior, kind: str, lon, lat, g, bp_rp) -> dict[str, np.ndarray]:

@@ -94,11 +94,6 @@ class Attitude:
     integral: np.ndarray
     integral_dot: np.ndarray
 
-    @property
-    def t_end_jd(self) -> float:
-        """Last tabulated epoch (TCB JD)."""
-        return self.t0_jd + self.step_days * (self.nu.shape[0] - 1)
-
     # -------------------------------------------------------------------- angles
     def heliotropic(self, tcb_jd):
         """Heliotropic angles and rates at ``tcb_jd``.

@@ -15,13 +15,11 @@ as AGIS breaks the attitude into segments at data gaps.
 from __future__ import annotations
 
 import numpy as np
-from scipy.linalg import cho_solve_banded, cholesky_banded
 
 from . import kernels
 from .observations import Observations
 
-__all__ = ["BANDWIDTH", "band_of_rows", "attitude_band", "attitude_rhs", "band_to_dense", "free_coefficients",
-           "BandedAttitudeSolver"]
+__all__ = ["BANDWIDTH", "band_of_rows", "attitude_band", "attitude_rhs", "band_to_dense", "free_coefficients"]
 
 _AX = 3
 _NB = 4  # basis functions per epoch (cubic)
@@ -75,25 +73,3 @@ def band_to_dense(ab) -> np.ndarray:
 def free_coefficients(ab) -> np.ndarray:
     """(n_coef, 3) bool: coefficients with at least one measurement in their support."""
     return (ab[-1] > 0).reshape(-1, _AX)
-
-
-class BandedAttitudeSolver:
-    """Cholesky factor of the attitude block, reused for every solve.
-
-    Parameters
-    ----------
-    ab : ndarray
-        Upper band storage of the attitude normal matrix (:func:`attitude_band`).
-    """
-
-    def __init__(self, ab):
-        ab = np.array(ab, dtype=float)
-        self.free = free_coefficients(ab)
-        fixed = ~self.free.ravel()
-        ab[-1, fixed] = 1.0  # rows/columns of unobserved coefficients are already zero
-        self.cholesky = cholesky_banded(ab, lower=False)
-
-    def solve(self, rhs) -> np.ndarray:
-        """``N_aa^-1 rhs`` for ``rhs (n_coef, 3)``; unobserved coefficients stay zero."""
-        rhs = np.where(self.free, rhs, 0.0)
-        return cho_solve_banded((self.cholesky, False), rhs.ravel()).reshape(-1, _AX)

@@ -17,11 +17,10 @@ from ...astrometry.confidence import inside as inside_ellipse
 from ...astrometry.confidence import mahalanobis_sq
 from ...solver import frame_attitude, precision_weights
 from ...solver.blocks import spline_values
-from ...solver.frame import frame_fit_sums, frame_from_sums, offsets_of
-from ...solver.reduction import pairwise_sum
+from ...solver.frame import frame_fit_sums, offsets_of
 from .truth import block_epochs, rotation_at
 
-__all__ = ["positions_at", "block_frame_sums", "block_outcome", "evaluate_solution", "attitude_error",
+__all__ = ["positions_at", "block_frame_sums", "block_outcome", "attitude_error",
            "attitude_error_series", "block_attitude_sq"]
 
 
@@ -59,19 +58,6 @@ def block_outcome(K, binv, dx, eps, omega, tau_yr, confidence: float):
     inside = np.full(len(dx), -1, dtype=np.int8)
     inside[good] = inside_ellipse(pos[good], cov_pos[good], confidence)
     return inside, np.hypot(pos[:, 0], pos[:, 1]), dx[:, 2].copy()
-
-
-def evaluate_solution(K, cov, dx, views, *, equal: bool, tau_yr, confidence: float):
-    """``(eps, omega, (inside, err_mas, err_parallax_mas))`` of a solution held in this process:
-    the frame rotator fitted to its errors ``dx (n, 5)`` block by block (``views``: the blocks'
-    slices, summed in the fixed tree as on a cluster; ``equal``: every star alike) and each
-    star's outcome after removing it (:func:`block_outcome`; ``tau_yr``: epochs of evaluation,
-    Julian years from the reference epoch, None for the reference epoch)."""
-    eps, omega = frame_from_sums(pairwise_sum(block_frame_sums(K[v], cov[v], dx[v], equal) for v in views)
-                                 if views else np.zeros(24))
-    parts = [block_outcome(K[v], cov[v], dx[v], eps, omega, None if tau_yr is None else tau_yr[v], confidence)
-             for v in views]
-    return eps, omega, tuple(np.concatenate([p[i] for p in parts]) if parts else np.zeros(0) for i in range(3))
 
 
 def attitude_error(data, coef, eps, omega, tcb_jd, estimated=None) -> np.ndarray:

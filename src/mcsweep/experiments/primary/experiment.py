@@ -93,7 +93,6 @@ __all__ = [
     "epoch_offset_yr",
     "prior_sigmas",
     "min_transits",
-    "solved_stars",
     "star_sigmas",
 ]
 
@@ -201,11 +200,6 @@ def prior_sigmas(settings: PrimarySettings, label: str, l_deg, b_deg, g_mag) -> 
 def min_transits(settings: PrimarySettings) -> int:
     """Live FoV transits a star needs to be in the solution: 1 (AL only: a position needs two)."""
     return 2 if settings.noise.use_ac is False else 1
-
-
-def solved_stars(settings: PrimarySettings, n_fov: np.ndarray) -> np.ndarray:
-    """Indices of the stars in the solution (:func:`min_transits`)."""
-    return np.flatnonzero(n_fov >= min_transits(settings))
 
 
 def star_sigmas(settings: PrimarySettings, stars, solved):

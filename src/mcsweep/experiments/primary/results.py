@@ -38,11 +38,6 @@ class StarParts:
         self.n_stars = int(n_stars)
         self._make = make
 
-    @classmethod
-    def of_frame(cls, frame: pd.DataFrame) -> "StarParts":
-        """The parts of results held whole."""
-        return cls(len(frame), lambda rows: frame.iloc[rows].reset_index(drop=True))
-
     def parts(self) -> Iterator[pd.DataFrame]:
         for rows in parts_of(self.n_stars):
             yield self._make(rows)

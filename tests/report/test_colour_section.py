@@ -226,3 +226,33 @@ def test_a_default_run_has_no_colour_subsection(tmp_path):
     assert HEADING not in md and "BP-RP" not in md
     assert not list((tmp_path / "run" / "figures").glob("colour_*"))
     assert not re.search(r"quasar", md, re.I)
+
+
+def test_the_fit_of_the_rows_it_reads_is_the_fit_of_the_whole_table(tmp_path):
+    # The sweep's aggregate fits only the rows write_fit uses (runner.fit_rows); every file
+    # must be the one the whole cells.parquet gives.
+    import filecmp
+    import io
+
+    from astropy.io import fits
+
+    from mcsweep.experiments.f90_sweep.runner import fit_rows
+
+    cells = _cells()
+    _report(tmp_path / "whole", cells, {"name": "colour_mean", "colour_edges": [-1.0, 0.56, 1.23], "mean": True})
+    part = tmp_path / "part"
+    part.mkdir()
+    (part / "provenance.json").write_bytes((tmp_path / "whole" / "provenance.json").read_bytes())
+    buf = io.BytesIO()
+    cells.to_parquet(buf, index=False)
+    rows = fit_rows(buf.getvalue(), "two")
+    assert len(rows) < len(cells)
+    write_fit(part, rows, nside=1, f90_case="two")
+    written = sorted(p.name for p in part.iterdir() if p.name != "provenance.json")
+    assert "f90_colour_cells.csv" in written and "prior_maps.fits" in written
+    for name in written:
+        if name.endswith(".fits"):  # the same maps; the header names the run directory (PRIORSRC)
+            diff = fits.FITSDiff(str(part / name), str(tmp_path / "whole" / name), ignore_keywords=["PRIORSRC"])
+            assert diff.identical, diff.report()
+        else:
+            assert filecmp.cmp(part / name, tmp_path / "whole" / name, shallow=False), name

@@ -1,12 +1,13 @@
 """Cell files: atomic, verified, and never mistaken for finished when damaged or foreign."""
 
-import pandas as pd
-import pytest
-
+import io
 import os
 from pathlib import Path
 
-from mcsweep.runtime.store import ResultStore, atomic_write_bytes, concat_tables, current_umask
+import pandas as pd
+import pytest
+
+from mcsweep.runtime.store import ResultStore, atomic_write_bytes, concat_parquet, current_umask
 
 
 def _table():
@@ -172,7 +173,8 @@ def test_decoded_bytes_are_what_read_gives(tmp_path):
     store = ResultStore(tmp_path, "abc")
     data = store.write("cell_1", _table())
     assert store.decode(data).equals(store.read_table("cell_1"))
-    pd.testing.assert_frame_equal(concat_tables([store.decode(data)]), store.read("cell_1"), check_exact=True)
+    pd.testing.assert_frame_equal(pd.read_parquet(io.BytesIO(concat_parquet([store.decode(data)]))),
+                                  store.read("cell_1"), check_exact=True)
 
 
 def test_concatenated_tables_are_the_concatenated_frames(tmp_path):
@@ -181,4 +183,5 @@ def test_concatenated_tables_are_the_concatenated_frames(tmp_path):
     tables = [store.decode(store.write(f"c{i}", df)) for i, df in enumerate(frames[:2])]
     store.write("c2", frames[2])
     tables.append(store.read_table("c2"))
-    pd.testing.assert_frame_equal(concat_tables(tables), pd.concat(frames, ignore_index=True), check_exact=True)
+    pd.testing.assert_frame_equal(pd.read_parquet(io.BytesIO(concat_parquet(tables))),
+                                  pd.concat(frames, ignore_index=True), check_exact=True)

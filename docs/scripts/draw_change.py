@@ -34,7 +34,8 @@ def _cells(run: Path) -> pd.DataFrame:
 
 
 def _overlap(a: pd.DataFrame, b: pd.DataFrame) -> np.ndarray:
-    return ((a["sigma_f90_lo_mas"] <= b["sigma_f90_hi_mas"]) & (b["sigma_f90_lo_mas"] <= a["sigma_f90_hi_mas"])).to_numpy()
+    lo_a, hi_a, lo_b, hi_b = (x[c] for x in (a, b) for c in ("sigma_f90_lo_mas", "sigma_f90_hi_mas"))
+    return ((lo_a <= hi_b) & (lo_b <= hi_a)).to_numpy()
 
 
 def _groups(df: pd.DataFrame) -> dict[str, np.ndarray]:

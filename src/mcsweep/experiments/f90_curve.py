@@ -10,8 +10,8 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["prior_crossings", "sigma_f90_from_curve", "sigma_f90_interval", "bootstrap_fractions", "flag_patterns",
-           "key_patterns", "merge_patterns", "pattern_fractions", "pattern_interval", "ill_determined", "INTERVAL_QUANTILES",
-           "ILL_BAND_SIGMAS", "ILL_RANGE_DEX"]
+           "key_patterns", "merge_patterns", "pattern_fractions", "pattern_interval", "ill_determined",
+           "INTERVAL_QUANTILES", "ILL_BAND_SIGMAS", "ILL_RANGE_DEX"]
 
 #: Bootstrap interval of sigma_F90: the 16th and 84th percentiles (a 68 % interval,
 #: "1 sigma" for a Gaussian).

@@ -36,7 +36,8 @@ import pyarrow.parquet as pq
 from ..errors import UserInputError
 from .version import code_version
 
-__all__ = ["ResultStore", "concat_parquet", "atomic_write_bytes", "atomic_write_via", "current_umask", "remove_temporaries", "table_checksum"]
+__all__ = ["ResultStore", "concat_parquet", "atomic_write_bytes", "atomic_write_via", "current_umask",
+           "remove_temporaries", "table_checksum"]
 
 _META_KEY = b"mcsweep"
 

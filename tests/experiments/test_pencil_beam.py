@@ -249,3 +249,26 @@ def test_shared_geometry_normals_equal_the_general_path(table1, use_ac):
         assert np.all(np.abs(z.mean(axis=0)) <= NOISE_SIGMAS / np.sqrt(n))
         assert np.all(np.abs(np.cov(z.T) - np.eye(5)) <= NOISE_SIGMAS * np.sqrt(2.0 / n))
     assert regular >= 2
+
+
+@pytest.mark.parametrize("n_priors", [41, 70])
+def test_scan_arrays_counts_and_patterns_are_those_of_the_flags(table1, n_priors):
+    # Counts and bootstrap patterns without per-star flags (integer keys, up to 64 priors) or
+    # from the flags beyond that: both as flag_patterns gives them from PriorScan.inside_flags.
+    from mcsweep.experiments.f90_curve import flag_patterns
+    from mcsweep.experiments.f90_sweep import pencil_beam as pb
+
+    config, cell, transits = table1
+    s = build_settings(config)
+    d = cell.direction
+    stars = GalaxyModel().sample_cone(d.l_deg, d.b_deg, 1.0, 14.5, 15.5, np.random.default_rng(3),
+                                      max_stars=N_STARS)
+    geom = pb.case_geometry(transits, tuple(s.cases[s.f90_case]))
+    scan = pb.cell_normals(geom, d.ra_deg, d.dec_deg, stars, s, np.random.default_rng(4)).prior_scan(s.ratio_R)
+    priors = np.geomspace(0.01, 1000.0, n_priors)
+    arrays, patterns = pb.scan_arrays(scan, priors, s, statistics=False, patterns=True)
+    inside, valid = scan.inside_flags(priors, s.confidence)
+    np.testing.assert_array_equal(arrays["n_inside"], inside.sum(axis=1))
+    np.testing.assert_array_equal(arrays["n_valid"], valid.sum(axis=1))
+    assert patterns == flag_patterns(inside, valid)
+    assert pb.scan_arrays(scan, priors, s, statistics=False)[1] is None

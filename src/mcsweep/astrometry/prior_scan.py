@@ -136,21 +136,14 @@ class PriorScan:
             ``valid`` False where the star has no confidence region (``ok`` False, or
             the NaN rule); ``inside`` implies ``valid``.
         """
-        priors = np.atleast_1d(np.asarray(priors_mas, float))
-        ts = prior_diagonal(priors, self.ratio_R)[:, 2] if priors.size else np.zeros(0)
+        ts = self._ts(priors_mas)
         m, n = len(ts), self.n
         inside = np.zeros((m, n), dtype=bool)
         valid = np.zeros((m, n), dtype=bool)
-        # The rule of _bad as one comparison per star and prior: no reliable solution
-        # where min(lam) + t <= 0 or the star is not ok (then -inf).
-        worst = np.where(self.ok, np.min(self.lam, axis=0), -np.inf) if n else np.zeros(0)
         if m and n:
             from .scan_kernel import inside_flags_grid
 
-            inside_flags_grid(np.ascontiguousarray(self.x0), np.ascontiguousarray(self.ainv),
-                              np.ascontiguousarray(self.g), np.ascontiguousarray(self.c),
-                              np.ascontiguousarray(self.lam), worst, np.ascontiguousarray(ts, dtype=float),
-                              chi2_threshold(P, 2), inside, valid)
+            inside_flags_grid(*self._kernel_arrays(), ts, chi2_threshold(P, 2), inside, valid)
         return inside, valid
 
     def inside_counts(self, priors_mas, P, *, keys: bool = False):
@@ -163,8 +156,7 @@ class PriorScan:
             With ``keys`` (at most 64 priors): each star's ``inside`` and ``valid`` flags
             over the priors as the bits of one integer (bit i: prior i).
         """
-        priors = np.atleast_1d(np.asarray(priors_mas, float))
-        ts = prior_diagonal(priors, self.ratio_R)[:, 2] if priors.size else np.zeros(0)
+        ts = self._ts(priors_mas)
         m, n = len(ts), self.n
         if keys and m > MAX_KEY_PRIORS:
             raise ValueError(f"{m} priors: per-star keys hold at most {MAX_KEY_PRIORS}")
@@ -175,12 +167,20 @@ class PriorScan:
         if m and n:
             from .scan_kernel import inside_counts_grid
 
-            worst = np.where(self.ok, np.min(self.lam, axis=0), -np.inf)
-            inside_counts_grid(np.ascontiguousarray(self.x0), np.ascontiguousarray(self.ainv),
-                               np.ascontiguousarray(self.g), np.ascontiguousarray(self.c),
-                               np.ascontiguousarray(self.lam), worst, np.ascontiguousarray(ts, dtype=float),
-                               chi2_threshold(P, 2), n_in, n_val, k_in, k_val)
+            inside_counts_grid(*self._kernel_arrays(), ts, chi2_threshold(P, 2), n_in, n_val, k_in, k_val)
         return n_in, n_val, (k_in, k_val) if keys else None
+
+    def _ts(self, priors_mas) -> np.ndarray:
+        """The prior term t of Eq. 18 for each prior width, contiguous (the kernels' input)."""
+        priors = np.atleast_1d(np.asarray(priors_mas, float))
+        return np.ascontiguousarray(prior_diagonal(priors, self.ratio_R)[:, 2]) if priors.size else np.zeros(0)
+
+    def _kernel_arrays(self) -> tuple:
+        """The scan's arrays as the inside kernels take them, and ``worst``: the rule of
+        :meth:`_bad` as one comparison per star and prior (no reliable solution where
+        min(lam) + t <= 0, or where the star is not ok: then -inf)."""
+        worst = np.where(self.ok, np.min(self.lam, axis=0), -np.inf)
+        return tuple(np.ascontiguousarray(a) for a in (self.x0, self.ainv, self.g, self.c, self.lam)) + (worst,)
 
 
 def prior_scan(N0, b0, ratio_R: float = DEFAULT_RATIO_R) -> PriorScan:

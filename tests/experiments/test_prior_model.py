@@ -14,6 +14,7 @@ from astropy.coordinates import SkyCoord
 
 from mcsweep.astrometry.solve import solve_with_prior
 from mcsweep.command.provenance import config_hash
+from mcsweep.population.galaxy.model import PARAMS_R03_5
 from mcsweep.command.validate import compose_config, to_config
 from mcsweep.experiments.f90_sweep.cells import Cell, enumerate_cells, sky_directions
 from mcsweep.experiments.f90_sweep.colour_fit import colour_tables
@@ -229,8 +230,11 @@ def test_prior_models_hash_apart_and_the_default_as_before():
     default, colour, mean = _raw([]), _raw(["prior_model=colour"]), _raw(["prior_model=colour_mean"])
     assert config_hash(default) == config_hash(_raw(["prior_model=direction_g"]))
     assert len({config_hash(default), config_hash(colour), config_hash(mean)}) == 3
-    # The default sweep's hash pinned at 66652ca, before the group existed.
-    assert config_hash(default) == "285a027a54185cfd"
+    # The default sweep's hash pinned at 66652ca, before the group existed, under that day's
+    # galaxy model (besancon-r03-5)
+    r03_5 = [f"population.params.{k}={v}" for k, v in PARAMS_R03_5.items()]
+    assert config_hash(_raw(r03_5)) == "285a027a54185cfd"
+    assert config_hash(_raw(["prior_model=direction_g"] + r03_5)) == "285a027a54185cfd"
 
 
 def _raw(over):

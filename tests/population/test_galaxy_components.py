@@ -155,7 +155,7 @@ def test_giant_kinematics_follow_their_thinner_discs():
     # isothermal disc (Spitzer 1942): thickness ~ sigma_W^2 at a given surface density, so
     # a disc GIANT_THICKNESS_FACTOR as thick has sigma_W^2 smaller by the same factor
     # (closed form); the ellipsoid keeps each age bin's shape (R03 Table 2)
-    for dwarf, giant in zip(P.THIN_DISC, P.THIN_DISC_GIANTS):
+    for dwarf, giant in zip(P.thin_disc(), P.THIN_DISC_GIANTS):
         assert giant.eps / dwarf.eps == pytest.approx(P.GIANT_THICKNESS_FACTOR, rel=1e-12)
         assert (giant.sigma_uvw[2] / dwarf.sigma_uvw[2]) ** 2 == pytest.approx(
             giant.eps / dwarf.eps, rel=1e-12)

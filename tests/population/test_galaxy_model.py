@@ -121,7 +121,7 @@ def test_extinction_and_thin_disc_parameters_act_in_the_expected_direction():
 
 def test_giant_thickness_factor_scales_the_giants_discs_and_velocities_only():
     from mcsweep.population.galaxy import parameters as P
-    default, thick = GalaxyModel(), GalaxyModel(giant_thickness_factor=0.9)
+    default, thick = GalaxyModel(), GalaxyModel(giant_thickness_factor=2.0 * P.GIANT_THICKNESS_FACTOR)
     assert default.components == P.COMPONENTS
     for c0, c1 in zip(default.components, thick.components):
         if c0.lf_part == "giants":
@@ -162,3 +162,20 @@ def test_bad_queries_raise(model, args, word):
         model.sample_cone(0, 0, 1, 10, 11, np.random.default_rng(0), max_stars=0)
     with pytest.raises(UserInputError, match="rng"):
         model.sample_cone(0, 0, 1, 10, 11, rng=42)
+
+
+def test_young_disc_thickness_factor_scales_the_young_bins_only():
+    from mcsweep.population.galaxy import parameters as P
+    default = GalaxyModel()
+    thicker = GalaxyModel(young_disc_thickness_factor=2.0 * P.YOUNG_DISC_THICKNESS_FACTOR)
+    young = 0
+    for c0, c1 in zip(default.components, thicker.components):
+        if c0.label == "thin_disc" and c0.age_gyr[1] <= P.YOUNG_DISC_MAX_AGE_GYR:
+            young += 1
+            assert c1.eps == pytest.approx(c0.eps * 2.0)
+            assert np.allclose(c1.sigma_uvw, np.array(c0.sigma_uvw) * np.sqrt(2.0))
+        else:
+            assert c1 == c0
+    assert young == 6   # three age bins and their giants' companions
+    assert np.array_equal(default.lf.cdf, thicker.lf.cdf)
+    assert thicker.expected_count(0, 90, 10, 6, 8) > default.expected_count(0, 90, 10, 6, 8)

@@ -8,6 +8,7 @@ from omegaconf import OmegaConf
 
 from mcsweep.command.provenance import config_hash
 from mcsweep.command.validate import compose_config, ignored_settings, preflight
+from mcsweep.population.galaxy.model import PARAMS_R03_5
 
 BIN = Path(sys.executable).parent
 IGNORED = ["sky=single", "cell.max_stars=77", "prior_grid.n=5", "observations.f90_case=one",
@@ -16,6 +17,10 @@ IGNORED = ["sky=single", "cell.max_stars=77", "prior_grid.n=5", "observations.f9
 
 def _hash(overrides):
     return config_hash(OmegaConf.to_container(compose_config(overrides), resolve=True))
+
+
+#: The galaxy model the hashes below were recorded under (besancon-r03-5; its defaults then).
+R03_5 = [f"population.params.{k}={v}" for k, v in PARAMS_R03_5.items()]
 
 
 def test_ignored_settings_do_not_change_the_secondary_hash():
@@ -37,14 +42,28 @@ def test_zero_noise_floor_keeps_the_hash_of_configs_made_before_the_option():
     assert _hash(["experiment=secondary", "noise.al_floor_mas=0.039"]) != config_hash(cfg)
 
 
-def test_default_giant_thickness_keeps_the_hash_of_configs_made_before_the_option():
-    cfg = OmegaConf.to_container(compose_config([]), resolve=True)
+def test_giant_thickness_of_r03_4_keeps_the_hash_of_configs_made_before_the_option():
+    cfg = OmegaConf.to_container(compose_config(R03_5), resolve=True)
     params = cfg["population"]["params"]
     assert params["giant_thickness_factor"] == 0.45
     before = {**cfg, "population": {**cfg["population"], "params": {
         k: v for k, v in params.items() if k != "giant_thickness_factor"}}}
     assert config_hash(cfg) == config_hash(before)
-    assert _hash(["population.params.giant_thickness_factor=0.6"]) != config_hash(cfg)
+    assert _hash(R03_5 + ["population.params.giant_thickness_factor=0.6"]) != config_hash(cfg)
+
+
+def test_the_r03_5_model_keeps_its_hash_and_the_r03_6_defaults_get_a_new_one():
+    # besancon-r03-6 added two keys (evolved_stars, young_disc_thickness_factor) and changed two
+    # defaults (the giants' and the thin disc's thickness): r03-5's values give the default sweep's
+    # hash pinned at 66652ca, without the new keys as with them; the new defaults another
+    cfg = OmegaConf.to_container(compose_config(R03_5), resolve=True)
+    params = cfg["population"]["params"]
+    before = {**cfg, "population": {**cfg["population"], "params": {
+        k: v for k, v in params.items() if k not in ("evolved_stars", "young_disc_thickness_factor")}}}
+    assert config_hash(cfg) == config_hash(before) == "285a027a54185cfd"
+    new = OmegaConf.to_container(compose_config([]), resolve=True)["population"]["params"]
+    assert (new["evolved_stars"], new["young_disc_thickness_factor"]) == ("parsec", 0.65)
+    assert _hash([]) != config_hash(cfg)
 
 
 def test_the_r03_4_model_keeps_its_hash_and_the_r03_5_defaults_get_a_new_one():
@@ -205,9 +224,9 @@ HASHES_THAT_READ_THE_REFITTED_YEAR = {
 
 def test_the_refitted_reversed_year_keeps_the_hash_of_runs_that_never_read_it():
     for overrides, before in HASHES_BEFORE_THE_REFIT.items():
-        assert _hash(list(overrides)) == before, overrides
+        assert _hash(list(overrides) + R03_5) == before, overrides
     for overrides, before in HASHES_THAT_READ_THE_REFITTED_YEAR.items():
-        assert _hash(list(overrides)) != before, overrides
+        assert _hash(list(overrides) + R03_5) != before, overrides
 
 
 def test_a_run_that_read_the_refitted_year_is_refused_naming_the_segment(tmp_path):
@@ -218,7 +237,7 @@ def test_a_run_that_read_the_refitted_year_is_refused_naming_the_segment(tmp_pat
     from mcsweep.errors import UserInputError
     from mcsweep.command.provenance import Provenance
 
-    new = OmegaConf.to_container(compose_config(["observations=dr4"]), resolve=True)
+    new = OmegaConf.to_container(compose_config(["observations=dr4"] + R03_5), resolve=True)
     old = json.loads(json.dumps(new))
     k = [s["kind"] for s in old["scanning"]["segments"]].index("nsl_reversed")
     old["scanning"]["segments"][k].update(nu_ref_deg=315.314, omega_ref_deg=169.887)
@@ -232,7 +251,7 @@ def test_a_run_that_read_the_refitted_year_is_refused_naming_the_segment(tmp_pat
             f"scanning.segments[{k}] (nsl_reversed 2019-07-05..2020-08-01).omega_ref_deg: 169.887 -> 170.3941"
             ) in message
     # the same old run directory under a span that ends before the year: resumed
-    short = OmegaConf.to_container(compose_config(["observations=dr3"]), resolve=True)
+    short = OmegaConf.to_container(compose_config(["observations=dr3"] + R03_5), resolve=True)
     old_short = json.loads(json.dumps(short))
     old_short["scanning"]["segments"][k].update(nu_ref_deg=315.314, omega_ref_deg=169.887)
     (tmp_path / "provenance.json").write_text(json.dumps({"config_hash": config_hash(old_short),

@@ -104,6 +104,8 @@ _SHARED_DEFAULTS_FROM_BEFORE = {
     "population.params.extinction_model": "disc",
     "population.params.giant_thickness_factor": 0.45,  # galaxy model besancon-r03-4
     "population.params.subgiants": False,  # galaxy models before besancon-r03-5
+    "population.params.evolved_stars": "wielen",  # galaxy models before besancon-r03-6
+    "population.params.young_disc_thickness_factor": 1.0,  # galaxy models before besancon-r03-6
     # prior_model=direction_g, the paper's prior (Sect. 3.4): the model before the group existed.
     "prior_model.name": "direction_g",
     "prior_model.colour_edges": [],

@@ -87,7 +87,7 @@ import pandas as pd
 
 from ..population import gaia_bright
 from ..population.galaxy import parameters as P
-from ..population.galaxy.luminosity import load_dwarf_sequence, load_local_lf
+from ..population.galaxy.luminosity import MG_MAX, MG_MIN, MG_STEP, evolved_lf, load_dwarf_sequence, load_local_lf
 
 __all__ = [
     "TYCHO_UCAC4_CUMULATIVE",
@@ -273,6 +273,15 @@ def _lf_at_sun(model):
     return lf.mg, lf.cdf[keep].sum(axis=0), lf.cdf[giants].sum(axis=0)
 
 
+def _isochrone_giants_at_sun(model):
+    """Stars per pc^3 at the Sun of the model's evolved stars from isochrones without the
+    subgiant branch (``evolved_stars="parsec"``), as the model counts them (its sources)."""
+    edges = np.arange(MG_MIN, MG_MAX + 0.5 * MG_STEP, MG_STEP)
+    scale = (1.0 + P.MULTIPLICITY_FREQUENCY) / (1.0 + float(model.params["multiplicity_frequency"]))
+    return scale * sum(float(evolved_lf(c, edges, subgiants=False).sum()) for c in model.components
+                       if c.law != "bulge" and c.lf_part != "dwarfs")
+
+
 def local_lf_comparison(model, mg_bins=range(-3, 17)):
     """The model's local luminosity function per 1-mag M_G bin (sources pc^-3).
 
@@ -308,11 +317,17 @@ def local_census_comparison(model):
     mg, cdf, _ = _lf_at_sun(model)
     f = float(model.params["multiplicity_frequency"])
     v60, v25 = _sphere(60.0), _sphere(25.0)
-    giants_at_sun = float(np.interp(P.GIANT_MV_MAX + 0.5 + P.GIANT_G_MINUS_V, mg, cdf))
+    if model.params["evolved_stars"] == "parsec":
+        # the isochrones' evolved stars beyond the subgiant branch: what the censuses call giants
+        giants_label = "CNS5 25 pc, giants (model evolved stars beyond the subgiant branch)"
+        giants_at_sun = _isochrone_giants_at_sun(model)
+    else:
+        giants_label = "CNS5 25 pc, giants (model M_G < 1.2)"
+        giants_at_sun = float(np.interp(P.GIANT_MV_MAX + 0.5 + P.GIANT_G_MINUS_V, mg, cdf))
     rows = [
         ("GCNS 60 pc, sources M_G < 15", GCNS60_STARS, float(np.interp(GCNS60_MG_LIMIT, mg, cdf)) * v60),
         ("GCNS 60 pc, all sources (other reading)", GCNS60_STARS, float(cdf[-1]) * v60),
-        ("CNS5 25 pc, giants (model M_G < 1.2)", CNS5_25PC["giants"], giants_at_sun * v25),
+        (giants_label, CNS5_25PC["giants"], giants_at_sun * v25),
         ("CNS5 25 pc, stars (model sources)", CNS5_25PC["stars"], float(cdf[-1]) * v25),
         ("CNS5 25 pc, stars (model component stars)", CNS5_25PC["stars"], float(cdf[-1]) * (1 + f) * v25),
         ("Bovy 2017 giants pc^-3 x 1e4 (calibration)", BOVY_GIANTS_PC3 * 1e4, giants_at_sun * 1e4),

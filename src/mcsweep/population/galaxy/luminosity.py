@@ -43,6 +43,25 @@ Method (a justified simplification of the Besancon population synthesis):
    Without them the model has no stars between the main sequence and the giants' bins,
    where Hipparcos (van Leeuwen 2007) holds a fifth of its G = 6-7 stars at M_G = 1-4
    (docs/galaxy_model.md).
+6. With ``evolved_stars="parsec"`` (the galaxy model's default since besancon-r03-6), items
+   1-5's giants, their early-type main-sequence share and the subgiants are replaced:
+
+   * every evolved star comes from the isochrones of its component's ages and metallicities
+     (:mod:`.evolved`), rho_p / mu_p xi_p(m) dm per isochrone row, at the row's M_G: its
+     luminosity function and its number against the dwarfs follow from the same mass
+     budget and IMF, with no local giant density imposed (Bovy's 3.9e-4 pc^-3 becomes a
+     check, docs/galaxy_colours.md);
+   * the main sequence above 1 Msun, the bins with M_V <= GIANT_MV_MAX included, is Bovy's
+     (2017) present-day mass function, shared among the components like the other dwarfs;
+   * a thin-disc dwarf is on the main sequence while its mass is below the isochrones'
+     turn-off at its component's age and mean metallicity (:func:`.evolved.turnoff_mass`),
+     not the textbook t ~ m^-2.5, which keeps A stars of 2 Msun alive for 1.8 Gyr instead
+     of the isochrones' 1.1 Gyr, i.e. in older, thicker discs; rho / mu takes the same
+     turn-off (the metal-poor components keep item 4's);
+   * ``subgiants=False`` leaves out the isochrones' subgiant branch.
+
+   The thin disc's evolved stars stay in the giant-only companions of the age bins, whose
+   thickness is ``giant_thickness_factor``.
 
 Data files are read lazily on first use via :mod:`importlib.resources`.
 """
@@ -57,6 +76,8 @@ import numpy as np
 from astropy.table import Table
 
 from . import parameters as P
+from .evolved import load_evolved_isochrones, row_weights
+from .evolved import turnoff_mass as isochrone_turnoff_mass
 
 __all__ = [
     "LuminosityTable",
@@ -70,6 +91,10 @@ __all__ = [
     "build_part_table",
     "dwarf_shift",
     "PARTS",
+    "EVOLVED_STARS",
+    "evolved_lf",
+    "stars_per_imf_unit",
+    "isochrone_dwarf_weights",
 ]
 
 _DATA = "mcsweep.population.data"
@@ -161,15 +186,24 @@ def _mv_of_mass(m):
     return np.interp(np.log10(m), np.log10(seq_m[::-1]), seq_mv[::-1])
 
 
-def component_weights(comp, dwarf_mv, n_sub=20):
-    """(dwarf weights per bin, giant weight, rho/mu) of one component."""
+def stars_per_imf_unit(comp, *, isochrone_turnoff=False):
+    """rho / mu of ``comp``: its stars per pc^3 at its reference point per unit of the IMF's
+    normalisation (:func:`imf`, 1 at 1 Msun); the living mass up to the turn-off at the mean
+    age sets it (R03's mass densities), the bulge's star density (R03 Table 5) for the bulge.
+    The turn-off is :func:`turnoff_mass`'s, or with ``isochrone_turnoff`` the isochrones'
+    at the component's mean metallicity (:func:`.evolved.turnoff_mass`)."""
     ages = _ages(comp)
-    m_up = float(turnoff_mass(np.mean(ages)))
+    m_up = float(_isochrone_turnoff(comp, np.mean(ages)) if isochrone_turnoff else turnoff_mass(np.mean(ages)))
     number, mass = _mass_integrals(comp, m_up)
     if comp.law == "bulge":
-        rho_over_mu = P.BULGE_N0_PER_PC3 / number
-    else:
-        rho_over_mu = comp.rho_ref / mass
+        return P.BULGE_N0_PER_PC3 / number
+    return comp.rho_ref / mass
+
+
+def component_weights(comp, dwarf_mv, n_sub=20):
+    """(dwarf weights per bin, giant weight) of one component."""
+    ages = _ages(comp)
+    rho_over_mu = stars_per_imf_unit(comp)
     # dwarfs: average over sub-points of each 1-mag bin
     sub = dwarf_mv[:, None] + (np.arange(n_sub) + 0.5)[None, :] / n_sub - 0.5
     m_sub = mass_of_mv(sub)
@@ -181,6 +215,29 @@ def component_weights(comp, dwarf_mv, n_sub=20):
     rate = imf(m_to, comp.imf) * m_to / (P.MS_LIFETIME_SLOPE * ages)
     w_giant = rho_over_mu * float(np.mean(rate))
     return w_dwarf, w_giant
+
+
+def _isochrone_turnoff(comp, age_gyr):
+    """The turn-off mass of ``comp``'s dwarfs at ``age_gyr``: the isochrones' at its mean
+    metallicity, except for the old metal-poor components, whose dwarfs sit on the solar
+    sequence shifted by :func:`dwarf_shift` so that the textbook turn-off lands at the observed
+    M_V (item 4): their main sequence must end where that shift was made."""
+    if comp.metal_poor:
+        return turnoff_mass(age_gyr)
+    return isochrone_turnoff_mass(age_gyr, comp.feh[0])
+
+
+def isochrone_dwarf_weights(comp, dwarf_mv, n_sub=20):
+    """The dwarf weights per bin of :func:`component_weights`, with a star on the main
+    sequence while its mass is below the isochrones' turn-off at the component's mean
+    metallicity (:func:`.evolved.turnoff_mass`; :func:`_isochrone_turnoff`) instead of the
+    textbook lifetime, and rho / mu with that turn-off (module notes, item 6)."""
+    ages = _ages(comp)
+    rho_over_mu = stars_per_imf_unit(comp, isochrone_turnoff=True)
+    sub = dwarf_mv[:, None] + (np.arange(n_sub) + 0.5)[None, :] / n_sub - 0.5
+    m_sub = mass_of_mv(sub)
+    alive = (m_sub[..., None] < _isochrone_turnoff(comp, ages)[None, None, :]).mean(axis=-1)
+    return rho_over_mu * (imf(m_sub, comp.imf) * alive).mean(axis=1)
 
 
 @dataclass(frozen=True)
@@ -210,25 +267,29 @@ class LuminosityTable:
         return np.diff(self.cdf, axis=1) / MG_STEP
 
 
-def local_dwarf_lf(faint_scale=1.0):
+def local_dwarf_lf(faint_scale=1.0, *, bright_end=False):
     """Local main-sequence luminosity function per 1-mag M_V bin (see module notes).
 
     Parameters
     ----------
     faint_scale : float
         Factor on the Wielen/Allen bins fainter than :data:`.parameters.BOVY_PDMF_MV_MAX`.
+    bright_end : bool
+        Also the bins with M_V <= :data:`.parameters.GIANT_MV_MAX`, from Bovy's mass
+        function like the other bright bins (module notes, item 6): the main sequence
+        alone, when the evolved stars come from isochrones.
 
     Returns
     -------
     mv : ndarray
-        Bin centres, mag (M_V > :data:`.parameters.GIANT_MV_MAX`).
+        Bin centres, mag (M_V > :data:`.parameters.GIANT_MV_MAX` unless ``bright_end``).
     phi : ndarray
         Sources per pc^3 in each bin.
     bright : ndarray of bool
         Bins taken from Bovy's (2017) mass function.
     """
     mv, phi = load_local_lf()
-    dwarf = mv > P.GIANT_MV_MAX
+    dwarf = mv > (-np.inf if bright_end else P.GIANT_MV_MAX)
     mv, phi = mv[dwarf], phi[dwarf]
     bright = mv < P.BOVY_PDMF_MV_MAX
     m_hi, m_lo = mass_of_mv(mv - 0.5), mass_of_mv(mv + 0.5)
@@ -255,14 +316,30 @@ def subgiant_lf():
     return dwarf_mv[bright], np.clip(wielen - dwarf_phi[bright], 0.0, None)
 
 
-def _component_bins(components, *, local=None, faint_scale=1.0, subgiants=False):
-    """Per component, the 1-mag bins of its luminosity function in M_G: ``(lo, hi, n, part)``
+def evolved_lf(comp, mg_edges, *, subgiants=True):
+    """Stars per pc^3 of the evolved stars of ``comp`` at its reference point, in the M_G
+    bins of edges ``mg_edges`` (module notes, item 6; rows beyond the edges go to the end
+    bins): rho / mu (:func:`stars_per_imf_unit`) times the IMF times
+    :func:`.evolved.row_weights`."""
+    grid = load_evolved_isochrones()
+    w = (stars_per_imf_unit(comp, isochrone_turnoff=True) * imf(grid.m_ini, comp.imf)
+         * row_weights(comp, subgiants=subgiants))
+    idx = np.clip(np.searchsorted(mg_edges, grid.m_g, side="right") - 1, 0, mg_edges.size - 2)
+    return np.bincount(idx, weights=w, minlength=mg_edges.size - 1)
+
+
+def _component_bins(components, *, local=None, faint_scale=1.0, subgiants=False, evolved_stars="wielen"):
+    """Per component, the bins of its luminosity function in M_G: ``(lo, hi, n, part)``
     (bin edges, stars per pc^3, and which part of the local function each bin belongs to:
     :data:`PARTS`). The one construction behind :func:`build_luminosity_table` and
     :func:`build_part_table`, so their numbers cannot drift apart."""
+    if evolved_stars not in EVOLVED_STARS:
+        raise ValueError(f"evolved_stars={evolved_stars!r}; expected one of {EVOLVED_STARS}")
     if local is None:
         local = [c for c in components if c.law != "bulge" and c.lf_part != "giants"]
     local = [c for c in local if c.lf_part != "giants"]
+    if evolved_stars == "parsec":
+        return _isochrone_bins(components, local, faint_scale, subgiants)
     mv, phi = load_local_lf()
     giant_mv, giant_phi = mv[mv <= P.GIANT_MV_MAX], phi[mv <= P.GIANT_MV_MAX]
     # 1-mag bins: the sum of phi is the giants' density; scaled to Bovy (2017)
@@ -304,6 +381,28 @@ def _component_bins(components, *, local=None, faint_scale=1.0, subgiants=False)
     return out
 
 
+def _isochrone_bins(components, local, faint_scale, subgiants):
+    """:func:`_component_bins` with the evolved stars from isochrones (module notes, item 6)."""
+    dwarf_mv, dwarf_phi, _ = local_dwarf_lf(faint_scale, bright_end=True)
+    w_local_d = sum(isochrone_dwarf_weights(c, dwarf_mv) for c in local)
+    lo_v, hi_v = dwarf_mv - 0.5, dwarf_mv + 0.5
+    lo_g_sol = lo_v + _g_minus_v(lo_v)
+    hi_g_sol = hi_v + _g_minus_v(hi_v)
+    edges = np.arange(MG_MIN, MG_MAX + 0.5 * MG_STEP, MG_STEP)
+    part = np.concatenate([np.full(dwarf_mv.size, 0), np.full(edges.size - 1, 1)])
+    out = []
+    for c in components:
+        wd = isochrone_dwarf_weights(c, dwarf_mv)
+        n_dwarf = dwarf_phi * np.divide(wd, w_local_d, out=np.zeros_like(wd), where=w_local_d > 0)
+        n_dwarf = n_dwarf * (c.lf_part != "giants")
+        n_evolved = (evolved_lf(c, edges, subgiants=subgiants) if c.lf_part != "dwarfs"
+                     else np.zeros(edges.size - 1))
+        lo = np.concatenate([lo_g_sol - dwarf_shift(c), edges[:-1]])
+        hi = np.concatenate([hi_g_sol - dwarf_shift(c), edges[1:]])
+        out.append((lo, hi, np.concatenate([n_dwarf, n_evolved]), part))
+    return out
+
+
 def dwarf_shift(comp):
     """How much brighter (mag) the dwarfs of ``comp`` are than the solar-metallicity sequence
     of the same mass: the old metal-poor components' turn-off moved to
@@ -320,11 +419,19 @@ def _cdf_of_bins(mg, lo, hi, n):
 
 #: The parts of a component's luminosity function (:func:`build_part_table`): dwarfs (the
 #: main sequence fainter than :data:`.parameters.GIANT_MV_MAX`), the bins treated as giants
-#: (:data:`.parameters.GIANT_MV_MAX` and brighter) and the subgiants.
+#: (:data:`.parameters.GIANT_MV_MAX` and brighter) and the subgiants. With the evolved stars
+#: from isochrones (``evolved_stars="parsec"``) the dwarfs are the whole main sequence, the
+#: giants all evolved stars (subgiant branch included) and the subgiants part is empty.
 PARTS = ("dwarfs", "giants", "subgiants")
+#: Where the evolved stars come from: ``"parsec"`` the isochrones of each component's ages
+#: and metallicities (:mod:`.evolved`; module notes, item 6), ``"wielen"`` the Wielen/Allen
+#: bins with M_V <= :data:`.parameters.GIANT_MV_MAX` at Bovy's (2017) local giant density
+#: plus the optional subgiants (items 1-5; galaxy models up to besancon-r03-5).
+EVOLVED_STARS = ("parsec", "wielen")
 
 
-def build_luminosity_table(components, *, local=None, faint_scale=1.0, subgiants=False):
+def build_luminosity_table(components, *, local=None, faint_scale=1.0, subgiants=False,
+                           evolved_stars="wielen"):
     """Luminosity functions in M_G of ``components`` (see module notes).
 
     Parameters
@@ -339,21 +446,25 @@ def build_luminosity_table(components, *, local=None, faint_scale=1.0, subgiants
     faint_scale : float
         Factor on the dwarfs fainter than :data:`.parameters.BOVY_PDMF_MV_MAX`.
     subgiants : bool
-        Add the stars off the main sequence of :func:`subgiant_lf` (module notes, item 5).
+        Add the stars off the main sequence of :func:`subgiant_lf` (module notes, item 5);
+        with ``evolved_stars="parsec"``, keep the isochrones' subgiant branch.
+    evolved_stars : {"wielen", "parsec"}
+        Where the evolved stars come from (:data:`EVOLVED_STARS`).
 
     Returns
     -------
     LuminosityTable
     """
     mg = np.arange(MG_MIN, MG_MAX + 0.5 * MG_STEP, MG_STEP)
-    bins = _component_bins(components, local=local, faint_scale=faint_scale, subgiants=subgiants)
+    bins = _component_bins(components, local=local, faint_scale=faint_scale, subgiants=subgiants,
+                           evolved_stars=evolved_stars)
     cdf = np.zeros((len(components), mg.size))
     for k, (lo, hi, n, _) in enumerate(bins):
         cdf[k] = _cdf_of_bins(mg, lo, hi, n)
     return LuminosityTable(names=tuple(c.name for c in components), mg=mg, cdf=cdf)
 
 
-def build_part_table(components, *, local=None, faint_scale=1.0, subgiants=False):
+def build_part_table(components, *, local=None, faint_scale=1.0, subgiants=False, evolved_stars="wielen"):
     """The luminosity functions of :func:`build_luminosity_table` split into their
     :data:`PARTS`: what a star of given M_G is (a dwarf, one of the bins treated as giants,
     a subgiant), which its colour needs (:mod:`.colours`).
@@ -367,7 +478,8 @@ def build_part_table(components, *, local=None, faint_scale=1.0, subgiants=False
         the luminosity table's ``cdf`` to rounding).
     """
     mg = np.arange(MG_MIN, MG_MAX + 0.5 * MG_STEP, MG_STEP)
-    bins = _component_bins(components, local=local, faint_scale=faint_scale, subgiants=subgiants)
+    bins = _component_bins(components, local=local, faint_scale=faint_scale, subgiants=subgiants,
+                           evolved_stars=evolved_stars)
     cdf = np.zeros((len(components), len(PARTS), mg.size))
     for k, (lo, hi, n, part) in enumerate(bins):
         for p in range(len(PARTS)):

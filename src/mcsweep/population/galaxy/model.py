@@ -41,9 +41,9 @@ from .extinction import AG_OVER_AV, AV_PER_KPC, DUST_SCALE_HEIGHT_PC, DUST_SCALE
 from .colours import ColourTable, reddening_bp_rp
 from .extinction_arenou import ArenouDust
 from .kinematics import AstrometryTransform, draw_velocities, mean_lag_kms
-from .luminosity import build_luminosity_table
+from .luminosity import EVOLVED_STARS, build_luminosity_table
 
-__all__ = ["GalaxyModel", "DEFAULT_PARAMS", "DRAW_BLOCK_STARS", "COLOUR_STREAM", "COLOUR_COLUMN",
+__all__ = ["GalaxyModel", "DEFAULT_PARAMS", "PARAMS_R03_5", "DRAW_BLOCK_STARS", "COLOUR_STREAM", "COLOUR_COLUMN",
            "gcns_faint_scale", "local_sources_per_pc3"]
 
 #: Stars drawn per independently seeded block (block ``i`` from ``SeedSequence(root,
@@ -76,6 +76,7 @@ DEFAULT_PARAMS = {
     "v_circ_kms": P.V_CIRC_KMS,
     "thin_disc_scale_height_factor": P.THIN_DISC_THICKNESS_FACTOR,
     "giant_thickness_factor": P.GIANT_THICKNESS_FACTOR,
+    "young_disc_thickness_factor": P.YOUNG_DISC_THICKNESS_FACTOR,
     "extinction": True,
     "extinction_model": "arenou1992",
     "dust_av_per_kpc": AV_PER_KPC,
@@ -86,6 +87,17 @@ DEFAULT_PARAMS = {
     "count": "poisson",
     "multiplicity_frequency": P.MULTIPLICITY_FREQUENCY,
     "subgiants": True,
+    "evolved_stars": "parsec",
+}
+
+#: The parameters in which galaxy model besancon-r03-5 differs from :data:`DEFAULT_PARAMS`:
+#: ``GalaxyModel(PARAMS_R03_5)`` is that model (its stars and colours as it drew them), for
+#: comparisons and to rerun a study under it.
+PARAMS_R03_5 = {
+    "evolved_stars": "wielen",
+    "giant_thickness_factor": 0.45,
+    "young_disc_thickness_factor": 1.0,
+    "thin_disc_scale_height_factor": 1.15,
 }
 
 #: ``extinction_model`` values: the smooth exponential disc (:mod:`.extinction`) alone, or
@@ -93,6 +105,7 @@ DEFAULT_PARAMS = {
 EXTINCTION_MODELS = ("disc", "arenou1992")
 
 _POSITIVE = ("r0_kpc", "v_circ_kms", "thin_disc_scale_height_factor", "giant_thickness_factor",
+             "young_disc_thickness_factor",
              "dust_scale_length_kpc", "dust_scale_height_pc", "ag_over_av")
 
 
@@ -114,6 +127,9 @@ def _check_params(p):
     for key in ("extinction", "subgiants"):
         if not isinstance(p[key], (bool, np.bool_)):
             raise UserInputError(f"galaxy_model: {key}={p[key]!r} is not accepted; expected true or false")
+    if p["evolved_stars"] not in EVOLVED_STARS:
+        raise UserInputError(f"galaxy_model: evolved_stars={p['evolved_stars']!r} is not "
+                             f"accepted; expected one of {list(EVOLVED_STARS)}")
     if p["extinction_model"] not in EXTINCTION_MODELS:
         raise UserInputError(f"galaxy_model: extinction_model={p['extinction_model']!r} is not "
                              f"accepted; expected one of {list(EXTINCTION_MODELS)}")
@@ -133,7 +149,7 @@ def local_sources_per_pc3(lf, mg_max=P.GCNS_MG_LIMIT):
     return float(np.interp(mg_max, lf.mg, lf.cdf[keep].sum(axis=0)))
 
 
-def gcns_faint_scale(subgiants=False):
+def gcns_faint_scale(subgiants=False, evolved_stars="wielen"):
     """Factor on the faint (Wielen/Allen) dwarfs that makes the model's sources with
     M_G < 15.5 within 100 pc equal the GCNS's (:data:`.parameters.GCNS_SOURCES_WITHIN_100PC`).
 
@@ -141,13 +157,14 @@ def gcns_faint_scale(subgiants=False):
     The vertical fall-off of the discs within 100 pc (a few per cent) is neglected, as
     the GCNS count is compared with the density at the Sun.
     """
-    return _gcns_faint_scale(bool(subgiants))
+    return _gcns_faint_scale(bool(subgiants), str(evolved_stars))
 
 
 @lru_cache(maxsize=None)
-def _gcns_faint_scale(subgiants: bool) -> float:
+def _gcns_faint_scale(subgiants: bool, evolved_stars: str) -> float:
     comps = [c for c in P.COMPONENTS if c.law != "bulge"]
-    d0, d1 = (local_sources_per_pc3(build_luminosity_table(comps, faint_scale=f, subgiants=subgiants))
+    d0, d1 = (local_sources_per_pc3(build_luminosity_table(comps, faint_scale=f, subgiants=subgiants,
+                                                           evolved_stars=evolved_stars))
               for f in (0.0, 1.0))
     target = P.GCNS_SOURCES_WITHIN_100PC / (4.0 / 3.0 * np.pi * 100.0 ** 3)
     return (target - d0) / (d1 - d0)
@@ -203,18 +220,19 @@ class GalaxyModel:
         self.chunk_stars = 4 * DRAW_BLOCK_STARS
         keep = set(p["components"])
         # the giants' discs at this model's thickness factor (velocities follow, parameters.py)
-        comps = (P.THIN_DISC + P.thin_disc_giants(float(p["giant_thickness_factor"]))
+        young = float(p["young_disc_thickness_factor"])
+        comps = (P.thin_disc(young) + P.thin_disc_giants(float(p["giant_thickness_factor"]), young)
                  + (P.THICK_DISC, P.HALO, P.BULGE))
         self.components = tuple(c for c in comps if c.label in keep)
         local = [c for c in P.COMPONENTS if c.law != "bulge" and c.lf_part != "giants"]
-        subgiants = bool(p["subgiants"])
-        lf = build_luminosity_table(self.components, local=local, faint_scale=gcns_faint_scale(subgiants),
-                                    subgiants=subgiants)
+        parts = dict(subgiants=bool(p["subgiants"]), evolved_stars=p["evolved_stars"])
+        faint = gcns_faint_scale(**parts)
+        lf = build_luminosity_table(self.components, local=local, faint_scale=faint, **parts)
         # The calibrations (Bovy 2017, GCNS) count sources; counting component stars
         # instead (multiplicity_frequency=0) scales every magnitude alike.
         scale = (1.0 + P.MULTIPLICITY_FREQUENCY) / (1.0 + float(p["multiplicity_frequency"]))
         self.lf = type(lf)(lf.names, lf.mg, lf.cdf * scale)
-        self._colour_args = dict(local=local, faint_scale=gcns_faint_scale(subgiants), subgiants=subgiants)
+        self._colour_args = dict(local=local, faint_scale=faint, **parts)
         self._colour_table = None
         self.dust = DustModel(
             av_per_kpc=p["dust_av_per_kpc"] if p["extinction"] else 0.0,
@@ -448,8 +466,9 @@ class GalaxyModel:
                             v_circ_kms=self.params["v_circ_kms"])
         ra, dec, pmra, pmdec = self.transform.astrometry(l, b, d_kpc, v, gal_unit=n_gal)
         # colour last: it reads what was drawn above and changes none of it
-        bp_rp0, _ = self.colours.intrinsic(k, m_g, u_colour)
-        bp_rp = bp_rp0 + reddening_bp_rp(bp_rp0, a_g / float(self.params["ag_over_av"]))
+        bp_rp0, part = self.colours.intrinsic(k, m_g, u_colour)
+        upper_hrd = (part == 1) if self.colours.upper_hrd_law else None
+        bp_rp = bp_rp0 + reddening_bp_rp(bp_rp0, a_g / float(self.params["ag_over_av"]), upper_hrd)
         cols = {"ra": ra, "dec": dec, "l": l, "b": b, "parallax": 1000.0 / d_pc,
                 "pmra": pmra, "pmdec": pmdec, "phot_g_mean_mag": g, "distance_pc": d_pc,
                 COLOUR_COLUMN: bp_rp}

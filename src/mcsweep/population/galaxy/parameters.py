@@ -20,6 +20,9 @@ __all__ = [
     "THIN_DISC",
     "THIN_DISC_GIANTS",
     "thin_disc_giants",
+    "thin_disc",
+    "YOUNG_DISC_MAX_AGE_GYR",
+    "YOUNG_DISC_THICKNESS_FACTOR",
     "POPULATION_LABELS",
     "R0_KPC",
     "Z_SUN_PC",
@@ -63,8 +66,12 @@ __all__ = [
 #: defaults become the Arenou et al. (1992) dust near the Sun and the subgiants (both
 #: options of r03-4), which hold the all-sky counts within 8 % of Gaia DR3's own G counts
 #: at G = 4-13 (Gaia Collaboration, Vallenari et al. 2023, as quoted in
-#: docs/galaxy_model.md).
-MODEL_VERSION = "besancon-r03-5"
+#: docs/galaxy_model.md); ``besancon-r03-6`` the evolved stars from PARSEC + COLIBRI
+#: isochrones of each component's ages and metallicities (:mod:`.evolved`), main-sequence
+#: lifetimes from the same isochrones, the Gaia EDR3 extinction law for giants, and the
+#: giants' and young disc's thicknesses set against Gaia DR3's G < 10 counts per colour
+#: (:data:`GIANT_THICKNESS_FACTOR`, :data:`YOUNG_DISC_THICKNESS_FACTOR`; docs/galaxy_colours.md).
+MODEL_VERSION = "besancon-r03-6"
 
 # --- Sun and rotation ------------------------------------------------------------------
 #: Galactocentric distance of the Sun, kpc (R03 Sect. 2: 8.5 kpc) [C].
@@ -140,7 +147,16 @@ GCNS_MG_LIMIT = 15.5
 #: ``population.params.giant_thickness_factor`` (:func:`thin_disc_giants`). With the
 #: Arenou et al. (1992) dust the calibration was repeated (validation/thickness_grid.py; the
 #: grid's results are in docs/research_notes_moved.md and docs/galaxy_model.md).
-GIANT_THICKNESS_FACTOR = 0.45
+#: Since besancon-r03-6 the evolved stars come from isochrones (:mod:`.evolved`), whose
+#: luminosity function is fainter than the Wielen/Allen giant bins, and the factor was set
+#: again with :data:`YOUNG_DISC_THICKNESS_FACTOR`
+#: (:func:`mcsweep.validation.dr3_colours.fit_thicknesses`, grid 0.55-0.70 x 0.55-0.75 with
+#: the thin-disc factor at its Table 1 beam rule, 1.156; docs/galaxy_colours.md): the smallest
+#: RMS of ln(model / Gaia DR3) over DR3's G = 5-10 counts per BP - RP tercile and |b| band (45
+#: counts; 0.114): 0.45 -> 0.65. Check, not fit: the thin-disc
+#: giants' density then halves at 276 pc, Bovy's (2017) ~150 pc read as sech^2(z / 2h)
+#: (264 pc; 0.45 gave 116 pc), validation/thickness_grid.py.
+GIANT_THICKNESS_FACTOR = 0.65
 #: Factor on the velocity dispersions (U, V and W) of the giant-only thin-disc components,
 #: so that their kinematics match their thinner discs. The thickness of an
 #: isothermal disc scales with sigma_W^2 at a given surface density: the self-gravitating
@@ -148,21 +164,24 @@ GIANT_THICKNESS_FACTOR = 0.45
 #: 1942, ApJ 95, 329; Binney & Tremaine 2008, Sect. 4.10 problems) [M], and a tracer far
 #: from the mid-plane of such a sheet falls off as exp(-2 |z| / z0 * sigma_sheet^2 /
 #: sigma_W^2), again with scale height ~ sigma_W^2 (near the mid-plane, where the potential
-#: is harmonic, a tracer's thickness goes as sigma_W instead: x 0.45, the colder bound).
-#: A disc x GIANT_THICKNESS_FACTOR as thick therefore has sigma_W x
-#: sqrt(GIANT_THICKNESS_FACTOR) = 0.67. sigma_U and sigma_V are
+#: is harmonic, a tracer's thickness goes as sigma_W instead: the factor itself, the colder
+#: bound). A disc x GIANT_THICKNESS_FACTOR as thick therefore has sigma_W x
+#: sqrt(GIANT_THICKNESS_FACTOR) (0.81 at 0.65; 0.67 at r03-5's 0.45). sigma_U and sigma_V are
 #: scaled alike, keeping each age bin's ellipsoid shape of R03 Table 2 (sigma_U/sigma_W
 #: 2.5-2.8; scaling sigma_W alone would make it 3.7-4.2, unlike any measured disc
 #: population, e.g. 2.2 for the thin disc in Bensby et al. 2003 Table 1 [V]).
 #: R03's own age bins give eps ~ sigma_W^1.37 (a least-squares fit to the six older bins of
-#: the table below), which would mean x 0.56; the sigma^2 rule is the milder of the two.
+#: the table below), which would mean x 0.73 at 0.65; the sigma^2 rule is the milder of the two.
 #: Its effect on the bright stars' proper motions: docs/galaxy_model.md.
 GIANT_VELOCITY_FACTOR = GIANT_THICKNESS_FACTOR ** 0.5
 #: Default thickness factor of the thin disc (multiplies the seven Einasto axis ratios of
 #: R03). Chosen so the paper's Table 1 beam keeps its 458 GUMS stars after the
 #: GCNS scaling (r03-3: 470 expected; 1.0 gives 379): the R03 old-disc Einasto
 #: laws have an exponential-equivalent scale height of about 250 pc, Juric et al. (2008,
-#: ApJ 673, 864) find 300 pc [V]; x 1.15 stays between the two.
+#: ApJ 673, 864) find 300 pc [V]; x 1.15 stays between the two. Kept for besancon-r03-6
+#: (beam 455): 1.20 would bring Gaia DR3's all-sky counts at G = 9-13 from 0.88-0.91 x to
+#: 0.92-0.94 x but the M dwarfs' e-folding height at |z| = 0.3-1 kpc from 329 pc to 350 pc,
+#: 17 % above Juric et al.'s 300 pc (docs/galaxy_colours.md).
 THIN_DISC_THICKNESS_FACTOR = 1.15
 #: G - V of giants: the dwarf-sequence G - V at BP - RP = 1.19 (K3V row of Mamajek's
 #: table [V]); red-clump and red-giant-branch stars have BP - RP ~ 1.1-1.3 [M].
@@ -224,6 +243,9 @@ class Component:
         Which part of the local luminosity function the component holds: ``"all"``,
         ``"dwarfs"`` (the thin-disc age bins) or ``"giants"`` (their giant-only
         companions, :data:`THIN_DISC_GIANTS`).
+    feh : tuple of float
+        Metallicity distribution (mean, standard deviation) in dex, which the isochrones of
+        its evolved stars are weighted by (:mod:`.evolved`).
     """
 
     name: str
@@ -238,6 +260,7 @@ class Component:
     lag_kms: float | None = None
     rotates: bool = True
     lf_part: str = "all"
+    feh: tuple = (0.0, 0.0)
 
 
 # IMFs of R03 Table 1 [C: public GUMS/Besancon model files agree]:
@@ -249,54 +272,82 @@ _IMF_BULGE = ((float("inf"), 2.35),)
 
 # Thin disc, seven age bins (R03 Tables 2 and 4) [C, two independent public codes]:
 # age range (Gyr), local mass density (Msun/pc^3), Einasto axis ratio eps,
-# velocity dispersions (U, V, W) in km/s. One public file gives sigma_V = 13.7 for the
-# 3-5 Gyr bin; every other bin has sigma_V / sigma_U = 0.645, so 23.7 is adopted.
+# velocity dispersions (U, V, W) in km/s, and [Fe/H] (mean, dispersion) in dex (R03 Table 1
+# [C]). One public file gives sigma_V = 13.7 for the 3-5 Gyr bin; every other bin has
+# sigma_V / sigma_U = 0.645, so 23.7 is adopted.
 _THIN = (
-    ((0.0, 0.15), 4.0e-3, 0.0140, (16.7, 10.8, 6.0)),
-    ((0.15, 1.0), 7.9e-3, 0.0268, (19.8, 12.8, 8.0)),
-    ((1.0, 2.0), 6.2e-3, 0.0375, (27.2, 17.6, 10.0)),
-    ((2.0, 3.0), 4.0e-3, 0.0551, (30.2, 19.5, 13.2)),
-    ((3.0, 5.0), 5.8e-3, 0.0696, (36.7, 23.7, 15.8)),
-    ((5.0, 7.0), 4.9e-3, 0.0785, (43.1, 27.8, 17.4)),
-    ((7.0, 10.0), 6.6e-3, 0.0791, (43.1, 27.8, 17.5)),
+    ((0.0, 0.15), 4.0e-3, 0.0140, (16.7, 10.8, 6.0), (0.01, 0.12)),
+    ((0.15, 1.0), 7.9e-3, 0.0268, (19.8, 12.8, 8.0), (0.03, 0.12)),
+    ((1.0, 2.0), 6.2e-3, 0.0375, (27.2, 17.6, 10.0), (0.03, 0.10)),
+    ((2.0, 3.0), 4.0e-3, 0.0551, (30.2, 19.5, 13.2), (0.01, 0.11)),
+    ((3.0, 5.0), 5.8e-3, 0.0696, (36.7, 23.7, 15.8), (-0.07, 0.18)),
+    ((5.0, 7.0), 4.9e-3, 0.0785, (43.1, 27.8, 17.4), (-0.14, 0.17)),
+    ((7.0, 10.0), 6.6e-3, 0.0791, (43.1, 27.8, 17.5), (-0.37, 0.20)),
 )
+#: Upper age (Gyr) of the thin-disc age bins that form the young disc, whose thickness
+#: :data:`YOUNG_DISC_THICKNESS_FACTOR` scales: bins 1-3 (0-2 Gyr), the only ones that hold
+#: main-sequence stars above 1.66 Msun (the isochrones' turn-off at 2 Gyr,
+#: :func:`.evolved.turnoff_mass`): B, A and early-F dwarfs.
+YOUNG_DISC_MAX_AGE_GYR = 2.0
+#: Factor on the young disc's axis ratios (on top of ``thin_disc_scale_height_factor``);
+#: its velocity dispersions go with the square root (the rule of
+#: :data:`GIANT_VELOCITY_FACTOR`). Set with :data:`GIANT_THICKNESS_FACTOR` against Gaia
+#: DR3's G = 5-10 counts per BP - RP tercile and |b| band (there): 1.0 (no such factor) before
+#: besancon-r03-6, 0.65 since. With 1.0 the model holds 1.2-1.45 times DR3's bluest tercile at
+#: every G and |b| (B, A and early-F dwarfs). Check, not fit: the A dwarfs' density then
+#: halves at 91 pc, Bovy's (2017) ~50 pc for A stars read as sech^2(z / 2h) (88 pc; 1.0 gave
+#: 177 pc), :func:`mcsweep.validation.thickness_grid.a_star_half_height_pc`.
+YOUNG_DISC_THICKNESS_FACTOR = 0.65
 THIN_DISC = tuple(
     Component(
         name=f"thin_disc_{i + 1}", label="thin_disc",
         law="einasto_young" if i == 0 else "einasto",
         rho_ref=rho, age_gyr=age, imf=_IMF_THIN, sigma_uvw=sig, eps=eps, lf_part="dwarfs",
+        feh=feh,
     )
-    for i, (age, rho, eps, sig) in enumerate(_THIN)
+    for i, (age, rho, eps, sig, feh) in enumerate(_THIN)
 )
 #: The giants of each thin-disc age bin, a component of their own: same age, mass
 #: density (which sets their share of the local giants) and IMF, but axis ratio
 #: x GIANT_THICKNESS_FACTOR and velocity dispersions x GIANT_VELOCITY_FACTOR.
 
 
-def thin_disc_giants(thickness_factor=GIANT_THICKNESS_FACTOR):
+def _thinner(comp, factor):
+    """``comp`` with its axis ratio x ``factor`` and its velocity dispersions x sqrt(``factor``)
+    (the isothermal-disc rule of :data:`GIANT_VELOCITY_FACTOR`)."""
+    v = float(factor) ** 0.5
+    return replace(comp, eps=comp.eps * float(factor), sigma_uvw=tuple(s * v for s in comp.sigma_uvw))
+
+
+def thin_disc(young_factor=YOUNG_DISC_THICKNESS_FACTOR):
+    """The thin disc's age bins (:data:`THIN_DISC`) with the young disc's (the bins younger
+    than :data:`YOUNG_DISC_MAX_AGE_GYR`) axis ratios x ``young_factor`` and velocity
+    dispersions x sqrt(``young_factor``)."""
+    return tuple(_thinner(c, young_factor) if c.age_gyr[1] <= YOUNG_DISC_MAX_AGE_GYR else c
+                 for c in THIN_DISC)
+
+
+def thin_disc_giants(thickness_factor=GIANT_THICKNESS_FACTOR, young_factor=1.0):
     """The giant-only thin-disc components for a given giants' thickness factor.
 
     Axis ratios x ``thickness_factor``, velocity dispersions x sqrt(``thickness_factor``)
     (the isothermal-disc rule of :data:`GIANT_VELOCITY_FACTOR`); everything else as the
-    dwarfs' age bin (:data:`THIN_DISC`).
+    dwarfs' age bin of :func:`thin_disc` (``young_factor``).
     """
-    velocity_factor = float(thickness_factor) ** 0.5
-    return tuple(
-        replace(c, name=f"{c.name}_giants", eps=c.eps * float(thickness_factor), lf_part="giants",
-                sigma_uvw=tuple(s * velocity_factor for s in c.sigma_uvw))
-        for c in THIN_DISC
-    )
+    return tuple(replace(_thinner(c, thickness_factor), name=f"{c.name}_giants", lf_part="giants")
+                 for c in thin_disc(young_factor))
 
 
-THIN_DISC_GIANTS = thin_disc_giants(GIANT_THICKNESS_FACTOR)
+THIN_DISC_GIANTS = thin_disc_giants(GIANT_THICKNESS_FACTOR, YOUNG_DISC_THICKNESS_FACTOR)
 
-#: Thick disc (R03 Tables 2-4) [C]: 1.34e-3 Msun/pc^3, 11 Gyr, sigma (67, 51, 42) km/s.
-#: Lag 46 km/s behind the LSR: Bensby et al. (2003, A&A 410, 527) Table 1 [V].
+#: Thick disc (R03 Tables 1-4) [C]: 1.34e-3 Msun/pc^3, 11 Gyr, [Fe/H] -0.78 +- 0.30,
+#: sigma (67, 51, 42) km/s. Lag 46 km/s behind the LSR: Bensby et al. (2003, A&A 410, 527)
+#: Table 1 [V].
 #: (Public GUMS model files give 1.64e-3, hR 4 kpc, hz 1.2 kpc instead [C, unverified].)
 THICK_DISC = Component(
     name="thick_disc", label="thick_disc", law="thick", rho_ref=1.34e-3,
     age_gyr=(11.0, 11.0), imf=_IMF_OLD, sigma_uvw=(67.0, 51.0, 42.0),
-    metal_poor=True, lag_kms=46.0,
+    metal_poor=True, lag_kms=46.0, feh=(-0.78, 0.30),
 )
 #: Thick-disc shape (R03 Table 3) [C]: scale length 2.5 kpc, scale height 0.8 kpc,
 #: parabolic below 0.4 kpc.
@@ -304,13 +355,13 @@ THICK_DISC_HR_KPC = 2.5
 THICK_DISC_HZ_KPC = 0.8
 THICK_DISC_XL_KPC = 0.4
 
-#: Stellar halo (R03 Tables 2-4) [C, two codes]: 9.32e-6 Msun/pc^3, axis ratio 0.76,
-#: power law a^-2.44 with a core of 0.5 kpc, 14 Gyr, sigma (131, 106, 85) km/s,
-#: no net rotation (lag = V_CIRC_KMS).
+#: Stellar halo (R03 Tables 1-4) [C, two codes]: 9.32e-6 Msun/pc^3, axis ratio 0.76,
+#: power law a^-2.44 with a core of 0.5 kpc, 14 Gyr, [Fe/H] -1.78 +- 0.50,
+#: sigma (131, 106, 85) km/s, no net rotation (lag = V_CIRC_KMS).
 HALO = Component(
     name="halo", label="halo", law="halo", rho_ref=9.32e-6, age_gyr=(14.0, 14.0),
     imf=_IMF_OLD, sigma_uvw=(131.0, 106.0, 85.0), eps=0.76, metal_poor=True,
-    rotates=False,
+    rotates=False, feh=(-1.78, 0.50),
 )
 HALO_POWER = 2.44
 HALO_CORE_KPC = 0.5
@@ -318,7 +369,8 @@ HALO_CORE_KPC = 0.5
 #: Bulge/bar, Dwek et al. (1995) G2 law as fitted by R03 Table 5 [C, two codes]:
 #: central density 13.70 stars/pc^3, scale lengths x0 = 1.59, y0 = z0 = 0.424 kpc,
 #: cut-off radius 2.54 kpc, major axis at 90 - 78.9 = 11.1 deg from the Sun-centre line
-#: (tilt 3.6 and roll 91.3 deg neglected); 10 Gyr; sigma (113, 115, 100) km/s.
+#: (tilt 3.6 and roll 91.3 deg neglected); 10 Gyr, [Fe/H] 0.0 +- 0.4 (R03 Table 1 [C]);
+#: sigma (113, 115, 100) km/s.
 #: The central density counts stars; it is turned into a mass density with the mean
 #: stellar mass of the bulge IMF (see :mod:`.luminosity`). Bar rotation is neglected.
 BULGE_N0_PER_PC3 = 13.70
@@ -331,7 +383,7 @@ BULGE_ANGLE_DEG = 11.1
 BULGE_TAPER_KPC = 0.5
 BULGE = Component(
     name="bulge", label="bulge", law="bulge", rho_ref=float("nan"), age_gyr=(10.0, 10.0),
-    imf=_IMF_BULGE, sigma_uvw=(113.0, 115.0, 100.0), rotates=False,
+    imf=_IMF_BULGE, sigma_uvw=(113.0, 115.0, 100.0), rotates=False, feh=(0.0, 0.4),
 )
 
 #: Einasto scale radii (R03 Table 3) [C]: youngest bin h+ = 5.0, h- = 3.0 kpc;
@@ -339,4 +391,6 @@ BULGE = Component(
 EINASTO_YOUNG_H_KPC = (5.0, 3.0)
 EINASTO_OLD_H_KPC = (2.53, 1.32)
 
-COMPONENTS = THIN_DISC + THIN_DISC_GIANTS + (THICK_DISC, HALO, BULGE)
+#: The default model's components: the thin disc at the default young-disc thickness, its
+#: giants' companions, the thick disc, the halo and the bulge.
+COMPONENTS = thin_disc() + THIN_DISC_GIANTS + (THICK_DISC, HALO, BULGE)

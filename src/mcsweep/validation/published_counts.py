@@ -311,13 +311,14 @@ def local_census_comparison(model):
 
     Rows: GCNS within 60 pc (both readings of the M_G cut), CNS5 giants and all stars
     within 25 pc (model sources and model component stars), Bovy's giants (the
-    calibration). Columns ``quantity``, ``published``, ``uncertainty`` (Poisson),
-    ``model``, ``ratio``.
+    calibration with ``evolved_stars="wielen"``, a check with the isochrones). Columns
+    ``quantity``, ``published``, ``uncertainty`` (Poisson), ``model``, ``ratio``.
     """
     mg, cdf, _ = _lf_at_sun(model)
     f = float(model.params["multiplicity_frequency"])
     v60, v25 = _sphere(60.0), _sphere(25.0)
-    if model.params["evolved_stars"] == "parsec":
+    calibrated = model.params["evolved_stars"] == "wielen"
+    if not calibrated:
         # the isochrones' evolved stars beyond the subgiant branch: what the censuses call giants
         giants_label = "CNS5 25 pc, giants (model evolved stars beyond the subgiant branch)"
         giants_at_sun = _isochrone_giants_at_sun(model)
@@ -330,7 +331,8 @@ def local_census_comparison(model):
         (giants_label, CNS5_25PC["giants"], giants_at_sun * v25),
         ("CNS5 25 pc, stars (model sources)", CNS5_25PC["stars"], float(cdf[-1]) * v25),
         ("CNS5 25 pc, stars (model component stars)", CNS5_25PC["stars"], float(cdf[-1]) * (1 + f) * v25),
-        ("Bovy 2017 giants pc^-3 x 1e4 (calibration)", BOVY_GIANTS_PC3 * 1e4, giants_at_sun * 1e4),
+        ("Bovy 2017 giants pc^-3 x 1e4" + (" (calibration)" if calibrated else ""),
+         BOVY_GIANTS_PC3 * 1e4, giants_at_sun * 1e4),
     ]
     out = pd.DataFrame(rows, columns=["quantity", "published", "model"])
     out["uncertainty"] = np.sqrt(out["published"])

@@ -36,6 +36,14 @@ Intrinsic colours (BP - RP)_0:
   the choice), so no other random number is used;
 * subgiants: :data:`SUBGIANT_BP_RP`.
 
+With the evolved stars from isochrones (``evolved_stars="parsec"``, the default since galaxy
+model besancon-r03-6) there are two parts: the main sequence, all of it on the dwarf sequence
+above (B stars at B9V's -0.120), and the evolved stars, whose colour is a quantile of their
+component's isochrone rows at the star's M_G (:func:`evolved_colour_quantiles`: PARSEC +
+COLIBRI, every age and metallicity of the component, to the thermally pulsing AGB), chosen
+with the same rescaled uniform number; they are reddened with the EDR3 law for the upper HR
+diagram (:data:`EDR3_HRD_TOP_K_BP`).
+
 Reddening: E(BP - RP) = (k_BP - k_RP) A_0, with the Gaia EDR3 extinction law for
 main-sequence stars (ESA, "Gaia EDR3 extinction law", cosmos.esa.int/web/gaia/edr3-extinction-law,
 file ``Fitz19_EDR3_MainSequence.csv``, rows BPRP; the Fitzpatrick et al. 2019 law through the

@@ -193,7 +193,8 @@ def stars_per_imf_unit(comp, *, isochrone_turnoff=False):
     The turn-off is :func:`turnoff_mass`'s, or with ``isochrone_turnoff`` the isochrones'
     at the component's mean metallicity (:func:`.evolved.turnoff_mass`)."""
     ages = _ages(comp)
-    m_up = float(_isochrone_turnoff(comp, np.mean(ages)) if isochrone_turnoff else turnoff_mass(np.mean(ages)))
+    t = np.mean(ages)
+    m_up = float(_isochrone_turnoff(comp, t) if isochrone_turnoff else turnoff_mass(t))
     number, mass = _mass_integrals(comp, m_up)
     if comp.law == "bulge":
         return P.BULGE_N0_PER_PC3 / number

@@ -3,6 +3,7 @@ scanning-law-history.md), for the sweep and the global experiments."""
 
 import pytest
 
+from mcsweep.command.validate import compose_config, to_config
 from mcsweep.experiments.global_solution.settings import global_fields
 from mcsweep.scanning.segments import DATA_RELEASE_SPANS
 from mcsweep.scanning.timescale import tcb_jd
@@ -12,15 +13,7 @@ SPANS = {"dr1": "2015-09-16", "dr2": "2016-05-23", "dr3": "2017-05-28", "dr4": "
 
 
 def _config(overrides):
-    from hydra import compose, initialize_config_module
-    from omegaconf import OmegaConf
-
-    from mcsweep.command.schema import register_configs
-
-    register_configs()
-    with initialize_config_module(config_module="mcsweep.conf", version_base="1.3"):
-        cfg = compose(config_name="config", overrides=overrides)
-    return OmegaConf.to_object(cfg)
+    return to_config(compose_config(overrides))
 
 
 @pytest.mark.parametrize("name", sorted(SPANS))

@@ -9,7 +9,6 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from omegaconf import OmegaConf
 
 from mcsweep.errors import UserInputError
 from mcsweep.experiments.primary import CHUNKS_DIR
@@ -20,33 +19,14 @@ from mcsweep.experiments.primary.evaluation import positions_at
 from mcsweep.experiments.primary.transits import transit_summary, transits_of
 from mcsweep.experiments.global_solution.priors import parse_prior
 from mcsweep.experiments.primary.table import PAPER_TABLE3, TABLE3_COLUMNS, cell_statistics, paper_value3
-from mcsweep.solver.attitude_spline import live_segments
 from mcsweep.command.validate import compose_config, to_config
+from mcsweep.solver.attitude_spline import live_segments
+
+from .primary_cases import TINY, primary_config, synthetic_stars
 
 BIN = Path(sys.executable).parent
-#: A few hundred stars per class, 1500 extra stars, 1 day knots: a run of under a minute.
-TINY = ["experiment=primary", "experiment.primary.class_size=150", "experiment.primary.extra_sources=1500",
-        "experiment.primary.knot_interval_hours=24", "experiment.primary.attitude_timescale_hours=192",
-        "experiment.primary.priors=[F90,10F90]", "execution.progress=false", "execution.n_jobs=1"]
-#: The unit tests' settings: a quarter of a year, 12 h knots, 4 day perturbations.
-SHORT = ["experiment.primary.mission_years=0.25", "experiment.primary.knot_interval_hours=12",
-         "experiment.primary.attitude_timescale_hours=96"]
 #: Noiseless recovery of the truth after the frame correction [microarcsec].
 RECOVERY_UAS = 1.0
-
-
-def primary_config(overrides):
-    cfg = compose_config([*TINY, *SHORT, *overrides])
-    return to_config(cfg), OmegaConf.to_container(cfg, resolve=True)
-
-
-def synthetic_stars(n, seed):
-    rng = np.random.default_rng(seed)
-    ra = rng.uniform(0.0, 360.0, n)
-    dec = np.degrees(np.arcsin(rng.uniform(-1.0, 1.0, n)))
-    return pd.DataFrame({"ra": ra, "dec": dec, "l": ra, "b": dec, "parallax": rng.uniform(0.1, 5.0, n),
-                         "pmra": rng.normal(0.0, 10.0, n), "pmdec": rng.normal(0.0, 10.0, n),
-                         "phot_g_mean_mag": rng.uniform(12.0, 18.0, n), "class_key": 1500})
 
 
 def _catalogue(path, n=8000, seed=3):
@@ -313,7 +293,7 @@ def test_noiseless_data_recover_the_truth_and_the_attitude():
     # noise, a smooth attitude perturbation (10 mas on 32 knot intervals, not in the
     # solver's spline space): the frame-corrected solution is the truth to well below a
     # microarcsecond, the attitude too (the unmodelled part is what remains). The part a
-    # cubic spline cannot follow falls as (knot / time scale)^4; on 8 intervals (SHORT's
+    # cubic spline cannot follow falls as (knot / time scale)^4; on 8 intervals (primary_cases.SHORT's
     # 96 h) it is ~1 uas and stars seen 2-4 times near the ends of the attitude segments
     # carry 10-17 uas of it, unless the perturbation's random knots happen to fall on the
     # solver's (this seed's did, within 0.005 d, while the solver's knots were 0.5 d apart

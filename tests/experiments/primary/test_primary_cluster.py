@@ -19,7 +19,7 @@ from mcsweep.experiments.primary.prior_solution import solve_prior
 from mcsweep.experiments.primary.transits import transits_of
 from mcsweep.experiments.primary import results as primary_results
 
-from .test_primary import primary_config, synthetic_stars
+from .primary_cases import primary_config, synthetic_stars
 
 distributed = pytest.importorskip("distributed")
 

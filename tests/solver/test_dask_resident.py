@@ -125,8 +125,9 @@ def test_solution_survives_a_killed_worker(problem_and_h, client, kill_worker_at
 
 def test_chunks_kept_for_another_prior_give_that_priors_solution(problem_and_h, client, kill_worker_at):
     # The measurements sent once, the per-star inverses of each prior sent with its solution
-    # (DaskChunks.with_inverses): the solution of the new prior, bit for bit.
+    # (DaskChunks.attached with problem.attach_inverses): the solution of the new prior, bit for bit.
     from mcsweep.solver.dask_resident import DaskChunks
+    from mcsweep.solver.problem import attach_inverses
 
     problem, h = problem_and_h
     other = problem.with_prior(prior_diagonal(1.0, 10.0))
@@ -136,13 +137,13 @@ def test_chunks_kept_for_another_prior_give_that_priors_solution(problem_and_h, 
     stars = [slice(problem.blocks[lo].first, problem.blocks[hi - 1].first + problem.blocks[hi - 1].n)
              for lo, hi in ranges]
     ref = solve_global(other, h, **KW)
-    res = base.with_inverses([other.src_inv[sl] for sl in stars])
+    res = base.attached(attach_inverses, [other.src_inv[sl] for sl in stars])
     _same(solve_global(other, h, resident_chunks=res, chunk_stars=256, **KW), ref)
     # and with a worker killed mid-solve: chunks and inverses sent again
     client.wait_for_workers(2, timeout=60)
     log = kill_worker_at(3)
 
-    res = base.with_inverses([other.src_inv[sl] for sl in stars])
+    res = base.attached(attach_inverses, [other.src_inv[sl] for sl in stars])
     _same(solve_global(other, h, resident_chunks=res, chunk_stars=256, log=log, **KW), ref)
     client.wait_for_workers(2, timeout=60)  # the nanny restarts it for the next test
     assert log.killed and res.repeated >= 1

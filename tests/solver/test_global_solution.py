@@ -13,8 +13,7 @@ from mcsweep.solver import (GlobalProblem, attitude_band, band_to_dense, fit_fra
 from mcsweep.solver.direct import solve_direct, sparse_design
 from mcsweep.solver.blocks import schur_bandwidth
 from mcsweep.solver.problem import SOLVER_BLOCK_STARS
-from mcsweep.solver.source_update import solve_sources, source_normals, source_rhs
-from mcsweep.solver.attitude_update import attitude_rhs
+from mcsweep.solver.source_update import solve_sources, source_normals
 from mcsweep.scanning.ephemeris import gaia_position_au
 from mcsweep.prior import sigma_f90
 
@@ -29,6 +28,21 @@ RTOL_SECONDARY = 1e-9
 #: Recovery of noiseless truth after the frame correction [microarcsec].
 RECOVERY_UAS = 1.0
 
+
+
+def _source_rhs(obs, r):
+    """``A_s' r`` per star (n, 5), the sums written out (a reference, not the solver's path)."""
+    return np.stack([np.bincount(obs.star, obs.src[:, i] * r, minlength=obs.n_stars) for i in range(5)], axis=1)
+
+
+def _attitude_rhs(obs, r):
+    """``A_a' r`` (n_coef, 3): each measurement's four cubic-spline basis values times its
+    attitude partials, summed per coefficient (a reference, checked against the dense design)."""
+    out = np.zeros((obs.n_coef, 3))
+    for k in range(4):
+        for c in range(3):
+            out[:, c] += np.bincount(obs.j0 + k, obs.bval[:, k] * r * obs.att[:, c], minlength=obs.n_coef)
+    return out
 
 def _sparse_design(P, problem=None):
     """The full design matrix built element by element from the partials (independent of the solver):
@@ -64,7 +78,7 @@ def test_banded_attitude_normal_matrix_equals_dense(small_problem):
     band = band_to_dense(attitude_band(obs))
     np.testing.assert_allclose(band, dense, rtol=RTOL_SUMS, atol=RTOL_SUMS * np.abs(dense).max())
     r = np.random.default_rng(2).normal(size=obs.size)
-    np.testing.assert_allclose(attitude_rhs(obs, r).ravel(), A.T @ r, rtol=RTOL_SUMS,
+    np.testing.assert_allclose(_attitude_rhs(obs, r).ravel(), A.T @ r, rtol=RTOL_SUMS,
                                atol=RTOL_SUMS * np.abs(A.T @ r).max())
 
 
@@ -135,7 +149,7 @@ def test_attitude_fixed_to_truth_reproduces_secondary_solution(small_problem):
     h = problem.forward(problem.join(x_true, a_true)) + noise
     _, a_part = problem.split(problem.join(np.zeros_like(x_true), a_true))
     h_att = h - problem.forward(problem.join(np.zeros_like(x_true), a_part))
-    x, cov, ok = solve_sources(source_normals(obs), source_rhs(obs, h_att), prior_diagonal(1.0, 10.0))
+    x, cov, ok = solve_sources(source_normals(obs), _source_rhs(obs, h_att), prior_diagonal(1.0, 10.0))
     # Secondary solution: padded per-star design of astrometry.design, the same noise.
     n = obs.n_stars
     al = ~obs.is_ac

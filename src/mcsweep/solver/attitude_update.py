@@ -19,7 +19,7 @@ import numpy as np
 from . import kernels
 from .observations import Observations
 
-__all__ = ["BANDWIDTH", "band_of_rows", "attitude_band", "attitude_rhs", "band_to_dense", "free_coefficients"]
+__all__ = ["BANDWIDTH", "band_of_rows", "attitude_band", "band_to_dense", "free_coefficients"]
 
 _AX = 3
 _NB = 4  # basis functions per epoch (cubic)
@@ -45,18 +45,6 @@ def band_of_rows(j0, rows, n_coef: int) -> np.ndarray:
 def attitude_band(obs: Observations) -> np.ndarray:
     """Upper band storage ``(BANDWIDTH + 1, 3 n_coef)`` of ``sum A_a' A_a``."""
     return band_of_rows(obs.j0, obs.attitude_rows().reshape(obs.size, _AX * _NB), obs.n_coef)
-
-
-def attitude_rhs(obs: Observations, r) -> np.ndarray:
-    """``A_a' r`` (n_coef, 3) for normalised residuals ``r`` (m,)."""
-    r = np.asarray(r, dtype=float)
-    out = np.zeros((obs.n_coef, _AX))
-    for k in range(_NB):
-        idx = obs.j0 + k
-        w = obs.bval[:, k] * r
-        for c in range(_AX):
-            out[:, c] += np.bincount(idx, w * obs.att[:, c], minlength=obs.n_coef)
-    return out
 
 
 def band_to_dense(ab) -> np.ndarray:

@@ -35,7 +35,6 @@ pass.
 from __future__ import annotations
 
 import concurrent.futures
-import dataclasses
 import time
 import uuid
 
@@ -66,14 +65,6 @@ def _call_reduced(fn: Callable, cis: list, rests: list, specs: list, *chunks):
                 largest[k] = value if largest[k] is None else max(largest[k], value)
         del out
     return [f.partials if f is not None else m for f, m in zip(folds, largest)]
-
-
-def _attach(chunk: tuple, binv) -> tuple:
-    """A solver chunk ``(blocks, measurements, state)`` with its stars' inverses ``binv (n, 5, 5)``
-    and a state of its own."""
-    blocks, hs = chunk[:2]
-    first = blocks[0].first
-    return [dataclasses.replace(b, binv=binv[b.first - first:b.first - first + b.n]) for b in blocks], hs, {}
 
 
 #: Exceptions by which a lost worker shows: its results cancelled, a connection closed,
@@ -168,12 +159,6 @@ class DaskChunks:
 
         first = live_workers(client)  # one scheduler query for the first placement
         return cls(client, [put(ci, first) for ci in range(len(chunks))], rebuild=put)
-
-    def with_inverses(self, binv: Sequence) -> "DaskChunks":
-        """These chunks (the solver's blocks and measurements, kept on the workers) with the
-        per-star inverses of one prior, ``binv[ci]`` the stars of chunk ``ci``: what changes
-        from prior to prior is sent (200 bytes per star), not the measurements."""
-        return self.attached(_attach, binv)
 
     def attached(self, fn: Callable, args: Sequence) -> "DaskChunks":
         """New chunks ``fn(chunk ci, args[ci])``, made on the workers holding these (pinned

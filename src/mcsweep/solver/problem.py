@@ -42,7 +42,7 @@ from .reduction import chunk_ranges, leaf_blocks, pairwise_sum
 from .source_update import solve_sources, source_normals
 
 __all__ = ["GlobalProblem", "ResidentProblem", "make_blocks", "in_block_order", "solver_chunks", "star_arrays",
-           "SOLVER_BLOCK_STARS"]
+           "blocks_with_inverses", "attach_inverses", "SOLVER_BLOCK_STARS"]
 
 #: Stars per solver block: the unit of the solver's reductions (module notes of
 #: :mod:`~mcsweep.solver.reduction`). Why this size: every block adds one attitude-sized
@@ -298,6 +298,20 @@ def star_arrays(blocks, normals, prior) -> dict:
     prior = np.ascontiguousarray(np.broadcast_to(np.asarray(prior, dtype=float), (len(normals), 5)))
     return {"prior": prior, "binv": binv, "ok": ok, "K": K,
             "g_raw": precision_weights(binv)}
+
+
+def blocks_with_inverses(blocks, binv) -> list:
+    """``blocks`` (a chunk's, consecutive) holding their stars' inverses ``binv (n, 5, 5)``,
+    those of the chunk's stars in order: what one prior changes in a chunk kept where it is,
+    the measurements staying (:meth:`~mcsweep.solver.dask_resident.DaskChunks.attached`)."""
+    first = blocks[0].first
+    return [dataclasses.replace(b, binv=binv[b.first - first:b.first - first + b.n]) for b in blocks]
+
+
+def attach_inverses(chunk: tuple, binv) -> tuple:
+    """A chunk ``(blocks, measurements, state)`` with its stars' inverses ``binv`` and a state
+    of its own (:func:`blocks_with_inverses`): a chunk solved for another prior."""
+    return blocks_with_inverses(chunk[0], binv), chunk[1], {}
 
 
 class ResidentProblem:

@@ -15,7 +15,7 @@ import numpy as np
 from ..astrometry.linalg import spd_solve
 from .observations import Observations
 
-__all__ = ["source_normals", "source_rhs", "solve_sources"]
+__all__ = ["source_normals", "solve_sources"]
 
 _NP = 5
 
@@ -29,13 +29,6 @@ def source_normals(obs: Observations) -> np.ndarray:
             N[:, i, j] = np.bincount(obs.star, obs.src[:, i] * obs.src[:, j], minlength=n)
             N[:, j, i] = N[:, i, j]
     return N
-
-
-def source_rhs(obs: Observations, r) -> np.ndarray:
-    """``A_s' r`` per star (n, 5) for normalised residuals ``r`` (m,)."""
-    r = np.asarray(r, dtype=float)
-    return np.stack([np.bincount(obs.star, obs.src[:, i] * r, minlength=obs.n_stars) for i in range(_NP)],
-                    axis=1)
 
 
 def solve_sources(N, b, prior_diagonal):

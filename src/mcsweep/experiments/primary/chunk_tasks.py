@@ -10,13 +10,12 @@ of :mod:`~.evaluation`: the same tasks wherever the chunks are, held in this pro
 
 from __future__ import annotations
 
-import dataclasses
 
 import numpy as np
 
 from ...astrometry.solve import prior_diagonal
 from ...solver.frame import typical_weights, weight_sums
-from ...solver.problem import star_arrays
+from ...solver.problem import blocks_with_inverses, star_arrays
 from ...solver.reduction import pairwise_sum
 from ...solver.selection import digit_counts
 from .experiment import epoch_offset_yr, prior_sigmas
@@ -40,11 +39,10 @@ def attach_prior(chunk: tuple, arg: tuple) -> tuple:
     stars["sigma_prior"] = sig
     if settings.evaluation_epoch == "star_mean":
         stars["tau_yr"] = epoch_offset_yr(settings, kept["mean_tcb_jd"])
-    first, binv = blocks[0].first, stars["binv"]
     state = {"stars": stars}
     if "border" in kept:  # the calibration's columns (mcsweep.solver.solve_global's border)
         state["border"] = kept["border"]
-    return [dataclasses.replace(b, binv=binv[b.first - first:b.first - first + b.n]) for b in blocks], hs, state
+    return blocks_with_inverses(blocks, stars["binv"]), hs, state
 
 
 def with_stars(chunk: tuple, kept: dict) -> tuple:

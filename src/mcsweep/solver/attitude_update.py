@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import kernels
+from . import kernel_backend
 from .observations import Observations
 
 __all__ = ["BANDWIDTH", "band_of_rows", "attitude_band", "band_to_dense", "free_coefficients"]
@@ -38,7 +38,7 @@ def band_of_rows(j0, rows, n_coef: int) -> np.ndarray:
     n = _AX * int(n_coef)
     g = np.asarray(rows, dtype=float).T[None]  # (1, 12, m)
     ab = np.zeros((BANDWIDTH + 1, n))
-    kernels.band_scatter(ab, g, g, _AX * np.asarray(j0, dtype=np.int64))
+    kernel_backend.active().band_scatter(ab, g, g, _AX * np.asarray(j0, dtype=np.int64))
     return ab
 
 

@@ -30,7 +30,7 @@ import dataclasses
 
 import numpy as np
 
-from . import kernels
+from . import kernel_backend
 from .attitude_update import band_of_rows
 
 __all__ = ["StarBlock", "BlockSpan", "gather", "spline_values", "att_rows", "src_rows", "att_forward", "att_adjoint", "att_band", "src_forward",
@@ -339,7 +339,7 @@ def _normal_absorption(ab, blk: StarBlock, rows, star, j0, jb, a_all, G, window:
             BH[i] += Bc[i, k] * H[k]
     # H' B^-1 H, upper band only, straight into the band storage (compiled: a bincount over
     # all n_att unknowns per element of the band cost ~3 s per block with AGIS's 30 s knots)
-    kernels.band_scatter(ab, H, BH, _AX * (uniq % blk.n_coef) - c_lo, scratch)
+    kernel_backend.active().band_scatter(ab, H, BH, _AX * (uniq % blk.n_coef) - c_lo, scratch)
 
 
 def ill_conditioned(blk: StarBlock) -> np.ndarray:
@@ -367,8 +367,9 @@ def _orthogonal_absorption(ab, a_all, G, offset, star, key, jb, ill_row, prior, 
         at = offset[rows] == o
         Gt[at, _AX * o:_AX * o + _AX * _NB] = G[:, rows[at]].T
     s_first, c_first = (np.flatnonzero(np.r_[True, np.diff(x[rows]) != 0]) for x in (star, key))  # runs of rows
-    kernels.orthogonal_absorption(ab, a_all[:, rows].T, Gt, prior[star[rows][s_first]], np.r_[s_first, rows.size],
-                                  np.r_[c_first, rows.size], _AX * jb[rows][c_first] - c_lo)
+    kernel_backend.active().orthogonal_absorption(ab, a_all[:, rows].T, Gt, prior[star[rows][s_first]],
+                                                  np.r_[s_first, rows.size], np.r_[c_first, rows.size],
+                                                  _AX * jb[rows][c_first] - c_lo)
 
 
 def block_setup(blk: StarBlock, h, start=None) -> dict:
@@ -392,7 +393,7 @@ def block_precondition_forward(blk: StarBlock, r_s, out=None) -> np.ndarray:
     """The block's part of ``N_as B^-1 r_s`` (n_coef, 3): first sweep of the preconditioner
     (one compiled pass, :func:`~mcsweep.solver.kernels.precondition_forward`), added into
     ``out`` if given (a leaf's sum, :mod:`~mcsweep.solver.reduction`)."""
-    return kernels.precondition_forward(blk, _binv(blk, r_s), out)
+    return kernel_backend.active().precondition_forward(blk, _binv(blk, r_s), out)
 
 
 def block_precondition_back(blk: StarBlock, r_s, z_a, ya=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -403,7 +404,7 @@ def block_precondition_back(blk: StarBlock, r_s, z_a, ya=None) -> tuple[np.ndarr
     the same products as :func:`att_forward`, :func:`src_adjoint`, :func:`src_forward` and
     :func:`att_adjoint` in sequence); the attitude part added into ``ya`` if given.
     """
-    return kernels.precondition_back(blk, r_s, z_a, ya)
+    return kernel_backend.active().precondition_back(blk, r_s, z_a, ya)
 
 
 def block_residuals(blk: StarBlock, h, x_s, x_a) -> np.ndarray:

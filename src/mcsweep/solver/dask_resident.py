@@ -35,6 +35,7 @@ pass.
 from __future__ import annotations
 
 import concurrent.futures
+import contextlib
 import time
 import uuid
 
@@ -125,6 +126,9 @@ class DaskChunks:
         a worker (for scattered chunks; a chunk built by a task needs none).
     """
 
+    #: The chunks go to the workers one by one (:class:`~mcsweep.solver.executors.ChunkHolder`).
+    shares = 1
+
     def __init__(self, client, futures: Sequence, rebuild: Callable | None = None):
         self.client = client
         self.futures = list(futures)
@@ -159,6 +163,12 @@ class DaskChunks:
 
         first = live_workers(client)  # one scheduler query for the first placement
         return cls(client, [put(ci, first) for ci in range(len(chunks))], rebuild=put)
+
+    @contextlib.contextmanager
+    def solving(self, keep: Sequence[str] = ("x",)):
+        """The ``run`` of one solution's passes: the chunks' states stay on their workers, with
+        everything the solution put there (``keep`` is what a caller may read afterwards)."""
+        yield self.run
 
     def attached(self, fn: Callable, args: Sequence) -> "DaskChunks":
         """New chunks ``fn(chunk ci, args[ci])``, made on the workers holding these (pinned

@@ -17,15 +17,15 @@ the fixed trees, here or where the chunks are.
 from __future__ import annotations
 
 import contextlib
-from typing import Callable, Iterable, Iterator, Sequence
+from typing import Callable, ContextManager, Iterable, Iterator, Protocol, Sequence, runtime_checkable
 
 import numpy as np
 
 from .reduction import pairwise_sum, run_level
 from .resident import forked_chunks
 
-__all__ = ["ChunksLost", "MAX_RESTARTS", "ChunkPasses", "HeldChunks", "in_process", "fresh_arrays", "ordered",
-           "chunk_values", "retried", "state_vectors"]
+__all__ = ["ChunksLost", "MAX_RESTARTS", "ChunkHolder", "ChunkPasses", "HeldChunks", "in_process", "fresh_arrays",
+           "ordered", "chunk_values", "retried", "state_vectors"]
 
 #: Restarts of a solution after lost chunk states before the loss is raised.
 MAX_RESTARTS = 3
@@ -49,6 +49,42 @@ def retried(action: Callable, retry_if: Callable, between: Callable = lambda: No
             between()
 
 
+@runtime_checkable
+class ChunkHolder(Protocol):
+    """What holds a problem's chunks ``(blocks, measurements, state)`` where their tasks run,
+    the one interface the solver (:func:`~mcsweep.solver.solve.solve_global`'s
+    ``resident_chunks``) and the primary experiment (:mod:`mcsweep.experiments.primary.
+    prior_solution`) use: :class:`HeldChunks` (this process, or forked workers for one
+    solution) and :class:`~mcsweep.solver.dask_resident.DaskChunks` (a cluster's workers).
+    Another backend (another process pool, a GPU) is one module implementing it; the tasks
+    reach their compiled kernels through :mod:`~mcsweep.solver.kernel_backend`.
+
+    Attributes
+    ----------
+    shares : int
+        The chunks are this many equal shares of the blocks
+        (:meth:`~mcsweep.solver.problem.GlobalProblem.chunks`), one per worker that keeps a
+        share for a whole solution; 1 when chunks go to workers one by one.
+    reduced : callable or None
+        ``reduced(fn, items, specs, fresh=...)``: a pass whose outputs are summed where the
+        chunks are, in the fixed trees (:class:`ChunkPasses`); None: the driver sums them.
+    """
+
+    shares: int
+    reduced: Callable | None
+
+    def run(self, fn: Callable, items) -> Iterator:
+        """``fn((ci, *chunk ci, *rest))`` for items ``(ci, *rest)``, where chunk ``ci`` is, its
+        results in any order; raises :class:`ChunksLost` when chunk states were lost."""
+
+    def attached(self, fn: Callable, args: Sequence) -> "ChunkHolder":
+        """New chunks ``fn(chunk ci, args[ci])``, made where these are."""
+
+    def solving(self, keep: Sequence[str] = ("x",)) -> ContextManager[Callable]:
+        """The ``run`` of one solution's passes; afterwards each state keeps the vectors
+        ``keep`` of the solution besides what it held."""
+
+
 def in_process(chunks, fn: Callable, items: Iterable) -> Iterator:
     """The in-process executor over chunks ``(blocks, measurements, state)`` it holds
     (``chunks[ci]``); items are ``(ci, *rest)`` as for the resident executors."""
@@ -62,10 +98,9 @@ def state_vectors(item):
 
 
 class HeldChunks:
-    """Chunks ``(blocks, measurements, state)`` held in this process, with the resident
-    chunks' protocol (:meth:`run`, :meth:`attached`, as
-    :class:`~mcsweep.solver.dask_resident.DaskChunks` on a cluster), so one sequence of chunk
-    tasks serves chunks here and there.
+    """Chunks ``(blocks, measurements, state)`` held in this process, a :class:`ChunkHolder`
+    (as :class:`~mcsweep.solver.dask_resident.DaskChunks` on a cluster), so one sequence of
+    chunk tasks serves chunks here and there.
 
     A solution's passes (:meth:`solving`) run here or, with ``workers >= 2`` (and ``fork``),
     on forked workers (:func:`~mcsweep.solver.resident.forked_chunks`; ``owners[ci]``: chunk
@@ -73,6 +108,9 @@ class HeldChunks:
     state vectors asked for come back when it ends, and the tasks after it run here.
     ``shares``: the chunks fall in that many equal shares of the blocks (one per worker,
     :meth:`~mcsweep.solver.problem.GlobalProblem.chunks`)."""
+
+    #: The driver sums every pass's outputs (:class:`ChunkHolder`).
+    reduced = None
 
     def __init__(self, chunks: Sequence[tuple], workers: int = 1, owners: Sequence[int] | None = None):
         self.chunks = [tuple(c) for c in chunks]

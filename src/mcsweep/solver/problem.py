@@ -34,7 +34,7 @@ import numpy as np
 
 from ..astrometry.design import tangent_triad
 from . import blocks as B
-from . import kernels
+from . import kernel_backend
 from .attitude_update import free_coefficients
 from .frame import normalised_weights, penalty_weights, precision_weights, rotation_matrices, typical_weights, weight_sums
 from .observations import Observations
@@ -235,6 +235,7 @@ class GlobalProblem:
         block summed in the fixed tree, then :func:`~mcsweep.solver.kernels.frame_apply`,
         as the solver does)."""
         K, g = self.K, self.frame_weights
+        kernels = kernel_backend.active()
         sums = pairwise_sum(kernels.frame_sums(K[b.first:b.first + b.n], g[b.first:b.first + b.n],
                                                xs[b.first:b.first + b.n]) for b in self.blocks)
         return kernels.frame_apply(K, g, np.zeros(6) if sums is None else sums, self.w_pos, self.w_pm,

@@ -66,7 +66,7 @@ def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_u
         Every pass on a Dask cluster whose workers keep the chunks and their star vectors
         (:class:`~mcsweep.solver.dask_resident.DaskChunks`: scattered once, then only
         attitude-sized vectors travel); overrides ``workers``. Results do not depend on it.
-    resident_chunks : DaskChunks or HeldChunks, optional, keyword-only
+    resident_chunks : ChunkHolder, optional, keyword-only
         The chunks where they stay (a cluster's workers; this process, ``HeldChunks``): chunk
         ``ci`` the blocks of ``problem.chunks(chunk_stars, shares=resident_chunks.shares)[ci]``.
     border : array_like (m, k), optional, keyword-only
@@ -86,7 +86,7 @@ def solve_global(problem: GlobalProblem, h, *, rtol: float = 1e-10, update_tol_u
         h = np.asarray(h, dtype=float)
         if h.size != problem.n_measurements:
             raise ValueError(f"h has {h.size} measurements, the problem {problem.n_measurements}")
-    shares = getattr(resident_chunks, "shares", 1) if resident_chunks is not None else \
+    shares = resident_chunks.shares if resident_chunks is not None else \
         1 if dask_client is not None else max(1, int(workers))
     ranges = problem.chunks(chunk_stars, shares=shares)
     chunks = [problem.blocks[lo:hi] for lo, hi in ranges]
@@ -139,10 +139,8 @@ def _solve_resident(problem, chunks, resident_chunks, kw) -> GlobalSolution:
     cluster's workers, restarted from its first pass after lost chunks
     (:class:`~mcsweep.solver.executors.ChunksLost`) up to
     :data:`~mcsweep.solver.executors.MAX_RESTARTS` times."""
-    solving = getattr(resident_chunks, "solving", None)
-    if solving is not None:
-        with solving() as run:
-            return pcg(problem, chunks, run, **kw)
-    return retried(lambda: pcg(problem, chunks, resident_chunks.run,
-                               reduced=getattr(resident_chunks, "reduced", None), **kw),
-                   lambda exc: isinstance(exc, ChunksLost))
+    def attempt():
+        with resident_chunks.solving() as run:
+            return pcg(problem, chunks, run, reduced=resident_chunks.reduced, **kw)
+
+    return retried(attempt, lambda exc: isinstance(exc, ChunksLost))

@@ -33,7 +33,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import blocks as B
-from . import kernels
+from . import kernel_backend
 from .frame import normalised_weights
 from .reduction import pairwise_dot, pairwise_sum
 
@@ -171,7 +171,7 @@ def back_task(item):
     ya = pairwise_sum(_leaf_sum(add_block, run) for run in _leaf_runs(blocks, leaves))
     st["z"], st["nz"] = z, nz
     g_s = st.get("g_s")
-    numbers = pairwise_sum(np.r_[pairwise_dot(r, z), kernels.frame_sums(K, g, z)]
+    numbers = pairwise_sum(np.r_[pairwise_dot(r, z), kernel_backend.active().frame_sums(K, g, z)]
                            for r, z, K, g in _views(blocks, st["r"], st["z"], st["K"], st["g"]))
     if g_s is not None:  # G_s' z_s, the stars' share of the border's rows of N z
         numbers = np.r_[numbers, [pairwise_sum(pairwise_dot(gs, z) for gs, z in _views(blocks, g_s[j], z))
@@ -185,7 +185,7 @@ def direction_task(item):
     ``q = N p`` by recursion; returned the share of p'q."""
     ci, blocks, _, st, sums, beta, w, z_c = item
     e_z = st["prior"] * st["z"]
-    kernels.frame_apply(st["K"], st["g"], sums, w[0], w[1], e_z)
+    kernel_backend.active().frame_apply(st["K"], st["g"], sums, w[0], w[1], e_z)
     nz = st.pop("nz") + e_z
     if z_c is not None:  # + G_s z_c: the border's columns of N z
         for j, c in enumerate(z_c):

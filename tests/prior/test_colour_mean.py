@@ -286,7 +286,7 @@ def test_g_bin_terms_take_over_from_the_polynomials(colour_run, synth):
 def test_a_bin_without_its_own_width_is_flagged_in_the_maps(colour_run, synth):
     import io
 
-    from mcsweep.prior.colour import COLOUR_COEFFICIENTS_FILE
+    from mcsweep.prior.run_record import COLOUR_COEFFICIENTS_FILE
 
     path = colour_run / COLOUR_COEFFICIENTS_FILE
     table = pd.read_csv(path)

@@ -7,6 +7,9 @@ formula
 model
     :class:`Prior`: the paper's prior or a run's fit, queried with SkyCoord or (l, b)
     and G; :func:`sigma_f90` (the paper's formula as plain numbers).
+run_record
+    What a sweep's run directory holds for the prior: file names, the coefficient schema,
+    the run's parsed record (:class:`~.run_record.SweepRecord`).
 """
 
 from ..lazy_exports import attach
@@ -16,5 +19,6 @@ from ..lazy_exports import attach
 __getattr__, __dir__, __all__ = attach(__name__, {
     "formula": ["BRIGHT_CHOICES", "G_FIT_MAX", "G_FIT_MIN", "PAPER_COEFFICIENTS", "s_coefficients",
                 "sigma_from_coefficients"],
-    "model": ["COEFFICIENTS_FILE", "PAPER_CONFIDENCE", "PAPER_RATIO_R", "Prior", "sigma_f90"],
+    "model": ["PAPER_CONFIDENCE", "PAPER_RATIO_R", "Prior", "sigma_f90"],
+    "run_record": ["COEFFICIENTS_FILE"],
 })

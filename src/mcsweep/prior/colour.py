@@ -40,33 +40,16 @@ from astropy import units as u
 from ..errors import UserInputError
 from .columns import read_run_table, unit_scale
 from .formula import sigma_from_coefficients, sigma_from_nodes
+from .run_record import COLOUR_COEFFICIENTS_FILE, COLOUR_TERMS_FILE, N_COEFFICIENTS, coefficients_from_terms
 
-__all__ = ["COLOUR_COEFFICIENTS_FILE", "COLOUR_TERMS_FILE", "COLOUR_BLIND", "TERMS", "ColourBins", "colour_values",
-           "coefficients_from_terms"]
+__all__ = ["COLOUR_BLIND", "TERMS", "ColourBins", "colour_values"]
 
-#: Per-colour coefficients in a run directory.
-COLOUR_COEFFICIENTS_FILE = "colour_coefficients.csv"
-#: Per-colour Eq. 14 terms per G bin in a run directory (the prior's form where present).
-COLOUR_TERMS_FILE = "colour_terms.csv"
 #: Label of the colour-blind prior (a star without BP-RP, or a prior without colour axis).
 COLOUR_BLIND = "colour_blind"
-#: Number of polynomial coefficients of s0, s1, s2 (Eqs. 15-17).
-TERMS = {"s0": 3, "s1": 4, "s2": 2}
+#: Number of polynomial coefficients of s0, s1, s2 (Eqs. 15-17; :data:`.run_record.N_COEFFICIENTS`).
+TERMS = N_COEFFICIENTS
 #: Two edges closer than this (mag) are the same edge (the CSV's bins against the config's).
 _EDGE_ATOL = 1e-9
-
-
-def coefficients_from_terms(fitted: Mapping[str, float], source: str) -> dict[str, tuple[float, ...]]:
-    """``{"s0": (..), "s1": (..), "s2": (..)}`` from rows named ``s0_c0`` ... ``s2_c1``."""
-    out = {}
-    for name, n in TERMS.items():
-        terms = [f"{name}_c{k}" for k in range(n)]
-        absent = [t for t in terms if t not in fitted]
-        if absent:
-            raise UserInputError(f"{source} lacks the terms {absent}; expected s0_c0..s0_c2, "
-                                 "s1_c0..s1_c3, s2_c0..s2_c1")
-        out[name] = tuple(float(fitted[t]) for t in terms)
-    return out
 
 
 def colour_values(bp_rp, what: str = "bp_rp") -> np.ndarray:

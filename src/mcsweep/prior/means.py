@@ -37,11 +37,11 @@ import numpy as np
 
 from ..errors import UserInputError
 from .columns import read_run_table
+from .run_record import MEANS_FILE
 from ..galactic import icrs_from_galactic, pm_icrs_from_galactic, unit_vector
 
 __all__ = ["MEANS_FILE", "MEAN_COLUMNS", "PriorMeans"]
 
-MEANS_FILE = "prior_means.csv"
 #: Columns of ``prior_means.csv`` (module notes).
 MEAN_COLUMNS = ("l_deg", "b_deg", "g_min", "g_max", "bp_rp_min", "bp_rp_max", "mean_parallax_mas",
                 "mean_pml_masyr", "mean_pmb_masyr")

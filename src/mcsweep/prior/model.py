@@ -26,21 +26,22 @@ than 6 the extrapolation is only as good as the fitted polynomials, so check
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
 from types import MappingProxyType
-from typing import TYPE_CHECKING, Mapping
+from typing import Mapping
 
 import numpy as np
 from astropy import units as u
 from astropy.coordinates import Galactic, SkyCoord
 
 from ..errors import UserInputError
-from .colour import COLOUR_COEFFICIENTS_FILE, ColourBins, coefficients_from_terms, colour_values
+from .colour import ColourBins, colour_values
 from .columns import unit_scale
+from .means import PriorMeans
+from .run_record import COEFFICIENTS_FILE, COLOUR_COEFFICIENTS_FILE, MEANS_FILE, read_coefficients, read_record
 from .formula import (
     G_FIT_MAX,
     G_FIT_MIN,
@@ -49,18 +50,13 @@ from .formula import (
     sigma_from_coefficients,
 )
 
-if TYPE_CHECKING:
-    from .means import PriorMeans
-
-__all__ = ["Prior", "PAPER_CONFIDENCE", "PAPER_RATIO_R", "COEFFICIENTS_FILE", "sigma_f90"]
+__all__ = ["Prior", "PAPER_CONFIDENCE", "PAPER_RATIO_R", "sigma_f90"]
 
 #: Confidence level of the paper's sigma_F90 (Sect. 2.4).
 PAPER_CONFIDENCE = 0.9
 #: R = sigma_mu,p / sigma_plx,p in 1/yr (Sect. 3.1, Eq. 18).
 PAPER_RATIO_R = 10.0
 #: The fitted coefficients in a run directory (written by the sweep: :func:`mcsweep.experiments.f90_sweep.runner.write_fit`).
-COEFFICIENTS_FILE = "coefficients.csv"
-_PROVENANCE_FILE = "provenance.json"
 
 
 def _frozen(coefficients: Mapping) -> Mapping[str, tuple[float, ...]]:
@@ -157,39 +153,19 @@ class Prior:
         mcsweep.errors.UserInputError
             If the directory is not a finished sweep with fitted coefficients.
         """
-        import pandas as pd  # only needed here
-
         run_dir = Path(run_dir)
-        coef_path, prov_path = run_dir / COEFFICIENTS_FILE, run_dir / _PROVENANCE_FILE
-        for p in (coef_path, prov_path):
-            if not p.is_file():
-                raise UserInputError(f"run directory {run_dir} has no {p.name}; expected the directory "
-                                     "of a finished mcsweep sigma_F90 sweep")
-        try:
-            table = pd.read_csv(coef_path)
-            prov = json.loads(prov_path.read_text())
-        except (ValueError, OSError) as exc:
-            raise UserInputError(f"run directory {run_dir}: cannot read {COEFFICIENTS_FILE} or "
-                                 f"{_PROVENANCE_FILE} ({type(exc).__name__}); expected a finished sweep") from None
-        if not {"term", "fitted"} <= set(table.columns):
-            raise UserInputError(f"{coef_path} has columns {list(table.columns)}; expected 'term' and 'fitted'")
-        fitted = dict(zip(table["term"].astype(str), table["fitted"].astype(float)))
-        coefficients = coefficients_from_terms(fitted, str(coef_path))
-        cfg = prov.get("config", {})
-        edges = cfg.get("magnitudes", {}).get("edges")
-        if prov.get("kind", "f90_sweep") != "f90_sweep" or not edges:
-            raise UserInputError(f"run directory {run_dir} is a {prov.get('kind')!r} run; "
-                                 "expected a sigma_F90 sweep (experiment=f90_sweep)")
-        model = cfg.get("prior_model") or {}
-        colour_edges = list(model.get("colour_edges") or [])
+        coef_path = run_dir / COEFFICIENTS_FILE
+        if not coef_path.is_file():
+            raise UserInputError(f"run directory {run_dir} has no {COEFFICIENTS_FILE}; expected the directory "
+                                 "of a finished mcsweep sigma_F90 sweep")
+        coefficients = read_coefficients(coef_path)
+        record = read_record(run_dir, "expected a sigma_F90 sweep (experiment=f90_sweep)")
+        colour_edges = record.colour_edges
         colour = ColourBins.read(run_dir / COLOUR_COEFFICIENTS_FILE, colour_edges) if colour_edges else None
-        means = None
-        if model.get("mean", False):
-            from .means import MEANS_FILE, PriorMeans
-
-            means = PriorMeans.read(run_dir / MEANS_FILE, cfg.get("sky"), colour_edges)
-        return cls(coefficients, float(min(edges)), float(max(edges)),
-                   float(cfg.get("confidence", PAPER_CONFIDENCE)), float(cfg.get("ratio_R", PAPER_RATIO_R)),
+        means = PriorMeans.read(run_dir / MEANS_FILE, record.sky, colour_edges) if record.mean else None
+        confidence = PAPER_CONFIDENCE if record.confidence is None else record.confidence
+        ratio_r = PAPER_RATIO_R if record.ratio_R is None else record.ratio_R
+        return cls(coefficients, float(min(record.g_edges)), float(max(record.g_edges)), confidence, ratio_r,
                    bright, str(run_dir), colour, means)
 
     @property

@@ -11,6 +11,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ...prior.maps import MAPS_FILE
+from ...prior.run_record import COEFFICIENTS_FILE
 from ..spec import ExperimentSpec
 from .conf import ShowcaseConf
 
@@ -21,7 +22,7 @@ CELLS_DIR = "cells"
 #: Sub-directory holding the single-direction showcase of Figs. 1-3.
 SHOWCASE_DIR = "showcase"
 #: The fit's tables in a run directory, by file name: the FitResult field each holds.
-FIT_FILES = {"f90_cells.csv": "compared", "coefficients.csv": "coefficients", "rms_dex.csv": "rms",
+FIT_FILES = {"f90_cells.csv": "compared", COEFFICIENTS_FILE: "coefficients", "rms_dex.csv": "rms",
              "eq14_terms.csv": "terms"}
 
 

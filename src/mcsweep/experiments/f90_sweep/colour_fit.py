@@ -32,15 +32,14 @@ import numpy as np
 import pandas as pd
 
 from ...prior.formula import sigma_from_nodes
+from ...prior.run_record import COLOUR_COEFFICIENTS_FILE, COLOUR_TERMS_FILE, POLY_DEGREES
 from .pencil_beam import COLOUR_MIN_STARS
-from .fit import POLY_DEGREES, coefficient_table, compare_cells, evaluate_formula, fit_all
+from .fit import coefficient_table, compare_cells, evaluate_formula, fit_all
 
-__all__ = ["COLOUR_FILES", "MEANS_FILE", "colour_cells", "colour_tables", "fraction_at", "fit_forms", "means_table"]
+__all__ = ["COLOUR_FILES", "colour_cells", "colour_tables", "fraction_at", "fit_forms", "means_table"]
 
 #: The colour term's tables in a run directory (with ``prior_model.colour_edges``).
-COLOUR_FILES = ("colour_terms.csv", "colour_coefficients.csv", "f90_colour_cells.csv", "colour_fit_forms.csv")
-#: The prior's centre per cell (with ``prior_model.mean``).
-MEANS_FILE = "prior_means.csv"
+COLOUR_FILES = (COLOUR_TERMS_FILE, COLOUR_COEFFICIENTS_FILE, "f90_colour_cells.csv", "colour_fit_forms.csv")
 _MEANS = ["mean_parallax_mas", "mean_pml_masyr", "mean_pmb_masyr"]
 
 
@@ -79,8 +78,8 @@ def colour_tables(f90: pd.DataFrame, blind_fitted: dict, curves: pd.DataFrame | 
             for width in ("fitted", "colour_blind"):
                 comp[f"fraction_at_{width}"] = fraction_at(curves, f90_case, comp["cell_id"],
                                                            comp[f"{width}_sigma_f90_mas"])
-    return {"colour_terms.csv": _ordered(terms, ["bp_rp_min", "bp_rp_max"]),
-            "colour_coefficients.csv": _ordered(coefs, ["bp_rp_min", "bp_rp_max"]),
+    return {COLOUR_TERMS_FILE: _ordered(terms, ["bp_rp_min", "bp_rp_max"]),
+            COLOUR_COEFFICIENTS_FILE: _ordered(coefs, ["bp_rp_min", "bp_rp_max"]),
             "f90_colour_cells.csv": comp, "colour_fit_forms.csv": fit_forms(comp, blind_fitted)}
 
 

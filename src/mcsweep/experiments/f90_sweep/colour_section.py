@@ -18,10 +18,11 @@ import numpy as np
 import pandas as pd
 
 from ...prior import Prior
+from ...prior.run_record import MEANS_FILE, SweepRecord
 from ...runtime.document import FIG_DIR, Document, counts_text
 from ..global_solution.table import FRACTION_INTERVAL, fraction_from_counts
 from . import colour_figures
-from .colour_fit import COLOUR_FILES, MEANS_FILE
+from .colour_fit import COLOUR_FILES
 from .fit import read_fit
 
 __all__ = ["colour_section", "read_colour_run", "ColourRun", "COLOUR_BLIND", "TARGET_BAND", "bin_stats",
@@ -80,8 +81,8 @@ def read_colour_run(run_dir: Path, prov: dict) -> ColourRun | None:
     run_dir = Path(run_dir)
     if not all((run_dir / name).exists() for name in COLOUR_FILES):
         return None
-    cfg = prov.get("config", {})
-    case = cfg.get("observations", {}).get("f90_case", "two")
+    record = SweepRecord.from_provenance(run_dir, prov)
+    case = record.f90_case
     colour = _read_csv(run_dir / "f90_colour_cells.csv")
     if colour.empty:  # no colour cell at all: nothing per colour to report
         return None
@@ -97,8 +98,9 @@ def read_colour_run(run_dir: Path, prov: dict) -> ColourRun | None:
         if column not in cells:  # a run whose cell curves were not at hand when it fitted the colours
             cells[column] = np.nan
     mean = (run_dir / MEANS_FILE).exists() and "quasar_fraction_inside" in cells
-    return ColourRun(dict(cfg.get("prior_model") or {}), labels, cells, _read_csv(run_dir / "colour_fit_forms.csv"),
-                     case, float(cfg.get("confidence", 0.9)), bool(mean), Prior.from_run(run_dir))
+    confidence = 0.9 if record.confidence is None else record.confidence
+    return ColourRun(record.prior_model, labels, cells, _read_csv(run_dir / "colour_fit_forms.csv"),
+                     case, confidence, bool(mean), Prior.from_run(run_dir))
 
 
 def colour_section(doc: Document, run_dir: Path, prov: dict, figdir: Path) -> None:

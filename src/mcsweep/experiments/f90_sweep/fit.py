@@ -26,6 +26,7 @@ import pandas as pd
 from ...errors import UserInputError
 from ...prior import PAPER_COEFFICIENTS, Prior, sigma_from_coefficients
 from ...prior.maps import prior_maps_bytes
+from ...prior.run_record import POLY_DEGREES
 from . import FIT_FILES
 from .pencil_beam import COLOUR_COLUMNS, MEAN_COLUMNS
 
@@ -52,8 +53,6 @@ __all__ = [
     "prior_maps_for_run",
 ]
 
-#: Polynomial degree in G of s0, s1, s2 (Eqs. 15-17).
-POLY_DEGREES = {"s0": 2, "s1": 3, "s2": 1}
 #: Bootstrap resamples of the cells for the fit's uncertainties, and their fixed seed
 #: (the same cells always give the same intervals, so a resumed sweep rewrites them unchanged).
 FIT_BOOTSTRAP = 400

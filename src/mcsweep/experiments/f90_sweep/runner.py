@@ -26,11 +26,12 @@ from astropy.time import Time
 
 from ...astrometry.noise import NoiseModel
 from ...errors import UserInputError
-from .colour_fit import MEANS_FILE, colour_tables, means_table
+from .colour_fit import colour_tables, means_table
 from .fit import colour_blind, f90_table, fit_all, fit_tables, prior_maps_for_run
 from .pencil_beam import CellSettings, cell_radius, run_cell
 from ...population import CatalogueSource, make_source
 from ...prior.maps import MAPS_FILE
+from ...prior.run_record import MEANS_FILE, read_record
 from ...scanning import ScanningLaw, find_transits
 from ...scanning.timescale import tcb_jd
 from . import CELLS_DIR, SHOWCASE_DIR
@@ -312,17 +313,21 @@ def write_fit(run_dir: Path, cells: pd.DataFrame, *, nside: int, f90_case: str) 
     """Fit Eqs. 14-17 to a sweep's cells (Sect. 3.4) and write the fit's tables and
     ``prior_maps.fits`` into ``run_dir`` (each file whole or not at all).
 
-    The maps come after ``coefficients.csv``: they are drawn from the prior read back from
-    it (:func:`mcsweep.experiments.f90_sweep.fit.prior_maps_for_run`). ``nside`` is not part of
+    What it writes besides the colour-blind fit follows the prior model of the run's record
+    (:func:`mcsweep.prior.run_record.read_record`, the ``provenance.json`` the sweep wrote
+    first): the colour files with a colour axis, the means with a mean-centred prior. The maps
+    come after ``coefficients.csv``: they are drawn from the prior read back from it
+    (:func:`mcsweep.experiments.f90_sweep.fit.prior_maps_for_run`). ``nside`` is not part of
     the config hash, so a rerun redraws the maps from the same fit at the configured nside.
     """
     run_dir = Path(run_dir)
+    record = read_record(run_dir)
     f90 = f90_table(cells)
     fit = fit_all(colour_blind(f90))
     tables = fit_tables(fit)
-    if "bp_rp_min" in f90:  # the colour axis (prior_model.colour_edges)
+    if record.colour_edges:
         tables.update(colour_tables(f90, fit.fitted, cells, f90_case))
-    if "mean_parallax_mas" in f90:  # a mean-centred prior (prior_model.mean)
+    if record.mean:
         tables[MEANS_FILE] = means_table(f90)
     for name, table in tables.items():
         atomic_write_bytes(run_dir / name, table.to_csv(index=False).encode())

@@ -21,11 +21,11 @@ import dataclasses
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
 from ...astrometry.noise import NoiseModel
 from ...errors import UserInputError
-from ...prior import G_FIT_MAX, PAPER_COEFFICIENTS, sigma_f90, sigma_from_coefficients
+from ...prior import G_FIT_MAX, sigma_f90, sigma_from_coefficients
+from ...prior.run_record import COEFFICIENTS_FILE, read_coefficients
 from ...scanning import ScanningLaw
 from ...scanning.ephemeris import TABLE_END_JD_TCB, TABLE_START_JD_TCB
 from ...scanning.segments import DATA_RELEASE_SPANS
@@ -87,18 +87,14 @@ def load_f90_coefficients(spec: str, key: str = "experiment.secondary.f90_formul
         return None
     path = Path(spec)
     if path.is_dir():
-        path = path / "coefficients.csv"
+        path = path / COEFFICIENTS_FILE
     if not path.is_file():
         raise UserInputError(f"{key}={spec!r} is not accepted; expected 'paper' or a sweep run's "
-                             "coefficients.csv (or its run directory)")
+                             f"{COEFFICIENTS_FILE} (or its run directory)")
     try:
-        table = pd.read_csv(path)
-        fitted = dict(zip(table["term"].astype(str), table["fitted"].astype(float)))
-        coeffs = tuple((name, tuple(fitted[f"{name}_c{p}"] for p in range(len(PAPER_COEFFICIENTS[name]))))
-                       for name in ("s0", "s1", "s2"))
-    except (KeyError, ValueError, pd.errors.ParserError, pd.errors.EmptyDataError):
-        raise UserInputError(f"{key}={spec!r} is not accepted; expected a CSV with columns term, fitted "
-                             "and terms s0_c0..s2_c1 (a sweep run's coefficients.csv)") from None
+        coeffs = tuple(read_coefficients(path).items())
+    except UserInputError as exc:
+        raise UserInputError(f"{key}={spec!r} is not accepted: {exc}") from None
     if not all(np.isfinite(c).all() for _, c in coeffs):
         raise UserInputError(f"{key}={spec!r} is not accepted; its fitted coefficients are not all finite "
                              "(the sweep could not fit Eqs. 15-17)")

@@ -49,7 +49,6 @@ Reproducibility: noise and perturbations are drawn per fixed block of
 from __future__ import annotations
 
 import dataclasses
-import json
 import zlib
 from pathlib import Path
 
@@ -65,6 +64,7 @@ from ...errors import UserInputError
 from ...population import gaia_bright
 from ...population.hipparcos import EXTRA_MESSAGE, have_catalogue, load_hipparcos
 from ...prior import Prior
+from ...prior.run_record import read_record
 from ...scanning import ScanningLaw, find_transits, observer_position_au
 from ...astrometry.noise import NoiseModel
 from ...scanning.timescale import tcb_jd
@@ -152,20 +152,17 @@ def colour_bin_of(bp_rp) -> np.ndarray:
 
 def colour_prior_name(run_dir) -> str:
     """The prior_model name of a sweep run made with a colour axis or a mean (from its
-    provenance.json); a :class:`~mcsweep.errors.UserInputError` in one line otherwise."""
-    prov_path = Path(run_dir) / "provenance.json"
+    record, :func:`mcsweep.prior.run_record.read_record`); a
+    :class:`~mcsweep.errors.UserInputError` in one line otherwise."""
+    expected = "expected the directory of a sweep run made with prior_model=colour or prior_model=colour_mean"
     try:
-        prov = json.loads(prov_path.read_text())
-    except (OSError, ValueError):
-        prov = None
-    model = ((prov or {}).get("config") or {}).get("prior_model") if isinstance(prov, dict) else None
-    if (not isinstance(model, dict) or not model.get("name")
-            or not (model.get("colour_edges") or model.get("mean"))):
-        found = ("no readable provenance.json" if prov is None
-                 else f"prior_model {model.get('name')!r}" if isinstance(model, dict) else "no prior_model")
-        raise UserInputError(f"experiment.real_sky.colour_priors: {run_dir} is not accepted ({found}); expected the "
-                             "directory of a sweep run made with prior_model=colour or prior_model=colour_mean")
-    return str(model["name"])
+        record = read_record(run_dir, expected)
+    except UserInputError as exc:
+        raise UserInputError(f"experiment.real_sky.colour_priors: {run_dir} is not accepted ({exc})") from None
+    if not (record.colour_edges or record.mean):
+        raise UserInputError(f"experiment.real_sky.colour_priors: {run_dir} is not accepted (prior_model "
+                             f"{record.prior_model_name!r}); {expected}")
+    return record.prior_model_name
 
 
 def build_settings(config) -> RealSkySettings:

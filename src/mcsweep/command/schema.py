@@ -21,6 +21,8 @@ from typing import Any, Dict, List, Optional
 
 from hydra.core.config_store import ConfigStore
 
+from ..astrometry.noise import NoiseModel
+from ..errors import UserInputError
 from ..experiments.config_checks import require, tcb_jd_checked
 from ..experiments.f90_sweep.conf import CellConf, MagnitudesConf, PriorGridConf, PriorMapsConf, PriorModelConf, SkyConf
 from ..experiments.registry import experiment_conf_class
@@ -78,8 +80,11 @@ class ObservationsConf:
 
 @dataclass
 class NoiseConf:
-    """Per-FoV-transit measurement precision (see mcsweep.astrometry.noise)."""
+    """Per-FoV-transit measurement precision (see mcsweep.astrometry.noise): one model, the
+    published precision, with the settings below; the presets (``noise=gaia``, ``al_only``,
+    ``edr3_floor``) are named sets of them."""
 
+    #: The preset's name, recorded with the run; the model is set by the fields below.
     name: str = "gaia"
     #: Multiplies the along-scan precision of the published model.
     al_scale: float = 1.0
@@ -92,10 +97,11 @@ class NoiseConf:
     al_floor_mas: float = 0.0
 
     def __post_init__(self):
-        require(self.al_scale > 0, "noise.al_scale", self.al_scale, "a positive factor")
-        require(self.ac_scale > 0, "noise.ac_scale", self.ac_scale, "a positive factor")
-        require(math.isfinite(self.al_floor_mas) and self.al_floor_mas >= 0, "noise.al_floor_mas",
-                 self.al_floor_mas, "a non-negative finite AL error per FoV transit in mas")
+        # the model's own checks, one place for them (mcsweep.astrometry.noise.NoiseModel)
+        try:
+            NoiseModel.from_config(self)
+        except UserInputError as exc:
+            raise UserInputError(f"noise.{exc}") from None
 
 
 @dataclass

@@ -98,11 +98,13 @@ def showcase_cell(config) -> Cell:
     return Cell(dataclasses.replace(d, index=-1), sc.g_min, sc.g_max)
 
 
-def direction_transits(config, directions: list[Direction]) -> dict[int, pd.DataFrame]:
-    """FoV transits of every direction, keyed by Direction.index."""
+def direction_transits(config, directions: list[Direction], law: ScanningLaw | None = None
+                       ) -> dict[int, pd.DataFrame]:
+    """FoV transits of every direction, keyed by Direction.index (``law``: the configured
+    scanning law if already built, else built here)."""
     if not directions:
         return {}
-    law = ScanningLaw.from_config(dataclasses.asdict(config.scanning))
+    law = law if law is not None else ScanningLaw.from_config(dataclasses.asdict(config.scanning))
     ra = np.array([d.ra_deg for d in directions])
     dec = np.array([d.dec_deg for d in directions])
     start = tcb_jd(config.observations.start, "observations.start")
@@ -187,7 +189,7 @@ def run_sweep(config, raw_cfg: dict, run_dir: Path, *, prov) -> Path:
     # Inputs are valid: claim the run directory for this config before any cell is written,
     # so a killed run is resumed (and guarded against other configs) like a finished one.
     prov.write(with_manifest=False)
-    transits = _transits_of(config, prov, todo + ([show] if show_todo else []))
+    transits = _transits_of(config, prov, todo + ([show] if show_todo else []), law)
     if show_todo:
         (run_dir / SHOWCASE_DIR).mkdir(exist_ok=True)
         atomic_write_bytes(run_dir / SHOWCASE_DIR / SHOWCASE_GROUPS_FILE,
@@ -257,7 +259,7 @@ def _catalogue_radii(source, cells: list[Cell], settings: CellSettings) -> dict[
     return radii
 
 
-def _transits_of(config, prov, cells: list[Cell]) -> dict[int, pd.DataFrame]:
+def _transits_of(config, prov, cells: list[Cell], law: ScanningLaw) -> dict[int, pd.DataFrame]:
     """The FoV transits of the directions of ``cells`` (stage ``transits``, with its lines)."""
     dirs = {c.direction.index: c.direction for c in cells}
     enabled = config.execution.progress
@@ -265,7 +267,7 @@ def _transits_of(config, prov, cells: list[Cell]) -> dict[int, pd.DataFrame]:
         stage_line("transits", f"scanning law over {len(dirs)} direction{'s' * (len(dirs) != 1)}, "
                    f"{config.observations.start} to {config.observations.end} (TCB)", enabled=enabled)
     with prov.stage("transits"):
-        transits = direction_transits(config, list(dirs.values()))
+        transits = direction_transits(config, list(dirs.values()), law)
     if dirs:
         n_tr = sum(len(t) for t in transits.values())
         stage_line("transits", f"{n_tr} FoV transits found in {prov.timings['transits']:.1f} s", enabled=enabled)

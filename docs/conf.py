@@ -29,6 +29,10 @@ extensions = [
     "myst_parser",
     "sphinx.ext.autodoc",
     "sphinx.ext.napoleon",
+    "sphinx.ext.mathjax",
+    # MathJax 3 bundled and copied into the site: the paper's equations render offline
+    # (Sphinx's default loads MathJax from a CDN).
+    "sphinx-mathjax-offline",
     "sphinx_gallery.gen_gallery",
 ]
 

@@ -205,12 +205,12 @@ def component_weights(comp, dwarf_mv, n_sub=20):
     """(dwarf weights per bin, giant weight) of one component."""
     ages = _ages(comp)
     rho_over_mu = stars_per_imf_unit(comp)
-    # dwarfs: average over sub-points of each 1-mag bin
-    sub = dwarf_mv[:, None] + (np.arange(n_sub) + 0.5)[None, :] / n_sub - 0.5
-    m_sub = mass_of_mv(sub)
-    t_ms = P.MS_LIFETIME_SUN_GYR * m_sub ** (-P.MS_LIFETIME_SLOPE)
-    alive = (t_ms[..., None] > ages[None, None, :]).mean(axis=-1)
-    w_dwarf = rho_over_mu * (imf(m_sub, comp.imf) * alive).mean(axis=1)
+
+    def alive(m_sub):
+        t_ms = P.MS_LIFETIME_SUN_GYR * m_sub ** (-P.MS_LIFETIME_SLOPE)
+        return (t_ms[..., None] > ages[None, None, :]).mean(axis=-1)
+
+    w_dwarf = _dwarf_weights(comp, dwarf_mv, alive, rho_over_mu, n_sub)
     # giants: rate at which stars leave the main sequence, averaged over ages
     m_to = turnoff_mass(ages)
     rate = imf(m_to, comp.imf) * m_to / (P.MS_LIFETIME_SLOPE * ages)
@@ -233,12 +233,20 @@ def isochrone_dwarf_weights(comp, dwarf_mv, n_sub=20):
     sequence while its mass is below the isochrones' turn-off at the component's mean
     metallicity (:func:`.evolved.turnoff_mass`; :func:`_isochrone_turnoff`) instead of the
     textbook lifetime, and rho / mu with that turn-off (module notes, item 6)."""
-    ages = _ages(comp)
-    rho_over_mu = stars_per_imf_unit(comp, isochrone_turnoff=True)
+    m_to = _isochrone_turnoff(comp, _ages(comp))
+
+    def alive(m_sub):
+        return (m_sub[..., None] < m_to[None, None, :]).mean(axis=-1)
+
+    return _dwarf_weights(comp, dwarf_mv, alive, stars_per_imf_unit(comp, isochrone_turnoff=True), n_sub)
+
+
+def _dwarf_weights(comp, dwarf_mv, alive, rho_over_mu, n_sub):
+    """rho / mu x the IMF x the fraction of the component's ages at which the dwarf is still on
+    the main sequence (``alive(masses)``), averaged over ``n_sub`` points of each 1-mag bin."""
     sub = dwarf_mv[:, None] + (np.arange(n_sub) + 0.5)[None, :] / n_sub - 0.5
     m_sub = mass_of_mv(sub)
-    alive = (m_sub[..., None] < _isochrone_turnoff(comp, ages)[None, None, :]).mean(axis=-1)
-    return rho_over_mu * (imf(m_sub, comp.imf) * alive).mean(axis=1)
+    return rho_over_mu * (imf(m_sub, comp.imf) * alive(m_sub)).mean(axis=1)
 
 
 @dataclass(frozen=True)

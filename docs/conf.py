@@ -93,6 +93,8 @@ sphinx_gallery_conf = {
     "only_warn_on_example_error": False,
     "download_all_examples": False,
     "remove_config_comments": True,
+    # its execution-times page loads jQuery and DataTables from CDNs: the site stays offline
+    "write_computation_times": False,
     "within_subsection_order": "FileNameSortKey",
     "matplotlib_animations": False,
     "show_memory": False,

@@ -182,14 +182,34 @@ class Prior:
     def colour_bin(self, bp_rp) -> np.ndarray:
         """Index of each star's colour bin (outer bins extended), -1 for the colour-blind prior.
 
-        -1 everywhere for a prior without a colour axis. Labels: :meth:`colour_bin_label`.
+        Parameters
+        ----------
+        bp_rp : array_like or astropy.units.Quantity
+            Gaia BP - RP, mag; NaN where unknown.
+
+        Returns
+        -------
+        ndarray of int
+            The bin of each star in the run's ``prior_model.colour_edges``; -1 without a colour,
+            and everywhere for a prior without a colour axis. Labels: :meth:`colour_bin_label`.
         """
         if self.colour is None:
             return np.full(np.shape(colour_values(bp_rp)), -1)
         return self.colour.index(bp_rp)
 
     def colour_bin_label(self, bp_rp) -> np.ndarray:
-        """Which prior each star gets: its BP-RP bin as ``'lo..hi'`` (mag) or ``'colour_blind'``."""
+        """Which prior each star gets, by name.
+
+        Parameters
+        ----------
+        bp_rp : array_like or astropy.units.Quantity
+            Gaia BP - RP, mag; NaN where unknown.
+
+        Returns
+        -------
+        ndarray of str
+            The star's BP-RP bin as ``'lo..hi'`` (mag) or ``'colour_blind'``.
+        """
         from .colour import COLOUR_BLIND
 
         if self.colour is None:
@@ -201,11 +221,24 @@ class Prior:
         return sigma_from_coefficients(l_deg, b_deg, G, coefficients, g_min=g_low, g_max=self.g_max)
 
     def sigma_parallax_mas(self, l_deg, b_deg, G, bp_rp=None) -> np.ndarray:
-        """sigma_F90 in mas as a plain array, from galactic l, b in degrees (hot paths).
+        """sigma_F90 (Eqs. 14-17) as a plain array, for hot paths.
 
-        ``bp_rp`` (mag, broadcast; NaN where unknown) selects the coefficients of the
-        star's colour bin; None or NaN: the colour-blind prior. Ignored by a prior
-        without a colour axis.
+        Parameters
+        ----------
+        l_deg, b_deg : array_like
+            Galactic longitude and latitude, deg.
+        G : array_like
+            Gaia G, mag (beyond ``g_max``: the value at ``g_max``; below ``g_min``: as
+            ``bright`` says).
+        bp_rp : array_like, optional
+            BP - RP, mag (broadcast; NaN where unknown): selects the coefficients of the star's
+            colour bin; None or NaN: the colour-blind prior. Ignored by a prior without a
+            colour axis.
+
+        Returns
+        -------
+        ndarray
+            sigma_F90 of the parallax, mas (the broadcast shape of the inputs).
         """
         if bp_rp is None or self.colour is None:
             return self._sigma(l_deg, b_deg, G, self.coefficients)

@@ -26,7 +26,9 @@ from __future__ import annotations
 
 import argparse
 import itertools
+import os
 import sys
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -164,11 +166,14 @@ def fit_thicknesses(giant, young, thin=None, *, max_stars=40_000, seed=0, **para
     return pd.DataFrame(rows).sort_values("misfit", ignore_index=True)
 
 
-def _floats(text):
+def _floats(text, option):
     try:
-        return [float(x) for x in text.split(",")]
+        values = [float(x) for x in text.split(",")]
     except ValueError:
-        raise UserInputError(f"{text!r} is not accepted; expected comma-separated numbers") from None
+        values = []
+    if not values or not all(v > 0 for v in values):
+        raise UserInputError(f"{option}={text!r} is not accepted; expected comma-separated positive factors")
+    return values
 
 
 def main(argv=None):
@@ -181,8 +186,13 @@ def main(argv=None):
     ap.add_argument("--out", help="write the table as CSV")
     a = ap.parse_args(argv)
     try:
+        # a bad --out ends in one line before the draws, not in a traceback after them
+        if a.out and not os.access(Path(a.out).resolve().parent, os.W_OK):
+            raise UserInputError(f"--out={a.out!r} is not accepted; expected a file in an existing, "
+                                 "writable folder")
         if a.fit:
-            t = fit_thicknesses(_floats(a.giant), _floats(a.young), None if a.thin is None else _floats(a.thin),
+            thin = None if a.thin is None else _floats(a.thin, "--thin")
+            t = fit_thicknesses(_floats(a.giant, "--giant"), _floats(a.young, "--young"), thin,
                                 max_stars=a.max_stars or 40_000)
         else:
             t = colour_comparison(max_stars=a.max_stars or 100_000)

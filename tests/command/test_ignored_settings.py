@@ -52,6 +52,15 @@ def test_giant_thickness_of_r03_4_keeps_the_hash_of_configs_made_before_the_opti
     assert _hash(R03_5 + ["population.params.giant_thickness_factor=0.6"]) != config_hash(cfg)
 
 
+def test_the_r03_5_preset_is_that_model_and_resumes_its_runs():
+    # population=galaxy_model_r03_5: r03-5's parameters, and the hash its default runs were made with
+    params = OmegaConf.to_container(compose_config(["population=galaxy_model_r03_5"]), resolve=True)["population"]
+    assert params["name"] == "galaxy_model"
+    assert {k: params["params"][k] for k in PARAMS_R03_5} == PARAMS_R03_5
+    assert _hash(["population=galaxy_model_r03_5"]) == "285a027a54185cfd"
+    assert _hash(["population=galaxy_model_r03_5", "experiment=primary"]) == "13a87abc2770018d"
+
+
 def test_the_r03_5_model_keeps_its_hash_and_the_r03_6_defaults_get_a_new_one():
     # besancon-r03-6 added two keys (evolved_stars, young_disc_thickness_factor) and changed two
     # defaults (the giants' and the thin disc's thickness): r03-5's values give the default sweep's

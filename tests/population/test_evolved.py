@@ -108,10 +108,20 @@ def test_giants_are_reddened_with_the_law_for_the_upper_hr_diagram():
     x, a0 = np.array([1.2, 1.2]), np.array([1.0, 1.0])
     ms, top = C.reddening_bp_rp(x, a0, np.array([False, True]))
     assert ms == C.reddening_bp_rp(1.2, 1.0)
-    k = [sum(c * t for c, t in zip(coef, (1, 1.2, 1.44, 1.728, 1, 1, 1, 1.2, 1.44, 1.2)))
-         for coef in (C.EDR3_HRD_TOP_K_BP, C.EDR3_HRD_TOP_K_RP)]
-    assert top == pytest.approx(k[0] - k[1], rel=1e-12)
-    # a drawn giant's colour is reddened by that law
+    # the BPRP rows of the ESA file Fitz19_EDR3_HRDTop.csv as published (Intercept, X, X2, X3, A,
+    # A2, A3, XA, AX2, XA2), transcribed here apart from the code's constants
+    rows = {"kBP": "1.15477509956089,-0.0860151175561996,-0.0302071198654238,0.0140420820336445,"
+                   "-0.0223968266786066,0.000823544766886717,-1.20366204386921e-05,0.00699684361199003,"
+                   "-0.000499920649896623,-0.000148686538559682",
+            "kRP": "0.662595389120923,-0.0167121614962357,-0.00144198404916194,-0.00133749382473256,"
+                   "-0.00655783097133718,3.36125225635362e-05,1.61356747065676e-06,2.20748538619438e-05,"
+                   "0.000178453487002225,1.0336186431516e-05"}
+    X, A = 1.2, 1.0
+    terms = (1, X, X ** 2, X ** 3, A, A ** 2, A ** 3, X * A, A * X ** 2, X * A ** 2)
+    k = {band: sum(float(c) * t for c, t in zip(row.split(","), terms)) for band, row in rows.items()}
+    assert top == pytest.approx((k["kBP"] - k["kRP"]) * A, rel=1e-12)
+    assert top != pytest.approx(ms, rel=1e-6)  # the two laws differ
+    # the default model reddens its evolved stars with it, r03-5 with the main sequence's
     m = GalaxyModel()
     assert m.colours.upper_hrd_law and not GalaxyModel(evolved_stars="wielen").colours.upper_hrd_law
 

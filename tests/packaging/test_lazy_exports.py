@@ -31,3 +31,14 @@ def test_the_config_schema_loads_without_scipy_stats_matplotlib_or_the_experimen
             "'mcsweep.report.build') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True)
     assert out.stdout.strip() == "[]", out.stdout
+
+
+def test_a_sweep_worker_loads_neither_the_parents_modules_nor_their_dependencies():
+    # A worker imports the task's module (jobs) and builds the galaxy model (with astropy's
+    # frames); the fit, the report and the scanning law's integration belong to the parent.
+    code = ("import sys; from mcsweep.experiments.f90_sweep import jobs; "
+            "print(sorted(m for m in ('scipy.stats', 'scipy.integrate', 'scipy.interpolate', 'matplotlib', "
+            "'mcsweep.experiments.f90_sweep.fit', 'mcsweep.experiments.f90_sweep.runner', "
+            "'mcsweep.scanning.attitude') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True)
+    assert out.stdout.strip() == "[]", out.stdout

@@ -20,7 +20,6 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 from astropy import units as u
-from astropy.coordinates import ICRS, Galactic, SkyCoord
 
 from ..errors import UserInputError
 from ..tables import FORMATS, detect_format
@@ -198,6 +197,10 @@ class CatalogueSource:
     @staticmethod
     def _complete(cols, pop_raw):
         n = len(next(iter(cols.values())))
+        if "ra" not in cols or "l" not in cols:
+            # Only for a catalogue missing one frame: astropy.coordinates costs 0.15 s of every
+            # process's start, the galaxy model's sweep workers included.
+            from astropy.coordinates import ICRS, Galactic, SkyCoord
         if "ra" not in cols:
             c = SkyCoord(l=cols["l"] * u.deg, b=cols["b"] * u.deg, frame=Galactic()).icrs
             cols["ra"], cols["dec"] = c.ra.deg, c.dec.deg

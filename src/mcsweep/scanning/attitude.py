@@ -39,7 +39,6 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
 from .ephemeris import TABLE_END_JD_TCB, TABLE_START_JD_TCB
 from .law import ScanningLaw
@@ -299,6 +298,8 @@ def _segment_table(law: ScanningLaw, seg: Segment, lo_jd: float, hi_jd: float) -
     n_lo = max(0, math.ceil((t_ref - lo_jd) / h))
     n_hi = max(0, math.ceil((hi_jd - t_ref) / h))
     grid = t_ref + h * np.arange(-n_lo, n_hi + 1)
+    from scipy.integrate import solve_ivp  # 0.3 s of imports, for the processes that tabulate the law
+
     y0 = np.array([math.radians(seg.nu_ref_deg), 0.0])
     values = np.empty((grid.size, 2))
     values[n_lo] = y0

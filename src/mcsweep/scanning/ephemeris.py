@@ -19,13 +19,10 @@ same numbers either way (tests/scanning compares the table with astropy).
 
 from __future__ import annotations
 
+import sys
 from functools import lru_cache
 
 import numpy as np
-from astropy import units as u
-from astropy.coordinates import get_body_barycentric, solar_system_ephemeris
-from astropy.time import Time
-from scipy.interpolate import CubicSpline
 
 from ..errors import UserInputError
 
@@ -39,6 +36,7 @@ __all__ = [
     "TABLE_END_JD_TCB",
     "gaia_position_au",
     "sun_position_au",
+    "observer_position_au",
 ]
 
 #: Gaia's heliocentric distance in units of the EMB's heliocentric distance (see module notes).
@@ -64,6 +62,12 @@ def table_epochs() -> np.ndarray:
 def compute_table(jd) -> tuple[np.ndarray, np.ndarray]:
     """(Gaia, Sun) barycentric positions [au], shape (n, 3), at the TCB Julian dates ``jd``,
     from astropy's built-in ephemeris and the L2 model (module notes)."""
+    # astropy.coordinates only here: reading the shipped table needs none of it (0.2 s of
+    # every process's start, the sweep's workers included).
+    from astropy import units as u
+    from astropy.coordinates import get_body_barycentric, solar_system_ephemeris
+    from astropy.time import Time
+
     t = Time(np.asarray(jd, dtype=float), format="jd", scale="tcb")
     with solar_system_ephemeris.set("builtin"):
         sun = get_body_barycentric("sun", t).xyz.to_value(u.au).T
@@ -79,7 +83,9 @@ def table_path():
 
 
 @lru_cache(maxsize=1)
-def _splines() -> tuple[CubicSpline, CubicSpline]:
+def _splines():
+    from scipy.interpolate import CubicSpline  # 0.3 s of imports, for the processes that search transits
+
     jd = table_epochs()
     try:
         with table_path().open("rb") as f:
@@ -93,7 +99,9 @@ def _splines() -> tuple[CubicSpline, CubicSpline]:
 
 
 def _as_tcb_jd(t) -> np.ndarray:
-    if isinstance(t, Time):
+    # An astropy Time exists only if astropy.time was imported: no import needed to test for one.
+    time_module = sys.modules.get("astropy.time")
+    if time_module is not None and isinstance(t, time_module.Time):
         jd = np.asarray(t.tcb.jd, dtype=float)
     else:
         jd = np.asarray(t, dtype=float)
@@ -125,6 +133,18 @@ def sun_position_au(t) -> np.ndarray:
     """Barycentric position of the Sun in au (same conventions as :func:`gaia_position_au`)."""
     jd = _as_tcb_jd(t)
     return _splines()[1](jd)
+
+
+def observer_position_au(transits) -> np.ndarray:
+    """Gaia's BCRS position [au] at each transit, shape (n, 3).
+
+    ``transits``: a table of :func:`mcsweep.scanning.find_transits`. From its observer
+    columns, or, for compact output, from the same tabulation (:func:`gaia_position_au`)
+    at ``tcb_jd``.
+    """
+    if "obs_x_au" in transits:
+        return transits[["obs_x_au", "obs_y_au", "obs_z_au"]].to_numpy(float)
+    return gaia_position_au(transits["tcb_jd"].to_numpy(float))
 
 
 def main() -> None:

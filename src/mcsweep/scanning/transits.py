@@ -28,7 +28,7 @@ import pandas as pd
 
 from ..errors import UserInputError
 from .attitude import attitude_for
-from .ephemeris import TABLE_END_JD_TCB, TABLE_START_JD_TCB, gaia_position_au
+from .ephemeris import TABLE_END_JD_TCB, TABLE_START_JD_TCB, observer_position_au
 from .frames import ICRS_TO_ECLIPTIC, local_north_east, unit_vector
 from .law import ScanningLaw
 from .search import build_nodes, run_block
@@ -87,17 +87,6 @@ def _assemble(blocks: list) -> dict:
             del part
         _release_free_heap()
     return cols
-
-
-def observer_position_au(transits: pd.DataFrame) -> np.ndarray:
-    """Gaia's BCRS position [au] at each transit, shape (n, 3).
-
-    From the frame's observer columns, or, for compact output, from the same
-    ephemeris table (:func:`mcsweep.scanning.gaia_position_au`) at ``tcb_jd``.
-    """
-    if "obs_x_au" in transits:
-        return transits[["obs_x_au", "obs_y_au", "obs_z_au"]].to_numpy(float)
-    return gaia_position_au(transits["tcb_jd"].to_numpy(float))
 
 
 def find_transits(ra_deg, dec_deg, start, end, *, law: ScanningLaw | None = None,

@@ -28,8 +28,9 @@ from ...astrometry.noise import NoiseModel
 from ...errors import UserInputError
 from .colour_fit import colour_tables, means_table
 from .fit import colour_blind, f90_table, fit_all, fit_tables, prior_maps_for_run
-from .pencil_beam import CellSettings, cell_radius, run_cell
-from ...population import CatalogueSource, make_source
+from .jobs import cell_task, direction_g_jobs, population_key, population_source
+from .pencil_beam import CellSettings, cell_radius
+from ...population import CatalogueSource
 from ...prior.maps import MAPS_FILE
 from ...prior.run_record import MEANS_FILE, read_record
 from ...scanning import ScanningLaw, find_transits
@@ -115,51 +116,6 @@ def direction_transits(config, directions: list[Direction], law: ScanningLaw | N
     return {d.index: groups.get(i, empty) for i, d in enumerate(directions)}
 
 
-@lru_cache(maxsize=4)
-def _source(pop_items: tuple):
-    # One population source per worker process and config (catalogues are read once).
-    return make_source(dict(pop_items))
-
-
-def _freeze(d: dict) -> tuple:
-    return tuple(sorted((k, _freeze(v) if isinstance(v, dict) else tuple(v) if isinstance(v, list) else v)
-                        for k, v in d.items()))
-
-
-def _pop_dict(config) -> dict:
-    return dataclasses.asdict(config.population)
-
-
-def _cell_task(job):
-    """Run the cells of one direction x G bin (the colour-blind cell and its colour cells,
-    which share their batches of stars); returns (cell_id, showcase, table bytes) per cell."""
-    # The store travels with the job so a worker stamps the parent's code version.
-    cells, transits, pop_frozen, settings, store, keep_scatter, radii = job
-    source = _source(pop_frozen)
-    draws: dict = {}
-    out = []
-    for cell, radius in zip(cells, radii):
-        # The showcase cell (keep_scatter) feeds Figs. 1 and 3: statistics on its whole grid.
-        table, scatter = run_cell(cell, transits, source, settings, keep_scatter=keep_scatter, radius_deg=radius,
-                                  grid_statistics=True if keep_scatter else None, draws=draws)
-        if scatter is not None:
-            store.write(cell.cell_id + "_scatter", scatter)
-        # The written bytes travel back: the aggregate reads them instead of the file (1.5 ms of
-        # checksum and read per cell, 13 s of the colour sweep's 3361 cells).
-        out.append((cell.cell_id, keep_scatter, store.write(cell.cell_id, table)))
-    return out
-
-
-def _direction_g_jobs(cells, transits, pop, settings, store, radii) -> list[tuple]:
-    """One job per direction x G bin: its cells in the order given (a resumed run's kept cells
-    left out)."""
-    groups: dict[tuple, list] = {}
-    for c in cells:
-        groups.setdefault(c.key[:4], []).append(c)
-    return [(group, transits[group[0].direction.index], pop, settings, store, False,
-             [radii.get(c.cell_id) for c in group]) for group in groups.values()]
-
-
 def run_sweep(config, raw_cfg: dict, run_dir: Path, *, prov) -> Path:
     """Run (or resume) the sweep of ``config`` (a checked :class:`mcsweep.command.schema.Config`)
     in ``run_dir`` with ``prov``, its :class:`~mcsweep.command.provenance.Provenance`; returns
@@ -168,7 +124,7 @@ def run_sweep(config, raw_cfg: dict, run_dir: Path, *, prov) -> Path:
     prov.check_compatible()
     with prov.stage("population_source"):
         # Built here first so a bad catalogue fails before any file is written.
-        source = _source(_freeze(_pop_dict(config)))
+        source = population_source(population_key(config))
     settings = build_settings(config)
     _check_colours(config, source)
     law = _scanning_law(config, prov)
@@ -194,8 +150,8 @@ def run_sweep(config, raw_cfg: dict, run_dir: Path, *, prov) -> Path:
         (run_dir / SHOWCASE_DIR).mkdir(exist_ok=True)
         atomic_write_bytes(run_dir / SHOWCASE_DIR / SHOWCASE_GROUPS_FILE,
                            showcase_groups(transits[show.direction.index], law).to_csv(index=False).encode())
-    pop = _freeze(_pop_dict(config))
-    jobs = _direction_g_jobs(todo, transits, pop, settings, store, radii)
+    pop = population_key(config)
+    jobs = direction_g_jobs(todo, transits, pop, settings, store, radii)
     if show_todo:
         jobs.insert(0, ([show], transits[show.direction.index], pop, settings, show_store, True,
                         [radii.get(show.cell_id)]))
@@ -204,7 +160,7 @@ def run_sweep(config, raw_cfg: dict, run_dir: Path, *, prov) -> Path:
     with prov.stage("cells"), executor(config.execution) as run:
         bar = progress(n_all, initial=n_all - sum(len(j[0]) for j in jobs), desc="cells", unit="cells",
                        enabled=config.execution.progress)
-        for done in run(_cell_task, jobs):
+        for done in run(cell_task, jobs):
             for cell_id, showcase, data in done:
                 if not showcase:
                     fresh[cell_id] = data

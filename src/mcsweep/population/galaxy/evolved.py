@@ -43,7 +43,7 @@ from importlib import resources
 
 import numpy as np
 from astropy.table import Table
-from scipy.stats import norm
+from scipy.special import ndtr
 
 __all__ = ["EvolvedGrid", "EVOLVED_FILE", "SUBGIANT_LABEL", "load_evolved_isochrones", "age_weights",
            "metallicity_weights", "row_weights", "turnoff_mass"]
@@ -140,7 +140,7 @@ def metallicity_weights(feh, mh):
         w[np.argmin(np.abs(mh - mean))] = 1.0
         return w
     edges = np.r_[-np.inf, 0.5 * (mh[1:] + mh[:-1]), np.inf]
-    w = np.diff(norm.cdf(edges, loc=mean, scale=sigma))
+    w = np.diff(ndtr((edges - mean) / sigma))  # the normal CDF
     return w / w.sum()
 
 

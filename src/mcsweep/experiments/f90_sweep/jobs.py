@@ -1,0 +1,64 @@
+"""The sweep's unit of work, as a worker process runs it: the cells of one direction x G bin.
+
+A worker imports this module (the task is pickled by reference) and what the cells need:
+the population source, the pencil-beam cell and the result store, not the fit, the maps,
+the report or the scanning law's integration, which only the parent uses (0.4 s less of
+every worker's start).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from functools import lru_cache
+
+from ...population import make_source
+from .pencil_beam import run_cell
+
+__all__ = ["population_key", "population_source", "cell_task", "direction_g_jobs"]
+
+
+def _freeze(d: dict) -> tuple:
+    return tuple(sorted((k, _freeze(v) if isinstance(v, dict) else tuple(v) if isinstance(v, list) else v)
+                        for k, v in d.items()))
+
+
+def population_key(config) -> tuple:
+    """The config's population section as a hashable key (:func:`population_source`)."""
+    return _freeze(dataclasses.asdict(config.population))
+
+
+@lru_cache(maxsize=4)
+def population_source(key: tuple):
+    """The population source of a :func:`population_key`: one per process and config
+    (a catalogue is read once, the galaxy model's isochrones summed once)."""
+    return make_source(dict(key))
+
+
+def cell_task(job):
+    """Run the cells of one direction x G bin (the colour-blind cell and its colour cells,
+    which share their batches of stars); returns (cell_id, showcase, table bytes) per cell."""
+    # The store travels with the job so a worker stamps the parent's code version.
+    cells, transits, pop_key, settings, store, keep_scatter, radii = job
+    source = population_source(pop_key)
+    draws: dict = {}
+    out = []
+    for cell, radius in zip(cells, radii):
+        # The showcase cell (keep_scatter) feeds Figs. 1 and 3: statistics on its whole grid.
+        table, scatter = run_cell(cell, transits, source, settings, keep_scatter=keep_scatter, radius_deg=radius,
+                                  grid_statistics=True if keep_scatter else None, draws=draws)
+        if scatter is not None:
+            store.write(cell.cell_id + "_scatter", scatter)
+        # The written bytes travel back: the aggregate reads them instead of the file (1.5 ms of
+        # checksum and read per cell, 13 s of the colour sweep's 3361 cells).
+        out.append((cell.cell_id, keep_scatter, store.write(cell.cell_id, table)))
+    return out
+
+
+def direction_g_jobs(cells, transits, pop_key, settings, store, radii) -> list[tuple]:
+    """One job per direction x G bin: its cells in the order given (a resumed run's kept cells
+    left out)."""
+    groups: dict[tuple, list] = {}
+    for c in cells:
+        groups.setdefault(c.key[:4], []).append(c)
+    return [(group, transits[group[0].direction.index], pop_key, settings, store, False,
+             [radii.get(c.cell_id) for c in group]) for group in groups.values()]

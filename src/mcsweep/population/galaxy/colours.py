@@ -412,6 +412,5 @@ class ColourTable:
         x = np.clip(level, 0.0, 1.0) * (GIANT_QUANTILE_LEVELS.size - 1)
         j = np.minimum(x.astype(np.intp), GIANT_QUANTILE_LEVELS.size - 2)
         f = x - j
-        q = self.giant_q[k, node]                       # (n, levels)
-        rows = np.arange(j.size)
-        return q[rows, j] * (1.0 - f) + q[rows, j + 1] * f
+        # two gathers, not the (n, levels) rows of every star
+        return self.giant_q[k, node, j] * (1.0 - f) + self.giant_q[k, node, j + 1] * f

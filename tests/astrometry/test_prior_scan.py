@@ -5,6 +5,7 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
+from mcsweep.astrometry.confidence import ellipse_semi_axes
 from mcsweep.astrometry.prior_scan import prior_scan
 from mcsweep.astrometry.solve import solve_with_prior
 
@@ -182,6 +183,21 @@ def test_compiled_inside_flags_are_the_numpy_arithmetic_bit_for_bit(rows):
     np.testing.assert_array_equal(got[0], ref[0])
     np.testing.assert_array_equal(got[1], ref[1])
 
+
+
+@pytest.mark.parametrize("rows", [2, 3, 12])
+def test_compiled_position_statistics_are_the_numpy_arithmetic_bit_for_bit(rows):
+    # The sweep's results promise: the compiled pass gives the error and semi-major axis that
+    # hypot of PriorScan.position and confidence.ellipse_semi_axes give, bit for bit (NaN
+    # where a star has no solution: the first five stars).
+    scan, priors = _grid_scan(110 + rows, 3000, rows)
+    err, semi = scan.position_statistics(priors, 0.9)
+    for i, p in enumerate(priors):
+        dpos, cov2 = scan.position(p)
+        np.testing.assert_array_equal(err[i], np.hypot(dpos[:, 0], dpos[:, 1]))
+        with np.errstate(invalid="ignore"):
+            np.testing.assert_array_equal(semi[i], ellipse_semi_axes(cov2, 0.9)[0])
+    assert np.isnan(err[:, :5]).all() and np.isfinite(err[:, 5:]).all()
 
 
 @pytest.mark.parametrize("rows", [2, 3, 12])

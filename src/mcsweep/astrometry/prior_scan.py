@@ -170,6 +170,28 @@ class PriorScan:
             inside_counts_grid(*self._kernel_arrays(), ts, chi2_threshold(P, 2), n_in, n_val, k_in, k_val)
         return n_in, n_val, (k_in, k_val) if keys else None
 
+    def position_statistics(self, priors_mas, P) -> tuple[np.ndarray, np.ndarray]:
+        """Each star's actual position error and the semi-major axis of its P confidence
+        ellipse, mas, at every prior of ``priors_mas``.
+
+        ``np.hypot`` of :meth:`position`'s estimate (the true offset is zero, Sect. 3.2) and
+        the first value of :func:`mcsweep.astrometry.confidence.ellipse_semi_axes` of its
+        covariance, bit for bit, in one compiled pass.
+
+        Returns
+        -------
+        error, semi_major : ndarray, shape (n_priors, n)
+            NaN where the star has no solution (``ok`` False, or the rule of :meth:`_bad`).
+        """
+        ts = self._ts(priors_mas)
+        err = np.empty((len(ts), self.n))
+        semi = np.empty((len(ts), self.n))
+        if len(ts) and self.n:
+            from .scan_kernel import position_statistics_grid
+
+            position_statistics_grid(*self._kernel_arrays(), ts, chi2_threshold(P, 2), err, semi)
+        return err, semi
+
     def _ts(self, priors_mas) -> np.ndarray:
         """The prior term t of Eq. 18 for each prior width, contiguous (the kernels' input)."""
         priors = np.atleast_1d(np.asarray(priors_mas, float))

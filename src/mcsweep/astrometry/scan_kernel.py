@@ -30,7 +30,7 @@ import numba
 import numpy as np
 
 __all__ = ["REDUCE_BLOCK", "JACOBI_SWEEPS", "JACOBI_NEGLIGIBLE", "reduce_normals", "reduce_shared_design",
-           "inside_flags_grid", "inside_counts_grid"]
+           "inside_flags_grid", "inside_counts_grid", "position_statistics_grid"]
 
 _jit = numba.njit(cache=True, nogil=True, fastmath=False, error_model="numpy", boundscheck=False)
 
@@ -339,3 +339,47 @@ def inside_counts_grid(x0, ainv, g, c, lam, worst, ts, k_threshold, n_inside, n_
                 key_inside[s] |= bit * np.uint64(ins)
         n_inside[i] = n_in
         n_valid[i] = n_ok
+
+
+@_jit
+def position_statistics_grid(x0, ainv, g, c, lam, worst, ts, k_threshold, err, semi_major):
+    """Fill ``err`` and ``semi_major`` (m, n): each star's actual position error and the
+    semi-major axis of its P ellipse (``k_threshold``: the chi-square quantile) at the priors
+    ``ts`` (m,); NaN where the star has no solution (``worst``, as in :func:`inside_flags_grid`).
+
+    The arithmetic of :meth:`mcsweep.astrometry.prior_scan.PriorScan.position` followed by
+    ``hypot`` of the position and :func:`mcsweep.astrometry.confidence.ellipse_semi_axes`,
+    operation for operation, so the values are the numpy path's bit for bit
+    (tests/astrometry/test_prior_scan.py), in one pass with no (n, 2, 2) arrays.
+    """
+    n = worst.shape[0]
+    nan = np.nan
+    for i in range(ts.shape[0]):
+        t = ts[i]
+        for s in range(n):
+            w0 = 1.0 / (lam[0, s] + t)
+            w1 = 1.0 / (lam[1, s] + t)
+            w2 = 1.0 / (lam[2, s] + t)
+            wc0 = w0 * c[0, s]
+            wc1 = w1 * c[1, s]
+            wc2 = w2 * c[2, s]
+            d0 = x0[0, s] - ((g[0, 0, s] * wc0 + g[0, 1, s] * wc1) + g[0, 2, s] * wc2)
+            d1 = x0[1, s] - ((g[1, 0, s] * wc0 + g[1, 1, s] * wc1) + g[1, 2, s] * wc2)
+            wg0 = w0 * g[0, 0, s]
+            wg1 = w1 * g[0, 1, s]
+            wg2 = w2 * g[0, 2, s]
+            a = ainv[0, s] + ((wg0 * g[0, 0, s] + wg1 * g[0, 1, s]) + wg2 * g[0, 2, s])
+            b = ainv[1, s] + ((wg0 * g[1, 0, s] + wg1 * g[1, 1, s]) + wg2 * g[1, 2, s])
+            e = ainv[2, s] + ((w0 * (g[1, 0, s] * g[1, 0, s]) + w1 * (g[1, 1, s] * g[1, 1, s]))
+                              + w2 * (g[1, 2, s] * g[1, 2, s]))
+            good = worst[s] + t > 0.0
+            d0 = d0 if good else nan
+            d1 = d1 if good else nan
+            a = a if good else nan
+            b = b if good else nan
+            e = e if good else nan
+            # ellipse_semi_axes: b is the mean of the two off-diagonal elements (equal here)
+            b = 0.5 * (b + b)
+            lam_max = 0.5 * (a + e) + np.hypot(0.5 * (a - e), b)
+            err[i, s] = np.hypot(d0, d1)
+            semi_major[i, s] = np.sqrt(k_threshold * lam_max)

@@ -273,16 +273,10 @@ def scan_arrays(scan: PriorScan, priors_mas, s: CellSettings, *, statistics: boo
 
 
 def _statistics(scan: PriorScan, priors, s: CellSettings):
-    """Each star's actual position error and its ellipse's semi-major axis at every prior."""
-    err = np.empty((len(priors), scan.n))
-    semi = np.empty((len(priors), scan.n))
-    for i, p in enumerate(priors):
-        dpos, cov2 = scan.position(p)
-        # True position offsets are zero at the reference epoch, so the solved
-        # position is the actual error (Sect. 3.2).
-        err[i] = np.hypot(dpos[:, 0], dpos[:, 1])
-        semi[i] = ellipse_semi_axes(cov2, s.confidence)[0]
-    return err, semi
+    """Each star's actual position error and its ellipse's semi-major axis at every prior
+    (true position offsets are zero at the reference epoch, so the solved position is the
+    actual error, Sect. 3.2)."""
+    return scan.position_statistics(priors, s.confidence)
 
 
 def _curve_arrays(priors, n_in, n_valid, err, semi_major, s: CellSettings) -> dict:

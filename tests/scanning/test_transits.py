@@ -221,7 +221,7 @@ def test_same_seed_same_result_and_different_seed_different_result():
 def test_results_do_not_depend_on_chunks_or_processes(monkeypatch):
     ra, dec = _random_sky(200, seed=4)
     one = _options_run(ra, dec, 7)
-    # chunk = max(64, entries // (n_cells + 1)) = 64 stars: several chunks inside each block
+    # chunk = max(64, entries // (n_intervals + 1)) = 64 stars: several chunks inside each block
     monkeypatch.setattr(transits_module, "_F_ENTRIES_PER_CHUNK", 1)
     monkeypatch.setattr(transits_module, "_STARS_PER_BLOCK", 70)
     two = _options_run(ra, dec, 7, n_jobs=2)

@@ -1,18 +1,19 @@
-"""The transit search itself: cells, candidates and refinement, for one chunk of stars.
+"""The transit search itself: intervals, candidates and refinement, for one chunk of stars.
 
 Method (vectorised over stars in chunks, no loop over stars or transits):
 
 1. *Nodes.* z(t) is sampled every ~0.98 day (:data:`NODE_STEP_SPIN_FRACTION` spin
-   periods, less twice :data:`PREDICTION_WINDOW_DAYS`) over the interval.
-2. *Cells.* For a chunk of stars, ``F = U Z^T`` (float32) gives f at every node. A
-   cell ``[t_k, t_k+1)`` can hold an accepted transit only if f changes sign in it or
+   periods, less twice :data:`PREDICTION_WINDOW_DAYS`) over the searched time range;
+   the span between two consecutive nodes is an *interval*.
+2. *Intervals.* For a chunk of stars, ``F = U Z^T`` (float32) gives f at every node. An
+   interval ``[t_k, t_k+1)`` can hold an accepted transit only if f changes sign in it or
    ``min(|f_k|, |f_k+1|) <= sin(max |zeta|) + M2 dt**2 / 8``, where M2 bounds
-   ``|f''| <= |z''|`` (linear-interpolation error bound). All other cells are dropped.
-3. *Candidates.* In a kept cell, the times at which phi passes each FoV azimuth are
+   ``|f''| <= |z''|`` (linear-interpolation error bound). All other intervals are dropped.
+3. *Candidates.* In a kept interval, the times at which phi passes each FoV azimuth are
    predicted from phi at the two nodes: ``phi + omega_z (t - t_k)`` varies slowly
    (``d phi / dt = -omega_z`` up to terms ~ omega_precession * tan zeta) and is
    interpolated linearly, which predicts the passages to ~1 s. f there comes from the
-   cubic Hermite interpolant of f and f' at the cell's nodes (error < 1e-6).
+   cubic Hermite interpolant of f and f' at the interval's nodes (error < 1e-6).
    Candidates whose predicted sin(zeta) lies outside the acceptance by more than
    :data:`PRUNE_MARGIN` are dropped.
 4. *Refinement.* One Newton step on ``phi(t) = FoV azimuth`` with the full attitude
@@ -21,17 +22,17 @@ Method (vectorised over stars in chunks, no loop over stars or transits):
    an error < 1e-4 s (5e-5 s measured over 1.8e6 transits; the tests check < 1e-3 s).
    zeta is carried to the root with the Hermite f'; the scan angle uses the spin axis
    of the evaluation (< 2 s away; error < 1e-4 deg, 5e-5 deg measured). A transit is
-   kept if zeta is accepted and its time lies in the cell that proposed it, so each
+   kept if zeta is accepted and its time lies in the interval that proposed it, so each
    transit is found exactly once.
 
-Segments (:mod:`mcsweep.scanning.segments`): the interval is cut at the law's segment
+Segments (:mod:`mcsweep.scanning.segments`): the time range is cut at the law's segment
 boundaries and each piece gets its own node grid, evaluated with its own segment's
 law (the last node may lie past the piece's end: the segment's law, extrapolated).
-The grids are concatenated, so one matrix product per chunk still flags the cells of
-all pieces; the cell joining two pieces is never flagged, and a transit is kept only
+The grids are concatenated, so one matrix product per chunk still flags the intervals of
+all pieces; the interval joining two pieces is never flagged, and a transit is kept only
 inside its own piece ``[lo, hi)``. A transit at a boundary therefore belongs to
 exactly one segment (the one whose interval holds its time under that segment's
-law), and the gaps between segments have no cells at all.
+law), and the gaps between segments have no intervals at all.
 
 The public entry point is :func:`mcsweep.scanning.find_transits`; this module holds the
 per-chunk numerics so that :mod:`mcsweep.scanning.transits` only deals with inputs,
@@ -58,21 +59,21 @@ __all__ = [
     "Nodes",
     "ChunkBuffers",
     "build_nodes",
-    "flag_cells",
+    "flag_intervals",
     "chunk_transits",
     "run_block",
     "spin_axis_and_rate",
 ]
 
-#: Candidates predicted up to this much outside their cell are still refined [day]
+#: Candidates predicted up to this much outside their interval are still refined [day]
 #: (the prediction is good to ~1 s; this is 170 s).
 PREDICTION_WINDOW_DAYS = 0.002
 #: Spacing of the spin-axis nodes in spin periods (minus twice the prediction window):
-#: ~0.98 day. Coarser nodes mean fewer cells to test per star but more candidates per
-#: cell; 3-8 spins are equally fast, 1 spin is ~1.8x slower.
+#: ~0.98 day. Coarser nodes mean fewer intervals to test per star but more candidates per
+#: interval; 3-8 spins are equally fast, 1 spin is ~1.8x slower.
 NODE_STEP_SPIN_FRACTION = 3.95
 #: Margin on sin(zeta) when pruning predicted candidates [rad]. The predicted f is good
-#: to ~1e-6 (Hermite error over a ~1 day cell < 1e-6, plus the transit-time prediction
+#: to ~1e-6 (Hermite error over a ~1 day interval < 1e-6, plus the transit-time prediction
 #: error ~1 s x |df/dt| < 0.15 rad/day = 2e-6).
 PRUNE_MARGIN = 1e-4
 # Safety factor on the numerically determined bound of |z''|.
@@ -86,16 +87,16 @@ _TWO_PI = 2.0 * math.pi
 class Nodes:
     """Spin-axis samples on the node grids of all pieces plus what the candidate step needs.
 
-    Cell ``c`` lies between nodes ``c`` and ``c + 1``; the cells joining two pieces are
+    Interval ``c`` lies between nodes ``c`` and ``c + 1``; the intervals joining two pieces are
     not ``valid``.
     """
 
-    cell_t0: np.ndarray   # (K+1,) start of each cell [TCB JD] (the node times)
-    cell_step: np.ndarray  # (K+1,) length of each cell [day] (its piece's step)
-    cell_seg: np.ndarray  # (K+1,) segment index of each cell's piece
-    cell_lo: np.ndarray   # (K+1,) start of each cell's piece (transits kept in [lo, hi))
-    cell_hi: np.ndarray   # (K+1,) end of each cell's piece
-    valid: np.ndarray | None  # (K,) bool, False for the cells joining two pieces; None: one piece
+    interval_t0: np.ndarray   # (K+1,) start of each interval [TCB JD] (the node times)
+    interval_step: np.ndarray  # (K+1,) length of each interval [day] (its piece's step)
+    interval_seg: np.ndarray  # (K+1,) segment index of each interval's piece
+    interval_lo: np.ndarray   # (K+1,) start of each interval's piece (transits kept in [lo, hi))
+    interval_hi: np.ndarray   # (K+1,) end of each interval's piece
+    valid: np.ndarray | None  # (K,) bool, False for the intervals joining two pieces; None: one piece
     max_step: float
     single: bool          # one piece: the refinement evaluates its segment directly
     z32: np.ndarray       # (K+1, 3) float32
@@ -107,7 +108,7 @@ class Nodes:
     threshold: float      # flag threshold on |f|
 
     @property
-    def n_cells(self) -> int:
+    def n_intervals(self) -> int:
         return self.z.shape[0] - 1
 
 
@@ -132,11 +133,11 @@ def spin_axis_and_rate(att: Attitude, t):
 def _piece_nodes(att: Attitude, start_jd: float, end_jd: float) -> dict:
     """Node grid over one piece ``[start_jd, end_jd]`` of one segment and its flag threshold."""
     step = NODE_STEP_SPIN_FRACTION * att.law.spin_period_days - 2.0 * PREDICTION_WINDOW_DAYS
-    n_cells = max(1, math.ceil((end_jd - start_jd) / step))
-    t = start_jd + step * np.arange(n_cells + 1)
+    n_intervals = max(1, math.ceil((end_jd - start_jd) / step))
+    t = start_jd + step * np.arange(n_intervals + 1)
     z, z_dot, lam, nu, omega = spin_axis_and_rate(att, t)
     a, b, _ = frame_axes_from_angles(lam, nu, math.radians(att.law.solar_aspect_deg))
-    # Bound on |z''| from finite differences of z' on a fine grid over the interval.
+    # Bound on |z''| from finite differences of z' on a fine grid over the piece.
     fine_step = 0.01
     tf = np.arange(start_jd - step, end_jd + 2 * step, fine_step)
     _, zd_fine, _, _, _ = spin_axis_and_rate(att, tf)
@@ -147,9 +148,9 @@ def _piece_nodes(att: Attitude, start_jd: float, end_jd: float) -> dict:
 
 
 def build_nodes(att: SegmentedAttitude, start_jd: float, end_jd: float) -> Nodes | None:
-    """Node grids over the pieces of ``[start_jd, end_jd)`` and the cell-flag threshold (steps 1-2).
+    """Node grids over the pieces of ``[start_jd, end_jd)`` and the interval-flag threshold (steps 1-2).
 
-    None when the interval lies entirely in a gap between segments (no transits).
+    None when the time range lies entirely in a gap between segments (no transits).
     """
     pieces = att.pieces(start_jd, end_jd)
     if not pieces:
@@ -165,15 +166,15 @@ def build_nodes(att: SegmentedAttitude, start_jd: float, end_jd: float) -> Nodes
     if len(grids) > 1:
         valid = np.ones(z.shape[0] - 1, dtype=bool)
         valid[np.cumsum(sizes)[:-1] - 1] = False  # from a piece's last node to the next piece's first
-    return Nodes(cell_t0=np.concatenate([g["t"] for g in grids]),
-                 cell_step=per_node([g["step"] for g in grids]),
-                 cell_seg=per_node([k for k, _, _ in pieces]).astype(np.int64),
-                 cell_lo=per_node([lo for _, lo, _ in pieces]), cell_hi=per_node([hi for _, _, hi in pieces]),
+    return Nodes(interval_t0=np.concatenate([g["t"] for g in grids]),
+                 interval_step=per_node([g["step"] for g in grids]),
+                 interval_seg=per_node([k for k, _, _ in pieces]).astype(np.int64),
+                 interval_lo=per_node([lo for _, lo, _ in pieces]), interval_hi=per_node([hi for _, _, hi in pieces]),
                  valid=valid, max_step=max(g["step"] for g in grids), single=len(grids) == 1,
                  z32=z.astype(np.float32), z=z, z_dot=np.concatenate([g["z_dot"] for g in grids]),
                  a=np.concatenate([g["a"] for g in grids]), b=np.concatenate([g["b"] for g in grids]),
                  omega=np.concatenate([g["omega"] for g in grids]),
-                 # The largest piece threshold is safe for all (a cell flagged too many is only tested).
+                 # The largest piece threshold is safe for all (an interval flagged too many is only tested).
                  threshold=max(g["threshold"] for g in grids))
 
 
@@ -190,7 +191,7 @@ def _fov_specs(law: ScanningLaw):
 
 
 class ChunkBuffers:
-    """Work arrays of the cell-flagging step, reused across chunks (no page faults per chunk)."""
+    """Work arrays of the interval-flagging step, reused across chunks (no page faults per chunk)."""
 
     def __init__(self, rows: int, cols: int):
         self.f32 = np.empty((rows, cols), dtype=np.float32)
@@ -200,8 +201,8 @@ class ChunkBuffers:
         self.prod = np.empty((rows, cols - 1), dtype=np.int8)
 
 
-def flag_cells(u_ecl, nodes: Nodes, buf: ChunkBuffers):
-    """(star, cell) pairs whose cell may hold an accepted transit (step 2 of the module notes)."""
+def flag_intervals(u_ecl, nodes: Nodes, buf: ChunkBuffers):
+    """(star, interval) pairs whose interval may hold an accepted transit (step 2 of the module notes)."""
     n = u_ecl.shape[0]
     f32, above, below = buf.f32[:n], buf.above[:n], buf.below[:n]
     cls, prod = buf.cls[:n], buf.prod[:n]
@@ -213,11 +214,11 @@ def flag_cells(u_ecl, nodes: Nodes, buf: ChunkBuffers):
     # class product <= 0: a zero class (|f| <= thr) at either end, or a sign change.
     np.multiply(cls[:, :-1], cls[:, 1:], out=prod)
     flat = np.flatnonzero(prod <= 0)
-    star, cell = np.divmod(flat, nodes.n_cells)
+    star, interval = np.divmod(flat, nodes.n_intervals)
     if nodes.valid is not None:
-        ok = nodes.valid[cell]
-        star, cell = star[ok], cell[ok]
-    return star, cell
+        ok = nodes.valid[interval]
+        star, interval = star[ok], interval[ok]
+    return star, interval
 
 
 def chunk_transits(u_ecl, north_ecl, east_ecl, first_index, nodes: Nodes, att: SegmentedAttitude,
@@ -231,18 +232,18 @@ def chunk_transits(u_ecl, north_ecl, east_ecl, first_index, nodes: Nodes, att: S
     law = att.law
     omega_z = law.spin_rate_rad_day
     xi = math.radians(law.solar_aspect_deg)
-    # --- 2. cells that may hold an accepted transit
-    star, cell = flag_cells(u_ecl, nodes, buf)
+    # --- 2. intervals that may hold an accepted transit
+    star, interval = flag_intervals(u_ecl, nodes, buf)
     u = u_ecl[star]
-    t_k = nodes.cell_t0[cell]
-    step = nodes.cell_step[cell]
-    f0, f1 = _dot(u, nodes.z[cell]), _dot(u, nodes.z[cell + 1])
-    d0, d1 = _dot(u, nodes.z_dot[cell]) * step, _dot(u, nodes.z_dot[cell + 1]) * step
+    t_k = nodes.interval_t0[interval]
+    step = nodes.interval_step[interval]
+    f0, f1 = _dot(u, nodes.z[interval]), _dot(u, nodes.z[interval + 1])
+    d0, d1 = _dot(u, nodes.z_dot[interval]) * step, _dot(u, nodes.z_dot[interval + 1]) * step
     # Azimuth phi at both nodes; its slow part phi + omega_z (t - t_k) is interpolated linearly.
-    phi0 = np.arctan2(_dot(u, nodes.b[cell]), _dot(u, nodes.a[cell])) - nodes.omega[cell]
-    phi1 = np.arctan2(_dot(u, nodes.b[cell + 1]), _dot(u, nodes.a[cell + 1])) - nodes.omega[cell + 1]
+    phi0 = np.arctan2(_dot(u, nodes.b[interval]), _dot(u, nodes.a[interval])) - nodes.omega[interval]
+    phi1 = np.arctan2(_dot(u, nodes.b[interval + 1]), _dot(u, nodes.a[interval + 1])) - nodes.omega[interval + 1]
     slow = np.mod(phi1 - phi0 + omega_z * step + math.pi, _TWO_PI) - math.pi
-    rate = omega_z - slow / step  # -d phi / dt across the cell [rad/day]
+    rate = omega_z - slow / step  # -d phi / dt across the interval [rad/day]
     # --- 3. candidates: predicted FoV passages and the Hermite-interpolated f there
     window = PREDICTION_WINDOW_DAYS
     n_j = math.ceil((nodes.max_step + 2.0 * window) * float(np.max(rate, initial=omega_z)) / _TWO_PI)
@@ -272,11 +273,11 @@ def chunk_transits(u_ecl, north_ecl, east_ecl, first_index, nodes: Nodes, att: S
     # --- 4. refinement: one Newton step on phi(t) = FoV azimuth with the full attitude
     half = 0.5 * math.radians(law.basic_angle_deg)
     azimuth = np.where(fov == 1, -half, half)
-    # Each candidate in its cell's segment (near a boundary, the time alone could name the other one).
+    # Each candidate in its interval's segment (near a boundary, the time alone could name the other one).
     if nodes.single:
-        lam, nu, omega = att.parts[int(nodes.cell_seg[0])].lam_nu_omega(t_eval)
+        lam, nu, omega = att.parts[int(nodes.interval_seg[0])].lam_nu_omega(t_eval)
     else:
-        lam, nu, omega = att.lam_nu_omega(t_eval, seg=nodes.cell_seg[cell[pair]])
+        lam, nu, omega = att.lam_nu_omega(t_eval, seg=nodes.interval_seg[interval[pair]])
     trig = (np.cos(lam), np.sin(lam), np.cos(nu), np.sin(nu))
     psi_w, zc = scan_frame_from_trig(u[pair], *trig, xi)
     resid = np.mod(psi_w - omega - azimuth + math.pi, _TWO_PI) - math.pi
@@ -286,9 +287,9 @@ def chunk_transits(u_ecl, north_ecl, east_ecl, first_index, nodes: Nodes, att: S
     f_lo, f_hi = (math.radians(v) for v in law.ac_limits_f_deg)
     is_f = fov == 1
     tk_c = t_k[pair]
-    cell_c = cell[pair]
+    interval_c = interval[pair]
     keep = ((zeta > np.where(is_f, f_lo, p_lo)) & (zeta < np.where(is_f, f_hi, p_hi))
-            & (t >= tk_c) & (t < tk_c + step[pair]) & (t >= nodes.cell_lo[cell_c]) & (t < nodes.cell_hi[cell_c]))
+            & (t >= tk_c) & (t < tk_c + step[pair]) & (t >= nodes.interval_lo[interval_c]) & (t < nodes.interval_hi[interval_c]))
     if opts["dead"] is not None:
         keep &= ~opts["dead"].is_dead(t)
     src = star[pair] + first_index
@@ -302,7 +303,7 @@ def chunk_transits(u_ecl, north_ecl, east_ecl, first_index, nodes: Nodes, att: S
     z_spin = spin_axis_from_trig(*(c[idx] for c in trig), xi)
     psi = np.mod(np.degrees(np.arctan2(_dot(z_spin, north_ecl[local]), -_dot(z_spin, east_ecl[local]))),
                  360.0)
-    # Pairs are in (star, time) order and every kept transit lies in its pair's cell.
+    # Pairs are in (star, time) order and every kept transit lies in its pair's interval.
     order = np.argsort(pair[idx] + (t - t_k[pair[idx]]) / step[pair[idx]], kind="stable")
     src, t, fov, psi, zeta = src[order], t[order], fov[order], psi[order], zeta[order]
     if opts["compact"]:
@@ -327,7 +328,7 @@ def chunk_transits(u_ecl, north_ecl, east_ecl, first_index, nodes: Nodes, att: S
 
 def run_block(u_ecl, north_ecl, east_ecl, first_index, nodes, att, opts, chunk) -> list:
     """Transits of a block of stars, processed in chunks of ``chunk`` stars: a list of column dicts."""
-    buf = ChunkBuffers(min(chunk, u_ecl.shape[0]), nodes.n_cells + 1)
+    buf = ChunkBuffers(min(chunk, u_ecl.shape[0]), nodes.n_intervals + 1)
     parts = []
     for lo in range(0, u_ecl.shape[0], chunk):
         hi = min(lo + chunk, u_ecl.shape[0])

@@ -73,8 +73,12 @@ def _annotate(args) -> str:
     t0 = time.perf_counter()
     n = [0]
 
+    if args.old_mean_columns:
+        print(f"{PROG}: --old-mean-columns is deprecated: the prior's centre is named prior_mean_parallax_mas, "
+              "prior_mean_pmra_mas_yr and prior_mean_pmdec_mas_yr, as in the tables of solve", file=sys.stderr)
+
     def write(tmp):
-        n[0] = annotate_file(args.catalogue, tmp, prior, out_format=fmt_out)
+        n[0] = annotate_file(args.catalogue, tmp, prior, out_format=fmt_out, old_mean_columns=args.old_mean_columns)
 
     _publish(args.out, write)
     dt = time.perf_counter() - t0
@@ -171,6 +175,10 @@ def _parser() -> argparse.ArgumentParser:
     a = sub.add_parser("annotate", help="add sigma_f90_parallax [mas] and sigma_f90_pm [mas/yr] to a catalogue")
     a.add_argument("catalogue", type=Path, help="FITS, VOTable, ECSV, CSV or Parquet file with Gaia column names")
     prior_options(a)
+    a.add_argument("--old-mean-columns", action="store_true",
+                   help="deprecated: name a mean-centred prior's centre prior_mean_parallax, prior_mean_pmra and "
+                        "prior_mean_pmdec, as before (now prior_mean_parallax_mas, prior_mean_pmra_mas_yr, "
+                        "prior_mean_pmdec_mas_yr)")
     a.set_defaults(run_command=_annotate)
 
     s = sub.add_parser("solve", help="solve your own FoV transits of a few sources with the prior")

@@ -46,8 +46,8 @@ def _expected(prior, cat, colour):
     g = cat["phot_g_mean_mag"].to_numpy()
     pmra, pmdec = prior.mean_pm_masyr(l_deg, b_deg, g, colour)
     return {"sigma_f90_parallax": prior.sigma_parallax_mas(l_deg, b_deg, g, colour),
-            "prior_mean_parallax": prior.mean_parallax_mas(l_deg, b_deg, g, colour),
-            "prior_mean_pmra": pmra, "prior_mean_pmdec": pmdec,
+            "prior_mean_parallax_mas": prior.mean_parallax_mas(l_deg, b_deg, g, colour),
+            "prior_mean_pmra_mas_yr": pmra, "prior_mean_pmdec_mas_yr": pmdec,
             "prior_colour_bin": prior.colour_bin_label(colour)}
 
 
@@ -67,11 +67,26 @@ def test_annotate_with_bp_rp_column(colour_mean_run, tmp_path):
     assert r.returncode == 0, r.stderr
     got = pd.read_csv(tmp_path / "out.csv", keep_default_na=False, na_values=[""])
     assert list(got.columns) == list(cat.columns) + ["sigma_f90_parallax", "sigma_f90_pm", "prior_colour_bin",
-                                                     "prior_mean_parallax", "prior_mean_pmra", "prior_mean_pmdec"]
+                                                     "prior_mean_parallax_mas", "prior_mean_pmra_mas_yr",
+                                                     "prior_mean_pmdec_mas_yr"]
     prior = Prior.from_run(colour_mean_run)
     _check(got, _expected(prior, cat, cat["bp_rp"].to_numpy()))
     assert (got["prior_colour_bin"][::4] == "colour_blind").all()
     assert set(got["prior_colour_bin"]) == {"colour_blind", "-1..0.56", "0.56..1.23", "1.23..6"}
+
+
+def test_annotate_names_the_prior_centre_as_solve_does_and_keeps_the_old_names_on_request(colour_mean_run, tmp_path):
+    cat = _catalogue(seed=7)
+    cat.to_csv(tmp_path / "in.csv", index=False)
+    r = run("annotate", tmp_path / "in.csv", "--out", tmp_path / "old.csv", "--run", colour_mean_run,
+            "--old-mean-columns")
+    assert r.returncode == 0, r.stderr
+    assert r.stderr.count("deprecated") == 1 and "prior_mean_parallax_mas" in r.stderr
+    got = pd.read_csv(tmp_path / "old.csv", keep_default_na=False, na_values=[""])
+    assert list(got.columns)[-3:] == ["prior_mean_parallax", "prior_mean_pmra", "prior_mean_pmdec"]
+    exp = _expected(Prior.from_run(colour_mean_run), cat, cat["bp_rp"].to_numpy())
+    _check(got.rename(columns=dict(zip(got.columns[-3:], ("prior_mean_parallax_mas", "prior_mean_pmra_mas_yr",
+                                                            "prior_mean_pmdec_mas_yr")))), exp)
 
 
 def test_annotate_with_bp_and_rp_magnitudes(colour_mean_run, tmp_path):
@@ -86,7 +101,7 @@ def test_annotate_with_bp_and_rp_magnitudes(colour_mean_run, tmp_path):
     r = run("annotate", tmp_path / "in.parquet", "--out", tmp_path / "out.parquet", "--run", colour_mean_run)
     assert r.returncode == 0, r.stderr
     got = pq.read_table(tmp_path / "out.parquet")
-    assert got.schema.field("prior_mean_pmra").metadata[b"unit"] == b"mas / yr"
+    assert got.schema.field("prior_mean_pmra_mas_yr").metadata[b"unit"] == b"mas / yr"
     prior = Prior.from_run(colour_mean_run)
     _check(got.to_pandas(), _expected(prior, cat, bp - rp.to_numpy()))
 

@@ -9,8 +9,10 @@ For a prior with a colour axis (:attr:`Prior.has_colour`) the star's BP-RP comes
 NaN values (and a catalogue without these columns) get the colour-blind prior of the
 same run. The column ``prior_colour_bin`` says which prior each row got: the bin as
 ``'lo..hi'`` (mag) or ``'colour_blind'``. For a mean-centred prior (:attr:`Prior.has_mean`)
-the prior's centre is added too: ``prior_mean_parallax`` [mas], ``prior_mean_pmra`` and
-``prior_mean_pmdec`` [mas/yr, ICRS, pmra = mu_alpha* as in the Gaia archive]. For the
+the prior's centre is added too: ``prior_mean_parallax_mas``, ``prior_mean_pmra_mas_yr`` and
+``prior_mean_pmdec_mas_yr`` (ICRS, pmra = mu_alpha* as in the Gaia archive), the names
+``mcsweep-prior solve`` gives them; ``old_mean_columns`` writes them under their former names
+``prior_mean_parallax``, ``prior_mean_pmra`` and ``prior_mean_pmdec`` (deprecated). For the
 paper's prior and a plain run's the output is the two sigma columns only.
 
 Formats: FITS, VOTable, ECSV, CSV and Parquet (by suffix). Parquet to
@@ -31,22 +33,24 @@ from ..errors import UserInputError
 from ..tables import FORMATS, detect_format
 from ..tables.formats import ASTROPY_FORMAT
 from ..tables.read import arrow_batches, astropy_table, csv_batches
-from .columns import finite_column, unit_scale
+from .columns import PRIOR_MEAN_COLUMNS, finite_column, unit_scale
 from ..galactic import galactic_from_icrs
+from ..renamed_names import old_names
 from .model import Prior
 
-__all__ = ["FORMATS", "PARALLAX_COLUMN", "PM_COLUMN", "COLOUR_BIN_COLUMN", "MEAN_COLUMNS", "detect_format",
-           "output_columns", "annotate_file"]
+__all__ = ["FORMATS", "PARALLAX_COLUMN", "PM_COLUMN", "COLOUR_BIN_COLUMN", "PRIOR_MEAN_COLUMNS",
+           "OLD_PRIOR_MEAN_COLUMNS", "detect_format", "output_columns", "annotate_file"]
 
 PARALLAX_COLUMN = "sigma_f90_parallax"
 PM_COLUMN = "sigma_f90_pm"
 #: Which prior a row got (a prior with a colour axis): the BP-RP bin 'lo..hi' or 'colour_blind'.
 COLOUR_BIN_COLUMN = "prior_colour_bin"
-#: The prior's centre (a mean-centred prior): parallax [mas], pmra*, pmdec [mas/yr, ICRS].
-MEAN_COLUMNS = ("prior_mean_parallax", "prior_mean_pmra", "prior_mean_pmdec")
+#: The former names of the prior's centre (:data:`mcsweep.prior.columns.PRIOR_MEAN_COLUMNS`), written with ``old_mean_columns`` (deprecated).
+OLD_PRIOR_MEAN_COLUMNS = ("prior_mean_parallax", "prior_mean_pmra", "prior_mean_pmdec")
 #: Units of the added columns (None: a string column).
-_UNITS = {PARALLAX_COLUMN: "mas", PM_COLUMN: "mas / yr", COLOUR_BIN_COLUMN: None, MEAN_COLUMNS[0]: "mas",
-          MEAN_COLUMNS[1]: "mas / yr", MEAN_COLUMNS[2]: "mas / yr"}
+_UNITS = {PARALLAX_COLUMN: "mas", PM_COLUMN: "mas / yr", COLOUR_BIN_COLUMN: None}
+for _names in (PRIOR_MEAN_COLUMNS, OLD_PRIOR_MEAN_COLUMNS):
+    _UNITS.update(zip(_names, ("mas", "mas / yr", "mas / yr")))
 #: Rows per batch when streaming (about 25 MB of float64 columns at 12 columns).
 BATCH_ROWS = 262_144
 
@@ -56,10 +60,17 @@ def _find(names, wanted: str):
     return low.get(wanted)
 
 
-def output_columns(prior: Prior) -> list[str]:
-    """Names of the columns ``annotate`` adds for this prior, in order."""
+def output_columns(prior: Prior, *, old_mean_columns: bool = False) -> list[str]:
+    """Names of the columns ``annotate`` adds for this prior, in order (``old_mean_columns``:
+    the prior's centre under its former, deprecated names)."""
+    means = OLD_PRIOR_MEAN_COLUMNS if old_mean_columns else PRIOR_MEAN_COLUMNS
     return [PARALLAX_COLUMN, PM_COLUMN] + ([COLOUR_BIN_COLUMN] if prior.has_colour else []) \
-        + (list(MEAN_COLUMNS) if prior.has_mean else [])
+        + (list(means) if prior.has_mean else [])
+
+
+def _renamed(old_mean_columns: bool) -> dict[str, str]:
+    """Current -> written name of the added columns."""
+    return dict(zip(PRIOR_MEAN_COLUMNS, OLD_PRIOR_MEAN_COLUMNS)) if old_mean_columns else {}
 
 
 def _colour_columns(names) -> tuple[str, ...]:
@@ -123,28 +134,29 @@ def _all_columns(prior: Prior, kind: str, lon, lat, g, bp_rp) -> dict[str, np.nd
     if prior.has_colour:
         out[COLOUR_BIN_COLUMN] = prior.colour_bin_label(np.full(sig.shape, np.nan) if bp_rp is None else bp_rp)
     if prior.has_mean:
-        out[MEAN_COLUMNS[0]] = prior.mean_parallax_mas(l_deg, b_deg, g, bp_rp)
-        out[MEAN_COLUMNS[1]], out[MEAN_COLUMNS[2]] = prior.mean_pm_masyr(l_deg, b_deg, g, bp_rp)
+        out[PRIOR_MEAN_COLUMNS[0]] = prior.mean_parallax_mas(l_deg, b_deg, g, bp_rp)
+        out[PRIOR_MEAN_COLUMNS[1]], out[PRIOR_MEAN_COLUMNS[2]] = prior.mean_pm_masyr(l_deg, b_deg, g, bp_rp)
     return out
 
 
-def _prior_of_table(prior, kind, pos, gcol, get, units, source, colour_cols=()):
+def _prior_of_table(prior, kind, pos, gcol, get, units, source, colour_cols=(), rename=None):
     lon = _values(get(pos[0]), pos[0], source, units.get(pos[0]), True)
     lat = _values(get(pos[1]), pos[1], source, units.get(pos[1]), True)
     g = _values(get(gcol), gcol, source, units.get(gcol), False)
     if np.any(np.abs(lat) > 90.0):
         raise UserInputError(f"{source}: column {pos[1]} has values beyond +-90 deg; expected latitudes in degrees")
     bp_rp = _colour(get, colour_cols, source, units) if prior.has_colour else None
-    return _all_columns(prior, kind, lon, lat, g, bp_rp)
+    return {(rename or {}).get(k, k): v for k, v in _all_columns(prior, kind, lon, lat, g, bp_rp).items()}
 
 
 def annotate_file(src: Path, dst: Path, prior: Prior, *, out_format: str | None = None,
-                  batch_rows: int = BATCH_ROWS) -> int:
+                  batch_rows: int = BATCH_ROWS, old_mean_columns: bool = False) -> int:
     """Write ``src`` with the prior's columns (module notes) added to ``dst``; returns the number of rows.
 
     ``out_format`` defaults to the format of ``dst``'s suffix (``dst`` may be a
-    temporary name without one). Raises UserInputError for unreadable files, missing
-    columns, wrong units and non-finite values.
+    temporary name without one). ``old_mean_columns``: the prior's centre under its former
+    names (:data:`OLD_PRIOR_MEAN_COLUMNS`; deprecated). Raises UserInputError for
+    unreadable files, missing columns, wrong units and non-finite values.
     """
     src, dst = Path(src), Path(dst)
     fmt_in = detect_format(src)
@@ -152,20 +164,21 @@ def annotate_file(src: Path, dst: Path, prior: Prior, *, out_format: str | None 
     if not src.is_file():
         raise UserInputError(f"catalogue {src} does not exist; expected a readable file")
     source = src.name
+    rename = _renamed(old_mean_columns)
     if fmt_in == fmt_out == "parquet":
-        return _parquet_stream(src, dst, prior, source, batch_rows)
+        return _parquet_stream(src, dst, prior, source, batch_rows, rename)
     if fmt_in == fmt_out == "csv":
-        return _csv_stream(src, dst, prior, source, batch_rows)
-    return _astropy_whole(src, dst, prior, source, fmt_in, fmt_out)
+        return _csv_stream(src, dst, prior, source, batch_rows, rename)
+    return _astropy_whole(src, dst, prior, source, fmt_in, fmt_out, rename)
 
 
-def _parquet_stream(src, dst, prior, source, batch_rows) -> int:
+def _parquet_stream(src, dst, prior, source, batch_rows, rename) -> int:
     import pyarrow as pa
     import pyarrow.parquet as pq
 
     schema_in, batches = arrow_batches(src, batch_rows, what="catalogue")
     names = schema_in.names
-    added = output_columns(prior)
+    added = output_columns(prior, old_mean_columns=bool(rename))
     kind, pos, gcol = _columns(names, source, added)
     colour_cols = _colour_columns(names)
     # Units a writer may have stored as field metadata (astropy, our own files) are honoured.
@@ -183,22 +196,22 @@ def _parquet_stream(src, dst, prior, source, batch_rows) -> int:
     with pq.ParquetWriter(dst, schema) as writer:
         for batch in batches:
             cols = _prior_of_table(prior, kind, pos, gcol, lambda c: batch.column(c).to_numpy(zero_copy_only=False),
-                                   units, source, colour_cols)
+                                   units, source, colour_cols, rename)
             out = pa.RecordBatch.from_arrays([*batch.columns, *(pa.array(cols[c]) for c in added)], schema=schema)
             writer.write_batch(out)
             n += batch.num_rows
     return n
 
 
-def _csv_stream(src, dst, prior, source, batch_rows) -> int:
+def _csv_stream(src, dst, prior, source, batch_rows, rename) -> int:
     n = 0
-    added = output_columns(prior)
+    added = output_columns(prior, old_mean_columns=bool(rename))
     with open(dst, "w", newline="") as f:
         for i, chunk in enumerate(csv_batches(src, batch_rows, what="catalogue")):
             frame = chunk.frame()
             kind, pos, gcol = _columns(frame.columns, source, added)
             cols = _prior_of_table(prior, kind, pos, gcol, lambda c: frame[c].to_numpy(), {}, source,
-                                   _colour_columns(frame.columns))
+                                   _colour_columns(frame.columns), rename)
             for name in added:
                 frame[name] = cols[name]
             frame.to_csv(f, index=False, header=(i == 0))
@@ -206,11 +219,11 @@ def _csv_stream(src, dst, prior, source, batch_rows) -> int:
     return n
 
 
-def _astropy_whole(src, dst, prior, source, fmt_in, fmt_out) -> int:
+def _astropy_whole(src, dst, prior, source, fmt_in, fmt_out, rename) -> int:
     from astropy import units as u
 
     t = astropy_table(src, fmt_in, what="catalogue")
-    added = output_columns(prior)
+    added = output_columns(prior, old_mean_columns=bool(rename))
     kind, pos, gcol = _columns(t.colnames, source, added)
 
     def get(c):
@@ -218,7 +231,7 @@ def _astropy_whole(src, dst, prior, source, fmt_in, fmt_out) -> int:
         return col.filled(np.nan) if hasattr(col, "filled") and col.dtype.kind in "fiu" else col
 
     cols = _prior_of_table(prior, kind, pos, gcol, get, {c: t[c].unit for c in t.colnames}, source,
-                           _colour_columns(t.colnames))
+                           _colour_columns(t.colnames), rename)
     for name in added:
         t[name] = cols[name] * u.Unit(_UNITS[name]) if _UNITS[name] else cols[name]
     t[PARALLAX_COLUMN].description = f"parallax prior sigma_F90 (Michalik et al. 2015 Eqs. 14-17; {prior.origin})"
@@ -226,10 +239,15 @@ def _astropy_whole(src, dst, prior, source, fmt_in, fmt_out) -> int:
     if prior.has_colour:
         t[COLOUR_BIN_COLUMN].description = "BP-RP bin of the prior used (mag), or colour_blind"
     if prior.has_mean:
-        t[MEAN_COLUMNS[0]].description = "centre of the parallax prior (galaxy model's cell mean)"
-        t[MEAN_COLUMNS[1]].description = "centre of the pmra* prior (ICRS, galaxy model's cell mean)"
-        t[MEAN_COLUMNS[2]].description = "centre of the pmdec prior (ICRS, galaxy model's cell mean)"
+        par, pmra, pmdec = (rename.get(c, c) for c in PRIOR_MEAN_COLUMNS)
+        t[par].description = "centre of the parallax prior (galaxy model's cell mean)"
+        t[pmra].description = "centre of the pmra* prior (ICRS, galaxy model's cell mean)"
+        t[pmdec].description = "centre of the pmdec prior (ICRS, galaxy model's cell mean)"
     # dst is the command's own temporary file (created empty by mkstemp), so overwrite it.
     # astropy's Parquet writer keeps the units in the file's table metadata by itself.
     t.write(dst, format=ASTROPY_FORMAT[fmt_out], overwrite=True)
     return len(t)
+
+
+#: ``MEAN_COLUMNS`` was renamed PRIOR_MEAN_COLUMNS (three modules had a MEAN_COLUMNS of different columns).
+__getattr__ = old_names(__name__, {"MEAN_COLUMNS": "PRIOR_MEAN_COLUMNS"})

@@ -42,7 +42,7 @@ from .columns import read_run_table, unit_scale
 from .formula import sigma_from_coefficients, sigma_from_nodes
 from .run_record import COLOUR_COEFFICIENTS_FILE, COLOUR_TERMS_FILE, N_COEFFICIENTS, coefficients_from_terms
 
-__all__ = ["COLOUR_BLIND", "TERMS", "ColourBins", "colour_values"]
+__all__ = ["COLOUR_BLIND", "TERMS", "ColourBins", "colour_values", "bin_label"]
 
 #: Label of the colour-blind prior (a star without BP-RP, or a prior without colour axis).
 COLOUR_BLIND = "colour_blind"
@@ -63,7 +63,9 @@ def colour_values(bp_rp, what: str = "bp_rp") -> np.ndarray:
                              "(NaN where unknown)") from None
 
 
-def _label(lo: float, hi: float) -> str:
+def bin_label(lo: float, hi: float) -> str:
+    """The name of the BP-RP bin [lo, hi) (mag): ``'lo..hi'``, as every table and figure of
+    a colour prior names it (``prior_colour_bin``, the colour sweep's report)."""
     return f"{lo:g}..{hi:g}"
 
 
@@ -124,7 +126,7 @@ class ColourBins:
 
     @staticmethod
     def labels_of(edges: Sequence[float]) -> tuple[str, ...]:
-        return tuple(_label(a, b) for a, b in zip(edges, edges[1:]))
+        return tuple(bin_label(a, b) for a, b in zip(edges, edges[1:]))
 
     @property
     def labels(self) -> tuple[str, ...]:
@@ -178,10 +180,10 @@ class ColourBins:
                 & np.isclose(table["bp_rp_max"].astype(float), hi, rtol=0, atol=_EDGE_ATOL)
             rows = table[sel]
             if rows["term"].duplicated().any():
-                raise UserInputError(f"{path}: colour bin {_label(lo, hi)} names a term twice; expected one "
+                raise UserInputError(f"{path}: colour bin {bin_label(lo, hi)} names a term twice; expected one "
                                      "row per term and bin")
             fitted = dict(zip(rows["term"].astype(str), rows["fitted"].astype(float)))
-            c = coefficients_from_terms(fitted, f"{path} (colour bin {_label(lo, hi)})")
+            c = coefficients_from_terms(fitted, f"{path} (colour bin {bin_label(lo, hi)})")
             # One undetermined polynomial (too few G bins for its degree) leaves the bin's
             # Eqs. 15-17 undetermined; its G-bin terms (colour_terms.csv) may still give it a width.
             undetermined = any(math.isnan(v) for v in fitted.values())
@@ -192,7 +194,7 @@ class ColourBins:
         unknown = [b for b in bins if not any(abs(b[0] - lo) <= _EDGE_ATOL and abs(b[1] - hi) <= _EDGE_ATOL
                                               for lo, hi in zip(edges, edges[1:]))]
         if unknown:
-            raise UserInputError(f"{path}: colour bin {_label(*sorted(unknown)[0])} is not one of the run's "
+            raise UserInputError(f"{path}: colour bin {bin_label(*sorted(unknown)[0])} is not one of the run's "
                                  f"prior_model.colour_edges {edges}; expected contiguous bins between those edges")
         return cls(tuple(edges), tuple(blocks), tuple(ranges), _read_nodes(path.parent / COLOUR_TERMS_FILE, edges))
 

@@ -1,4 +1,5 @@
-"""Checks of users' numbers: numeric columns of their tables, units of their angles and magnitudes."""
+"""Checks of users' numbers (numeric columns of their tables, units of their angles and
+magnitudes) and the names of the columns the prior's commands add to them."""
 
 from __future__ import annotations
 
@@ -7,7 +8,11 @@ from astropy import units as u
 
 from ..errors import UserInputError
 
-__all__ = ["finite_column", "unit_scale", "read_run_table", "source_bp_rp"]
+__all__ = ["finite_column", "unit_scale", "read_run_table", "source_bp_rp", "PRIOR_MEAN_COLUMNS"]
+
+#: A mean-centred prior's centre, in the tables of ``mcsweep-prior annotate`` and ``solve``:
+#: parallax [mas], pmra* and pmdec [mas/yr, ICRS].
+PRIOR_MEAN_COLUMNS = ("prior_mean_parallax_mas", "prior_mean_pmra_mas_yr", "prior_mean_pmdec_mas_yr")
 
 _EXPECTED = {"angle": "an angle (deg)", "mag": "magnitudes (mag or plain numbers)"}
 

@@ -36,14 +36,15 @@ from typing import Sequence
 import numpy as np
 
 from ..errors import UserInputError
+from ..renamed_names import old_names
 from .columns import read_run_table
 from .run_record import MEANS_FILE
 from ..galactic import icrs_from_galactic, pm_icrs_from_galactic, unit_vector
 
-__all__ = ["MEANS_FILE", "MEAN_COLUMNS", "PriorMeans"]
+__all__ = ["MEANS_FILE", "MEANS_TABLE_COLUMNS", "PriorMeans"]
 
 #: Columns of ``prior_means.csv`` (module notes).
-MEAN_COLUMNS = ("l_deg", "b_deg", "g_min", "g_max", "bp_rp_min", "bp_rp_max", "mean_parallax_mas",
+MEANS_TABLE_COLUMNS = ("l_deg", "b_deg", "g_min", "g_max", "bp_rp_min", "bp_rp_max", "mean_parallax_mas",
                 "mean_pml_masyr", "mean_pmb_masyr")
 #: A row's direction may differ from the grid's by rounding of the frame transformation
 #: (~1e-12 deg); anything beyond 1 arcsec is not one of the sweep's directions.
@@ -79,8 +80,8 @@ class PriorMeans:
     def read(cls, path, sky_config: dict, colour_edges: Sequence[float] = ()) -> "PriorMeans":
         """The means of ``prior_means.csv`` on the grid of the run's ``config["sky"]``."""
         path = Path(path)
-        table = read_run_table(path, MEAN_COLUMNS, "with prior_model.mean true", numeric=MEAN_COLUMNS)
-        t = {c: table[c].to_numpy() for c in MEAN_COLUMNS}
+        table = read_run_table(path, MEANS_TABLE_COLUMNS, "with prior_model.mean true", numeric=MEANS_TABLE_COLUMNS)
+        t = {c: table[c].to_numpy() for c in MEANS_TABLE_COLUMNS}
         sky = _grid(sky_config, path)
         n_dir = _n_directions(sky)
         direction = _direction_index(sky, t["l_deg"], t["b_deg"], path)
@@ -228,3 +229,7 @@ def _direction_index(sky, l_deg, b_deg, path) -> np.ndarray:
         raise UserInputError(f"{path}: direction (l, b) = ({l_deg[i]:g}, {b_deg[i]:g}) deg is not one of the run's "
                              "sky directions; expected the sweep's own directions (config['sky'])")
     return np.asarray(idx, dtype=int)
+
+
+#: ``MEAN_COLUMNS`` was renamed MEANS_TABLE_COLUMNS (three modules had a MEAN_COLUMNS of different columns).
+__getattr__ = old_names(__name__, {"MEAN_COLUMNS": "MEANS_TABLE_COLUMNS"})

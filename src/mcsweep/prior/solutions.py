@@ -34,6 +34,7 @@ from ..astrometry.confidence import check_probability, ellipse_position_angle_de
 from ..astrometry.solve import solve_no_prior, solve_position_only, solve_with_prior
 from ..errors import UserInputError
 from ..galactic import galactic_from_icrs
+from .columns import PRIOR_MEAN_COLUMNS
 from .model import Prior
 
 __all__ = ["MIN_VISIBILITY_PERIODS", "MIN_SPAN_YR", "check_factor", "solutions_table", "which_solution"]
@@ -112,7 +113,8 @@ def solutions_table(source_id, ra_deg, dec_deg, g_mag, bp_rp, N0, b0, *, n_trans
     if prior.has_colour:
         out["prior_colour_bin"] = prior.colour_bin_label(colour)
     if centre is not None:
-        out["prior_mean_parallax_mas"], out["prior_mean_pmra_mas_yr"], out["prior_mean_pmdec_mas_yr"] = centre[:, 2:].T
+        for name, values in zip(PRIOR_MEAN_COLUMNS, centre[:, 2:].T):
+            out[name] = values
     for i, name in enumerate(_SHORT):
         out[f"{name}_{_UNITS[name]}"] = with_prior.x[:, i]
         out[f"{name}_error_{_UNITS[name]}"] = np.sqrt(with_prior.cov[:, i, i])

@@ -31,6 +31,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from ...prior.colour import bin_label
 from ...prior.formula import sigma_from_nodes
 from ...prior.run_record import COLOUR_COEFFICIENTS_FILE, COLOUR_TERMS_FILE, POLY_DEGREES
 from .pencil_beam import COLOUR_MIN_STARS
@@ -151,7 +152,7 @@ def fit_forms(compared: pd.DataFrame, blind_fitted: dict) -> pd.DataFrame:
     blind = np.log10(evaluate_formula(blind_fitted, ok["l_deg"].to_numpy(float), ok["b_deg"].to_numpy(float), g))
     own = np.log10(ok["eqs15_17_sigma_f90_mas"].to_numpy(float))
     nodes = np.log10(ok["fitted_sigma_f90_mas"].to_numpy(float))
-    labels = [f"{a:g}..{b:g}" for a, b in zip(ok["bp_rp_min"], ok["bp_rp_max"])]
+    labels = [bin_label(a, b) for a, b in zip(ok["bp_rp_min"], ok["bp_rp_max"])]
     bins = sorted(set(labels), key=lambda s: float(s.split("..")[0]))
     lab = np.array(labels)
     resid = {"colour_blind": y - blind, "offset": np.empty_like(y), "offset_linear_g": np.empty_like(y),

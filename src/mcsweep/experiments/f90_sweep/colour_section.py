@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 
 from ...prior import Prior
+from ...prior.colour import bin_label
 from ...prior.run_record import MEANS_FILE, SweepRecord
 from ...runtime.document import FIG_DIR, Document, counts_text
 from ..global_solution.table import FRACTION_INTERVAL, fraction_from_counts
@@ -54,10 +55,6 @@ class ColourRun:
     prior: object = None
 
 
-def _label(lo: float, hi: float) -> str:
-    return f"{lo:g}..{hi:g}"
-
-
 def _read_csv(path: Path) -> pd.DataFrame:
     """A CSV the sweep wrote; empty (no columns) when it wrote an empty table."""
     try:
@@ -86,8 +83,8 @@ def read_colour_run(run_dir: Path, prov: dict) -> ColourRun | None:
     colour = _read_csv(run_dir / "f90_colour_cells.csv")
     if colour.empty:  # no colour cell at all: nothing per colour to report
         return None
-    colour["colour"] = [_label(a, b) for a, b in zip(colour["bp_rp_min"], colour["bp_rp_max"])]
-    labels = [_label(a, b) for a, b in sorted(set(zip(colour["bp_rp_min"], colour["bp_rp_max"])))]
+    colour["colour"] = [bin_label(a, b) for a, b in zip(colour["bp_rp_min"], colour["bp_rp_max"])]
+    labels = [bin_label(a, b) for a, b in sorted(set(zip(colour["bp_rp_min"], colour["bp_rp_max"])))]
     fit = read_fit(run_dir)
     blind = fit.compared
     if "bp_rp_min" in blind:

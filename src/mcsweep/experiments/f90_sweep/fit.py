@@ -28,7 +28,7 @@ from ...prior import PAPER_COEFFICIENTS, Prior, sigma_from_coefficients
 from ...prior.maps import prior_maps_bytes
 from ...prior.run_record import POLY_DEGREES
 from . import FIT_FILES
-from .pencil_beam import COLOUR_COLUMNS, MEAN_COLUMNS
+from .pencil_beam import COLOUR_COLUMNS, CELL_MEAN_COLUMNS
 
 __all__ = [
     "POLY_DEGREES",
@@ -72,7 +72,7 @@ def f90_table(cells: pd.DataFrame) -> pd.DataFrame:
                                              "g_max", "n_stars", "n_in_cone", "radius_deg", "n_groups",
                                              "sigma_f90_mas", "f90_flag"]
                                             + [c for c in ("sigma_f90_lo_mas", "sigma_f90_hi_mas",
-                                                           "ill_determined", *COLOUR_COLUMNS, *MEAN_COLUMNS)
+                                                           "ill_determined", *COLOUR_COLUMNS, *CELL_MEAN_COLUMNS)
                                                if c in cells]]
     at = cells[cells["at_f90"]].pivot_table(index="cell_id", columns="case", values="fraction_inside")
     at.columns = [f"fraction_at_f90_{c}" for c in at.columns]

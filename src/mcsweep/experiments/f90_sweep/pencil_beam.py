@@ -31,6 +31,7 @@ from ...astrometry.prior_scan import MAX_KEY_PRIORS, PriorScan, prior_scan
 from ...astrometry.shared_design import SharedDesignNormals
 from ...astrometry.solve import solve_with_prior
 from ...galactic import pm_galactic_from_icrs, pm_icrs_from_galactic
+from ...renamed_names import old_names
 from ...scanning import observer_position_au
 from ..f90_curve import flag_patterns, ill_determined, key_patterns, pattern_interval, sigma_f90_from_curve
 
@@ -48,7 +49,7 @@ __all__ = [
     "cell_mean",
     "CURVE_COLUMNS",
     "COLOUR_COLUMNS",
-    "MEAN_COLUMNS",
+    "CELL_MEAN_COLUMNS",
     "curve_columns",
 ]
 
@@ -76,13 +77,13 @@ COLOUR_COLUMNS = ["bp_rp_min", "bp_rp_max"]
 #: Added with a mean-centred prior: the cell's mean (the prior's centre; proper motion in
 #: galactic and in ICRS components at the beam centre) and, at sigma_F90 of the F90 case, what
 #: that prior does to sources with zero parallax and proper motion (quasars).
-MEAN_COLUMNS = ["mean_parallax_mas", "mean_pml_masyr", "mean_pmb_masyr", "mean_pmra_masyr", "mean_pmdec_masyr",
+CELL_MEAN_COLUMNS = ["mean_parallax_mas", "mean_pml_masyr", "mean_pmb_masyr", "mean_pmra_masyr", "mean_pmdec_masyr",
                 "n_mean_stars", "quasar_fraction_inside", "quasar_n_valid", "quasar_p_error_mas"]
 
 
 def curve_columns(s: "CellSettings") -> list[str]:
     """The columns of a cell's table under settings ``s``."""
-    return CURVE_COLUMNS + (COLOUR_COLUMNS if s.colour_axis else []) + (MEAN_COLUMNS if s.mean else [])
+    return CURVE_COLUMNS + (COLOUR_COLUMNS if s.colour_axis else []) + (CELL_MEAN_COLUMNS if s.mean else [])
 
 
 @dataclass(frozen=True)
@@ -114,7 +115,7 @@ class CellSettings:
     #: The sweep has a colour axis (:class:`~mcsweep.experiments.f90_sweep.conf.PriorModelConf`):
     #: every cell's table carries :data:`COLOUR_COLUMNS`.
     colour_axis: bool = False
-    #: Centre the prior on the cell's mean parallax and proper motion (:data:`MEAN_COLUMNS`).
+    #: Centre the prior on the cell's mean parallax and proper motion (:data:`CELL_MEAN_COLUMNS`).
     mean: bool = False
 
 
@@ -585,3 +586,7 @@ def _scatter(normals, stars: pd.DataFrame, f90: float, s: CellSettings) -> pd.Da
             "cov_aa": cov2[:, 0, 0], "cov_ad": cov2[:, 0, 1], "cov_dd": cov2[:, 1, 1],
             "parallax": stars["parallax"].to_numpy(float)}))
     return pd.concat(parts, ignore_index=True).assign(case=s.f90_case)
+
+
+#: ``MEAN_COLUMNS`` was renamed CELL_MEAN_COLUMNS (three modules had a MEAN_COLUMNS of different columns).
+__getattr__ = old_names(__name__, {"MEAN_COLUMNS": "CELL_MEAN_COLUMNS"})

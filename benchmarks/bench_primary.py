@@ -56,7 +56,7 @@ from mcsweep.experiments.global_solution.classes import sky_order  # noqa: E402
 from mcsweep.astrometry.solve import prior_diagonal  # noqa: E402
 from mcsweep.scanning import find_transits  # noqa: E402
 from mcsweep.scanning.ephemeris import gaia_position_au  # noqa: E402
-from mcsweep.solver import AttitudeSpline, GlobalProblem, build_observations, solve_global  # noqa: E402
+from mcsweep.solver import AttitudeSpline, GlobalProblem, build_measurements, solve_global  # noqa: E402
 from mcsweep.solver import kernels  # noqa: E402
 from mcsweep.solver.attitude_update import attitude_band, free_coefficients  # noqa: E402
 from mcsweep.solver.problem import SOLVER_BLOCK_STARS, make_blocks  # noqa: E402
@@ -84,7 +84,7 @@ def make_obs(n_stars: int, days: float, knot_days: float, keep: float, seed: int
     g = rng.uniform(12.0, 19.0, ra.size)
     noise = NoiseModel()
     spline = AttitudeSpline(START_JD, START_JD + days, knot_days)
-    obs = build_observations(ra, dec, star, t, psi, gaia_position_au(t), t_ref_jd=START_JD + 0.5 * days,
+    obs = build_measurements(ra, dec, star, t, psi, gaia_position_au(t), t_ref_jd=START_JD + 0.5 * days,
                              sigma_al_mas=noise.sigma_al_mas(g)[star], sigma_ac_mas=noise.sigma_ac_mas(g)[star],
                              spline=spline)
     x = np.column_stack([rng.normal(0, 1, ra.size), rng.normal(0, 1, ra.size), rng.uniform(0.1, 3, ra.size),
@@ -187,7 +187,7 @@ def block_in_order(ra, dec, take, days: float, knot_seconds: float, seed: int):
     g = rng.uniform(11.0, 19.5, ra.size)
     noise = NoiseModel()
     spline = AttitudeSpline(START_JD, START_JD + days, knot_seconds / 86400.0)
-    obs = build_observations(ra, dec, star, t, tr["scan_angle_deg"].to_numpy().astype(float), gaia_position_au(t),
+    obs = build_measurements(ra, dec, star, t, tr["scan_angle_deg"].to_numpy().astype(float), gaia_position_au(t),
                              t_ref_jd=START_JD + 0.5 * days, sigma_al_mas=noise.sigma_al_mas(g)[star],
                              sigma_ac_mas=noise.sigma_ac_mas(g)[star], spline=spline)
     (blk,) = make_blocks(obs, ra, dec, block_stars=ra.size)
@@ -337,7 +337,7 @@ def main():
           f"section 4); iterations for the 3 priors here: {it_total} -> {ns * m_full * it_total / 60:.0f} min")
     print(f"  memory: solver {store:.0f} B/measurement -> {store * m_full / 2**30:.1f} GB (compact=True: "
           f"{(store - 16) * m_full / 2**30:.1f} GB), plus the experiment's measurements (8 B/measurement, "
-          f"{8 * m_full / 2**30:.1f} GB; it builds the blocks block by block, without a whole Observations)")
+          f"{8 * m_full / 2**30:.1f} GB; it builds the blocks block by block, without a whole Measurements)")
     print("  (iteration counts may grow with the problem's size and knot density)")
     sky_order_section(args.sky_stars, args.days)
 

@@ -23,15 +23,15 @@ import numpy as np
 from mcsweep.astrometry.design import design_matrix, reference_epoch, years_since
 from mcsweep.astrometry.solve import normal_equations, solve_with_prior
 from mcsweep.prior import Prior
-from mcsweep.prior.observations import Observations, solve_observations
+from mcsweep.prior.observations import TransitTable, solve_observations
 from mcsweep.scanning.ephemeris import gaia_position_au
 
 
-def synthetic(n: int, k: int, seed: int = 0) -> Observations:
+def synthetic(n: int, k: int, seed: int = 0) -> TransitTable:
     rng = np.random.default_rng(seed)
     sid = np.repeat(np.arange(n, dtype=np.int64), k)
     tcb = 2457023.5 + np.sort(rng.uniform(0, 365, (n, k)), axis=1).ravel()
-    obs = Observations(source_id=sid, tcb_jd=tcb, scan_angle_deg=rng.uniform(0, 360, n * k),
+    obs = TransitTable(source_id=sid, tcb_jd=tcb, scan_angle_deg=rng.uniform(0, 360, n * k),
                        al_residual_mas=rng.normal(0, 0.2, n * k), al_sigma_mas=np.full(n * k, 0.2),
                        ac_residual_mas=rng.normal(0, 1.0, n * k), ac_sigma_mas=np.full(n * k, 1.0))
     obs["source_ids"] = np.arange(n, dtype=np.int64)

@@ -10,6 +10,11 @@ RENAMED = [
     ("mcsweep.experiments.f90_sweep.pencil_beam", "MEAN_COLUMNS", "CELL_MEAN_COLUMNS"),
     ("mcsweep.prior.means", "MEAN_COLUMNS", "MEANS_TABLE_COLUMNS"),
     ("mcsweep.prior.annotate", "MEAN_COLUMNS", "PRIOR_MEAN_COLUMNS"),
+    ("mcsweep.solver", "Observations", "Measurements"),
+    ("mcsweep.solver", "build_observations", "build_measurements"),
+    ("mcsweep.solver.observations", "Observations", "Measurements"),
+    ("mcsweep.solver.observations", "build_observations", "build_measurements"),
+    ("mcsweep.prior.observations", "Observations", "TransitTable"),
 ]
 
 

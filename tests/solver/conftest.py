@@ -9,7 +9,7 @@ from mcsweep.astrometry.noise import NoiseModel
 from mcsweep.scanning import ScanningLaw, find_transits
 from mcsweep.scanning.ephemeris import gaia_position_au
 from mcsweep.scanning.timeline import draw_dead_time
-from mcsweep.solver import AttitudeSpline, build_observations
+from mcsweep.solver import AttitudeSpline, build_measurements
 
 START_JD = 2456863.9375  # 2014-07-25 10:30 TCB, start of routine operations (Prusti et al. 2016)
 # The solver's tests need a realistic NSL geometry, not the flown law's first weeks (now
@@ -63,7 +63,7 @@ def make_problem(n_stars=20000, days=10.0, knot_days=0.5, seed=5, min_transits=4
                             epochs=tr["tcb_jd"].to_numpy(), transits_per_knot=transits_per_knot,
                             knot_rule=knot_rule)
     t_ref = START_JD + 0.5 * days
-    obs = build_observations(ra, dec, star, t, tr["scan_angle_deg"].to_numpy(), gaia_position_au(t),
+    obs = build_measurements(ra, dec, star, t, tr["scan_angle_deg"].to_numpy(), gaia_position_au(t),
                              t_ref_jd=t_ref, sigma_al_mas=s_al, sigma_ac_mas=s_ac, spline=spline)
     return {"ra": ra, "dec": dec, "g": g, "obs": obs, "spline": spline, "t_ref": t_ref, "rng": rng,
             "transits": tr, "star": star, "s_al": s_al, "s_ac": s_ac, "dead": dead, "days": days,

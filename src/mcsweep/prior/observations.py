@@ -44,6 +44,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ..renamed_names import old_names
 from ..astrometry.design import JULIAN_YEAR_DAYS, PARAMETER_NAMES, design_matrix, reference_epoch, years_since
 from ..astrometry.solve import normal_equations
 from ..astrometry.source_update import visibility_periods
@@ -57,7 +58,7 @@ from .model import Prior
 from .solutions import check_factor, solutions_table
 
 __all__ = ["OBSERVATION_COLUMNS", "OPTIONAL_AC", "OBSERVER_COLUMNS", "SOURCE_COLUMNS", "read_table",
-           "read_observations", "Observations", "pad_observations", "solve_observations", "write_solutions",
+           "read_observations", "TransitTable", "pad_observations", "solve_observations", "write_solutions",
            "TableWriter",
            "detect_format"]
 
@@ -84,11 +85,12 @@ def _require_columns(df, cols, source, what):
     return df.rename(columns={lower[c]: c for c in cols})
 
 
-class Observations(dict):
-    """Checked input columns as plain arrays (dict of name -> ndarray), transits sorted."""
+class TransitTable(dict):
+    """A user's table of FoV transits, checked: its columns as plain arrays (dict of name ->
+    ndarray), the transits sorted."""
 
 
-def read_observations(obs_path, sources_path=None) -> Observations:
+def read_observations(obs_path, sources_path=None) -> TransitTable:
     """Read and check the observation table (and the sources table, if separate)."""
     obs = read_table(obs_path, "observations")
     name = Path(obs_path).name
@@ -139,7 +141,7 @@ def read_observations(obs_path, sources_path=None) -> Observations:
                              "ra, dec and phot_g_mean_mag for every observed source")
     # Transits sorted by (source, time); sources in increasing source_id.
     sort = np.lexsort((vals["tcb_jd"], obs_ids))
-    out = Observations({k: v[sort] for k, v in vals.items()})
+    out = TransitTable({k: v[sort] for k, v in vals.items()})
     out["source_id"] = obs_ids[sort]
     used = np.unique(out["source_id"])
     pick = order[np.searchsorted(ids_sorted, used)]
@@ -151,7 +153,7 @@ def read_observations(obs_path, sources_path=None) -> Observations:
     return out
 
 
-def pad_observations(obs: Observations) -> dict[str, np.ndarray]:
+def pad_observations(obs: TransitTable) -> dict[str, np.ndarray]:
     """Per-source padded arrays (n sources x k = most transits of a source) and the mask."""
     sid = obs["source_id"]
     n_tr = sid.size
@@ -184,13 +186,13 @@ def _epochs(setting: str, padded) -> np.ndarray:
     return np.full(padded["mask"].shape[0], reference_epoch_jd(setting))
 
 
-def solve_observations(obs: Observations, prior: Prior, *, factor: float = 1.0, confidence: float | None = None,
+def solve_observations(obs: TransitTable, prior: Prior, *, factor: float = 1.0, confidence: float | None = None,
                        reference_epoch: str = "star_mean") -> pd.DataFrame:
     """One row per source: prior, two-parameter and no-prior solutions, the P ellipse, which to use.
 
     Parameters
     ----------
-    obs : Observations
+    obs : TransitTable
         From :func:`read_observations`.
     prior : Prior
         sigma_plx = ``factor`` x sigma_F90 at the source's (l, b, G) and, for a prior with
@@ -231,7 +233,7 @@ def solve_observations(obs: Observations, prior: Prior, *, factor: float = 1.0, 
                            factor=factor, confidence=confidence)
 
 
-def _visibility_periods(obs: Observations) -> np.ndarray:
+def _visibility_periods(obs: TransitTable) -> np.ndarray:
     """Visibility periods per source: its transits in groups more than 4 days apart."""
     src = np.searchsorted(obs["source_ids"], obs["source_id"])
     return visibility_periods(src, obs["tcb_jd"], obs["source_ids"].size)
@@ -309,3 +311,7 @@ class TableWriter:
 
 # The parameter order of the astrometry stage is the one used above.
 assert tuple(n.split("_")[0] for n in PARAMETER_NAMES) == ("dalpha", "ddelta", "parallax", "pmra", "pmdec")
+
+
+#: Renamed so that "observations" is only the config group and users' files of transits.
+__getattr__ = old_names(__name__, {"Observations": "TransitTable"})

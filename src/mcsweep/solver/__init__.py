@@ -58,14 +58,15 @@ from .schur_preconditioner import AttitudeNotDetermined
 from .solve import solve_global
 from .stopping import ConvergenceRecord
 from .frame import fit_frame, frame_attitude, frame_offsets, precision_weights
-from .observations import Observations, attitude_partials, build_observations
+from .observations import Measurements, attitude_partials, build_measurements
 from .source_update import solve_sources, source_normals
+from ..renamed_names import old_names
 
 __all__ = [
     "AttitudeSpline",
-    "Observations",
+    "Measurements",
     "attitude_partials",
-    "build_observations",
+    "build_measurements",
     "source_normals",
     "solve_sources",
     "attitude_band",
@@ -82,3 +83,7 @@ __all__ = [
     "solve_global",
     "AttitudeNotDetermined",
 ]
+
+#: The solver's measurements were "Observations", a word the config group and the few-transit
+#: solver's input table also used.
+__getattr__ = old_names(__name__, {"Observations": "Measurements", "build_observations": "build_measurements"})

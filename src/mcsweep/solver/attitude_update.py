@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import kernel_backend
-from .observations import Observations
+from .observations import Measurements
 
 __all__ = ["BANDWIDTH", "band_of_rows", "attitude_band", "band_to_dense", "free_coefficients"]
 
@@ -42,7 +42,7 @@ def band_of_rows(j0, rows, n_coef: int) -> np.ndarray:
     return ab
 
 
-def attitude_band(obs: Observations) -> np.ndarray:
+def attitude_band(obs: Measurements) -> np.ndarray:
     """Upper band storage ``(BANDWIDTH + 1, 3 n_coef)`` of ``sum A_a' A_a``."""
     return band_of_rows(obs.j0, obs.attitude_rows().reshape(obs.size, _AX * _NB), obs.n_coef)
 

@@ -1,6 +1,6 @@
 """Partial derivatives of the AL (and AC) measurements w.r.t. source and attitude parameters.
 
-Observations are flat arrays (one entry per AL or AC measurement), not padded per
+Measurements are flat arrays (one entry per AL or AC measurement), not padded per
 star: the global solution couples every star to the attitude through the time of
 each measurement.
 
@@ -30,14 +30,15 @@ import dataclasses
 
 import numpy as np
 
+from ..renamed_names import old_names
 from ..astrometry.design import design_matrix, tangent_triad
 from .attitude_spline import AttitudeSpline
 
-__all__ = ["Observations", "attitude_partials", "build_observations"]
+__all__ = ["Measurements", "attitude_partials", "build_measurements"]
 
 
 @dataclasses.dataclass
-class Observations:
+class Measurements:
     """Normalised partials of all measurements (rows divided by their uncertainty).
 
     Attributes
@@ -93,9 +94,9 @@ def attitude_partials(ra_deg, dec_deg, psi_deg, *, ac: bool = False) -> np.ndarr
     return np.cos(psi) * p - np.sin(psi) * q
 
 
-def build_observations(ra_deg, dec_deg, star, tcb_jd, psi_deg, obs_au, *, t_ref_jd: float,
+def build_measurements(ra_deg, dec_deg, star, tcb_jd, psi_deg, obs_au, *, t_ref_jd: float,
                        sigma_al_mas, sigma_ac_mas=None, spline: AttitudeSpline,
-                       n_stars: int | None = None) -> Observations:
+                       n_stars: int | None = None) -> Measurements:
     """Partials of the AL (and AC) measurements of FoV transits.
 
     Parameters
@@ -119,7 +120,7 @@ def build_observations(ra_deg, dec_deg, star, tcb_jd, psi_deg, obs_au, *, t_ref_
 
     Returns
     -------
-    Observations
+    Measurements
         AL measurements in transit order, then the AC ones.
     """
     ra = np.asarray(ra_deg, dtype=float)
@@ -152,7 +153,11 @@ def build_observations(ra_deg, dec_deg, star, tcb_jd, psi_deg, obs_au, *, t_ref_
     rows = np.concatenate(rows)
     t_all = t[rows]
     j0, bval = spline.basis(t_all)
-    return Observations(star=star[rows], tcb_jd=t_all, t_yr=t_yr[rows, 0], src=np.concatenate(src),
+    return Measurements(star=star[rows], tcb_jd=t_all, t_yr=t_yr[rows, 0], src=np.concatenate(src),
                         att=np.concatenate(att),
                         j0=j0, bval=bval, is_ac=np.concatenate(is_ac),
                         n_stars=int(ra.size if n_stars is None else n_stars), n_coef=spline.n_coef)
+
+
+#: Renamed so that "observations" is only the config group and users' tables of transits.
+__getattr__ = old_names(__name__, {"Observations": "Measurements", "build_observations": "build_measurements"})

@@ -37,7 +37,7 @@ from . import blocks as B
 from . import kernel_backend
 from .attitude_update import free_coefficients
 from .frame import normalised_weights, penalty_weights, precision_weights, rotation_matrices, typical_weights, weight_sums
-from .observations import Observations
+from .observations import Measurements
 from .reduction import chunk_ranges, leaf_blocks, pairwise_sum
 from .source_update import solve_sources, source_normals
 
@@ -54,7 +54,7 @@ __all__ = ["GlobalProblem", "ResidentProblem", "make_blocks", "in_block_order", 
 SOLVER_BLOCK_STARS = 32768
 
 
-def make_blocks(obs: Observations, ra_deg, dec_deg, *, block_stars: int = SOLVER_BLOCK_STARS, compact: bool = False,
+def make_blocks(obs: Measurements, ra_deg, dec_deg, *, block_stars: int = SOLVER_BLOCK_STARS, compact: bool = False,
                 first_star: int = 0) -> list:
     """The :class:`~mcsweep.solver.blocks.StarBlock` s of ``obs`` (without per-star inverses).
 
@@ -63,7 +63,7 @@ def make_blocks(obs: Observations, ra_deg, dec_deg, *, block_stars: int = SOLVER
     ``first_star + obs.star`` (``first_star`` a multiple of ``block_stars``); the parts'
     blocks are then put in one observation order by :func:`in_block_order`. A problem
     built part by part (:meth:`GlobalProblem.from_blocks`) never holds all measurements'
-    partials twice: each part's :class:`Observations` can be dropped once its blocks are made.
+    partials twice: each part's :class:`Measurements` can be dropped once its blocks are made.
     """
     if first_star % block_stars:
         raise ValueError(f"first_star={first_star} is not a multiple of block_stars={block_stars}")
@@ -112,7 +112,7 @@ class GlobalProblem:
 
     Parameters
     ----------
-    obs : Observations
+    obs : Measurements
         Every star must be determinable on its own with the prior (check with
         :func:`~mcsweep.solver.source_update.solve_sources` first). The problem keeps
         the partials in its blocks, not ``obs``; its observation order is ``obs``'s.
@@ -136,7 +136,7 @@ class GlobalProblem:
         one with the stored partials (:meth:`design` gives them).
     """
 
-    def __init__(self, obs: Observations, prior_diagonal, ra_deg, dec_deg, *, block_stars: int = SOLVER_BLOCK_STARS,
+    def __init__(self, obs: Measurements, prior_diagonal, ra_deg, dec_deg, *, block_stars: int = SOLVER_BLOCK_STARS,
                  compact: bool = False):
         self._assemble(make_blocks(obs, ra_deg, dec_deg, block_stars=int(block_stars), compact=bool(compact)),
                        source_normals(obs), prior_diagonal, ra_deg, dec_deg, n_coef=obs.n_coef,

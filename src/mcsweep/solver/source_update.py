@@ -13,14 +13,14 @@ from __future__ import annotations
 import numpy as np
 
 from ..astrometry.linalg import spd_solve
-from .observations import Observations
+from .observations import Measurements
 
 __all__ = ["source_normals", "solve_sources"]
 
 _NP = 5
 
 
-def source_normals(obs: Observations) -> np.ndarray:
+def source_normals(obs: Measurements) -> np.ndarray:
     """Data part of every star's normal matrix, ``sum A_s' A_s`` (n, 5, 5)."""
     n = obs.n_stars
     N = np.empty((n, _NP, _NP))

@@ -361,14 +361,14 @@ RTOL_TWO_SOLUTIONS = 1e-6
 
 
 def test_block_by_block_build_is_the_one_observations_problem():
-    # prepare() builds the solver's blocks 256 stars at a time (never one Observations
-    # of all measurements). Independent reference: build_observations over ALL of the
-    # stars' transits at once (the solver's own single-Observations constructor), same
+    # prepare() builds the solver's blocks 256 stars at a time (never one Measurements
+    # of all measurements). Independent reference: build_measurements over ALL of the
+    # stars' transits at once (the solver's own single-Measurements constructor), same
     # noiseless measurements: the design matrices hold the same rows and the solutions
     # agree to summation rounding.
     from mcsweep.astrometry.solve import prior_diagonal
     from mcsweep.scanning.ephemeris import gaia_position_au
-    from mcsweep.solver import GlobalProblem, build_observations, solve_global
+    from mcsweep.solver import GlobalProblem, build_measurements, solve_global
 
     config, _ = primary_config([])
     settings = P.build_settings(config)
@@ -379,14 +379,14 @@ def test_block_by_block_build_is_the_one_observations_problem():
     assert len(data.blocks) == -(-data.solved.size // 256) > 4
     prior = prior_diagonal(5.0, 10.0)
     part = data.problem(prior)
-    # the same transits, dead time removed, as one Observations
+    # the same transits, dead time removed, as one Measurements
     keep = ~data.dead.is_dead(tr["t"])
     new = np.full(len(stars), -1)
     new[data.solved] = np.arange(data.solved.size)
     sel = keep & (new[tr["star"]] >= 0)
     star, t, psi = new[tr["star"][sel]], tr["t"][sel], tr["psi"][sel]
     g = stars["phot_g_mean_mag"].to_numpy()[data.solved]
-    obs = build_observations(stars["ra"].to_numpy()[data.solved], stars["dec"].to_numpy()[data.solved], star, t,
+    obs = build_measurements(stars["ra"].to_numpy()[data.solved], stars["dec"].to_numpy()[data.solved], star, t,
                              psi, gaia_position_au(t), t_ref_jd=data.t_ref_jd,
                              sigma_al_mas=settings.noise.sigma_al_mas(g)[star],
                              sigma_ac_mas=settings.noise.sigma_ac_mas(g)[star], spline=data.spline)

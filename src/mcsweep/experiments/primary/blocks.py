@@ -17,7 +17,7 @@ import numpy as np
 import pandas as pd
 
 from ...scanning.ephemeris import gaia_position_au
-from ...solver import AttitudeSpline, build_observations, in_block_order, make_blocks, source_normals
+from ...solver import AttitudeSpline, build_measurements, in_block_order, make_blocks, source_normals
 from ...solver.attitude_spline import DEGREE
 from ...solver.blocks import att_band, att_rows, src_forward
 from ...solver.calibration import basic_angle_columns
@@ -167,7 +167,7 @@ def build_block(job: BlockJob, star, t, psi, following=None, *, spline: Attitude
     identity, so neither the chunking nor where it is built changes it) in the block's order
     (by time).
     """
-    obs = build_observations(job.ra, job.dec, star, t, psi, gaia_position_au(t), t_ref_jd=t_ref_jd,
+    obs = build_measurements(job.ra, job.dec, star, t, psi, gaia_position_au(t), t_ref_jd=t_ref_jd,
                              sigma_al_mas=job.sigma_al_mas[star],
                              sigma_ac_mas=None if job.sigma_ac_mas is None else job.sigma_ac_mas[star],
                              spline=spline)
@@ -176,7 +176,7 @@ def build_block(job: BlockJob, star, t, psi, following=None, *, spline: Attitude
     (blk,) = make_blocks(obs, job.ra, job.dec, block_stars=block_stars, first_star=job.first)
     cal = None
     if harmonics:
-        # obs holds the AL measurements in transit order, then the AC ones (build_observations),
+        # obs holds the AL measurements in transit order, then the AC ones (build_measurements),
         # which get weight zero (any transit index in range serves them)
         order = blk.rows
         transit = np.where(order < t.size, order, order - t.size)

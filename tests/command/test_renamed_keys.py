@@ -21,6 +21,13 @@ HASHES_AT_66652CA = {
     ("experiment=primary", "experiment.primary.primary_sources=600", "experiment.primary.primary_g_min=12.5"):
         "5e69fa97e881114d",
 }
+#: Computed at b6d24f5, when dead_time_outage_days was dead_time_block_days.
+HASHES_AT_B6D24F5 = {
+    ("experiment=primary",): "13a87abc2770018d",
+    ("experiment=primary", "experiment.primary.dead_time_block_days=10"): "9307a92c71563cfa",
+}
+NEW_NAMES = {"primary_sources": "extra_sources", "primary_g_min": "extra_g_min",
+             "dead_time_block_days": "dead_time_outage_days"}
 
 
 #: The galaxy model the hashes below were recorded under (besancon-r03-5; its defaults then).
@@ -31,10 +38,12 @@ def _hash(overrides):
     return config_hash(OmegaConf.to_container(compose_config(list(overrides) + R03_5), resolve=True))
 
 
-@pytest.mark.parametrize("old", list(HASHES_AT_66652CA))
-def test_new_and_old_names_give_the_hash_from_before_the_rename(old):
-    new = [o.replace("primary_sources", "extra_sources").replace("primary_g_min", "extra_g_min") for o in old]
-    assert _hash(new) == _hash(old) == HASHES_AT_66652CA[old]
+@pytest.mark.parametrize("old, pinned", [*HASHES_AT_66652CA.items(), *HASHES_AT_B6D24F5.items()])
+def test_new_and_old_names_give_the_hash_from_before_the_rename(old, pinned):
+    new = list(old)
+    for before, after in NEW_NAMES.items():
+        new = [o.replace(before, after) for o in new]
+    assert _hash(new) == _hash(old) == pinned
 
 
 def test_the_old_name_sets_the_new_key():

@@ -20,7 +20,7 @@ def test_splitmix64_matches_the_published_sequence():
 
 def test_dead_blocks_cover_the_requested_fraction_without_overlap():
     rng = np.random.default_rng(0)
-    dead = draw_dead_time(2457000.0, 2457365.25, 0.2, block_days=0.25, rng=rng)
+    dead = draw_dead_time(2457000.0, 2457365.25, 0.2, outage_days=0.25, rng=rng)
     n_blocks = int(np.ceil(365.25 / 0.25))
     assert dead.starts.size == round(0.2 * n_blocks)
     assert np.all(np.diff(dead.starts) >= 0.25 - DAY_TOLERANCE)
@@ -38,7 +38,7 @@ def test_is_dead_on_interval_edges():
 def test_no_draw_without_dead_time():
     rng = np.random.default_rng(5)
     state = rng.bit_generator.state
-    assert draw_dead_time(0.0, 10.0, 0.0, block_days=1.0, rng=rng).starts.size == 0
+    assert draw_dead_time(0.0, 10.0, 0.0, outage_days=1.0, rng=rng).starts.size == 0
     assert rng.bit_generator.state == state
 
 

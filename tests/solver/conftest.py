@@ -21,11 +21,11 @@ LAW = ScanningLaw(name="one_segment", segments=(), ref_epoch_tcb="2015-01-01T00:
 
 
 def make_problem(n_stars=20000, days=10.0, knot_days=0.5, seed=5, min_transits=4, use_ac=True, keep_fraction=1.0,
-                 dead_fraction=0.0, dead_block_days=0.25, transits_per_knot=None, knot_rule="counts"):
+                 dead_fraction=0.0, dead_outage_days=0.25, transits_per_knot=None, knot_rule="counts"):
     """Random stars over the sky, their FoV transits, and the partials; truth drawn separately.
 
     ``keep_fraction < 1`` keeps that random fraction of the transits (dilution).
-    ``dead_fraction > 0``: dead time in blocks of ``dead_block_days`` (the primary
+    ``dead_fraction > 0``: dead time in outages of ``dead_outage_days`` (the primary
     experiment's model), and the attitude spline broken at those gaps.
     ``transits_per_knot``: knots placed by the kept transits, that many per interval (or, with
     ``knot_rule='uniform'``, at their mean interval with that many as a floor), instead of
@@ -39,7 +39,7 @@ def make_problem(n_stars=20000, days=10.0, knot_days=0.5, seed=5, min_transits=4
         tr = tr[rng.uniform(size=len(tr)) < keep_fraction].reset_index(drop=True)
     dead = None
     if dead_fraction > 0.0:
-        dead = draw_dead_time(START_JD, START_JD + days, dead_fraction, block_days=dead_block_days, rng=rng)
+        dead = draw_dead_time(START_JD, START_JD + days, dead_fraction, outage_days=dead_outage_days, rng=rng)
         tr = tr[~dead.is_dead(tr["tcb_jd"].to_numpy())].reset_index(drop=True)
     src = tr["source_index"].to_numpy()
     count = np.bincount(src, minlength=n_stars)
@@ -88,7 +88,7 @@ def gapped_problem():
     transits per knot interval: the attitude freedom of AGIS's 30 s knots at the paper's 1.5e6
     stars (~25 per knot), and less."""
     return make_problem(n_stars=800, days=365.0, seed=11, min_transits=1, keep_fraction=0.6, dead_fraction=0.2,
-                        dead_block_days=2.0,
+                        dead_outage_days=2.0,
                         transits_per_knot=12.0)
 
 
@@ -97,7 +97,7 @@ def gapped_uniform_problem():
     """The gapped problem's stars and dead time with knots by the 'uniform' rule (AGIS's uniform
     knots at the mean interval of 12 transits, longer where fewer fall)."""
     return make_problem(n_stars=800, days=365.0, seed=11, min_transits=1, keep_fraction=0.6, dead_fraction=0.2,
-                        dead_block_days=2.0, transits_per_knot=12.0, knot_rule="uniform")
+                        dead_outage_days=2.0, transits_per_knot=12.0, knot_rule="uniform")
 
 
 def _system(P):

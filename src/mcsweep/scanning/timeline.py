@@ -4,9 +4,9 @@ Both are drawn so that the result depends only on the seed of the generator and 
 the inputs, never on how the stars are split into chunks or over processes:
 
 * Dead time is drawn *once*, on the time line, before any star is looked at: the
-  interval ``[start, end)`` is cut into blocks of ``block_days`` and exactly
-  ``round(fraction * n_blocks)`` of them, chosen uniformly without replacement, are
-  dead. A transit inside a dead block is lost.
+  interval ``[start, end)`` is cut into outages of ``outage_days`` and exactly
+  ``round(fraction * n_outages)`` of them, chosen uniformly without replacement, are
+  dead. A transit inside a dead outage is lost.
 * Dilution removes each FoV transit independently with probability ``p``. The
   uniform number of a transit is a counter-based hash (SplitMix64, Steele et al. 2014,
   OOPSLA) of one 64-bit key drawn from the generator, the source index, the FoV and
@@ -20,6 +20,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+
+from ..renamed_names import renamed_keyword
 
 __all__ = ["DeadTime", "draw_dead_time", "dilution_key", "keep_after_dilution", "splitmix64"]
 
@@ -50,9 +52,9 @@ class DeadTime:
         return float(np.sum(self.stops - self.starts))
 
 
-def draw_dead_time(start_jd: float, end_jd: float, fraction: float, *, block_days: float,
-                   rng: np.random.Generator) -> DeadTime:
-    """Draw dead blocks covering ``fraction`` of ``[start_jd, end_jd)``.
+def draw_dead_time(start_jd: float, end_jd: float, fraction: float, *, outage_days: float | None = None,
+                   rng: np.random.Generator, block_days: float | None = None) -> DeadTime:
+    """Draw dead outages covering ``fraction`` of ``[start_jd, end_jd)``.
 
     Parameters
     ----------
@@ -60,23 +62,26 @@ def draw_dead_time(start_jd: float, end_jd: float, fraction: float, *, block_day
         Interval (TCB Julian dates) [day].
     fraction : float
         Dead fraction of the time line, in [0, 1).
-    block_days : float
-        Length of one block [day]; the last block is cut at ``end_jd``.
+    outage_days : float
+        Length of one outage [day]; the last one is cut at ``end_jd``.
     rng : numpy.random.Generator
         Source of randomness (used only when ``fraction > 0``).
+    block_days : float, optional
+        Deprecated name of ``outage_days``.
 
     Returns
     -------
     DeadTime
     """
+    outage_days = renamed_keyword("draw_dead_time", "block_days", block_days, "outage_days", outage_days)
     empty = np.empty(0)
     if fraction <= 0.0:
         return DeadTime(empty, empty)
-    n_blocks = max(1, math.ceil((end_jd - start_jd) / block_days))
-    n_dead = int(round(fraction * n_blocks))
-    idx = np.sort(rng.choice(n_blocks, size=n_dead, replace=False))
-    starts = start_jd + idx * block_days
-    stops = np.minimum(starts + block_days, end_jd)
+    n_outages = max(1, math.ceil((end_jd - start_jd) / outage_days))
+    n_dead = int(round(fraction * n_outages))
+    idx = np.sort(rng.choice(n_outages, size=n_dead, replace=False))
+    starts = start_jd + idx * outage_days
+    stops = np.minimum(starts + outage_days, end_jd)
     return DeadTime(starts, stops)
 
 

@@ -34,14 +34,15 @@ from .law import ScanningLaw
 from .search import build_nodes, run_block
 from .timeline import draw_dead_time, dilution_key
 from .timescale import tcb_jd
+from ..renamed_names import old_names, renamed_keyword
 
-__all__ = ["find_transits", "observer_position_au", "TRANSIT_COLUMNS", "DEFAULT_DEAD_TIME_BLOCK_DAYS"]
+__all__ = ["find_transits", "observer_position_au", "TRANSIT_COLUMNS", "DEFAULT_DEAD_TIME_OUTAGE_DAYS"]
 
 #: Output columns, in order (see docs/architecture.md, section "scanning").
 TRANSIT_COLUMNS = ("source_index", "tcb_jd", "fov", "scan_angle_deg", "ac_offset_deg", "group",
                    "obs_x_au", "obs_y_au", "obs_z_au")
 #: Default length of one dead-time block [day] (about one spin; the paper gives no gap lengths).
-DEFAULT_DEAD_TIME_BLOCK_DAYS = 0.25
+DEFAULT_DEAD_TIME_OUTAGE_DAYS = 0.25
 # Target number of float32 entries of F per chunk (16 MB).
 _F_ENTRIES_PER_CHUNK = 4_000_000
 # Stars per block (one joblib task when n_jobs != 1); ~30 MB of results for 5 years.
@@ -91,8 +92,8 @@ def _assemble(blocks: list) -> dict:
 
 def find_transits(ra_deg, dec_deg, start, end, *, law: ScanningLaw | None = None,
                   dead_time_fraction: float = 0.0, dilution: float = 0.0, rng=None,
-                  dead_time_block_days: float = DEFAULT_DEAD_TIME_BLOCK_DAYS, n_jobs: int = 1,
-                  compact: bool = False) -> pd.DataFrame:
+                  dead_time_outage_days: float | None = None, n_jobs: int = 1,
+                  compact: bool = False, dead_time_block_days: float | None = None) -> pd.DataFrame:
     """All field-of-view transits of the given directions between ``start`` and ``end``.
 
     Parameters
@@ -108,14 +109,14 @@ def find_transits(ra_deg, dec_deg, start, end, *, law: ScanningLaw | None = None
         between segments (2017-01-27 - 02-08) have no transits.
     dead_time_fraction : float, keyword-only
         Fraction of the time line lost, in [0, 1) (the paper's 20 % is 0.2); drawn as
-        blocks of ``dead_time_block_days`` (see ``mcsweep.scanning.timeline``).
+        outages of ``dead_time_outage_days`` (see ``mcsweep.scanning.timeline``).
     dilution : float, keyword-only
         Probability in [0, 1] that each FoV transit is removed (the paper's 95 % is 0.95).
     rng : numpy.random.Generator, int or None, keyword-only
         Randomness for dead time and dilution (normalised with ``np.random.default_rng``);
         unused when both are 0.
-    dead_time_block_days : float, keyword-only
-        Length of one dead-time block [day].
+    dead_time_outage_days : float, keyword-only
+        Length of one dead-time outage [day]; default :data:`DEFAULT_DEAD_TIME_OUTAGE_DAYS`.
     n_jobs : int, keyword-only
         Processes for joblib (1 = in process; -1 = all cores). Results do not depend on it.
     compact : bool, keyword-only
@@ -123,6 +124,8 @@ def find_transits(ra_deg, dec_deg, start, end, *, law: ScanningLaw | None = None
         (precision 1e-5 deg), and leave out the observer columns (a function of
         ``tcb_jd``: :func:`observer_position_au`), 23 instead of 65 bytes per transit,
         to hold ~10^8 transits in memory; ``tcb_jd`` stays float64.
+    dead_time_block_days : float, keyword-only
+        Deprecated name of ``dead_time_outage_days``.
 
     Returns
     -------
@@ -166,19 +169,22 @@ def find_transits(ra_deg, dec_deg, start, end, *, law: ScanningLaw | None = None
         raise UserInputError(f"dead_time_fraction={dead_time_fraction!r} is not accepted; expected [0, 1)")
     if not 0.0 <= dilution <= 1.0:
         raise UserInputError(f"dilution={dilution!r} is not accepted; expected a probability in [0, 1]")
-    if not dead_time_block_days > 0.0:
-        raise UserInputError(f"dead_time_block_days={dead_time_block_days!r} is not accepted; expected > 0")
+    dead_time_outage_days = renamed_keyword("find_transits", "dead_time_block_days", dead_time_block_days,
+                                            "dead_time_outage_days", dead_time_outage_days,
+                                            default=DEFAULT_DEAD_TIME_OUTAGE_DAYS)
+    if not dead_time_outage_days > 0.0:
+        raise UserInputError(f"dead_time_outage_days={dead_time_outage_days!r} is not accepted; expected > 0")
 
     rng = np.random.default_rng(rng)
     dead = None
     if dead_time_fraction > 0.0:
-        dead = draw_dead_time(start_jd, end_jd, dead_time_fraction, block_days=dead_time_block_days, rng=rng)
+        dead = draw_dead_time(start_jd, end_jd, dead_time_fraction, outage_days=dead_time_outage_days, rng=rng)
     dil_key = dilution_key(rng) if dilution > 0.0 else None
 
     att = attitude_for(law)
     nodes = build_nodes(att, start_jd, end_jd)
     attrs = {"dead_time_fraction": dead_time_fraction, "dilution": dilution,
-             "dead_time_block_days": dead_time_block_days}
+             "dead_time_outage_days": dead_time_outage_days}
     if nodes is None:  # the interval lies in a gap between the law's segments: no transits
         return _to_frame(_empty_columns(compact), law, start_jd, end_jd, attrs=attrs)
     u_ecl = unit_vector(ra, dec) @ ICRS_TO_ECLIPTIC.T
@@ -226,3 +232,7 @@ def _to_frame(cols: dict, law: ScanningLaw, start_jd: float, end_jd: float, attr
     df.attrs.update({"scanning_law": law.name, "start_tcb_jd": start_jd, "end_tcb_jd": end_jd,
                      "extrapolated": law.extrapolation_note(start_jd, end_jd), **attrs})
     return df
+
+
+#: A dead-time "block" was renamed an outage: a block is a group of stars (docs/architecture.md).
+__getattr__ = old_names(__name__, {"DEFAULT_DEAD_TIME_BLOCK_DAYS": "DEFAULT_DEAD_TIME_OUTAGE_DAYS"})

@@ -194,6 +194,6 @@ def diluted(seed: np.random.SeedSequence, transits: dict, probability: float) ->
 
 
 def dead_time(seed: np.random.SeedSequence, start_jd: float, end_jd: float, fraction: float, *,
-              block_days: float) -> DeadTime:
-    """The dead blocks of the time line (Sect. 4.2: 20 % dead time), one draw for the data set."""
-    return draw_dead_time(start_jd, end_jd, fraction, block_days=block_days, rng=np.random.default_rng(seed))
+              outage_days: float) -> DeadTime:
+    """The dead outages of the time line (Sect. 4.2: 20 % dead time), one draw for the data set."""
+    return draw_dead_time(start_jd, end_jd, fraction, outage_days=outage_days, rng=np.random.default_rng(seed))

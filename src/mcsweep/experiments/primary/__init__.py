@@ -44,4 +44,6 @@ EXPERIMENT = global_experiment_spec(
     only_with={"experiment.primary.knot_rule": "experiment.primary.knot_transits"},
     # "primary" names the experiment; the extra stars it may add are not Gaia's primary sources.
     renamed_keys={"experiment.primary.primary_sources": "experiment.primary.extra_sources",
-                  "experiment.primary.primary_g_min": "experiment.primary.extra_g_min"})
+                  "experiment.primary.primary_g_min": "experiment.primary.extra_g_min",
+                  # a block is a group of stars; the dead time comes in outages
+                  "experiment.primary.dead_time_block_days": "experiment.primary.dead_time_outage_days"})

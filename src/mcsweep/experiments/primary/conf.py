@@ -31,7 +31,7 @@ class PrimaryConf:
     mission_years: float = 1.0
     mission_start: str = "2014-07-25T10:30:00"
     dead_time_fraction: float = 0.2
-    dead_time_block_days: float = 0.25
+    dead_time_outage_days: float = 0.25
     priors: List[str] = field(default_factory=lambda: ["F90", "10F90", "1000mas"])
     f90_formula: str = "paper"
     reference_epoch: str = "dataset_mean"
@@ -97,7 +97,7 @@ class PrimaryConf:
                  self.dead_time_fraction, "a fraction in [0, 1)")
         require(0 < self.mission_years <= 10, "experiment.primary.mission_years", self.mission_years,
                  "a length in (0, 10] years")
-        for key in ("dead_time_block_days", "knot_interval_hours", "attitude_timescale_hours", "solver_rtol",
+        for key in ("dead_time_outage_days", "knot_interval_hours", "attitude_timescale_hours", "solver_rtol",
                     "solver_update_tol_uas"):
             v = getattr(self, key)
             require(v > 0 and math.isfinite(v), f"experiment.primary.{key}", v, "a positive finite number")

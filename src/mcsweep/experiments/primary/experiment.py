@@ -113,7 +113,7 @@ class PrimarySettings(GlobalSettings):
     """Everything the experiment needs besides its stars."""
 
     dead_time_fraction: float
-    dead_time_block_days: float
+    dead_time_outage_days: float
     priors: tuple
     knot_interval_days: float
     knot_transits: float | None
@@ -173,7 +173,7 @@ def build_settings(config) -> PrimarySettings:
                              f"{pri.extra_g_min:g} is not accepted; expected magnitudes below {G_MAX:g}")
     return PrimarySettings(
         **fields,
-        dead_time_fraction=float(pri.dead_time_fraction), dead_time_block_days=float(pri.dead_time_block_days),
+        dead_time_fraction=float(pri.dead_time_fraction), dead_time_outage_days=float(pri.dead_time_outage_days),
         priors=priors, knot_interval_days=float(pri.knot_interval_hours) / 24.0,
         knot_transits=None if pri.knot_transits is None else float(pri.knot_transits), knot_rule=str(pri.knot_rule),
         attitude_amplitude_mas=float(pri.attitude_amplitude_mas),

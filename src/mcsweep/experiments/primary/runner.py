@@ -361,7 +361,7 @@ def _aggregate(run: GlobalRun, computed: _Computed) -> dict[str, str]:
     summary["dead_fraction"] = data.dead_days / (settings.end_jd - settings.start_jd)
     counts = cells.class_counts
     notes = [run.conditions(f"{pri.mission_years:g} year(s) from {pri.mission_start} (TCB), dead time "
-                            f"{100 * pri.dead_time_fraction:g} % in blocks of {pri.dead_time_block_days:g} d"),
+                            f"{100 * pri.dead_time_fraction:g} % in outages of {pri.dead_time_outage_days:g} d"),
              f"Stars: {pri.class_size} per class (paper 5e5), {counts.get(EXTRA_KEY, 0)} extra stars "
              f"(G >= {pri.extra_g_min:g}); {data.n_solved} with >= 1 transit, {n_obs} measurements; "
              f"attitude: cubic spline in {data.spline.n_segments} segments between the dead-time gaps, "

@@ -24,7 +24,7 @@ __all__ = ["dead_time_of", "true_attitude", "rotation_at", "block_epochs", "true
 def dead_time_of(settings: PrimarySettings) -> DeadTime:
     """The data set's dead time (one draw, its own stream)."""
     return dead_time(stream_seed(settings.seed, DEAD_STREAM), settings.start_jd, settings.end_jd,
-                     settings.dead_time_fraction, block_days=settings.dead_time_block_days)
+                     settings.dead_time_fraction, outage_days=settings.dead_time_outage_days)
 
 
 def true_attitude(settings: PrimarySettings) -> tuple[AttitudeSpline, np.ndarray]:

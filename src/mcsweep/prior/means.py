@@ -38,6 +38,7 @@ import numpy as np
 from ..errors import UserInputError
 from ..renamed_names import old_names
 from .columns import read_run_table
+from .sky_grid import check_sky
 from .run_record import MEANS_FILE
 from ..galactic import icrs_from_galactic, pm_icrs_from_galactic, unit_vector
 
@@ -172,28 +173,16 @@ class PriorMeans:
 
 
 def _grid(sky_config, path) -> dict:
-    sky = dict(sky_config or {})
-    kind, frame = sky.get("kind"), sky.get("frame", "galactic")
-    if frame not in ("galactic", "icrs"):
-        raise UserInputError(f"{path}: the run's sky.frame {frame!r} is not accepted; expected 'galactic' or 'icrs'")
-    if kind == "healpix":
-        nside, order = sky.get("nside"), sky.get("order", "nested")
-        if not (isinstance(nside, int) and nside >= 1 and nside & (nside - 1) == 0) or order not in ("nested", "ring"):
-            raise UserInputError(f"{path}: the run's sky (nside={nside!r}, order={order!r}) is not accepted; "
-                                 "expected a power-of-two nside and order 'nested' or 'ring'")
-        return {"kind": "healpix", "nside": nside, "order": order, "frame": frame}
-    if kind == "list":
-        d = np.asarray(sky.get("directions", []), dtype=float).reshape(-1, 2)
-        if d.shape[0] == 0:
-            raise UserInputError(f"{path}: the run's sky lists no directions; expected sky.directions")
-        if frame == "icrs":
-            from ..galactic import galactic_from_icrs
+    sky = check_sky(dict(sky_config or {}), f"{path}: the run's sky")
+    if sky["kind"] == "healpix":
+        return sky
+    d = np.asarray(sky["directions"], dtype=float).reshape(-1, 2)
+    if sky["frame"] == "icrs":
+        from ..galactic import galactic_from_icrs
 
-            gl, gb = galactic_from_icrs(d[:, 0], d[:, 1])
-            d = np.stack([gl, gb], axis=-1)
-        return {"kind": "list", "directions_gal": d}
-    raise UserInputError(f"{path}: the run's sky.kind {kind!r} is not accepted; expected 'healpix' or 'list' "
-                         "in provenance.json config['sky']")
+        gl, gb = galactic_from_icrs(d[:, 0], d[:, 1])
+        d = np.stack([gl, gb], axis=-1)
+    return {"kind": "list", "directions_gal": d}
 
 
 def _n_directions(sky) -> int:

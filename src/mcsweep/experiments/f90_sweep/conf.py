@@ -5,12 +5,14 @@ prior model (``prior_model``: colour axis and prior mean)."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import Any, List, Optional
 
 from ...astrometry.noise import G_MAX
 from ...prior.maps import MAX_NSIDE
+from ...prior.sky_grid import check_sky
 from ..config_checks import require
 
 
@@ -30,22 +32,10 @@ class SkyConf:
     directions: List[Any] = field(default_factory=list)
 
     def __post_init__(self):
-        require(self.kind in ("healpix", "list"), "sky.kind", self.kind, "'healpix' or 'list'")
-        require(self.frame in ("galactic", "icrs"), "sky.frame", self.frame, "'galactic' or 'icrs'")
-        if self.kind == "healpix":
-            require(self.nside >= 1 and (self.nside & (self.nside - 1)) == 0,
-                     "sky.nside", self.nside, "a power of two >= 1")
-            require(self.order in ("nested", "ring"), "sky.order", self.order, "'nested' or 'ring'")
-        else:
-            require(len(self.directions) > 0, "sky.directions", self.directions,
-                     "a non-empty list of [lon_deg, lat_deg] pairs")
-            for d in self.directions:
-                ok = isinstance(d, (list, tuple)) and len(d) == 2 and all(
-                    isinstance(v, (int, float)) and not isinstance(v, bool) for v in d)
-                require(ok and 0.0 <= d[0] <= 360.0 and -90.0 <= d[1] <= 90.0, "sky.directions",
-                         list(d) if isinstance(d, (list, tuple)) else d,
-                         "[lon_deg in 0..360, lat_deg in -90..90] pairs")
-            self.directions = [[float(v) for v in d] for d in self.directions]
+        # the one check of a sky (the prior checks a run's recorded sky with it too)
+        grid = check_sky(dataclasses.asdict(self))
+        if self.kind == "list":
+            self.directions = grid["directions"]
 
 
 @dataclass

@@ -32,6 +32,7 @@ __getattr__, __dir__, __all__ = attach(__name__, {
                "years_since"],
     "measurements": ["simulate"],
     "noise": ["NoiseModel"],
+    "noise_models": ["NOISE_MODELS", "noise_model"],
     "solve": ["DEFAULT_MAX_CONDITION", "DEFAULT_RATIO_R", "Solution", "normal_equations", "prior_diagonal",
               "solve_no_prior", "solve_position_only", "solve_with_prior"],
 })

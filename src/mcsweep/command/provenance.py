@@ -101,6 +101,7 @@ def _value(cfg: dict, dotted: str):
 #: :attr:`mcsweep.experiments.spec.ExperimentSpec.defaults_from_before`).
 _SHARED_DEFAULTS_FROM_BEFORE = {
     "noise.al_floor_mas": 0,
+    "noise.model": "published",  # the only noise model before the registry existed
     "population.params.extinction_model": "disc",
     "population.params.giant_thickness_factor": 0.45,  # galaxy model besancon-r03-4
     "population.params.subgiants": False,  # galaxy models before besancon-r03-5

@@ -21,7 +21,7 @@ from typing import Any, Dict, List, Optional
 
 from hydra.core.config_store import ConfigStore
 
-from ..astrometry.noise import NoiseModel
+from ..astrometry.noise_models import noise_model
 from ..errors import UserInputError
 from ..experiments.config_checks import require, tcb_jd_checked
 from ..experiments.f90_sweep.conf import CellConf, MagnitudesConf, PriorGridConf, PriorMapsConf, PriorModelConf, SkyConf
@@ -80,12 +80,15 @@ class ObservationsConf:
 
 @dataclass
 class NoiseConf:
-    """Per-FoV-transit measurement precision (see mcsweep.astrometry.noise): one model, the
-    published precision, with the settings below; the presets (``noise=gaia``, ``al_only``,
-    ``edr3_floor``) are named sets of them."""
+    """Per-FoV-transit measurement precision: the noise model ``model`` (a name of
+    :data:`mcsweep.astrometry.noise_models.NOISE_MODELS`; the published one by default) with
+    the settings below; the presets (``noise=gaia``, ``al_only``, ``edr3_floor``) are named
+    sets of them."""
 
-    #: The preset's name, recorded with the run; the model is set by the fields below.
+    #: The preset's name, recorded with the run (a label: the fields below set the model).
     name: str = "gaia"
+    #: The noise model, by its registered name.
+    model: str = "published"
     #: Multiplies the along-scan precision of the published model.
     al_scale: float = 1.0
     #: Multiplies the across-scan precision of the published model.
@@ -97,11 +100,8 @@ class NoiseConf:
     al_floor_mas: float = 0.0
 
     def __post_init__(self):
-        # the model's own checks, one place for them (mcsweep.astrometry.noise.NoiseModel)
-        try:
-            NoiseModel.from_config(self)
-        except UserInputError as exc:
-            raise UserInputError(f"noise.{exc}") from None
+        # the model's own checks, one place for them (mcsweep.astrometry.noise_models)
+        noise_model(self)
 
 
 @dataclass

@@ -26,7 +26,7 @@ import pandas as pd
 
 from ...astrometry.confidence import ellipse_semi_axes, inside, inside_counts, mahalanobis_sq
 from ...astrometry.design import JULIAN_YEAR_DAYS, design_matrix, reference_epoch
-from ...astrometry.noise import NoiseModel
+from ...astrometry.noise_models import NoiseModelLike
 from ...astrometry.prior_scan import MAX_KEY_PRIORS, PriorScan, prior_scan
 from ...astrometry.shared_design import SharedDesignNormals
 from ...astrometry.solve import solve_with_prior
@@ -102,7 +102,7 @@ class CellSettings:
     interpolation: str
     reference_epoch: str
     fixed_epoch_tcb_jd: float
-    noise: NoiseModel
+    noise: NoiseModelLike
     seed: int
     #: Bootstrap resamples of the stars for the sigma_F90 interval (0 = no interval).
     n_bootstrap: int = 0

@@ -24,7 +24,7 @@ import numpy as np
 import pandas as pd
 from astropy.time import Time
 
-from ...astrometry.noise import NoiseModel
+from ...astrometry.noise_models import noise_model
 from ...errors import UserInputError
 from .colour_fit import colour_tables, means_table
 from .fit import colour_blind, f90_table, fit_all, fit_tables, prior_maps_for_run
@@ -68,7 +68,7 @@ def build_settings(config) -> CellSettings:
         grid_statistics=cell.grid_statistics,
         reference_epoch=obs.reference_epoch,
         fixed_epoch_tcb_jd=tcb_jd(obs.fixed_epoch, "observations.fixed_epoch"),
-        noise=NoiseModel.from_config(config.noise),
+        noise=noise_model(config.noise),
         seed=config.seed,
         scatter_priors_mas=(sc.tight_prior_mas, sc.loose_prior_mas),
         colour_axis=bool(config.prior_model.colour_edges),

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ...astrometry.noise import NoiseModel
+from ...astrometry.noise_models import NoiseModelLike, noise_model
 from ...errors import UserInputError
 from ...prior import G_FIT_MAX, sigma_f90, sigma_from_coefficients
 from ...prior.run_record import COEFFICIENTS_FILE, read_coefficients
@@ -48,7 +48,7 @@ class GlobalSettings:
     start_jd: float
     end_jd: float
     law: ScanningLaw
-    noise: NoiseModel
+    noise: NoiseModelLike
     confidence: float
     ratio_R: float
     #: Coefficients of Eqs. 15-17 as ((name, (c0, c1, ...)), ...); None = the paper's.
@@ -125,7 +125,7 @@ def global_fields(config, name: str) -> dict:
                              "(the observer ephemeris)")
     return dict(seed=int(config.seed), start_jd=start_jd, end_jd=end_jd,
                 law=ScanningLaw.from_config(dataclasses.asdict(config.scanning)),
-                noise=NoiseModel.from_config(config.noise),
+                noise=noise_model(config.noise),
                 confidence=float(config.confidence), ratio_R=float(config.ratio_R),
                 f90_coefficients=load_f90_coefficients(section.f90_formula, f"experiment.{name}.f90_formula"),
                 reference_epoch=str(section.reference_epoch))

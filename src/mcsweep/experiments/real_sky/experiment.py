@@ -66,7 +66,7 @@ from ...population.hipparcos import EXTRA_MESSAGE, have_catalogue, load_hipparco
 from ...prior import Prior
 from ...prior.run_record import read_record
 from ...scanning import ScanningLaw, find_transits, observer_position_au
-from ...astrometry.noise import NoiseModel
+from ...astrometry.noise_models import noise_model
 from ...scanning.timescale import tcb_jd
 from ..global_solution.settings import GlobalSettings, spawn
 from ..global_solution.table import FRACTION_INTERVAL, error_percentile, fraction_statistics
@@ -196,7 +196,7 @@ def build_settings(config) -> RealSkySettings:
             with_mean.append(label)
     return RealSkySettings(
         seed=int(config.seed), start_jd=start_jd, end_jd=end_jd,
-        law=ScanningLaw.from_config(dataclasses.asdict(config.scanning)), noise=NoiseModel.from_config(config.noise),
+        law=ScanningLaw.from_config(dataclasses.asdict(config.scanning)), noise=noise_model(config.noise),
         confidence=float(config.confidence), ratio_R=float(config.ratio_R), reference_epoch=epoch,
         cases=tuple((c, tuple(int(g) for g in obs.cases[c])) for c in sec.cases), factor=float(sec.factor),
         g_min=float(sec.g_min), g_max=float(sec.g_max), max_stars=int(sec.max_stars), priors=tuple(priors),

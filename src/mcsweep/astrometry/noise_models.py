@@ -1,0 +1,67 @@
+"""The noise models, by the name the config's ``noise.model`` gives: one registry.
+
+A noise model gives the per-FoV-transit AL and AC uncertainties of a star of magnitude G.
+Every experiment builds its model with :func:`noise_model` from the ``noise`` config
+section (``mcsweep.command.schema.NoiseConf``, whose check is this function too), so a new
+model is one class and one :func:`register` call: it is then ``noise.model=<name>`` on
+every command line, and a run records it with its config. The section's other keys are
+the published model's settings (``al_scale``, ``ac_scale``, ``use_ac``, ``al_floor_mas``);
+a model reads those it understands from the section in its ``from_config``.
+"""
+
+from __future__ import annotations
+
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+from ..errors import UserInputError
+from .noise import NoiseModel
+
+__all__ = ["PUBLISHED", "NoiseModelLike", "NOISE_MODELS", "register", "noise_model"]
+
+#: The published model of :mod:`mcsweep.astrometry.noise` (Perryman et al. 2014), the default.
+PUBLISHED = "published"
+
+
+@runtime_checkable
+class NoiseModelLike(Protocol):
+    """What the experiments use of a noise model."""
+
+    #: Whether AC measurements enter the solution.
+    use_ac: bool
+
+    def sigma_al_mas(self, G) -> np.ndarray:
+        """AL uncertainty per FoV transit [mas] at magnitudes ``G``."""
+
+    def sigma_ac_mas(self, G) -> np.ndarray:
+        """AC uncertainty per FoV transit [mas] at magnitudes ``G``."""
+
+    def design_sigmas(self, G):
+        """``(sigma_al, sigma_ac or None)`` of shape (n, 1) for ``design_matrix``."""
+
+
+#: name -> class with a ``from_config(section)`` classmethod returning a :class:`NoiseModelLike`.
+NOISE_MODELS: dict[str, type] = {PUBLISHED: NoiseModel}
+
+
+def register(name: str, cls: type) -> None:
+    """Make ``cls`` the noise model ``noise.model=name`` (a name once)."""
+    if name in NOISE_MODELS and NOISE_MODELS[name] is not cls:
+        raise ValueError(f"noise model {name!r} is already registered ({NOISE_MODELS[name].__name__})")
+    NOISE_MODELS[name] = cls
+
+
+def noise_model(section) -> NoiseModelLike:
+    """The model a ``noise`` config section (a mapping or an object with its keys) names
+    (``model``, default :data:`PUBLISHED`), built from the section; a bad name or setting is
+    one :class:`~mcsweep.errors.UserInputError` line naming the ``noise.`` key."""
+    get = section.get if hasattr(section, "get") else lambda k, d: getattr(section, k, d)
+    name = get("model", PUBLISHED)
+    cls = NOISE_MODELS.get(name)
+    if cls is None:
+        raise UserInputError(f"noise.model={name!r} is not accepted; expected one of {sorted(NOISE_MODELS)}")
+    try:
+        return cls.from_config(section)
+    except UserInputError as exc:
+        raise UserInputError(f"noise.{exc}") from None

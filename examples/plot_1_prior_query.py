@@ -14,11 +14,14 @@ from astropy.coordinates import SkyCoord
 
 from mcsweep.prior import Prior
 
-prior = Prior.paper()  # or Prior.from_run("results/default"): a sweep's own fit
+# or Prior.from_run("results/default"): a sweep's own fit
+prior = Prior.paper()
 
 # %%
 # Three stars: M31's direction, the Galactic centre and the north Galactic pole.
-stars = SkyCoord(ra=[10.68, 266.4, 192.86] * u.deg, dec=[41.27, -28.9, 27.13] * u.deg)
+stars = SkyCoord(
+    ra=[10.68, 266.4, 192.86] * u.deg, dec=[41.27, -28.9, 27.13] * u.deg
+)
 G = np.array([12.0, 18.0, 15.0])
 print("sigma_F90 (parallax):", prior.sigma_parallax(stars, G=G))
 print("sigma_mu = R sigma_F90:", prior.sigma_pm(stars, G=G))
@@ -29,8 +32,17 @@ print("N_p of Eq. 18 has shape", prior.normal_matrix(stars, G=G).shape)
 g = np.linspace(6, 21, 151)
 fig, ax = plt.subplots(figsize=(6, 4))
 for l_deg, b_deg in [(0, 0), (90, 30), (180, 90)]:
-    ax.plot(g, prior.sigma_parallax(l_deg, b_deg, G=g).to_value(u.mas), label=f"l = {l_deg}, b = {b_deg} deg")
-ax.axvspan(prior.g_max, g.max(), color="0.9", label="beyond the fit: its faint edge")
+    ax.plot(
+        g,
+        prior.sigma_parallax(l_deg, b_deg, G=g).to_value(u.mas),
+        label=f"l = {l_deg}, b = {b_deg} deg",
+    )
+ax.axvspan(
+    prior.g_max,
+    g.max(),
+    color="0.9",
+    label="beyond the fit: its faint edge",
+)
 ax.set_yscale("log")
 ax.set_xlabel("G [mag]")
 ax.set_ylabel(r"$\sigma_{F90}$ [mas]")

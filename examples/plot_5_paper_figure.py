@@ -19,20 +19,51 @@ import pandas as pd
 
 run_dir = Path(tempfile.mkdtemp()) / "beam"
 command = Path(sys.executable).with_name("mcsweep")
-subprocess.run([str(command), "sky=single", "magnitudes=g15", "cell.min_stars=4000", "cell.max_stars=4000",
-                "cell.n_bootstrap=20", "execution.n_jobs=1", "execution.progress=false",
-                f"hydra.run.dir={run_dir}"], capture_output=True, text=True, check=True)
+subprocess.run(
+    [
+        str(command),
+        "sky=single",
+        "magnitudes=g15",
+        "cell.min_stars=4000",
+        "cell.max_stars=4000",
+        "cell.n_bootstrap=20",
+        "execution.n_jobs=1",
+        "execution.progress=false",
+        f"hydra.run.dir={run_dir}",
+    ],
+    capture_output=True,
+    text=True,
+    check=True,
+)
 
-curves = pd.concat(pd.read_parquet(p) for p in sorted((run_dir / "showcase").glob("cell_*[0-9].parquet")))
+curves = pd.concat(
+    pd.read_parquet(p)
+    for p in sorted((run_dir / "showcase").glob("cell_*[0-9].parquet"))
+)
 two = curves[(curves["case"] == "two") & ~curves["at_f90"]]
 f90 = float(curves["sigma_f90_mas"].iloc[0])
-print(f"sigma_F90 of the Table 1 beam: {f90:.3g} mas "
-      f"[{curves['sigma_f90_lo_mas'].iloc[0]:.3g}, {curves['sigma_f90_hi_mas'].iloc[0]:.3g}]")
+lo, hi = (
+    curves["sigma_f90_lo_mas"].iloc[0],
+    curves["sigma_f90_hi_mas"].iloc[0],
+)
+print(f"sigma_F90 of the Table 1 beam: {f90:.3g} mas [{lo:.3g}, {hi:.3g}]")
 
 fig, ax = plt.subplots(figsize=(6, 4.5))
-ax.plot(two["sigma_prior_mas"], two["p_error_mas"], "b--", label="90th percentile of actual errors")
-ax.plot(two["sigma_prior_mas"], two["median_semi_major_mas"], "r-", label="semi-major axis of the 90 % ellipse (median)")
-ax.axvline(f90, color="k", lw=1, label=rf"$\sigma_{{F90}}$ = {f90:.3g} mas")
+ax.plot(
+    two["sigma_prior_mas"],
+    two["p_error_mas"],
+    "b--",
+    label="90th percentile of actual errors",
+)
+ax.plot(
+    two["sigma_prior_mas"],
+    two["median_semi_major_mas"],
+    "r-",
+    label="semi-major axis of the 90 % ellipse (median)",
+)
+ax.axvline(
+    f90, color="k", lw=1, label=rf"$\sigma_{{F90}}$ = {f90:.3g} mas"
+)
 ax.set_xscale("log")
 ax.set_yscale("log")
 ax.set_xlabel(r"parallax prior $\sigma_{\varpi,p}$ [mas]")

@@ -6,6 +6,9 @@
    unescaped ``|`` inside a cell splits it).
 3. A page that would reach the network: a script or stylesheet loaded from another host
    (the site must work offline; MathJax is bundled, ``sphinx-mathjax-offline``).
+4. A code line wider than the text column on a user's page (the guide, the start page, the
+   method, the experiment pages and the tutorial): over :data:`CODE_COLUMN` characters it is
+   clipped in the theme's column, and the reader of a command cannot see its end.
 
 Run after the build: ``python docs/scripts/check_site.py BUILD_DIR`` (from the repository's
 root; the Markdown sources are read from ``docs/``).
@@ -13,6 +16,7 @@ root; the Markdown sources are read from ``docs/``).
 
 from __future__ import annotations
 
+import html
 import re
 import sys
 from pathlib import Path
@@ -21,6 +25,12 @@ DOCS = Path(__file__).resolve().parents[1]
 RAW_ROLE = re.compile(r":(?:func|class|mod|meth|attr|data|doc|ref|math|obj|exc):(?:<code|`)")
 REMOTE = re.compile(r"<(?:script|link)\b[^>]*(?:src|href)=\"(?:https?:)?//[^\"]+\"", re.IGNORECASE)
 CODE_SPAN = re.compile(r"`[^`]*`")
+PRE = re.compile(r"<pre[^>]*>(.*?)</pre>", re.DOTALL)
+TAG = re.compile(r"<[^>]+>")
+#: Characters of monospace that fit the theme's 630 px text column at its code font size.
+CODE_COLUMN = 75
+#: The pages a user reads to run and use mcsweep (research notes may hold wide tables of logs).
+USER_PAGES = ("index.html", "method.html", "guide/", "experiments/", "auto_examples/")
 
 
 def _cells(row: str) -> int:
@@ -44,6 +54,16 @@ def table_problems(path: Path) -> list[str]:
     return out
 
 
+def wide_code(name, text: str) -> list[str]:
+    """The code lines of a built page wider than :data:`CODE_COLUMN` characters."""
+    out = []
+    for block in PRE.findall(text):
+        for line in html.unescape(TAG.sub("", block)).splitlines():
+            if len(line.rstrip()) > CODE_COLUMN:
+                out.append(f"{name}: code line of {len(line.rstrip())} characters (> {CODE_COLUMN}): {line.strip()[:60]}")
+    return out
+
+
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     if len(argv) != 1 or not Path(argv[0]).is_dir():
@@ -57,6 +77,8 @@ def main(argv=None) -> int:
             problems.append(f"{page.relative_to(build)}: raw role {m.group(0)[:12]!r}")
         for m in REMOTE.finditer(text):
             problems.append(f"{page.relative_to(build)}: loads from the network: {m.group(0)[:80]}")
+        if str(page.relative_to(build)).startswith(USER_PAGES):
+            problems.extend(wide_code(page.relative_to(build), text))
     for source in sorted(DOCS.rglob("*.md")):
         if "_build" in source.parts or "auto_examples" in source.parts:
             continue

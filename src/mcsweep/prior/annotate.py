@@ -155,7 +155,7 @@ def annotate_file(src: Path, dst: Path, prior: Prior, *, out_format: str | None 
 
     ``out_format`` defaults to the format of ``dst``'s suffix (``dst`` may be a
     temporary name without one). ``old_mean_columns``: the prior's centre under its former
-    names (:data:`OLD_PRIOR_MEAN_COLUMNS`; deprecated). Raises UserInputError for
+    names (``OLD_PRIOR_MEAN_COLUMNS``; deprecated). Raises UserInputError for
     unreadable files, missing columns, wrong units and non-finite values.
     """
     src, dst = Path(src), Path(dst)

@@ -116,7 +116,7 @@ def find_transits(ra_deg, dec_deg, start, end, *, law: ScanningLaw | None = None
         Randomness for dead time and dilution (normalised with ``np.random.default_rng``);
         unused when both are 0.
     dead_time_outage_days : float, keyword-only
-        Length of one dead-time outage [day]; default :data:`DEFAULT_DEAD_TIME_OUTAGE_DAYS`.
+        Length of one dead-time outage [day]; default ``DEFAULT_DEAD_TIME_OUTAGE_DAYS`` (0.25).
     n_jobs : int, keyword-only
         Processes for joblib (1 = in process; -1 = all cores). Results do not depend on it.
     compact : bool, keyword-only

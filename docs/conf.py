@@ -48,6 +48,9 @@ exclude_patterns = [
     "auto_examples/*.md5",
     "auto_examples/*.codeobj.json",
     "sg_execution_times.rst",
+    # a recorded run's figure with its provenance, included by the experiment pages
+    # (docs/scripts/results_figures.py), not a page of its own
+    "experiments/figures/*.md",
 ]
 
 # MyST: anchors for headings down to level 3 so pages can link to a section of another.

@@ -22,10 +22,10 @@ absorbed in the reference position and do not enter the differential corrections
 (the paper's own model, Sect. 2.1); the perspective term of the radial proper motion
 is neglected as the paper argues (Sect. 2.1, footnote 1).
 
-Memory layout: :func:`design_matrix` returns an array of shape ``(n, m, 5)`` whose
+Memory layout: :func:`~mcsweep.astrometry.design_matrix` returns an array of shape ``(n, m, 5)`` whose
 memory is ordered ``(5, m, n)`` ("star-last"): every row/column element is a
 contiguous vector over stars, which is what the batched solvers in
-:mod:`mcsweep.astrometry.solve` consume without copying. It behaves as any other
+``mcsweep.astrometry.solve`` consume without copying. It behaves as any other
 ``(n, m, 5)`` array.
 """
 

@@ -11,7 +11,7 @@ the source's direction ``u``:
 with ``b`` the observer's barycentric (BCRS) position in au and ``p``, ``q`` the unit
 vectors towards local east and north at ``u`` (the normal triad; the parallax factor
 of Lindegren et al. 2012, A&A 538, A78, Sect. 5.2, the AL row of Eq. 1 of Michalik et
-al. 2015, A&A 583, A68, "the paper": :func:`mcsweep.astrometry.design.design_matrix`'s
+al. 2015, A&A 583, A68, "the paper": :func:`mcsweep.astrometry.design_matrix`'s
 parallax column, whose sign the files follow). theta is measured at ``u`` (0 = local
 north, 90 deg = local east; AL direction ``(sin theta, cos theta)`` in (alpha*, delta)).
 
@@ -21,11 +21,11 @@ least-squares fit of the modelled to the given ``P_AL`` over the two coordinates
 unweighted (every transit's factor is exact):
 
 1. grid search: the sum of squared residuals at every direction of a Fibonacci sphere of
-   :data:`GRID_SIZE` points (3.7 deg apart), vectorised over directions and transits (a
+   ``GRID_SIZE`` points (3.7 deg apart), vectorised over directions and transits (a
    quadratic form in the six components of ``(p, q)``, whose 6 x 6 matrix sums the
    transits once);
 2. refinement with :func:`scipy.optimize.least_squares` from the best
-   :data:`N_STARTS` grid directions at least :data:`START_SEPARATION_DEG` apart
+   ``N_STARTS`` grid directions at least ``START_SEPARATION_DEG`` apart
    (other local minima, if any, are then not taken for the solution), in gnomonic
    offsets about each start, so the poles are no special case; the lowest minimum wins.
 
@@ -38,7 +38,7 @@ Accuracy. The files' factors hold Gaia's real orbit, a Lissajous orbit about L2 
 1e-3 au amplitude with a period of ~180 days; the model here is L2 itself (1.01 x the
 Sun-EMB vector), so the model's ``b`` is wrong by ~1e-3 au, slowly varying, and so are
 the modelled factors. A change of direction by ``x`` rad changes ``P_AL`` by up to
-``|b| x ~ x`` (|b| ~ 1 au), and the orbit's offset, semi-annual like the scans' sampling
+``|b| x ~ x`` (``|b|`` ~ 1 au), and the orbit's offset, semi-annual like the scans' sampling
 of each source, does not average out: the direction is biased by ~1e-3 rad, ~0.1 deg.
 Measured: 0.02-0.2 deg on simulated scans whose factors hold a Lissajous-like offset of
 Gaia's size (semi-amplitudes 0.9, 2.4, 1.2 x 1e-3 au; ``tests/astrometry/test_direction.py``),
@@ -53,7 +53,7 @@ place a source on the sky (its Galactic latitude, the prior's sigma_F90 at its
 direction), not as astrometry.
 
 ``python -m mcsweep.astrometry.direction`` regenerates ``sample_sources.csv`` beside the
-vendored sample (:func:`main`): each source's recovered direction, its G (AGIS's
+vendored sample (``main``): each source's recovered direction, its G (AGIS's
 ``gMag``) and the RMS of its parallax factors at that direction.
 """
 
@@ -112,7 +112,7 @@ def parallax_factors_al(ra_deg, dec_deg, scan_angle_deg, obs_au) -> np.ndarray:
     -------
     ndarray
         ``P_AL`` [au per au of parallax, i.e. mas of AL displacement per mas of parallax],
-        the parallax column of :func:`mcsweep.astrometry.design.design_matrix`.
+        the parallax column of :func:`mcsweep.astrometry.design_matrix`.
     """
     p, q, _ = tangent_triad(ra_deg, dec_deg)
     b = np.asarray(obs_au, dtype=float)

@@ -6,28 +6,28 @@ arrays (SM, then AF1-AF9). Two column conventions exist: the archive's snake_cas
 files of the data processing). The columns used (facts of the files: Gaia Collaboration,
 DR4 documentation of ``epoch_astrometry``; ESA's gaiasupdate, which reads the same files):
 
-=============================  ==========  =============================================
-column (snake / camel)          per         meaning
-=============================  ==========  =============================================
-source_id / sourceId            transit     Gaia source identifier (int64, kept exact)
-obs_time_tcb / obsTimeTcb       CCD         time at Gaia, ns since 2010-01-01T00:00 TCB
-obs_time_bary_corr / ...Corr    transit     barycentric correction of that time, ns
-scan_pos_angle / scanPosAngle   CCD         scan position angle theta, deg
-parallax_factor_al / ...FactorAl transit    AL parallax factor P_AL (exact, with Gaia's orbit)
-centroid_pos_al / centroidPosAl CCD         AL local-plane coordinate w, mas, relative to the
-                                            source's reference position with zero parallax
-                                            and proper motion
-centroid_pos_error_al / ...     CCD         its standard error, mas
-used_by_agis_al / usedByAgisAl  CCD         whether AGIS used the CCD in AL
-agis_source_excess_noise / ...  source      AGIS's excess source noise, mas
-colour_factor_al / ...          CCD or      AL colour factor (six-parameter model only)
-                                transit
-=============================  ==========  =============================================
+=================================  ==========  ===================================================
+column (snake / camel)             per         meaning
+=================================  ==========  ===================================================
+source_id / sourceId               transit     Gaia source identifier (int64, kept exact)
+obs_time_tcb / obsTimeTcb          CCD         time at Gaia, ns since 2010-01-01T00:00 TCB
+obs_time_bary_corr / ...Corr       transit     barycentric correction of that time, ns
+scan_pos_angle / scanPosAngle      CCD         scan position angle theta, deg
+parallax_factor_al / ...FactorAl   transit     AL parallax factor P_AL (exact, with Gaia's orbit)
+centroid_pos_al / centroidPosAl    CCD         AL local-plane coordinate w, mas, relative to the
+                                               source's reference position with zero parallax
+                                               and proper motion
+centroid_pos_error_al / ...        CCD         its standard error, mas
+used_by_agis_al / usedByAgisAl     CCD         whether AGIS used the CCD in AL
+agis_source_excess_noise / ...     source      AGIS's excess source noise, mas
+colour_factor_al / ...             CCD or      AL colour factor (six-parameter model only)
+                                   transit
+=================================  ==========  ===================================================
 
 The archive's CSV writes the header ``used_by_agis_al`` twice, the second where
 ``used_by_agis_ac`` belongs: the second is read as ``used_by_agis_ac``. Per-CCD arrays may
 arrive as 2-D columns, lists, tuples, variable-length arrays or text
-(:func:`mcsweep.tables.as_ragged`).
+(``mcsweep.tables.as_ragged``).
 
 A CCD observation is kept, as AGIS keeps it, where ``used_by_agis_al`` is true and its
 time, barycentric correction, scan angle, centroid and a positive error are all present.

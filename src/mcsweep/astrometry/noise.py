@@ -65,7 +65,7 @@ Validity
 The formulas hold for 12 <= G <= 20.7 (Gaia's faint detection limit). Brighter than
 G = 12 the value at G = 12 is used (Perryman et al.: gated exposures keep the photon
 noise roughly constant; the real bright stars are calibration-limited at a similar
-level). Fainter than G = 20.7 the formulas are extrapolated up to :data:`G_MAX` = 21;
+level). Fainter than G = 20.7 the formulas are extrapolated up to ``G_MAX`` = 21;
 fainter or non-finite magnitudes raise :class:`mcsweep.errors.UserInputError`.
 """
 

@@ -54,7 +54,7 @@ def register(name: str, cls: type) -> None:
 
 def noise_model(section) -> NoiseModelLike:
     """The model a ``noise`` config section (a mapping or an object with its keys) names
-    (``model``, default :data:`PUBLISHED`), built from the section; a bad name or setting is
+    (``model``, default ``PUBLISHED``), built from the section; a bad name or setting is
     one :class:`~mcsweep.errors.UserInputError` line naming the ``noise.`` key."""
     get = section.get if hasattr(section, "get") else lambda k, d: getattr(section, k, d)
     name = get("model", PUBLISHED)

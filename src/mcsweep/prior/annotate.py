@@ -4,11 +4,11 @@ Input columns use Gaia archive names (matched case-insensitively): ``ra, dec`` (
 or ``l, b`` (galactic), in degrees, and ``phot_g_mean_mag``. Every other column is kept
 with its unit.
 
-For a prior with a colour axis (:attr:`Prior.has_colour`) the star's BP-RP comes from a
+For a prior with a colour axis (:attr:`~mcsweep.prior.Prior.has_colour`) the star's BP-RP comes from a
 ``bp_rp`` column or, without one, from ``phot_bp_mean_mag - phot_rp_mean_mag``; empty or
 NaN values (and a catalogue without these columns) get the colour-blind prior of the
 same run. The column ``prior_colour_bin`` says which prior each row got: the bin as
-``'lo..hi'`` (mag) or ``'colour_blind'``. For a mean-centred prior (:attr:`Prior.has_mean`)
+``'lo..hi'`` (mag) or ``'colour_blind'``. For a mean-centred prior (:attr:`~mcsweep.prior.Prior.has_mean`)
 the prior's centre is added too: ``prior_mean_parallax_mas``, ``prior_mean_pmra_mas_yr`` and
 ``prior_mean_pmdec_mas_yr`` (ICRS, pmra = mu_alpha* as in the Gaia archive), the names
 ``mcsweep-prior solve`` gives them; ``old_mean_columns`` writes them under their former names

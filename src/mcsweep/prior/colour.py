@@ -5,19 +5,19 @@ priors that "take into account photometric ... information. For example, blue st
 have on average smaller parallaxes than red stars". A sweep with a colour axis fits
 the form of Eqs. 14-17 once per BP-RP bin and writes the coefficients, one block of
 rows per bin, to ``colour_coefficients.csv`` (columns ``bp_rp_min, bp_rp_max, term,
-fitted``; other columns are ignored). :class:`ColourBins` holds them and picks the bin
+fitted``; other columns are ignored). ``ColourBins`` holds them and picks the bin
 of each star:
 
 * bins are half-open, ``bp_rp_min <= BP-RP < bp_rp_max``, contiguous and sorted;
 * a colour below the first edge uses the first bin, above the last edge the last bin;
 * NaN (unknown colour) selects no bin: the colour-blind prior of the same run
-  (index -1, label :data:`COLOUR_BLIND`);
+  (index -1, label ``COLOUR_BLIND``);
 * a bin whose coefficients are not determined (NaN: none of its cells had enough stars)
   also gives the colour-blind prior (index -1);
 * where the run wrote ``colour_terms.csv`` (Eq. 14 per colour bin and G bin, the first of
   Sect. 3.4's two least-squares steps), the prior interpolates those terms linearly in G
   between the G bins' centres, constant beyond the outer ones
-  (:func:`mcsweep.prior.formula.sigma_from_nodes`): a colour bin's mix of giants and dwarfs
+  (``mcsweep.prior.formula.sigma_from_nodes``): a colour bin's mix of giants and dwarfs
   changes with G faster than the polynomials of Eqs. 15-17 follow (docs/prior_colour.md);
 * otherwise a bin's polynomials hold over the G range of the cells that determined them
   (columns ``g_fit_min``, ``g_fit_max`` when present): fainter than ``g_fit_max`` the
@@ -88,7 +88,7 @@ class ColourBins:
     coefficients: tuple[Mapping[str, tuple[float, ...]] | None, ...]
     g_ranges: tuple[tuple[float, float], ...] | None = None
     #: Per bin, the Eq. 14 terms per G bin (rows g, s0, s1, s2; ``colour_terms.csv``), which the
-    #: prior uses instead of the polynomials where present (:func:`~mcsweep.prior.formula.sigma_from_nodes`).
+    #: prior uses instead of the polynomials where present (``sigma_from_nodes``).
     nodes: tuple[np.ndarray | None, ...] | None = None
 
     def __post_init__(self):
@@ -163,7 +163,7 @@ class ColourBins:
         return (g_min if bright == "clamp" else None), upper
 
     def label(self, index) -> np.ndarray:
-        """Labels of bin indices from :meth:`index` (:data:`COLOUR_BLIND` for -1), str array."""
+        """Labels of bin indices from :meth:`index` (``COLOUR_BLIND`` for -1), str array."""
         names = np.array(self.labels + (COLOUR_BLIND,), dtype=object)
         return np.asarray(names[np.asarray(index)]).astype(str)
 

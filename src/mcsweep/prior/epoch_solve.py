@@ -15,7 +15,7 @@ source update without prior; ``solution`` says which to use), plus ``model``, ``
 
 Large inputs. The file is read in batches of rows (Parquet by row groups, CSV in chunks) and
 each batch is solved on its own, so memory is flat in the number of sources; a ``run``
-callable (the execution backend of :mod:`mcsweep.runtime.execution`, given by the command)
+callable (the execution backend of ``mcsweep.runtime.execution``, given by the command)
 solves batches in parallel, in a window of a few batches at a time. A source's rows may not
 be split between batches: the rows of the batch's last source are carried into the next
 batch, so the file must hold each source's rows together (the archive's files do; a file

@@ -1,4 +1,4 @@
-"""The all-sky parallax prior sigma_F90(l, b, G) of the paper (Sect. 3.4, Eqs. 14-17).
+"""The all-sky parallax prior sigma_F90(l, b, G) of the paper (Sect. 3.4, Eqs. 14-17)::
 
     log10 sigma_F90 = s0(G) + s1(G) |sin b| + s2(G) cos b cos l          (Eq. 14)
     s0(G) = 2.187 - 0.2547 G + 0.006382 G^2                               (Eq. 15)
@@ -6,7 +6,7 @@
     s2(G) = 0.031 - 0.0062 G                                              (Eq. 17)
 
 with sigma_F90 in mas and (l, b) galactic coordinates. The proper-motion prior is
-``sigma_mu = R sigma_F90`` with R = 10/yr (Eq. 18, :mod:`mcsweep.astrometry.solve`).
+``sigma_mu = R sigma_F90`` with R = 10/yr (Eq. 18, ``mcsweep.astrometry.solve``).
 
 Magnitude range. The coefficients were fitted to G = 6-20 (GUMS, 1 mag bins).
 
@@ -24,8 +24,8 @@ Magnitude range. The coefficients were fitted to G = 6-20 (GUMS, 1 mag bins).
   parallaxes of the nearest bright stars). ``bright="clamp"`` uses the G = 6 value
   instead, mirroring the faint-end rule.
 
-The coefficient table is exposed (:data:`PAPER_COEFFICIENTS`) and
-:func:`sigma_from_coefficients` evaluates Eqs. 14-17 for any coefficients, so a
+The coefficient table is exposed (``PAPER_COEFFICIENTS``) and
+``sigma_from_coefficients`` evaluates Eqs. 14-17 for any coefficients, so a
 re-fitted prior can be evaluated with the same code (:class:`mcsweep.prior.Prior`
 applies these rules for the paper's and for a run's coefficients).
 """

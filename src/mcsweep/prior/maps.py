@@ -12,12 +12,12 @@
 * HDU 2 ``CELLS``: the per-cell values behind the fit (simulated sigma_F90, the fitted
   and the paper's formula at each cell), with units.
 
-A prior with a colour axis (:attr:`Prior.has_colour`) adds, after these, one HDU per
+A prior with a colour axis (:attr:`~mcsweep.prior.Prior.has_colour`) adds, after these, one HDU per
 BP-RP bin k = 1..K, ``SIGMA_F90_C<k>``, laid out as ``SIGMA_F90`` (same columns, G and
 HEALPix keywords) with the bin in ``BPRPMIN``, ``BPRPMAX`` [mag], ``CBINLAB``
 (``'lo..hi'``) and ``CBINFIT`` (F: the bin has no width of its own and the map is the
 colour-blind prior its stars get); ``SIGMA_F90`` itself stays the colour-blind prior. A mean-centred prior
-(:attr:`Prior.has_mean`) adds the prior's centre, ``MEAN_PARALLAX`` [mas], ``MEAN_PMRA``
+(:attr:`~mcsweep.prior.Prior.has_mean`) adds the prior's centre, ``MEAN_PARALLAX`` [mas], ``MEAN_PMRA``
 and ``MEAN_PMDEC`` [mas/yr, ICRS components, pmra = mu_alpha*] (colour-blind), and with a
 colour axis the same per bin (``MEAN_PARALLAX_C<k>`` ...). Every map HDU carries
 ``QUANTITY`` (``SIGMA_F90``, ``MEAN_PARALLAX``, ``MEAN_PMRA`` or ``MEAN_PMDEC``);

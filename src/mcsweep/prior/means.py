@@ -10,7 +10,7 @@ are in ``prior_means.csv``, one row per cell:
 mean_pmb_masyr`` with the proper motion in galactic components (mu_l* = mu_l cos b, mu_b)
 and ``bp_rp_min = bp_rp_max = NaN`` for the colour-blind cells.
 
-:class:`PriorMeans` interpolates them to any star:
+``PriorMeans`` interpolates them to any star:
 
 * direction: bilinear on the sweep's HEALPix grid (``astropy_healpix``'s
   ``bilinear_interpolation_weights`` with the sky config's nside, order and frame; the
@@ -19,10 +19,10 @@ and ``bp_rp_min = bp_rp_max = NaN`` for the colour-blind cells.
 * G: linear between the centres of the G bins, constant beyond the first and last centre;
 * colour: the bin containing BP-RP (outer bins extended), NaN -> the colour-blind cells;
 * the proper motion is interpolated in galactic components and rotated to ICRS at the
-  star's position (:func:`mcsweep.galactic.pm_icrs_from_galactic`).
+  star's position (``mcsweep.galactic.pm_icrs_from_galactic``).
 
 A colour cell whose mean is NaN (no stars drawn in it) or that has no row takes the
-colour-blind mean of the same direction x G (:attr:`PriorMeans.n_filled` counts them); every
+colour-blind mean of the same direction x G (``PriorMeans.n_filled`` counts them); every
 colour-blind cell must have a finite mean (a sweep draws stars in each), else the file is
 refused.
 """

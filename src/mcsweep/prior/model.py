@@ -10,7 +10,7 @@ Gaia BP-RP bin (:mod:`mcsweep.prior.colour`, the "photometric information" of th
 paper's Sect. 3.4); every query then takes ``bp_rp=`` and a star of unknown colour (NaN)
 gets the colour-blind prior of the same run. A run with ``prior_model.mean`` centres the
 prior on the galaxy model's mean parallax and proper motion per cell
-(:mod:`mcsweep.prior.means`; :meth:`Prior.mean_parallax`, :meth:`Prior.mean_pm`), zero for
+(:mod:`mcsweep.prior.means`; :meth:`~mcsweep.prior.Prior.mean_parallax`, :meth:`~mcsweep.prior.Prior.mean_pm`), zero for
 every other prior, as in the paper (Sect. 3.1). ``bp_rp`` given to a prior without a
 colour axis is ignored. A colour bin's width is held constant beyond the centres of its
 outer G bins with a fit (:mod:`mcsweep.prior.colour`), whatever ``bright`` says: a colour's

@@ -1,6 +1,6 @@
 """A source's three solutions from its normal equations, its P ellipse, and which to use.
 
-Shared by ``mcsweep-prior solve`` on per-transit observations (:mod:`.observations`) and on
+Shared by ``mcsweep-prior solve`` on per-transit observations (``mcsweep.prior.observations``) and on
 Gaia epoch astrometry (:mod:`.epoch_solve`): given each source's normal equations
 ``N0 x = b0`` (Eqs. 2-3) it gives the solution with the prior (sigma_plx = K sigma_F90 at
 the source's l, b, G and colour, sigma_mu = R sigma_plx, Eq. 18, centred on the prior's
@@ -14,11 +14,11 @@ obtained from the data alone, never where it can, because a prior biases paralla
 proper motion. A source gets ``five_parameter`` when all hold:
 
 * the no-prior normal matrix is well conditioned (``no_prior_ok``: condition number at most
-  :data:`mcsweep.astrometry.solve.DEFAULT_MAX_CONDITION`);
-* its observations fall in at least :data:`MIN_VISIBILITY_PERIODS` visibility periods
+  ``mcsweep.astrometry.solve.DEFAULT_MAX_CONDITION``);
+* its observations fall in at least ``MIN_VISIBILITY_PERIODS`` visibility periods
   (groups more than 4 days apart), the condition under which Gaia DR2 published five-parameter
   solutions (Lindegren et al. 2018, A&A 616, A2: visibility_periods_used >= 6);
-* they span at least :data:`MIN_SPAN_YR` year, so that parallax and proper motion separate
+* they span at least ``MIN_SPAN_YR`` year, so that parallax and proper motion separate
   (the paper, Sect. 1: "the observations must span at least a whole year").
 
 Otherwise ``prior``: use the position and its ellipse from the prior solution, and not its

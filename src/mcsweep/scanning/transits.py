@@ -4,17 +4,17 @@ A star at unit vector u transits a field of view when its azimuth in the scan pl
 ``phi = atan2(u . y, u . x)`` in the SRS, passes the FoV azimuth (+Gamma/2 for the
 preceding FoV, -Gamma/2 for the following one; phi decreases as Gaia spins) while its
 across-scan offset ``zeta = asin(u . z)`` is within the FoV's acceptance. Because
-|zeta| < 0.41 deg, a star is scanned only while the precessing spin axis z keeps it
+``|zeta|`` < 0.41 deg, a star is scanned only while the precessing spin axis z keeps it
 within ~0.4 deg of the scan great circle, i.e. for a few hours around each zero of
 ``f(t) = u . z(t)`` (about 60 per star in 5 years).
 
 The search (vectorised over stars in chunks, no loop over stars or transits) is
-described in :mod:`mcsweep.scanning.search`; this module validates the inputs, draws
+described in ``mcsweep.scanning.search``; this module validates the inputs, draws
 the dead time and the dilution key, splits the stars into blocks (one joblib task
 each when ``n_jobs != 1``) and assembles the output table.
 
 Transit times are TCB Julian dates at Gaia. The observer's barycentric position at
-each transit comes from :func:`mcsweep.scanning.ephemeris.gaia_position_au` (one
+each transit comes from :func:`mcsweep.scanning.gaia_position_au` (one
 spline evaluation per transit, no ephemeris call per star).
 """
 

@@ -2,7 +2,7 @@
 
 One reader for every table a user gives mcsweep: catalogues (``population=catalogue``),
 catalogues to annotate, observations and sources for ``mcsweep-prior solve``, Gaia epoch
-astrometry, and a sweep's own run tables. Formats are those of :mod:`.formats`; CSV may be
+astrometry, and a sweep's own run tables. Formats are those of ``mcsweep.tables.formats``; CSV may be
 gzipped. Parquet and CSV are read in batches of rows (Parquet by its row groups, with
 pyarrow's read-ahead off so memory stays flat whatever the file's size); FITS, VOTable and
 ECSV are read whole by astropy and handed out in slices.
@@ -12,13 +12,13 @@ A column comes out as
 * a 1-D array for scalar columns (masked values: NaN for floats, a masked integer column
   becomes float with NaN);
 * a 2-D array (rows x elements) for fixed-length array columns;
-* a :class:`Ragged` for variable-length array columns (VOTable/FITS variable arrays,
+* a ``Ragged`` for variable-length array columns (VOTable/FITS variable arrays,
   Parquet lists), or an object array of strings for arrays written as text, as the
-  archive's CSV does (``"(1.0, 2.0)"``): :func:`as_ragged` turns any of these into one form.
+  archive's CSV does (``"(1.0, 2.0)"``): ``as_ragged`` turns any of these into one form.
 
 Identifier columns (names ending in ``id``: ``source_id``, ``sourceId``, ``transit_id``)
 are read from CSV as text, never through float64, so a Gaia ``source_id`` (up to ~7e18,
-beyond float64's 2**53) is kept exact; :func:`mcsweep.tables.ids.integer_ids` checks and
+beyond float64's 2**53) is kept exact; :func:`mcsweep.tables.integer_ids` checks and
 converts them.
 """
 
@@ -175,7 +175,7 @@ def _check_file(path: Path, what: str) -> None:
 
 
 def _arrow_column(col) -> object:
-    """A pyarrow column as numpy: lists as 2-D (equal lengths, no nulls) or :class:`Ragged`."""
+    """A pyarrow column as numpy: lists as 2-D (equal lengths, no nulls) or ``Ragged``."""
     import pyarrow as pa
     import pyarrow.compute as pc
 
@@ -206,7 +206,7 @@ def _arrow_scalar(col) -> np.ndarray:
 
 
 def _astropy_column(col) -> object:
-    """An astropy Table column as numpy (masked floats NaN; variable-length arrays :class:`Ragged`)."""
+    """An astropy Table column as numpy (masked floats NaN; variable-length arrays ``Ragged``)."""
     if col.dtype.kind == "O":
         cells = list(col)
         if cells and all(isinstance(c, np.ndarray) for c in cells):
@@ -402,9 +402,9 @@ def csv_batches(path, batch_rows, columns=None, what: str = "") -> Iterator[Tabl
 
 
 def as_ragged(column, *, name: str = "", source: str = "") -> Ragged:
-    """A per-row array column in any stored form as :class:`Ragged`.
+    """A per-row array column in any stored form as ``Ragged``.
 
-    Accepts a 2-D array, a :class:`Ragged`, an object array of sequences (lists, tuples,
+    Accepts a 2-D array, a ``Ragged``, an object array of sequences (lists, tuples,
     arrays) or of strings such as ``"(1.5, 2.5)"``, ``"[1.5,2.5]"`` or ``"(true, false)"``
     (the Gaia archive's CSV and ECSV text forms). Text values 'true'/'false' become 1/0 and
     'null'/'' NaN. Raises :class:`~mcsweep.errors.UserInputError` naming the column if a value is neither.

@@ -10,8 +10,8 @@ each G bin, directions drawn with replacement), which carries both the Monte Car
 of each cell's sigma_F90 and the scatter of the cells about Eq. 14. Intervals are the
 16th-84th percentiles of the resampled coefficients (FIT_INTERVAL).
 
-The sweep computes this fit when it aggregates its cells (:func:`mcsweep.experiments.f90_sweep.runner.run_sweep`)
-and writes :data:`FIT_FILES` and ``prior_maps.fits`` (:func:`prior_maps_for_run`); the
+The sweep computes this fit when it aggregates its cells (``mcsweep.experiments.f90_sweep.runner.run_sweep``)
+and writes :data:`FIT_FILES` and ``prior_maps.fits`` (``prior_maps_for_run``); the
 report only reads them back (:func:`read_fit`).
 """
 

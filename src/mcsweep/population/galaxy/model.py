@@ -1,11 +1,11 @@
 """The built-in galaxy model: exact expected counts and fast unbiased sampling.
 
 For a cone, the model tabulates on a grid of distance moduli (step 0.05 mag) and on
-sky cells (:mod:`mcsweep.population.sky`) the expected number of stars of each component
+sky cells (``mcsweep.population.sky``) the expected number of stars of each component
 per grid cell, ``dn = rho_shape * dV * Omega``, and the extinction A_G. For a G range
 the expected number in each (sky cell, component, distance cell) is ``dn`` times the
 fraction of the component's luminosity function that falls in the range at that
-distance and extinction; their sum is :meth:`GalaxyModel.expected_count`.
+distance and extinction; their sum is :meth:`~mcsweep.population.GalaxyModel.expected_count`.
 
 Sampling draws the number of stars from a Poisson distribution (GUMS is one
 realisation), then each star independently: a grid cell from the tabulated weights, a
@@ -15,10 +15,10 @@ the sky cell, and a velocity from the component's ellipsoid. Capping the number 
 (``max_stars``) therefore keeps the sample unbiased.
 
 Randomness comes only from the ``rng`` passed in: it gives the count and one root seed;
-stars are drawn in fixed blocks of :data:`DRAW_BLOCK_STARS`, block ``i`` from
+stars are drawn in fixed blocks of ``DRAW_BLOCK_STARS``, block ``i`` from
 ``SeedSequence(root, spawn_key=(i,))``, so the result does not depend on how blocks are
 grouped into chunks (``chunk_stars``) and memory stays flat. Each star's Gaia colour
-(``bp_rp``, :mod:`.colours`) needs one more uniform number, drawn from a stream of its own,
+(``bp_rp``, ``mcsweep.population.galaxy.colours``) needs one more uniform number, drawn from a stream of its own,
 block ``i``'s from ``SeedSequence(root, spawn_key=(i, COLOUR_STREAM))``: the streams of the
 other columns are untouched, so adding the colour changed none of them.
 """
@@ -57,7 +57,7 @@ DRAW_BLOCK_STARS = 65536
 #: ``(i,)``, so that the colour consumes none of the numbers the other columns are drawn from.
 COLOUR_STREAM = 1
 #: The column the galaxy model adds to :data:`~mcsweep.population.query.COLUMNS`: Gaia BP - RP
-#: [mag], intrinsic colour plus reddening (:mod:`.colours`).
+#: [mag], intrinsic colour plus reddening (``mcsweep.population.galaxy.colours``).
 COLOUR_COLUMN = "bp_rp"
 #: Distance-modulus grid: 2.5 pc to 79 kpc in steps of 0.05 mag (2.3 % in distance).
 MU_MIN, MU_MAX, MU_STEP = -3.0, 19.5, 0.05

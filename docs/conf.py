@@ -125,5 +125,28 @@ def require_docstrings(app, what, name, obj, options, lines):
                 "public name without a docstring: %s (%s)", name, what, type="mcsweep", subtype="docstring")
 
 
+#: numpydoc's validation (numpydoc.readthedocs.io, "Validation") of every function, method and
+#: class of the API reference: its parameters documented with a type and a description, the
+#: Returns (or Yields) section. Examples and See Also are not required of every name yet.
+NUMPYDOC_CHECKS = ("PR01", "PR02", "PR03", "PR04", "PR06", "PR07", "PR10", "RT01", "RT03", "YD01", "GL08")
+
+
+def validate_numpydoc(app, what, name, obj, options, lines):
+    """A public function, method or class whose docstring fails a check of
+    :data:`NUMPYDOC_CHECKS` fails the build (with ``-W``)."""
+    if what not in {"function", "method", "class", "exception", "classmethod", "staticmethod"}:
+        return
+    if what == "class" and getattr(obj, "_is_protocol", False):
+        return  # a typing.Protocol is never instantiated: its methods are checked, not its signature
+    from numpydoc.validate import validate
+    from sphinx.util import logging
+
+    for code, message in validate(name)["errors"]:
+        if code in NUMPYDOC_CHECKS:
+            logging.getLogger(__name__).warning("%s: numpydoc %s: %s", name, code, message, type="mcsweep",
+                                                subtype="numpydoc")
+
+
 def setup(app):
     app.connect("autodoc-process-docstring", require_docstrings)
+    app.connect("autodoc-process-docstring", validate_numpydoc)

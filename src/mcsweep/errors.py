@@ -21,7 +21,11 @@ EXIT_NOT_CONVERGED = 3
 class UserInputError(ValueError):
     """A value supplied by the user is not acceptable.
 
-    The message must name the offending value and say what is accepted, on one line.
+    Parameters
+    ----------
+    message : str
+        Names the offending value and says what is accepted; whitespace is folded so
+        the message is one line.
     """
 
     def __init__(self, message: str):

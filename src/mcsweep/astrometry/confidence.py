@@ -112,11 +112,27 @@ def inside(dpos, cov2, P) -> np.ndarray:
 
 
 def inside_counts(dpos, cov2, P) -> tuple[int, int]:
-    """``(n_inside, n_valid)``: stars inside their P ellipse, and stars that have one.
+    """Count the stars inside their P ellipse, and the stars that have one.
 
     The project's one NaN rule: a star whose error or covariance is not finite (an
     unsolved or flagged solution) has no confidence region, so it is left out of the
     denominator. Callers report ``n_valid`` next to the total so the exclusion is seen.
+
+    Parameters
+    ----------
+    dpos : array_like, shape (n, 2)
+        Position errors (estimated minus true, dalpha*, ddelta), mas.
+    cov2 : array_like, shape (n, 2, 2)
+        Their covariances, mas^2.
+    P : float
+        Confidence level of the ellipse, in (0, 1).
+
+    Returns
+    -------
+    n_inside : int
+        Stars whose error lies inside their P ellipse.
+    n_valid : int
+        Stars with a confidence region (finite error and covariance).
     """
     k = chi2_threshold(P, 2)
     q = mahalanobis_sq(dpos, cov2)
@@ -174,7 +190,19 @@ def inside_components(dx, dy, caa, cad, cdd, P, *, inside_out=None, valid_out=No
 def fraction_inside(dpos, cov2, P) -> float:
     """Fraction of stars inside their P confidence ellipse (NaN rule of :func:`inside_counts`).
 
-    NaN if no star has a valid confidence region.
+    Parameters
+    ----------
+    dpos : array_like, shape (n, 2)
+        Position errors (estimated minus true, dalpha*, ddelta), mas.
+    cov2 : array_like, shape (n, 2, 2)
+        Their covariances, mas^2.
+    P : float
+        Confidence level of the ellipse, in (0, 1).
+
+    Returns
+    -------
+    float
+        ``n_inside / n_valid``; NaN if no star has a valid confidence region.
     """
     n_in, n_valid = inside_counts(dpos, cov2, P)
     return n_in / n_valid if n_valid else float("nan")
@@ -184,7 +212,19 @@ def ellipse_semi_axes(cov2, P) -> tuple[np.ndarray, np.ndarray]:
     """Semi-major and semi-minor axes (mas) of the P confidence ellipse.
 
     ``sqrt(k(P) * lambda)`` for the two eigenvalues ``lambda`` of each 2 x 2
-    covariance, semi-major first.
+    covariance, ``k(P)`` the chi-square quantile with two degrees of freedom.
+
+    Parameters
+    ----------
+    cov2 : array_like, shape (n, 2, 2)
+        Position covariances, mas^2.
+    P : float
+        Confidence level, in (0, 1).
+
+    Returns
+    -------
+    semi_major, semi_minor : ndarray, shape (n,)
+        The ellipses' axes, mas.
     """
     k = chi2_threshold(P, 2)
     c = np.asarray(cov2, dtype=float)

@@ -88,13 +88,16 @@ class CcdObservations:
 
     Arrays are per CCD observation (length m) unless named per transit.
 
-    Attributes
+    Parameters
     ----------
     source_id : int64 (m,)
+        Gaia source identifier, exact.
     tcb_jd : float (m,)
         Barycentric time of the observation, ``obs_time_tcb + obs_time_bary_corr``, as a
         TCB Julian date: the time argument of the proper motion in AGIS's model.
     scan_angle_deg, parallax_factor_al, centroid_al_mas, sigma_al_mas : float (m,)
+        Scan position angle theta [deg], AL parallax factor, AL centroid w relative to
+        the reference position [mas] and its standard error [mas].
     excess_noise_mas : float (m,)
         The source's AGIS excess noise (the same on all its observations).
     colour_factor_al : float (m,) or None
@@ -200,8 +203,25 @@ def _isnan(values) -> np.ndarray:
 def ccd_observations(chunk: TableChunk, *, need_colour: bool = False) -> CcdObservations:
     """The AL CCD observations AGIS used, from a batch of an epoch-astrometry table (module notes).
 
-    Raises :class:`~mcsweep.errors.UserInputError` naming the file and column when a needed column is
-    missing (in both conventions) or holds something else than described above.
+    Parameters
+    ----------
+    chunk : mcsweep.tables.TableChunk
+        A batch of an epoch-astrometry file, one row per FoV transit
+        (:func:`mcsweep.tables.iter_tables`), in either column convention.
+    need_colour : bool, keyword-only
+        Require the AL colour factor (the six-parameter model).
+
+    Returns
+    -------
+    CcdObservations
+        The CCD observations with ``used_by_agis_al`` set and finite values, grouped by
+        source.
+
+    Raises
+    ------
+    mcsweep.errors.UserInputError
+        Naming the file and column, when a needed column is missing (in both
+        conventions) or holds something else than described above.
     """
     source = chunk.source
     fix_archive_header(chunk)

@@ -141,15 +141,38 @@ class NoiseModel:
 
     @classmethod
     def from_config(cls, cfg) -> "NoiseModel":
-        """Build from a mapping or object with ``al_scale``, ``ac_scale``, ``use_ac``,
-        ``al_floor_mas``."""
+        """Build the model from the ``noise`` config section.
+
+        Parameters
+        ----------
+        cfg : mapping or object
+            With ``al_scale``, ``ac_scale``, ``use_ac`` and ``al_floor_mas`` (any missing
+            one takes its default).
+
+        Returns
+        -------
+        NoiseModel
+            The model; a bad value raises :class:`~mcsweep.errors.UserInputError`.
+        """
         get = cfg.get if hasattr(cfg, "get") else lambda k, d: getattr(cfg, k, d)
         return cls(al_scale=float(get("al_scale", 1.0)), ac_scale=float(get("ac_scale", 1.0)),
                    use_ac=bool(get("use_ac", True)), al_floor_mas=float(get("al_floor_mas", 0.0)))
 
     def sigma_al_mas(self, G) -> np.ndarray:
-        """AL uncertainty per FoV transit in mas (Perryman et al. 2014, Eqs. 1-3), with the
-        optional floor ``al_floor_mas`` in quadrature (module notes)."""
+        """AL uncertainty per FoV transit (Perryman et al. 2014, Eqs. 1-3).
+
+        With the optional floor ``al_floor_mas`` in quadrature (module notes).
+
+        Parameters
+        ----------
+        G : float or array_like
+            Gaia G magnitudes, within 0..21 (brighter than G = 12 the value at 12).
+
+        Returns
+        -------
+        ndarray
+            sigma_AL per FoV transit, mas, the shape of ``G``.
+        """
         eta2 = _sigma_eta2_uas2(G)
         var = eta2 / _N_AF_CCD + _SIGMA_ATT_UAS**2 + _SIGMA_CAL_UAS**2
         sigma = self.al_scale * 1e-3 * np.sqrt(var)
@@ -158,7 +181,18 @@ class NoiseModel:
         return np.sqrt(sigma**2 + self.al_floor_mas**2)
 
     def sigma_ac_mas(self, G) -> np.ndarray:
-        """AC uncertainty per FoV transit in mas (module notes)."""
+        """AC uncertainty per FoV transit (module notes).
+
+        Parameters
+        ----------
+        G : float or array_like
+            Gaia G magnitudes, within 0..21 (brighter than G = 12 the value at 12).
+
+        Returns
+        -------
+        ndarray
+            sigma_AC per FoV transit, mas, the shape of ``G``.
+        """
         g = _check_g(G)
         eta2 = _sigma_eta2_uas2(g)
         n_ac = np.where(g < G_2D_WINDOW_LIMIT, _N_AC_2D, _N_AC_SM)
@@ -166,7 +200,20 @@ class NoiseModel:
         return self.ac_scale * 1e-3 * np.sqrt(var)
 
     def design_sigmas(self, G):
-        """``(sigma_al, sigma_ac or None)`` of shape (n, 1), ready for ``design_matrix``."""
+        """The AL and AC uncertainties as :func:`~mcsweep.astrometry.design_matrix` takes them.
+
+        Parameters
+        ----------
+        G : float or array_like
+            Gaia G magnitudes, within 0..21 (brighter than G = 12 the value at 12).
+
+        Returns
+        -------
+        sigma_al : ndarray, shape (n, 1)
+            AL uncertainty per FoV transit, mas.
+        sigma_ac : ndarray, shape (n, 1), or None
+            AC uncertainty per FoV transit, mas; None when ``use_ac`` is False.
+        """
         g = np.atleast_1d(np.asarray(G, dtype=float))[:, None]
         return self.sigma_al_mas(g), (self.sigma_ac_mas(g) if self.use_ac else None)
 

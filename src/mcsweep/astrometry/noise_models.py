@@ -32,13 +32,48 @@ class NoiseModelLike(Protocol):
     use_ac: bool
 
     def sigma_al_mas(self, G) -> np.ndarray:
-        """AL uncertainty per FoV transit [mas] at magnitudes ``G``."""
+        """AL uncertainty per FoV transit at magnitudes ``G``.
+
+        Parameters
+        ----------
+        G : float or array_like
+            Gaia G magnitudes.
+
+        Returns
+        -------
+        ndarray
+            sigma_AL, mas, the shape of ``G``.
+        """
 
     def sigma_ac_mas(self, G) -> np.ndarray:
-        """AC uncertainty per FoV transit [mas] at magnitudes ``G``."""
+        """AC uncertainty per FoV transit at magnitudes ``G``.
+
+        Parameters
+        ----------
+        G : float or array_like
+            Gaia G magnitudes.
+
+        Returns
+        -------
+        ndarray
+            sigma_AC, mas, the shape of ``G``.
+        """
 
     def design_sigmas(self, G):
-        """``(sigma_al, sigma_ac or None)`` of shape (n, 1) for ``design_matrix``."""
+        """The uncertainties as :func:`~mcsweep.astrometry.design_matrix` takes them.
+
+        Parameters
+        ----------
+        G : float or array_like
+            Gaia G magnitudes.
+
+        Returns
+        -------
+        sigma_al : ndarray, shape (n, 1)
+            AL uncertainty per FoV transit, mas.
+        sigma_ac : ndarray, shape (n, 1), or None
+            AC uncertainty per FoV transit, mas; None without AC measurements.
+        """
 
 
 #: name -> class with a ``from_config(section)`` classmethod returning a :class:`NoiseModelLike`.
@@ -46,16 +81,38 @@ NOISE_MODELS: dict[str, type] = {PUBLISHED: NoiseModel}
 
 
 def register(name: str, cls: type) -> None:
-    """Make ``cls`` the noise model ``noise.model=name`` (a name once)."""
+    """Make ``cls`` the noise model ``noise.model=name``.
+
+    Parameters
+    ----------
+    name : str
+        The name the config's ``noise.model`` will give; a name is registered once.
+    cls : type
+        A class with ``from_config(section)`` returning a :class:`NoiseModelLike`.
+    """
     if name in NOISE_MODELS and NOISE_MODELS[name] is not cls:
         raise ValueError(f"noise model {name!r} is already registered ({NOISE_MODELS[name].__name__})")
     NOISE_MODELS[name] = cls
 
 
 def noise_model(section) -> NoiseModelLike:
-    """The model a ``noise`` config section (a mapping or an object with its keys) names
-    (``model``, default ``PUBLISHED``), built from the section; a bad name or setting is
-    one :class:`~mcsweep.errors.UserInputError` line naming the ``noise.`` key."""
+    """Build the noise model a ``noise`` config section names.
+
+    Parameters
+    ----------
+    section : mapping or object
+        The ``noise`` section: ``model`` (default ``published``) and the model's settings.
+
+    Returns
+    -------
+    NoiseModelLike
+        The registered model of that name, built from the section.
+
+    Raises
+    ------
+    mcsweep.errors.UserInputError
+        One line naming the ``noise.`` key, for an unknown name or a bad setting.
+    """
     get = section.get if hasattr(section, "get") else lambda k, d: getattr(section, k, d)
     name = get("model", PUBLISHED)
     cls = NOISE_MODELS.get(name)

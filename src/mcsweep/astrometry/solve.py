@@ -58,7 +58,7 @@ _NORMAL_BLOCK = 8192
 class Solution:
     """Astrometric solutions of many stars.
 
-    Attributes
+    Parameters
     ----------
     x : ndarray, shape (n, 5)
         Estimated (dalpha*, ddelta, dplx, dmu_alpha*, dmu_delta) in
@@ -104,8 +104,9 @@ def normal_equations(A, h) -> tuple[np.ndarray, np.ndarray]:
     Returns
     -------
     N0 : ndarray, shape (n, 5, 5)
+        Normal matrices ``A'A`` (star-last memory layout).
     b0 : ndarray, shape (n, 5)
-        Both in star-last memory layout.
+        Right-hand sides ``A'h`` (star-last memory layout).
     """
     A = np.asarray(A, dtype=float)
     h = np.asarray(h, dtype=float)
@@ -179,7 +180,10 @@ def solve_with_prior(N0, b0, sigma_plx_prior_mas, ratio_R=DEFAULT_RATIO_R, *,
     Parameters
     ----------
     N0 : array_like, shape (n, 5, 5)
+        Normal matrices of Eq. 2, parameters (dalpha*, ddelta, parallax, pmra*, pmdec) in
+        (mas, mas, mas, mas/yr, mas/yr).
     b0 : array_like, shape (n, 5)
+        Right-hand sides of Eq. 3, same units.
     sigma_plx_prior_mas : float or array_like, shape (n,)
         Prior parallax standard deviation, mas: one value or one per star.
     ratio_R : float or array_like, shape (n,)
@@ -194,6 +198,7 @@ def solve_with_prior(N0, b0, sigma_plx_prior_mas, ratio_R=DEFAULT_RATIO_R, *,
     Returns
     -------
     Solution
+        The posterior mean and covariance of every star (Eq. 13).
     """
     N0, b0 = check_normal(N0, b0)
     diag = prior_diagonal(sigma_plx_prior_mas, ratio_R)
@@ -215,8 +220,21 @@ def solve_position_only(N0, b0) -> Solution:
     """Two-parameter solution: position only, parallax and proper motion fixed at 0.
 
     This is the tight-prior limit of :func:`solve_with_prior` and the "none
-    (2 parameters)" row of the paper's Table 2. The returned ``x`` and ``cov`` keep
-    the five-parameter shape, with zeros for the three fixed parameters.
+    (2 parameters)" row of the paper's Table 2.
+
+    Parameters
+    ----------
+    N0 : array_like, shape (n, 5, 5)
+        Normal matrices of Eq. 2, parameters (dalpha*, ddelta, parallax, pmra*, pmdec) in
+        (mas, mas, mas, mas/yr, mas/yr).
+    b0 : array_like, shape (n, 5)
+        Right-hand sides of Eq. 3, same units.
+
+    Returns
+    -------
+    Solution
+        ``x`` and ``cov`` in the five-parameter shape, with zeros for the three fixed
+        parameters.
     """
     N0, b0 = check_normal(N0, b0)
     x2, cov2, ok, cond = spd_solve(N0[:, :2, :2], b0[:, :2], with_condition=True)
@@ -240,9 +258,17 @@ def solve_no_prior(N0, b0, max_condition=DEFAULT_MAX_CONDITION) -> Solution:
     Parameters
     ----------
     N0 : array_like, shape (n, 5, 5)
+        Normal matrices of Eq. 2, parameters (dalpha*, ddelta, parallax, pmra*, pmdec) in
+        (mas, mas, mas, mas/yr, mas/yr).
     b0 : array_like, shape (n, 5)
+        Right-hand sides of Eq. 3, same units.
     max_condition : float
         Largest accepted condition number; default ``DEFAULT_MAX_CONDITION``.
+
+    Returns
+    -------
+    Solution
+        The least-squares estimate and its covariance ``N0^-1``.
     """
     if not (np.isscalar(max_condition) and max_condition >= 1.0):
         raise UserInputError(f"max_condition={max_condition!r} is not accepted; expected a number >= 1")

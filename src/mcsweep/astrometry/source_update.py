@@ -63,12 +63,15 @@ def check_model(model: str) -> str:
 class SourceNormals:
     """Per source: the five-parameter normal equations and what the observations were.
 
-    Attributes
+    Parameters
     ----------
     source_id : int64 (n,), increasing
-    N : (n, 5, 5), b : (n, 5)
-        Normal matrix and right-hand side in (mas, mas, mas, mas/yr, mas/yr); for the
-        six-parameter model, with nu eliminated (module notes).
+        Gaia source identifiers.
+    N : (n, 5, 5)
+        Normal matrix in (mas, mas, mas, mas/yr, mas/yr); for the six-parameter model,
+        with nu eliminated (module notes).
+    b : (n, 5)
+        Right-hand side, same units.
     reference_epoch_jd : (n,)
         TCB Julian date of the position and of t = 0.
     n_ccd, n_transits, n_visibility_periods : int (n,)
@@ -76,10 +79,13 @@ class SourceNormals:
     time_span_yr : (n,)
         From the first to the last observation used.
     excess_noise_mas : (n,)
+        AGIS's excess source noise, mas, added in quadrature to every observation.
     model : str
+        '5p' or '6p'.
     pseudocolour : (n,) or None
         nu of the 6x6 solution without astrometric prior (nm^-1); None for 5p.
     pseudocolour_error : (n,) or None
+        Its standard error (nm^-1); None for 5p.
     """
 
     source_id: np.ndarray
@@ -142,6 +148,7 @@ def source_normals(obs: CcdObservations, *, model: str = "5p",
         Grouped by source, a transit's CCDs together (as
         :func:`~.epoch_astrometry.ccd_observations` returns them).
     model : {'5p', '6p'}
+        Five parameters, or six with the pseudocolour nu eliminated (module notes).
     reference_epoch_jd : float or None
         TCB Julian date of the reference epoch; None: each source's mean epoch of
         observation (the paper's choice, Sect. 2.1).
@@ -149,6 +156,7 @@ def source_normals(obs: CcdObservations, *, model: str = "5p",
     Returns
     -------
     SourceNormals
+        One row per source, in increasing ``source_id``.
     """
     check_model(model)
     if model == "6p" and obs.colour_factor_al is None:

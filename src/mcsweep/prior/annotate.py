@@ -151,12 +151,32 @@ def _prior_of_table(prior, kind, pos, gcol, get, units, source, colour_cols=(), 
 
 def annotate_file(src: Path, dst: Path, prior: Prior, *, out_format: str | None = None,
                   batch_rows: int = BATCH_ROWS, old_mean_columns: bool = False) -> int:
-    """Write ``src`` with the prior's columns (module notes) added to ``dst``; returns the number of rows.
+    """Write ``src`` with the prior's columns (module notes) added to ``dst``.
 
-    ``out_format`` defaults to the format of ``dst``'s suffix (``dst`` may be a
-    temporary name without one). ``old_mean_columns``: the prior's centre under its former
-    names (``OLD_PRIOR_MEAN_COLUMNS``; deprecated). Raises UserInputError for
-    unreadable files, missing columns, wrong units and non-finite values.
+    Parameters
+    ----------
+    src : path-like
+        The catalogue: FITS, VOTable, ECSV, CSV or Parquet with Gaia archive column names.
+    dst : path-like
+        The output file (it may be a temporary name without a suffix).
+    prior : Prior
+        The prior to add.
+    out_format : str, optional, keyword-only
+        Format of ``dst``; default from its suffix.
+    batch_rows : int, keyword-only
+        Rows per batch when Parquet or CSV is streamed.
+    old_mean_columns : bool, keyword-only
+        The prior's centre under its former names (``OLD_PRIOR_MEAN_COLUMNS``; deprecated).
+
+    Returns
+    -------
+    int
+        The number of rows written.
+
+    Raises
+    ------
+    mcsweep.errors.UserInputError
+        For unreadable files, missing columns, wrong units and non-finite values.
     """
     src, dst = Path(src), Path(dst)
     fmt_in = detect_format(src)

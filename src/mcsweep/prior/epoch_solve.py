@@ -338,9 +338,13 @@ def solve_epoch_file(epoch_path, sources_path, prior: Prior, *, model: str = "5p
         ``sources_path`` None: each source's position and G from the file's ``ra0``, ``dec0``
         and ``g_mag`` (DR4's format carries them).
     prior : Prior
+        The prior (:meth:`Prior.paper <mcsweep.prior.Prior.paper>` or a run's fit).
     model : {'5p', '6p'}
-    factor, confidence
-        As :func:`mcsweep.prior.solutions.solutions_table`.
+        Five parameters, or six with AGIS's pseudocolour eliminated.
+    factor : float
+        K: the prior is K sigma_F90 (Sect. 3.3).
+    confidence : float or None
+        P of the ellipse; default the prior's own P.
     reference_epoch : str
         'J2017.5' (DR4's, default), another Julian year or ISO date (TCB), or 'star_mean'
         (each source's mean epoch of observation, Sect. 2.1).
@@ -351,6 +355,12 @@ def solve_epoch_file(epoch_path, sources_path, prior: Prior, *, model: str = "5p
         backend); None solves the batches here, one after the other.
     n_workers : int
         Workers behind ``run``: the window of batches in flight is a few per worker.
+
+    Yields
+    ------
+    pandas.DataFrame
+        The solutions of a batch's sources (the columns of
+        :func:`mcsweep.prior.solutions.solutions_table`), in file order.
     """
     check_model(model)
     check_factor(factor)

@@ -228,10 +228,24 @@ def prior_maps_bytes(prior: Prior | None, g_values, *, nside: int = DEFAULT_NSID
 
 
 def read_prior_maps(path, name: str = "SIGMA_F90") -> tuple[int, np.ndarray, np.ndarray]:
-    """``(nside, g_values (n_g,), maps (n_g, npix))`` from a ``prior_maps.fits`` (RING, galactic).
+    """Read one map of a ``prior_maps.fits`` (HEALPix, RING order, galactic frame).
 
-    ``name``: the map HDU, ``SIGMA_F90`` (default, the colour-blind sigma_F90) or any
-    other listed by :func:`list_prior_maps` (e.g. ``SIGMA_F90_C2``, ``MEAN_PMRA``).
+    Parameters
+    ----------
+    path : str or path-like
+        The file a sweep wrote.
+    name : str
+        The map HDU: ``SIGMA_F90`` (default, the colour-blind sigma_F90) or any other
+        listed by :func:`list_prior_maps` (e.g. ``SIGMA_F90_C2``, ``MEAN_PMRA``).
+
+    Returns
+    -------
+    nside : int
+        HEALPix resolution.
+    g_values : ndarray, shape (n_g,)
+        G of each map column, mag.
+    maps : ndarray, shape (n_g, npix)
+        The values (unit in the HDU's header: mas or mas/yr).
     """
     from astropy.io import fits
 
@@ -248,11 +262,19 @@ def read_prior_maps(path, name: str = "SIGMA_F90") -> tuple[int, np.ndarray, np.
 
 
 def list_prior_maps(path) -> list[dict]:
-    """The map HDUs of a ``prior_maps.fits``: one dict per HDU, in file order.
+    """The map HDUs of a ``prior_maps.fits``, in file order.
 
-    Keys: ``name`` (for :func:`read_prior_maps`), ``quantity`` (a key of
-    ``MAP_QUANTITIES``), ``unit``, ``bp_rp_min``, ``bp_rp_max`` (mag; NaN for the
-    colour-blind maps) and ``label`` (``'lo..hi'`` or ``'colour_blind'``).
+    Parameters
+    ----------
+    path : str or path-like
+        The file a sweep wrote.
+
+    Returns
+    -------
+    list of dict
+        One per HDU, keys ``name`` (for :func:`read_prior_maps`), ``quantity`` (a key of
+        ``MAP_QUANTITIES``), ``unit``, ``bp_rp_min``, ``bp_rp_max`` (mag; NaN for the
+        colour-blind maps) and ``label`` (``'lo..hi'`` or ``'colour_blind'``).
     """
     from astropy.io import fits
 

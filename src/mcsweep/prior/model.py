@@ -129,7 +129,19 @@ class Prior:
     # -- construction -------------------------------------------------------------------
     @classmethod
     def paper(cls, *, bright: str = "extrapolate") -> "Prior":
-        """The paper's prior: Eqs. 14-17 fitted to GUMS at G = 6-20, P = 0.9, R = 10/yr."""
+        """The paper's prior: Eqs. 14-17 fitted to GUMS at G = 6-20, P = 0.9, R = 10/yr.
+
+        Parameters
+        ----------
+        bright : {'extrapolate', 'clamp'}, keyword-only
+            Stars brighter than G = 6: the polynomials extrapolated (default), or the
+            value at G = 6.
+
+        Returns
+        -------
+        Prior
+            The prior of Eqs. 14-18.
+        """
         return cls(PAPER_COEFFICIENTS, G_FIT_MIN, G_FIT_MAX, PAPER_CONFIDENCE, PAPER_RATIO_R, bright, "paper")
 
     @classmethod
@@ -147,6 +159,19 @@ class Prior:
         (``prior_means.csv`` on the grid of ``config["sky"]``, ``mcsweep.prior.means``).
         A run without ``prior_model`` (or with the default ``direction_g``) reads as the
         colour-blind, zero-centred prior of Eqs. 14-18.
+
+        Parameters
+        ----------
+        run_dir : str or path-like
+            A finished sweep's run directory.
+        bright : {'extrapolate', 'clamp'}, keyword-only
+            Stars brighter than the fit range: the polynomials extrapolated (default), or
+            the value at its bright edge.
+
+        Returns
+        -------
+        Prior
+            The run's fitted prior.
 
         Raises
         ------
@@ -272,13 +297,43 @@ class Prior:
         return np.zeros(np.broadcast_shapes(*shapes))
 
     def mean_parallax_mas(self, l_deg, b_deg, G, bp_rp=None) -> np.ndarray:
-        """The prior's centre in parallax, mas, from galactic l, b in degrees (zeros if zero-mean)."""
+        """The prior's centre in parallax, plain arrays (zeros for a zero-mean prior).
+
+        Parameters
+        ----------
+        l_deg, b_deg : array_like
+            Galactic longitude and latitude, deg.
+        G : array_like
+            G magnitude, mag, broadcast with the positions.
+        bp_rp : array_like, optional
+            Gaia BP-RP, mag; NaN where unknown (the run's colour-blind prior).
+
+        Returns
+        -------
+        ndarray
+            Mean parallax of the star's cell in the galaxy model, mas.
+        """
         if self.means is None:
             return self._zeros(l_deg, b_deg, G, bp_rp)
         return self._mean_galactic(l_deg, b_deg, G, bp_rp)[0]
 
     def mean_pm_masyr(self, l_deg, b_deg, G, bp_rp=None) -> tuple[np.ndarray, np.ndarray]:
-        """The prior's centre in proper motion, (mu_alpha*, mu_delta) in mas/yr, ICRS (zeros if zero-mean)."""
+        """The prior's centre in proper motion, plain arrays (zeros for a zero-mean prior).
+
+        Parameters
+        ----------
+        l_deg, b_deg : array_like
+            Galactic longitude and latitude, deg.
+        G : array_like
+            G magnitude, mag, broadcast with the positions.
+        bp_rp : array_like, optional
+            Gaia BP-RP, mag; NaN where unknown (the run's colour-blind prior).
+
+        Returns
+        -------
+        pmra, pmdec : ndarray
+            (mu_alpha*, mu_delta), mas/yr, ICRS.
+        """
         if self.means is None:
             z = self._zeros(l_deg, b_deg, G, bp_rp)
             return z, z.copy()
@@ -315,7 +370,20 @@ class Prior:
     def sigma_pm(self, *where, G=None, bp_rp=None) -> u.Quantity:
         """Proper-motion prior ``R * sigma_F90`` (Eq. 18) as a Quantity in mas/yr.
 
-        Same arguments as :meth:`sigma_parallax`.
+        Parameters
+        ----------
+        *where : SkyCoord, or l and b
+            As for :meth:`sigma_parallax`: a SkyCoord in any frame, or galactic l and b
+            (degrees or angle Quantities); G may follow as the last one.
+        G : array_like, keyword
+            G magnitude (numbers or a Quantity in mag), broadcast with the positions.
+        bp_rp : array_like, keyword, optional
+            Gaia BP-RP in mag; NaN where unknown (the run's colour-blind prior).
+
+        Returns
+        -------
+        Quantity
+            In mas/yr, broadcast shape of the inputs.
         """
         l_deg, b_deg, g = self._parse(where, G)
         return self.ratio_R * self.sigma_parallax_mas(l_deg, b_deg, g, bp_rp) * (u.mas / u.yr)
@@ -323,9 +391,23 @@ class Prior:
     def mean_parallax(self, *where, G=None, bp_rp=None) -> u.Quantity:
         """Centre of the parallax prior as a Quantity in mas; zero for a zero-mean prior.
 
-        Same arguments as :meth:`sigma_parallax`. For a run with ``prior_model.mean``,
-        the galaxy model's mean parallax of the star's cell, interpolated
-        (``mcsweep.prior.means``).
+        For a run with ``prior_model.mean``, the galaxy model's mean parallax of the
+        star's cell, interpolated (``mcsweep.prior.means``).
+
+        Parameters
+        ----------
+        *where : SkyCoord, or l and b
+            As for :meth:`sigma_parallax`: a SkyCoord in any frame, or galactic l and b
+            (degrees or angle Quantities); G may follow as the last one.
+        G : array_like, keyword
+            G magnitude (numbers or a Quantity in mag), broadcast with the positions.
+        bp_rp : array_like, keyword, optional
+            Gaia BP-RP in mag; NaN where unknown (the run's colour-blind prior).
+
+        Returns
+        -------
+        Quantity
+            In mas, broadcast shape of the inputs.
         """
         l_deg, b_deg, g = self._parse(where, G)
         return self.mean_parallax_mas(l_deg, b_deg, g, bp_rp) * u.mas
@@ -334,7 +416,22 @@ class Prior:
         """Centre of the proper-motion prior, ``(pmra*, pmdec)`` Quantities in mas/yr, ICRS.
 
         ``pmra* = mu_alpha cos(delta)`` as in the Gaia archive's ``pmra``. Zero for a
-        zero-mean prior. Same arguments as :meth:`sigma_parallax`.
+        zero-mean prior.
+
+        Parameters
+        ----------
+        *where : SkyCoord, or l and b
+            As for :meth:`sigma_parallax`: a SkyCoord in any frame, or galactic l and b
+            (degrees or angle Quantities); G may follow as the last one.
+        G : array_like, keyword
+            G magnitude (numbers or a Quantity in mag), broadcast with the positions.
+        bp_rp : array_like, keyword, optional
+            Gaia BP-RP in mag; NaN where unknown (the run's colour-blind prior).
+
+        Returns
+        -------
+        pmra, pmdec : Quantity
+            In mas/yr, broadcast shape of the inputs.
         """
         l_deg, b_deg, g = self._parse(where, G)
         pmra, pmdec = self.mean_pm_masyr(l_deg, b_deg, g, bp_rp)
@@ -351,8 +448,12 @@ class Prior:
 
         Parameters
         ----------
-        *where, G, bp_rp
+        *where : SkyCoord, or l and b
             As for :meth:`sigma_parallax`.
+        G : array_like, keyword
+            G magnitude, mag.
+        bp_rp : array_like, keyword, optional
+            Gaia BP-RP, mag.
         factor : float, keyword-only
             Multiplier K of sigma_F90 (Sect. 3.3: priors up to ~10 x sigma_F90 keep
             the errors at the same level with conservative formal uncertainties).

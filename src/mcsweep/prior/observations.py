@@ -91,7 +91,20 @@ class TransitTable(dict):
 
 
 def read_observations(obs_path, sources_path=None) -> TransitTable:
-    """Read and check the observation table (and the sources table, if separate)."""
+    """Read and check a table of FoV transits and its sources.
+
+    Parameters
+    ----------
+    obs_path : str or path-like
+        One row per FoV transit (columns of the module notes; any table format).
+    sources_path : str or path-like, optional
+        ``source_id, ra, dec, phot_g_mean_mag`` per source, if not in ``obs_path``.
+
+    Returns
+    -------
+    TransitTable
+        The checked columns, transits sorted by source and time.
+    """
     obs = read_table(obs_path, "observations")
     name = Path(obs_path).name
     obs = _require_columns(obs, OBSERVATION_COLUMNS, name,

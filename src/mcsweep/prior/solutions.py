@@ -78,17 +78,26 @@ def solutions_table(source_id, ra_deg, dec_deg, g_mag, bp_rp, N0, b0, *, n_trans
     Parameters
     ----------
     source_id : int64 array (n,)
+        Source identifiers.
     ra_deg, dec_deg, g_mag, bp_rp : arrays (n,)
         The source's reference position (ICRS, deg), G and BP-RP (NaN: unknown; used only
         by a prior with a colour axis).
     N0, b0 : arrays (n, 5, 5), (n, 5)
         Normal equations in (mas, mas, mas, mas/yr, mas/yr).
     n_transits, reference_epoch_jd, n_visibility_periods, time_span_yr : arrays (n,)
+        FoV transits, the reference epoch (TCB Julian date), visibility periods and the
+        observations' time span (yr) of each source, reported with its solution.
     prior : Prior
+        The prior (the paper's or a run's fit).
     factor : float
         K: the prior is K sigma_F90 (Sect. 3.3: up to ~10 keeps the errors).
     confidence : float or None
         P of the ellipse; default the prior's own P.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per source, the columns of the module notes.
     """
     factor = check_factor(factor)
     p = check_probability(prior.confidence if confidence is None else confidence)

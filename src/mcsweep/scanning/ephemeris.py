@@ -124,6 +124,7 @@ def gaia_position_au(t) -> np.ndarray:
     Returns
     -------
     ndarray, shape ``t.shape + (3,)``
+        Barycentric position of Gaia, au (L2 model of the module notes).
     """
     jd = _as_tcb_jd(t)
     return _splines()[0](jd)
@@ -136,11 +137,18 @@ def sun_position_au(t) -> np.ndarray:
 
 
 def observer_position_au(transits) -> np.ndarray:
-    """Gaia's BCRS position [au] at each transit, shape (n, 3).
+    """Gaia's BCRS position at each transit.
 
-    ``transits``: a table of :func:`mcsweep.scanning.find_transits`. From its observer
-    columns, or, for compact output, from the same tabulation (:func:`gaia_position_au`)
-    at ``tcb_jd``.
+    Parameters
+    ----------
+    transits : pandas.DataFrame
+        A table of :func:`mcsweep.scanning.find_transits`.
+
+    Returns
+    -------
+    ndarray, shape (n, 3)
+        Barycentric position, au (ICRS axes): the table's observer columns, or, for
+        compact output, the same tabulation (:func:`gaia_position_au`) at ``tcb_jd``.
     """
     if "obs_x_au" in transits:
         return transits[["obs_x_au", "obs_y_au", "obs_z_au"]].to_numpy(float)

@@ -26,12 +26,31 @@ def _refuse(value, name: str, source: str):
 
 
 def integer_ids(values, name: str, source: str) -> np.ndarray:
-    """``values`` as int64 identifiers, or a one-line :class:`~mcsweep.errors.UserInputError` naming the first bad value.
+    """Read identifiers (Gaia ``source_id``) exactly as int64.
 
     Integer columns are taken as they are. Text is parsed digit by digit (so
     '4472832130942575873' stays exact). Floating-point values are accepted only if they are
     integers below 2**53, where float64 is exact; larger ones may already have been rounded
     when the file was written, so they are refused.
+
+    Parameters
+    ----------
+    values : array_like
+        The column: integers, text or floats.
+    name : str
+        The column's name, for messages.
+    source : str
+        The file's name, for messages.
+
+    Returns
+    -------
+    ndarray of int64
+        The identifiers.
+
+    Raises
+    ------
+    mcsweep.errors.UserInputError
+        One line naming the first value that is not an exact identifier.
     """
     arr = np.asarray(values)
     if arr.dtype.kind in "iu":

@@ -272,19 +272,52 @@ def astropy_table(path, fmt: str, what: str = ""):
 
 
 def read_table(path, *, fmt: str = "auto", what: str = "") -> TableChunk:
-    """The whole table in ``path`` (format from its suffix unless ``fmt`` says).
+    """Read the whole table in ``path``.
 
-    ``what`` names the file's role in messages. Raises :class:`~mcsweep.errors.UserInputError` (one line)
-    if the file is missing or unreadable in that format.
+    Parameters
+    ----------
+    path : str or path-like
+        A FITS, VOTable, ECSV, CSV or Parquet file.
+    fmt : str, keyword-only
+        'auto' (from the suffix), 'fits', 'votable', 'ecsv', 'csv' or 'parquet'.
+    what : str, keyword-only
+        The file's role, for messages (e.g. 'catalogue').
+
+    Returns
+    -------
+    TableChunk
+        The table's columns with their units.
+
+    Raises
+    ------
+    mcsweep.errors.UserInputError
+        One line, if the file is missing or unreadable in that format.
     """
     return TableChunk.concat(list(iter_tables(path, fmt=fmt, what=what, batch_rows=None)))
 
 
 def iter_tables(path, *, fmt: str = "auto", what: str = "", batch_rows: int | None = DEFAULT_BATCH_ROWS,
                 columns=None) -> Iterator[TableChunk]:
-    """Batches of at most ``batch_rows`` rows of the table in ``path`` (all rows at once if None).
+    """Read the table in ``path`` in batches.
 
-    ``columns``: read only these (the file's names), where the format allows it (Parquet, CSV).
+    Parameters
+    ----------
+    path : str or path-like
+        A FITS, VOTable, ECSV, CSV or Parquet file.
+    fmt : str, keyword-only
+        'auto' (from the suffix), 'fits', 'votable', 'ecsv', 'csv' or 'parquet'.
+    what : str, keyword-only
+        The file's role, for messages.
+    batch_rows : int or None, keyword-only
+        Rows per batch; None: all rows at once. Parquet and CSV are streamed; the other
+        formats are read whole and then cut.
+    columns : list of str, optional, keyword-only
+        Read only these (the file's names), where the format allows it (Parquet, CSV).
+
+    Yields
+    ------
+    TableChunk
+        The next batch of rows.
     """
     path = Path(path)
     fmt = detect_format(path, fmt, what=what)

@@ -237,8 +237,17 @@ def fit_tables(fit: FitResult) -> dict[str, pd.DataFrame]:
 def read_fit(run_dir) -> FitResult:
     """The fit a sweep wrote into ``run_dir`` (:data:`FIT_FILES`), read back without refitting.
 
-    ``fitted`` (Eqs. 15-17, increasing power of G) is the ``fitted`` column of
-    ``coefficients.csv``, rows ``s0_c0`` ... ``s2_c1``; NaN where it was not determined.
+    Parameters
+    ----------
+    run_dir : str or path-like
+        A sweep's run directory.
+
+    Returns
+    -------
+    FitResult
+        Its tables; ``fitted`` (Eqs. 15-17, increasing power of G) is the ``fitted``
+        column of ``coefficients.csv``, rows ``s0_c0`` ... ``s2_c1``, NaN where it was
+        not determined.
     """
     run_dir = Path(run_dir)
     tables = {field: pd.read_csv(run_dir / name) for name, field in FIT_FILES.items()}

@@ -344,7 +344,23 @@ class GalaxyModel:
         return float(self._cumulative(q)[2][-1])
 
     def expected_count_by_population(self, l_deg, b_deg, radius_deg, g_min, g_max):
-        """Expected number of stars per population label (dict label -> float)."""
+        """Expected number of stars in a cone and G range, per population.
+
+        Parameters
+        ----------
+        l_deg, b_deg : float
+            Cone centre, Galactic coordinates, deg.
+        radius_deg : float
+            Cone radius, deg (>= 180: whole sky).
+        g_min, g_max : float
+            Apparent G range, mag (g_min <= G < g_max).
+
+        Returns
+        -------
+        dict
+            Population label (the model's components, e.g. ``thin_disc``) -> expected
+            number of stars.
+        """
         q = ConeQuery.make(l_deg, b_deg, radius_deg, g_min, g_max)
         w = self._weights(self._line_of_sight(q.l_deg, q.b_deg, q.radius_deg), q.g_min, q.g_max)
         per = w.sum(axis=(0, 2))
@@ -407,7 +423,22 @@ class GalaxyModel:
         return df
 
     def sample_sky(self, g_min, g_max, rng, max_stars=None):
-        """Draw stars over the whole sky (see :meth:`sample_cone`)."""
+        """Draw stars over the whole sky.
+
+        Parameters
+        ----------
+        g_min, g_max : float
+            Apparent G range, mag.
+        rng : numpy.random.Generator
+            Source of randomness.
+        max_stars : int, optional
+            Cap on the number of stars returned; the kept stars are an unbiased sample.
+
+        Returns
+        -------
+        pandas.DataFrame
+            The columns of :meth:`sample_cone`.
+        """
         return self.sample_cone(0.0, 90.0, sky.WHOLE_SKY_DEG, g_min, g_max, rng, max_stars)
 
     # ----------------------------------------------------------------- drawing

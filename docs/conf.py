@@ -127,8 +127,9 @@ def require_docstrings(app, what, name, obj, options, lines):
 
 #: numpydoc's validation (numpydoc.readthedocs.io, "Validation") of every function, method and
 #: class of the API reference: its parameters documented with a type and a description, the
-#: Returns (or Yields) section. Examples and See Also are not required of every name yet.
-NUMPYDOC_CHECKS = ("PR01", "PR02", "PR03", "PR04", "PR06", "PR07", "PR10", "RT01", "RT03", "YD01", "GL08")
+#: Returns (or Yields) section and an Examples section (run as tests:
+#: tests/packaging/test_docstring_examples.py). See Also is not required.
+NUMPYDOC_CHECKS = ("PR01", "PR02", "PR03", "PR04", "PR06", "PR07", "PR10", "RT01", "RT03", "YD01", "GL08", "EX01")
 
 
 def validate_numpydoc(app, what, name, obj, options, lines):

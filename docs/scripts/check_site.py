@@ -30,7 +30,7 @@ TAG = re.compile(r"<[^>]+>")
 #: Characters of monospace that fit the theme's 630 px text column at its code font size.
 CODE_COLUMN = 75
 #: The pages a user reads to run and use mcsweep (research notes may hold wide tables of logs).
-USER_PAGES = ("index.html", "method.html", "guide/", "experiments/", "auto_examples/")
+USER_PAGES = ("index.html", "method.html", "guide/", "experiments/", "auto_examples/", "api/")
 
 
 def _cells(row: str) -> int:

@@ -26,6 +26,12 @@ class UserInputError(ValueError):
     message : str
         Names the offending value and says what is accepted; whitespace is folded so
         the message is one line.
+
+    Examples
+    --------
+    >>> from mcsweep.errors import UserInputError
+    >>> str(UserInputError('nside=3 is not accepted;   expected 2^k'))
+    'nside=3 is not accepted; expected 2^k'
     """
 
     def __init__(self, message: str):

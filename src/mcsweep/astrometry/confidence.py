@@ -133,6 +133,15 @@ def inside_counts(dpos, cov2, P) -> tuple[int, int]:
         Stars whose error lies inside their P ellipse.
     n_valid : int
         Stars with a confidence region (finite error and covariance).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from mcsweep.astrometry import inside_counts
+    >>> dpos = np.array([[0.5, 0.0], [3.0, 0.0], [np.nan, 0.0]])  # mas
+    >>> cov2 = np.tile(np.eye(2), (3, 1, 1))  # 1 mas^2 each
+    >>> inside_counts(dpos, cov2, 0.9)  # the NaN star has no region
+    (1, 2)
     """
     k = chi2_threshold(P, 2)
     q = mahalanobis_sq(dpos, cov2)
@@ -203,6 +212,15 @@ def fraction_inside(dpos, cov2, P) -> float:
     -------
     float
         ``n_inside / n_valid``; NaN if no star has a valid confidence region.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from mcsweep.astrometry import fraction_inside
+    >>> dpos = np.array([[0.5, 0.0], [3.0, 0.0]])
+    >>> cov2 = np.tile(np.eye(2), (2, 1, 1))
+    >>> fraction_inside(dpos, cov2, 0.9)  # doctest: +FLOAT_CMP
+    0.5
     """
     n_in, n_valid = inside_counts(dpos, cov2, P)
     return n_in / n_valid if n_valid else float("nan")
@@ -225,6 +243,16 @@ def ellipse_semi_axes(cov2, P) -> tuple[np.ndarray, np.ndarray]:
     -------
     semi_major, semi_minor : ndarray, shape (n,)
         The ellipses' axes, mas.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from mcsweep.astrometry import ellipse_semi_axes
+    >>> cov2 = np.array([[[4.0, 0.0], [0.0, 1.0]]])  # mas^2
+    >>> a, b = ellipse_semi_axes(cov2, 0.9)
+    >>> # sqrt(4.605 x 4) and sqrt(4.605): k(0.9) = 4.605
+    >>> np.round(a, 3), np.round(b, 3)  # doctest: +FLOAT_CMP
+    (array([4.292]), array([2.146]))
     """
     k = chi2_threshold(P, 2)
     c = np.asarray(cov2, dtype=float)

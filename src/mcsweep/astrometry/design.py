@@ -126,6 +126,20 @@ def design_matrix(ra_deg, dec_deg, t_yr, psi_deg, obs_au, *, sigma_al_mas, sigma
         order). Columns: (dalpha*, ddelta, dplx, dmu_alpha*, dmu_delta) in
         (mas, mas, mas, mas/yr, mas/yr), rows divided by the uncertainty, so ``A`` is
         dimensionless per mas. Memory is star-last (module notes).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from mcsweep.astrometry import design_matrix, normal_equations
+    >>> # four transits: years from the reference epoch, scan angles [deg]
+    >>> t = np.array([[-0.4, -0.1, 0.2, 0.45]])
+    >>> psi = np.array([[10.0, 80.0, 150.0, 260.0]])
+    >>> # the observer on a circle of 1 au [au]
+    >>> ph = 2 * np.pi * t[..., None]
+    >>> obs = np.concatenate([np.cos(ph), np.sin(ph), 0 * ph], axis=-1)
+    >>> A = design_matrix([150.0], [20.0], t, psi, obs, sigma_al_mas=0.1)
+    >>> A.shape
+    (1, 4, 5)
     """
     ra = np.asarray(ra_deg, dtype=float)
     dec = np.asarray(dec_deg, dtype=float)

@@ -230,6 +230,24 @@ def direction_from_parallax_factors(tcb_jd, scan_angle_deg, parallax_factor_al) 
     mcsweep.errors.UserInputError
         On arrays of different shapes, non-finite values, fewer than
         ``MIN_TRANSITS`` (3) transits or epochs outside the ephemeris table.
+
+    Examples
+    --------
+    >>> from importlib.resources import files
+    >>> data = files('mcsweep') / 'data' / 'epoch_astrometry'
+    >>> from mcsweep.tables import read_table
+    >>> from mcsweep.astrometry.epoch_astrometry import ccd_observations
+    >>> table = read_table(data / 'sample_epoch_astrometry.parquet')
+    >>> obs = ccd_observations(table)
+    >>> from mcsweep.astrometry.direction import (
+    ...     direction_from_parallax_factors)
+    >>> one = obs.source_id == obs.source_id[0]
+    >>> ra, dec, rms = direction_from_parallax_factors(
+    ...     obs.tcb_jd[one], obs.scan_angle_deg[one],
+    ...     obs.parallax_factor_al[one])
+    >>> # deg; sample_sources.csv has 335.1979, 38.1801
+    >>> round(ra, 1), round(dec, 1)  # doctest: +FLOAT_CMP
+    (335.2, 38.2)
     """
     t, theta, pfac = _check_transits(tcb_jd, scan_angle_deg, parallax_factor_al)
     b = gaia_position_au(t)

@@ -104,6 +104,17 @@ class CcdObservations:
         None when the file has no colour factor.
     transit : int64 (m,)
         Index of the observation's FoV transit (row of the file) within the batch.
+
+    Examples
+    --------
+    >>> from importlib.resources import files
+    >>> data = files('mcsweep') / 'data' / 'epoch_astrometry'
+    >>> from mcsweep.tables import read_table
+    >>> from mcsweep.astrometry.epoch_astrometry import ccd_observations
+    >>> table = read_table(data / 'sample_epoch_astrometry.parquet')
+    >>> obs = ccd_observations(table)
+    >>> type(obs).__name__, int(obs.transit.max()) + 1  # FoV transits
+    ('CcdObservations', 980)
     """
 
     source_id: np.ndarray
@@ -222,6 +233,18 @@ def ccd_observations(chunk: TableChunk, *, need_colour: bool = False) -> CcdObse
     mcsweep.errors.UserInputError
         Naming the file and column, when a needed column is missing (in both
         conventions) or holds something else than described above.
+
+    Examples
+    --------
+    >>> from importlib.resources import files
+    >>> data = files('mcsweep') / 'data' / 'epoch_astrometry'
+    >>> from mcsweep.tables import read_table
+    >>> from mcsweep.astrometry.epoch_astrometry import ccd_observations
+    >>> table = read_table(data / 'sample_epoch_astrometry.parquet')
+    >>> obs = ccd_observations(table)
+    >>> # CCD observations AGIS used, and sources
+    >>> obs.source_id.size, len(set(obs.source_id))
+    (7800, 10)
     """
     source = chunk.source
     fix_archive_header(chunk)

@@ -119,6 +119,13 @@ class NoiseModel:
     al_floor_mas : float
         Extra AL error per FoV transit in mas, added in quadrature after ``al_scale``
         (non-negative; 0 = the published model alone; module notes).
+
+    Examples
+    --------
+    >>> from mcsweep.astrometry.noise import NoiseModel
+    >>> model = NoiseModel(al_floor_mas=0.039)  # noise=edr3_floor
+    >>> round(float(model.sigma_al_mas(10.0)), 4)  # mas per FoV transit  # doctest: +FLOAT_CMP
+    0.0519
     """
 
     al_scale: float = 1.0
@@ -153,6 +160,13 @@ class NoiseModel:
         -------
         NoiseModel
             The model; a bad value raises :class:`~mcsweep.errors.UserInputError`.
+
+        Examples
+        --------
+        >>> from mcsweep.astrometry.noise import NoiseModel
+        >>> model = NoiseModel.from_config({'al_scale': 2.0, 'use_ac': False})
+        >>> model.al_scale, model.use_ac  # doctest: +FLOAT_CMP
+        (2.0, False)
         """
         get = cfg.get if hasattr(cfg, "get") else lambda k, d: getattr(cfg, k, d)
         return cls(al_scale=float(get("al_scale", 1.0)), ac_scale=float(get("ac_scale", 1.0)),
@@ -172,6 +186,14 @@ class NoiseModel:
         -------
         ndarray
             sigma_AL per FoV transit, mas, the shape of ``G``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from mcsweep.astrometry.noise import NoiseModel
+        >>> g = np.array([10.0, 15.0, 20.0])
+        >>> np.round(NoiseModel().sigma_al_mas(g), 4)  # doctest: +FLOAT_CMP
+        array([0.0342, 0.082 , 0.9665])
         """
         eta2 = _sigma_eta2_uas2(G)
         var = eta2 / _N_AF_CCD + _SIGMA_ATT_UAS**2 + _SIGMA_CAL_UAS**2
@@ -192,6 +214,14 @@ class NoiseModel:
         -------
         ndarray
             sigma_AC per FoV transit, mas, the shape of ``G``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from mcsweep.astrometry.noise import NoiseModel
+        >>> g = np.array([10.0, 15.0, 20.0])
+        >>> np.round(NoiseModel().sigma_ac_mas(g), 4)  # doctest: +FLOAT_CMP
+        array([0.1027, 0.6978, 8.6952])
         """
         g = _check_g(G)
         eta2 = _sigma_eta2_uas2(g)
@@ -213,6 +243,13 @@ class NoiseModel:
             AL uncertainty per FoV transit, mas.
         sigma_ac : ndarray, shape (n, 1), or None
             AC uncertainty per FoV transit, mas; None when ``use_ac`` is False.
+
+        Examples
+        --------
+        >>> from mcsweep.astrometry.noise import NoiseModel
+        >>> al, ac = NoiseModel(use_ac=False).design_sigmas([12.0, 18.0])
+        >>> al.shape, ac
+        ((2, 1), None)
         """
         g = np.atleast_1d(np.asarray(G, dtype=float))[:, None]
         return self.sigma_al_mas(g), (self.sigma_ac_mas(g) if self.use_ac else None)

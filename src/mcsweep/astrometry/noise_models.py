@@ -26,7 +26,15 @@ PUBLISHED = "published"
 
 @runtime_checkable
 class NoiseModelLike(Protocol):
-    """What the experiments use of a noise model."""
+    """What the experiments use of a noise model.
+
+    Examples
+    --------
+    >>> from mcsweep.astrometry.noise import NoiseModel
+    >>> from mcsweep.astrometry.noise_models import NoiseModelLike
+    >>> isinstance(NoiseModel(), NoiseModelLike)
+    True
+    """
 
     #: Whether AC measurements enter the solution.
     use_ac: bool
@@ -43,6 +51,13 @@ class NoiseModelLike(Protocol):
         -------
         ndarray
             sigma_AL, mas, the shape of ``G``.
+
+        Examples
+        --------
+        >>> from mcsweep.astrometry.noise_models import noise_model
+        >>> model = noise_model({})  # the published model
+        >>> round(float(model.sigma_al_mas(15.0)), 4)  # mas  # doctest: +FLOAT_CMP
+        0.082
         """
 
     def sigma_ac_mas(self, G) -> np.ndarray:
@@ -57,6 +72,12 @@ class NoiseModelLike(Protocol):
         -------
         ndarray
             sigma_AC, mas, the shape of ``G``.
+
+        Examples
+        --------
+        >>> from mcsweep.astrometry.noise_models import noise_model
+        >>> round(float(noise_model({}).sigma_ac_mas(15.0)), 4)  # mas  # doctest: +FLOAT_CMP
+        0.6978
         """
 
     def design_sigmas(self, G):
@@ -73,6 +94,13 @@ class NoiseModelLike(Protocol):
             AL uncertainty per FoV transit, mas.
         sigma_ac : ndarray, shape (n, 1), or None
             AC uncertainty per FoV transit, mas; None without AC measurements.
+
+        Examples
+        --------
+        >>> from mcsweep.astrometry.noise_models import noise_model
+        >>> al, ac = noise_model({}).design_sigmas([12.0, 18.0])
+        >>> al.shape, ac.shape
+        ((2, 1), (2, 1))
         """
 
 
@@ -89,6 +117,12 @@ def register(name: str, cls: type) -> None:
         The name the config's ``noise.model`` will give; a name is registered once.
     cls : type
         A class with ``from_config(section)`` returning a :class:`NoiseModelLike`.
+
+    Examples
+    --------
+    >>> from mcsweep.astrometry import noise_models
+    >>> sorted(noise_models.NOISE_MODELS)  # register(name, cls) adds
+    ['published']
     """
     if name in NOISE_MODELS and NOISE_MODELS[name] is not cls:
         raise ValueError(f"noise model {name!r} is already registered ({NOISE_MODELS[name].__name__})")
@@ -112,6 +146,13 @@ def noise_model(section) -> NoiseModelLike:
     ------
     mcsweep.errors.UserInputError
         One line naming the ``noise.`` key, for an unknown name or a bad setting.
+
+    Examples
+    --------
+    >>> from mcsweep.astrometry.noise_models import noise_model
+    >>> model = noise_model({'model': 'published', 'al_floor_mas': 0.039})
+    >>> type(model).__name__, model.al_floor_mas  # doctest: +FLOAT_CMP
+    ('NoiseModel', 0.039)
     """
     get = section.get if hasattr(section, "get") else lambda k, d: getattr(section, k, d)
     name = get("model", PUBLISHED)

@@ -73,6 +73,25 @@ class Solution:
         1-norm condition number of the solved normal matrix scaled to unit diagonal
         (``mcsweep.astrometry.linalg``); ``inf`` where singular. None when not
         computed (:func:`solve_with_prior` without ``with_condition=True``).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from mcsweep.astrometry import design_matrix, normal_equations
+    >>> # four transits: years from the reference epoch, scan angles [deg]
+    >>> t = np.array([[-0.4, -0.1, 0.2, 0.45]])
+    >>> psi = np.array([[10.0, 80.0, 150.0, 260.0]])
+    >>> # the observer on a circle of 1 au [au]
+    >>> ph = 2 * np.pi * t[..., None]
+    >>> obs = np.concatenate([np.cos(ph), np.sin(ph), 0 * ph], axis=-1)
+    >>> A = design_matrix([150.0], [20.0], t, psi, obs, sigma_al_mas=0.1)
+    >>> # noiseless measurements of a star (plx 2 mas, pm 1, -3 mas/yr)
+    >>> h = A @ np.array([0.0, 0.0, 2.0, 1.0, -3.0])
+    >>> N0, b0 = normal_equations(A, h)
+    >>> from mcsweep.astrometry import solve_with_prior
+    >>> sol = solve_with_prior(N0, b0, 1.0)
+    >>> sol.position.shape, sol.position_cov.shape
+    ((1, 2), (1, 2, 2))
     """
 
     x: np.ndarray
@@ -82,12 +101,37 @@ class Solution:
 
     @property
     def position(self) -> np.ndarray:
-        """(dalpha*, ddelta) in mas, shape (n, 2)."""
+        """(dalpha*, ddelta) in mas, shape (n, 2).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from mcsweep.astrometry import solve_with_prior
+        >>> # one star, 0.5 mas per parameter without a prior
+        >>> N0 = np.eye(5)[None] * 4.0
+        >>> b0 = np.array([[2.0, -1.0, 0.0, 0.0, 0.0]])
+        >>> sol = solve_with_prior(N0, b0, 1.0)
+        >>> sol.position  # (dalpha*, ddelta), mas  # doctest: +FLOAT_CMP
+        array([[ 0.5 , -0.25]])
+        """
         return self.x[:, :2]
 
     @property
     def position_cov(self) -> np.ndarray:
-        """Positional 2 x 2 covariance in mas^2, shape (n, 2, 2)."""
+        """Positional 2 x 2 covariance in mas^2, shape (n, 2, 2).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from mcsweep.astrometry import solve_with_prior
+        >>> # one star, 0.5 mas per parameter without a prior
+        >>> N0 = np.eye(5)[None] * 4.0
+        >>> b0 = np.array([[2.0, -1.0, 0.0, 0.0, 0.0]])
+        >>> sol = solve_with_prior(N0, b0, 1.0)
+        >>> sol.position_cov  # mas^2  # doctest: +FLOAT_CMP
+        array([[[0.25, 0.  ],
+                [0.  , 0.25]]])
+        """
         return self.cov[:, :2, :2]
 
 
@@ -107,6 +151,23 @@ def normal_equations(A, h) -> tuple[np.ndarray, np.ndarray]:
         Normal matrices ``A'A`` (star-last memory layout).
     b0 : ndarray, shape (n, 5)
         Right-hand sides ``A'h`` (star-last memory layout).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from mcsweep.astrometry import design_matrix, normal_equations
+    >>> # four transits: years from the reference epoch, scan angles [deg]
+    >>> t = np.array([[-0.4, -0.1, 0.2, 0.45]])
+    >>> psi = np.array([[10.0, 80.0, 150.0, 260.0]])
+    >>> # the observer on a circle of 1 au [au]
+    >>> ph = 2 * np.pi * t[..., None]
+    >>> obs = np.concatenate([np.cos(ph), np.sin(ph), 0 * ph], axis=-1)
+    >>> A = design_matrix([150.0], [20.0], t, psi, obs, sigma_al_mas=0.1)
+    >>> # noiseless measurements of a star (plx 2 mas, pm 1, -3 mas/yr)
+    >>> h = A @ np.array([0.0, 0.0, 2.0, 1.0, -3.0])
+    >>> N0, b0 = normal_equations(A, h)
+    >>> N0.shape, b0.shape
+    ((1, 5, 5), (1, 5))
     """
     A = np.asarray(A, dtype=float)
     h = np.asarray(h, dtype=float)
@@ -199,6 +260,27 @@ def solve_with_prior(N0, b0, sigma_plx_prior_mas, ratio_R=DEFAULT_RATIO_R, *,
     -------
     Solution
         The posterior mean and covariance of every star (Eq. 13).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from mcsweep.astrometry import design_matrix, normal_equations
+    >>> # four transits: years from the reference epoch, scan angles [deg]
+    >>> t = np.array([[-0.4, -0.1, 0.2, 0.45]])
+    >>> psi = np.array([[10.0, 80.0, 150.0, 260.0]])
+    >>> # the observer on a circle of 1 au [au]
+    >>> ph = 2 * np.pi * t[..., None]
+    >>> obs = np.concatenate([np.cos(ph), np.sin(ph), 0 * ph], axis=-1)
+    >>> A = design_matrix([150.0], [20.0], t, psi, obs, sigma_al_mas=0.1)
+    >>> # noiseless measurements of a star (plx 2 mas, pm 1, -3 mas/yr)
+    >>> h = A @ np.array([0.0, 0.0, 2.0, 1.0, -3.0])
+    >>> N0, b0 = normal_equations(A, h)
+    >>> from mcsweep.astrometry import solve_with_prior
+    >>> sol = solve_with_prior(N0, b0, sigma_plx_prior_mas=1.0)  # R = 10/yr
+    >>> np.round(sol.x[0], 3)  # doctest: +FLOAT_CMP
+    array([-0.195, -0.684,  0.045,  1.363, -4.751])
+    >>> np.round(np.sqrt(np.diag(sol.cov[0])), 3)  # doctest: +FLOAT_CMP
+    array([0.13 , 0.358, 0.996, 0.329, 0.931])
     """
     N0, b0 = check_normal(N0, b0)
     diag = prior_diagonal(sigma_plx_prior_mas, ratio_R)
@@ -235,6 +317,25 @@ def solve_position_only(N0, b0) -> Solution:
     Solution
         ``x`` and ``cov`` in the five-parameter shape, with zeros for the three fixed
         parameters.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from mcsweep.astrometry import design_matrix, normal_equations
+    >>> # four transits: years from the reference epoch, scan angles [deg]
+    >>> t = np.array([[-0.4, -0.1, 0.2, 0.45]])
+    >>> psi = np.array([[10.0, 80.0, 150.0, 260.0]])
+    >>> # the observer on a circle of 1 au [au]
+    >>> ph = 2 * np.pi * t[..., None]
+    >>> obs = np.concatenate([np.cos(ph), np.sin(ph), 0 * ph], axis=-1)
+    >>> A = design_matrix([150.0], [20.0], t, psi, obs, sigma_al_mas=0.1)
+    >>> # noiseless measurements of a star (plx 2 mas, pm 1, -3 mas/yr)
+    >>> h = A @ np.array([0.0, 0.0, 2.0, 1.0, -3.0])
+    >>> N0, b0 = normal_equations(A, h)
+    >>> from mcsweep.astrometry import solve_position_only
+    >>> sol = solve_position_only(N0, b0)
+    >>> np.round(sol.x[0], 3)  # doctest: +FLOAT_CMP
+    array([ 0.22, -0.18,  0.  ,  0.  ,  0.  ])
     """
     N0, b0 = check_normal(N0, b0)
     x2, cov2, ok, cond = spd_solve(N0[:, :2, :2], b0[:, :2], with_condition=True)
@@ -269,6 +370,26 @@ def solve_no_prior(N0, b0, max_condition=DEFAULT_MAX_CONDITION) -> Solution:
     -------
     Solution
         The least-squares estimate and its covariance ``N0^-1``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from mcsweep.astrometry import design_matrix, normal_equations
+    >>> # four transits: years from the reference epoch, scan angles [deg]
+    >>> t = np.array([[-0.4, -0.1, 0.2, 0.45]])
+    >>> psi = np.array([[10.0, 80.0, 150.0, 260.0]])
+    >>> # the observer on a circle of 1 au [au]
+    >>> ph = 2 * np.pi * t[..., None]
+    >>> obs = np.concatenate([np.cos(ph), np.sin(ph), 0 * ph], axis=-1)
+    >>> A = design_matrix([150.0], [20.0], t, psi, obs, sigma_al_mas=0.1)
+    >>> # noiseless measurements of a star (plx 2 mas, pm 1, -3 mas/yr)
+    >>> h = A @ np.array([0.0, 0.0, 2.0, 1.0, -3.0])
+    >>> N0, b0 = normal_equations(A, h)
+    >>> from mcsweep.astrometry import solve_no_prior
+    >>> # four transits cannot fix five parameters
+    >>> sol = solve_no_prior(N0, b0)
+    >>> np.round(sol.x[0], 3), bool(sol.ok[0])
+    (array([nan, nan, nan, nan, nan]), False)
     """
     if not (np.isscalar(max_condition) and max_condition >= 1.0):
         raise UserInputError(f"max_condition={max_condition!r} is not accepted; expected a number >= 1")

@@ -86,6 +86,20 @@ class SourceNormals:
         nu of the 6x6 solution without astrometric prior (nm^-1); None for 5p.
     pseudocolour_error : (n,) or None
         Its standard error (nm^-1); None for 5p.
+
+    Examples
+    --------
+    >>> from importlib.resources import files
+    >>> data = files('mcsweep') / 'data' / 'epoch_astrometry'
+    >>> from mcsweep.tables import read_table
+    >>> from mcsweep.astrometry.epoch_astrometry import ccd_observations
+    >>> table = read_table(data / 'sample_epoch_astrometry.parquet')
+    >>> obs = ccd_observations(table)
+    >>> from mcsweep.astrometry.source_update import source_normals
+    >>> # the reference epoch: each source's mean epoch
+    >>> normals = source_normals(obs, reference_epoch_jd=None)
+    >>> normals.model, normals.n_visibility_periods[:3].tolist()
+    ('5p', [50, 37, 31])
     """
 
     source_id: np.ndarray
@@ -157,6 +171,19 @@ def source_normals(obs: CcdObservations, *, model: str = "5p",
     -------
     SourceNormals
         One row per source, in increasing ``source_id``.
+
+    Examples
+    --------
+    >>> from importlib.resources import files
+    >>> data = files('mcsweep') / 'data' / 'epoch_astrometry'
+    >>> from mcsweep.tables import read_table
+    >>> from mcsweep.astrometry.epoch_astrometry import ccd_observations
+    >>> table = read_table(data / 'sample_epoch_astrometry.parquet')
+    >>> obs = ccd_observations(table)
+    >>> from mcsweep.astrometry.source_update import source_normals
+    >>> normals = source_normals(obs)
+    >>> normals.N.shape, normals.n_transits[:3].tolist()
+    ((10, 5, 5), [147, 103, 56])
     """
     check_model(model)
     if model == "6p" and obs.colour_factor_al is None:

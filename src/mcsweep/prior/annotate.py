@@ -177,6 +177,22 @@ def annotate_file(src: Path, dst: Path, prior: Prior, *, out_format: str | None 
     ------
     mcsweep.errors.UserInputError
         For unreadable files, missing columns, wrong units and non-finite values.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> import pandas as pd
+    >>> from mcsweep.prior import Prior
+    >>> from mcsweep.prior.annotate import annotate_file
+    >>> tmp = Path(tempfile.mkdtemp())
+    >>> stars = pd.DataFrame({'ra': [10.68], 'dec': [41.27],
+    ...                       'phot_g_mean_mag': [15.0]})
+    >>> stars.to_csv(tmp / 'stars.csv', index=False)
+    >>> annotate_file(tmp / 'stars.csv', tmp / 'out.csv', Prior.paper())
+    1
+    >>> list(pd.read_csv(tmp / 'out.csv').columns)
+    ['ra', 'dec', 'phot_g_mean_mag', 'sigma_f90_parallax', 'sigma_f90_pm']
     """
     src, dst = Path(src), Path(dst)
     fmt_in = detect_format(src)

@@ -361,6 +361,19 @@ def solve_epoch_file(epoch_path, sources_path, prior: Prior, *, model: str = "5p
     pandas.DataFrame
         The solutions of a batch's sources (the columns of
         :func:`mcsweep.prior.solutions.solutions_table`), in file order.
+
+    Examples
+    --------
+    >>> from importlib.resources import files
+    >>> data = files('mcsweep') / 'data' / 'epoch_astrometry'
+    >>> import pandas as pd
+    >>> from mcsweep.prior import Prior
+    >>> from mcsweep.prior.epoch_solve import solve_epoch_file
+    >>> batches = solve_epoch_file(data / 'sample_epoch_astrometry.parquet',
+    ...                            data / 'sample_sources.csv', Prior.paper())
+    >>> solved = pd.concat(batches)
+    >>> len(solved), bool(solved['prior_ok'].all())
+    (10, True)
     """
     check_model(model)
     check_factor(factor)

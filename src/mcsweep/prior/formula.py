@@ -1,9 +1,9 @@
 """The all-sky parallax prior sigma_F90(l, b, G) of the paper (Sect. 3.4, Eqs. 14-17)::
 
-    log10 sigma_F90 = s0(G) + s1(G) |sin b| + s2(G) cos b cos l          (Eq. 14)
-    s0(G) = 2.187 - 0.2547 G + 0.006382 G^2                               (Eq. 15)
-    s1(G) = 0.114 - 0.0579 G + 0.01369 G^2 - 0.000506 G^3                 (Eq. 16)
-    s2(G) = 0.031 - 0.0062 G                                              (Eq. 17)
+    log10 sigma_F90 = s0(G) + s1(G) |sin b| + s2(G) cos b cos l  (Eq. 14)
+    s0(G) = 2.187 - 0.2547 G + 0.006382 G^2                   (Eq. 15)
+    s1(G) = 0.114 - 0.0579 G + 0.01369 G^2 - 0.000506 G^3     (Eq. 16)
+    s2(G) = 0.031 - 0.0062 G                                  (Eq. 17)
 
 with sigma_F90 in mas and (l, b) galactic coordinates. The proper-motion prior is
 ``sigma_mu = R sigma_F90`` with R = 10/yr (Eq. 18, ``mcsweep.astrometry.solve``).

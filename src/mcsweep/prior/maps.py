@@ -246,6 +246,16 @@ def read_prior_maps(path, name: str = "SIGMA_F90") -> tuple[int, np.ndarray, np.
         G of each map column, mag.
     maps : ndarray, shape (n_g, npix)
         The values (unit in the HDU's header: mas or mas/yr).
+
+    Examples
+    --------
+    These read a run's files; the lines are skipped when the examples run as
+    tests (no run directory there).
+
+    >>> from mcsweep.prior.maps import read_prior_maps
+    >>> path = 'results/default/prior_maps.fits'
+    >>> nside, g, maps = read_prior_maps(path)  # doctest: +SKIP
+    >>> maps.shape  # (n_g, 12 nside^2)  # doctest: +SKIP
     """
     from astropy.io import fits
 
@@ -275,6 +285,15 @@ def list_prior_maps(path) -> list[dict]:
         One per HDU, keys ``name`` (for :func:`read_prior_maps`), ``quantity`` (a key of
         ``MAP_QUANTITIES``), ``unit``, ``bp_rp_min``, ``bp_rp_max`` (mag; NaN for the
         colour-blind maps) and ``label`` (``'lo..hi'`` or ``'colour_blind'``).
+
+    Examples
+    --------
+    These read a run's files; the lines are skipped when the examples run as
+    tests (no run directory there).
+
+    >>> from mcsweep.prior.maps import list_prior_maps
+    >>> path = 'results/colour/prior_maps.fits'
+    >>> [m['name'] for m in list_prior_maps(path)]  # doctest: +SKIP
     """
     from astropy.io import fits
 

@@ -141,6 +141,15 @@ class Prior:
         -------
         Prior
             The prior of Eqs. 14-18.
+
+        Examples
+        --------
+        >>> from mcsweep.prior import Prior
+        >>> prior = Prior.paper()
+        >>> prior.origin, prior.confidence, prior.ratio_R  # doctest: +FLOAT_CMP
+        ('paper', 0.9, 10.0)
+        >>> prior.g_min, prior.g_max  # doctest: +FLOAT_CMP
+        (6.0, 20.0)
         """
         return cls(PAPER_COEFFICIENTS, G_FIT_MIN, G_FIT_MAX, PAPER_CONFIDENCE, PAPER_RATIO_R, bright, "paper")
 
@@ -177,6 +186,15 @@ class Prior:
         ------
         mcsweep.errors.UserInputError
             If the directory is not a finished sweep with fitted coefficients.
+
+        Examples
+        --------
+        These read a run's files; the lines are skipped when the examples run as
+        tests (no run directory there).
+
+        >>> from mcsweep.prior import Prior
+        >>> prior = Prior.from_run('results/default')  # doctest: +SKIP
+        >>> prior.origin  # the run directory  # doctest: +SKIP
         """
         run_dir = Path(run_dir)
         coef_path = run_dir / COEFFICIENTS_FILE
@@ -195,12 +213,28 @@ class Prior:
 
     @property
     def has_colour(self) -> bool:
-        """True if the prior has a width per BP-RP bin (a run with ``prior_model.colour_edges``)."""
+        """True if the prior has a width per BP-RP bin (a run with ``prior_model.colour_edges``).
+
+        Examples
+        --------
+        >>> from mcsweep.prior import Prior
+        >>> prior = Prior.paper()
+        >>> prior.has_colour, prior.has_mean
+        (False, False)
+        """
         return self.colour is not None
 
     @property
     def has_mean(self) -> bool:
-        """True if the prior is centred on the model's mean parallax and proper motion per cell."""
+        """True if the prior is centred on the model's mean parallax and proper motion per cell.
+
+        Examples
+        --------
+        >>> from mcsweep.prior import Prior
+        >>> prior = Prior.paper()
+        >>> prior.has_mean
+        False
+        """
         return self.means is not None
 
     # -- queries ------------------------------------------------------------------------
@@ -217,6 +251,13 @@ class Prior:
         ndarray of int
             The bin of each star in the run's ``prior_model.colour_edges``; -1 without a colour,
             and everywhere for a prior without a colour axis. Labels: :meth:`colour_bin_label`.
+
+        Examples
+        --------
+        >>> from mcsweep.prior import Prior
+        >>> prior = Prior.paper()
+        >>> prior.colour_bin([0.4, 1.5])  # no colour axis: -1 everywhere
+        array([-1, -1])
         """
         if self.colour is None:
             return np.full(np.shape(colour_values(bp_rp)), -1)
@@ -234,6 +275,13 @@ class Prior:
         -------
         ndarray of str
             The star's BP-RP bin as ``'lo..hi'`` (mag) or ``'colour_blind'``.
+
+        Examples
+        --------
+        >>> from mcsweep.prior import Prior
+        >>> prior = Prior.paper()
+        >>> prior.colour_bin_label([0.4, float('nan')])
+        array(['colour_blind', 'colour_blind'], dtype='<U12')
         """
         from .colour import COLOUR_BLIND
 
@@ -264,6 +312,15 @@ class Prior:
         -------
         ndarray
             sigma_F90 of the parallax, mas (the broadcast shape of the inputs).
+
+        Examples
+        --------
+        >>> from mcsweep.prior import Prior
+        >>> prior = Prior.paper()
+        >>> import numpy as np
+        >>> l, b, g = [0.0, 90.0], [0.0, 30.0], [15.0, 15.0]  # deg, deg, mag
+        >>> np.round(prior.sigma_parallax_mas(l, b, g), 4)  # doctest: +FLOAT_CMP
+        array([0.5501, 1.2926])
         """
         if bp_rp is None or self.colour is None:
             return self._sigma(l_deg, b_deg, G, self.coefficients)
@@ -312,6 +369,13 @@ class Prior:
         -------
         ndarray
             Mean parallax of the star's cell in the galaxy model, mas.
+
+        Examples
+        --------
+        >>> from mcsweep.prior import Prior
+        >>> prior = Prior.paper()
+        >>> prior.mean_parallax_mas([0.0], [0.0], [15.0])
+        array([0.])
         """
         if self.means is None:
             return self._zeros(l_deg, b_deg, G, bp_rp)
@@ -333,6 +397,13 @@ class Prior:
         -------
         pmra, pmdec : ndarray
             (mu_alpha*, mu_delta), mas/yr, ICRS.
+
+        Examples
+        --------
+        >>> from mcsweep.prior import Prior
+        >>> prior = Prior.paper()
+        >>> prior.mean_pm_masyr([0.0], [0.0], [15.0])
+        (array([0.]), array([0.]))
         """
         if self.means is None:
             z = self._zeros(l_deg, b_deg, G, bp_rp)
@@ -363,6 +434,13 @@ class Prior:
         -------
         Quantity
             In mas, broadcast shape of the inputs.
+
+        Examples
+        --------
+        >>> from mcsweep.prior import Prior
+        >>> # galactic l, b [deg] and G: the paper's Table 1 beam
+        >>> Prior.paper().sigma_parallax(245.7, 46.5, 15.0)  # doctest: +FLOAT_CMP
+        <Quantity 1.85478666 mas>
         """
         l_deg, b_deg, g = self._parse(where, G)
         return self.sigma_parallax_mas(l_deg, b_deg, g, bp_rp) * u.mas
@@ -384,6 +462,16 @@ class Prior:
         -------
         Quantity
             In mas/yr, broadcast shape of the inputs.
+
+        Examples
+        --------
+        >>> from mcsweep.prior import Prior
+        >>> prior = Prior.paper()
+        >>> from astropy.coordinates import SkyCoord
+        >>> import astropy.units as u
+        >>> c = SkyCoord(ra=[10.68, 266.4] * u.deg, dec=[41.27, -28.9] * u.deg)
+        >>> prior.sigma_pm(c, G=[12.0, 18.0])  # doctest: +FLOAT_CMP
+        <Quantity [18.20898358,  3.88854608] mas / yr>
         """
         l_deg, b_deg, g = self._parse(where, G)
         return self.ratio_R * self.sigma_parallax_mas(l_deg, b_deg, g, bp_rp) * (u.mas / u.yr)
@@ -408,6 +496,16 @@ class Prior:
         -------
         Quantity
             In mas, broadcast shape of the inputs.
+
+        Examples
+        --------
+        >>> from mcsweep.prior import Prior
+        >>> prior = Prior.paper()
+        >>> from astropy.coordinates import SkyCoord
+        >>> import astropy.units as u
+        >>> c = SkyCoord(ra=[10.68, 266.4] * u.deg, dec=[41.27, -28.9] * u.deg)
+        >>> prior.mean_parallax(c, G=[12.0, 18.0])  # zero-centred
+        <Quantity [0., 0.] mas>
         """
         l_deg, b_deg, g = self._parse(where, G)
         return self.mean_parallax_mas(l_deg, b_deg, g, bp_rp) * u.mas
@@ -432,6 +530,16 @@ class Prior:
         -------
         pmra, pmdec : Quantity
             In mas/yr, broadcast shape of the inputs.
+
+        Examples
+        --------
+        >>> from mcsweep.prior import Prior
+        >>> prior = Prior.paper()
+        >>> from astropy.coordinates import SkyCoord
+        >>> import astropy.units as u
+        >>> c = SkyCoord(ra=[10.68, 266.4] * u.deg, dec=[41.27, -28.9] * u.deg)
+        >>> prior.mean_pm(c, G=[12.0, 18.0])
+        (<Quantity [0., 0.] mas / yr>, <Quantity [0., 0.] mas / yr>)
         """
         l_deg, b_deg, g = self._parse(where, G)
         pmra, pmdec = self.mean_pm_masyr(l_deg, b_deg, g, bp_rp)
@@ -463,6 +571,21 @@ class Prior:
         ndarray, shape ``broadcast_shape + (5, 5)``
             In mas^-2 (parallax) and (mas/yr)^-2 (proper motion); no units attached
             because they differ between elements.
+
+        Examples
+        --------
+        >>> from mcsweep.prior import Prior
+        >>> prior = Prior.paper()
+        >>> from astropy.coordinates import SkyCoord
+        >>> import astropy.units as u
+        >>> c = SkyCoord(ra=[10.68, 266.4] * u.deg, dec=[41.27, -28.9] * u.deg)
+        >>> import numpy as np
+        >>> N_p = prior.normal_matrix(c, G=[12.0, 18.0])
+        >>> N_p.shape
+        (2, 5, 5)
+        >>> # sigma_plx, sigma_mu, sigma_mu of the first star
+        >>> np.round(1 / np.sqrt(N_p[0].diagonal()[2:]), 3)  # doctest: +FLOAT_CMP
+        array([ 1.821, 18.209, 18.209])
         """
         if not (np.isscalar(factor) and factor > 0 and math.isfinite(factor)):
             raise UserInputError(f"factor={factor!r} is not accepted; expected a positive finite number")
@@ -528,6 +651,14 @@ def sigma_f90(l_deg, b_deg, G, *, bright: str = "extrapolate") -> np.ndarray:
     -------
     ndarray
         sigma_F90 in mas.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from mcsweep.prior import sigma_f90
+    >>> # Eqs. 14-17 at (l, b) = (0, 0) and (180, 90) deg, G = 15, mas
+    >>> np.round(sigma_f90([0.0, 180.0], [0.0, 90.0], 15.0), 4)  # doctest: +FLOAT_CMP
+    array([0.5501, 2.633 ])
     """
     return _paper(check_bright(bright)).sigma_parallax_mas(l_deg, b_deg, G)
 

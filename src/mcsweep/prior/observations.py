@@ -104,6 +104,20 @@ def read_observations(obs_path, sources_path=None) -> TransitTable:
     -------
     TransitTable
         The checked columns, transits sorted by source and time.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from mcsweep.prior.example import simulate_example
+    >>> obs, src = simulate_example(5, seed=1)
+    >>> tmp = Path(tempfile.mkdtemp())
+    >>> obs.to_csv(tmp / 'obs.csv', index=False)
+    >>> src.to_csv(tmp / 'sources.csv', index=False)
+    >>> from mcsweep.prior.observations import read_observations
+    >>> table = read_observations(tmp / 'obs.csv', tmp / 'sources.csv')
+    >>> type(table).__name__, 'al_residual_mas' in table
+    ('TransitTable', True)
     """
     obs = read_table(obs_path, "observations")
     name = Path(obs_path).name
@@ -223,6 +237,23 @@ def solve_observations(obs: TransitTable, prior: Prior, *, factor: float = 1.0, 
     -------
     pandas.DataFrame
         The columns of :func:`mcsweep.prior.solutions.solutions_table`.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from mcsweep.prior.example import simulate_example
+    >>> obs, src = simulate_example(5, seed=1)
+    >>> tmp = Path(tempfile.mkdtemp())
+    >>> obs.to_csv(tmp / 'obs.csv', index=False)
+    >>> src.to_csv(tmp / 'sources.csv', index=False)
+    >>> from mcsweep.prior import Prior
+    >>> from mcsweep.prior.observations import (
+    ...     read_observations, solve_observations)
+    >>> table = read_observations(tmp / 'obs.csv', tmp / 'sources.csv')
+    >>> sol = solve_observations(table, Prior.paper())
+    >>> len(sol) == len(src), 'ellipse_semi_major_mas' in sol.columns
+    (True, True)
     """
     check_factor(factor)
     padded = pad_observations(obs)

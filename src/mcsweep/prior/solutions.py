@@ -98,6 +98,20 @@ def solutions_table(source_id, ra_deg, dec_deg, g_mag, bp_rp, N0, b0, *, n_trans
     -------
     pandas.DataFrame
         One row per source, the columns of the module notes.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from mcsweep.prior import Prior
+    >>> from mcsweep.prior.solutions import solutions_table
+    >>> N0, b0 = np.eye(5)[None] * 4.0, np.zeros((1, 5))
+    >>> t = solutions_table(
+    ...     [1], [150.0], [20.0], [15.0], [np.nan], N0, b0, n_transits=[3],
+    ...     reference_epoch_jd=[2457389.0], n_visibility_periods=[2],
+    ...     time_span_yr=[0.4], prior=Prior.paper())
+    >>> # sigma_F90 of Eqs. 14-17 at the star, mas
+    >>> round(float(t['sigma_prior_parallax_mas'][0]), 3)  # doctest: +FLOAT_CMP
+    2.045
     """
     factor = check_factor(factor)
     p = check_probability(prior.confidence if confidence is None else confidence)

@@ -125,6 +125,14 @@ def gaia_position_au(t) -> np.ndarray:
     -------
     ndarray, shape ``t.shape + (3,)``
         Barycentric position of Gaia, au (L2 model of the module notes).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from mcsweep.scanning import gaia_position_au
+    >>> r = gaia_position_au(2457400.5)  # TCB Julian date
+    >>> round(float(np.linalg.norm(r)), 3)  # au from the barycentre  # doctest: +FLOAT_CMP
+    0.993
     """
     jd = _as_tcb_jd(t)
     return _splines()[0](jd)
@@ -149,6 +157,15 @@ def observer_position_au(transits) -> np.ndarray:
     ndarray, shape (n, 3)
         Barycentric position, au (ICRS axes): the table's observer columns, or, for
         compact output, the same tabulation (:func:`gaia_position_au`) at ``tcb_jd``.
+
+    Examples
+    --------
+    >>> from mcsweep.scanning import find_transits
+    >>> tr = find_transits([150.0], [20.0], '2015-01-01T00:00:00',
+    ...                   '2015-07-01T00:00:00')
+    >>> from mcsweep.scanning import observer_position_au
+    >>> observer_position_au(tr).shape
+    (4, 3)
     """
     if "obs_x_au" in transits:
         return transits[["obs_x_au", "obs_y_au", "obs_z_au"]].to_numpy(float)

@@ -147,6 +147,14 @@ def find_transits(ra_deg, dec_deg, start, end, *, law: ScanningLaw | None = None
     mcsweep.errors.UserInputError
         On malformed directions, an empty or out-of-range interval, or fractions
         outside their range.
+
+    Examples
+    --------
+    >>> from mcsweep.scanning import find_transits
+    >>> tr = find_transits([150.0], [20.0], '2015-01-01T00:00:00',
+    ...                   '2015-07-01T00:00:00')
+    >>> len(tr), list(tr.columns[:4])
+    (4, ['source_index', 'tcb_jd', 'fov', 'scan_angle_deg'])
     """
     law = ScanningLaw() if law is None else law
     if not isinstance(law, ScanningLaw):

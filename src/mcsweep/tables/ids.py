@@ -51,6 +51,13 @@ def integer_ids(values, name: str, source: str) -> np.ndarray:
     ------
     mcsweep.errors.UserInputError
         One line naming the first value that is not an exact identifier.
+
+    Examples
+    --------
+    >>> from mcsweep.tables import integer_ids
+    >>> ids = ['4472832130942575873', '42']  # text, read digit by digit
+    >>> integer_ids(ids, 'source_id', 'stars.csv')
+    array([4472832130942575873,                  42])
     """
     arr = np.asarray(values)
     if arr.dtype.kind in "iu":

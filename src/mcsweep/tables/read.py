@@ -292,6 +292,15 @@ def read_table(path, *, fmt: str = "auto", what: str = "") -> TableChunk:
     ------
     mcsweep.errors.UserInputError
         One line, if the file is missing or unreadable in that format.
+
+    Examples
+    --------
+    >>> from importlib.resources import files
+    >>> data = files('mcsweep') / 'data' / 'epoch_astrometry'
+    >>> from mcsweep.tables import read_table
+    >>> t = read_table(data / 'sample_sources.csv', what='sources')
+    >>> len(t), t.names[:3]
+    (10, ['source_id', 'ra', 'dec'])
     """
     return TableChunk.concat(list(iter_tables(path, fmt=fmt, what=what, batch_rows=None)))
 
@@ -318,6 +327,15 @@ def iter_tables(path, *, fmt: str = "auto", what: str = "", batch_rows: int | No
     ------
     TableChunk
         The next batch of rows.
+
+    Examples
+    --------
+    >>> from importlib.resources import files
+    >>> data = files('mcsweep') / 'data' / 'epoch_astrometry'
+    >>> from mcsweep.tables import iter_tables
+    >>> path = data / 'sample_epoch_astrometry.parquet'
+    >>> [len(b) for b in iter_tables(path, batch_rows=400)]
+    [400, 400, 180]
     """
     path = Path(path)
     fmt = detect_format(path, fmt, what=what)

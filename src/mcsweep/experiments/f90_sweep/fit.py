@@ -248,6 +248,16 @@ def read_fit(run_dir) -> FitResult:
         Its tables; ``fitted`` (Eqs. 15-17, increasing power of G) is the ``fitted``
         column of ``coefficients.csv``, rows ``s0_c0`` ... ``s2_c1``, NaN where it was
         not determined.
+
+    Examples
+    --------
+    These read a run's files; the lines are skipped when the examples run as
+    tests (no run directory there).
+
+    >>> from mcsweep.experiments.f90_sweep.fit import read_fit
+    >>> fit = read_fit('results/default')  # doctest: +SKIP
+    >>> # Eqs. 15-17: ours and the paper's coefficients
+    >>> fit.coefficients[['term', 'fitted', 'paper']]  # doctest: +SKIP
     """
     run_dir = Path(run_dir)
     tables = {field: pd.read_csv(run_dir / name) for name, field in FIT_FILES.items()}

@@ -207,6 +207,16 @@ class GalaxyModel:
     fainter dwarfs). ``multiplicity_frequency`` other than its default (0.27) rescales every
     magnitude by 1.27 / (1 + f), uniformly: ``multiplicity_frequency=0`` counts
     component stars (a simplification: companions are mostly faint M dwarfs).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from mcsweep.population import GalaxyModel
+    >>> model = GalaxyModel()
+    >>> rng = np.random.default_rng(1)
+    >>> stars = model.sample_cone(245.7, 46.5, 1.0, 15.0, 16.0, rng)
+    >>> list(stars.columns[:8])
+    ['ra', 'dec', 'l', 'b', 'parallax', 'pmra', 'pmdec', 'phot_g_mean_mag']
     """
 
     def __init__(self, params=None, **kwargs):
@@ -339,6 +349,13 @@ class GalaxyModel:
         -------
         float
             Expected number of stars.
+
+        Examples
+        --------
+        >>> from mcsweep.population import GalaxyModel
+        >>> # the paper's Table 1 beam (GUMS: 458)
+        >>> round(GalaxyModel().expected_count(245.7, 46.5, 1.0, 14.5, 15.5))
+        455
         """
         q = ConeQuery.make(l_deg, b_deg, radius_deg, g_min, g_max)
         return float(self._cumulative(q)[2][-1])
@@ -360,6 +377,15 @@ class GalaxyModel:
         dict
             Population label (the model's components, e.g. ``thin_disc``) -> expected
             number of stars.
+
+        Examples
+        --------
+        >>> from mcsweep.population import GalaxyModel
+        >>> model = GalaxyModel()
+        >>> beam = (245.7, 46.5, 1.0)  # l, b, radius [deg]
+        >>> counts = model.expected_count_by_population(*beam, 14.5, 15.5)
+        >>> sorted(counts)
+        ['bulge', 'halo', 'thick_disc', 'thin_disc']
         """
         q = ConeQuery.make(l_deg, b_deg, radius_deg, g_min, g_max)
         w = self._weights(self._line_of_sight(q.l_deg, q.b_deg, q.radius_deg), q.g_min, q.g_max)
@@ -403,6 +429,16 @@ class GalaxyModel:
             ``bp_rp`` [mag] (Gaia BP - RP with reddening, ``mcsweep.population.galaxy.colours``).
             ``attrs["n_in_cone"]`` is the number of stars in the cone (before the cap) and
             ``attrs["expected_count"]`` its expectation.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from mcsweep.population import GalaxyModel
+        >>> rng = np.random.default_rng(7)
+        >>> stars = GalaxyModel().sample_cone(0.0, 0.0, 0.5, 12.0, 13.0, rng,
+        ...                                   max_stars=100)
+        >>> len(stars), stars.attrs['n_in_cone'] > 100
+        (100, True)
         """
         if not isinstance(rng, np.random.Generator):
             raise UserInputError(f"rng={rng!r} is not accepted; expected a numpy.random.Generator")
@@ -438,6 +474,15 @@ class GalaxyModel:
         -------
         pandas.DataFrame
             The columns of :meth:`sample_cone`.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from mcsweep.population import GalaxyModel
+        >>> rng = np.random.default_rng(7)
+        >>> stars = GalaxyModel().sample_sky(4.0, 5.0, rng)
+        >>> len(stars) > 1000  # the whole sky's stars of G = 4-5
+        True
         """
         return self.sample_cone(0.0, 90.0, sky.WHOLE_SKY_DEG, g_min, g_max, rng, max_stars)
 

@@ -112,7 +112,9 @@ html_theme_options = {
     "footer_start": ["copyright"],
     "footer_end": [],
 }
-html_static_path = []
+html_static_path = ["_static"]
+# code spans in table cells wrap (wide tables of measurements fit the column)
+html_css_files = ["mcsweep.css"]
 
 
 def require_docstrings(app, what, name, obj, options, lines):

@@ -22,7 +22,6 @@ from typing import Any, Dict, List, Optional
 from hydra.core.config_store import ConfigStore
 
 from ..astrometry.noise_models import noise_model
-from ..errors import UserInputError
 from ..experiments.config_checks import require, tcb_jd_checked
 from ..experiments.f90_sweep.conf import CellConf, MagnitudesConf, PriorGridConf, PriorMapsConf, PriorModelConf, SkyConf
 from ..experiments.registry import experiment_conf_class

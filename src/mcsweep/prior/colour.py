@@ -40,7 +40,7 @@ from astropy import units as u
 from ..errors import UserInputError
 from .columns import read_run_table, unit_scale
 from .formula import sigma_from_coefficients, sigma_from_nodes
-from .run_record import COLOUR_COEFFICIENTS_FILE, COLOUR_TERMS_FILE, N_COEFFICIENTS, coefficients_from_terms
+from .run_record import COLOUR_TERMS_FILE, N_COEFFICIENTS, coefficients_from_terms
 
 __all__ = ["COLOUR_BLIND", "TERMS", "ColourBins", "colour_values", "bin_label"]
 

@@ -40,7 +40,7 @@ from ..renamed_names import old_names
 from .columns import read_run_table
 from .sky_grid import check_sky
 from .run_record import MEANS_FILE
-from ..galactic import icrs_from_galactic, pm_icrs_from_galactic, unit_vector
+from ..galactic import icrs_from_galactic, unit_vector
 
 __all__ = ["MEANS_FILE", "MEANS_TABLE_COLUMNS", "PriorMeans"]
 

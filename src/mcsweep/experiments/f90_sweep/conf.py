@@ -6,9 +6,8 @@ prior model (``prior_model``: colour axis and prior mean)."""
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass, field
-from typing import Any, List, Optional
+from typing import Any, List
 
 from ...astrometry.noise import G_MAX
 from ...prior.maps import MAX_NSIDE

@@ -2,8 +2,8 @@
 
 A worker imports this module (the task is pickled by reference) and what the cells need:
 the population source, the pencil-beam cell and the result store, not the fit, the maps,
-the report or the scanning law's integration, which only the parent uses (0.4 s less of
-every worker's start).
+the report or the scanning law's integration, which only the parent uses, so a worker
+starts sooner (docs/performance.md).
 """
 
 from __future__ import annotations

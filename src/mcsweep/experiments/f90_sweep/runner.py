@@ -17,7 +17,6 @@ import logging
 
 import dataclasses
 import io
-from functools import lru_cache
 from pathlib import Path
 
 import numpy as np

@@ -150,6 +150,37 @@ def validate_numpydoc(app, what, name, obj, options, lines):
                                                 subtype="numpydoc")
 
 
+def citation_bibtex(cff_path: Path, commit: str) -> str:
+    """BibTeX of the paper (CITATION.cff's preferred citation) and of mcsweep (its title,
+    version and licence, and the commit the site was built from)."""
+    import yaml
+
+    cff = yaml.safe_load(cff_path.read_text())
+    paper = cff["preferred-citation"]
+    authors = " and ".join(f"{a['family-names']}, {a['given-names']}" for a in paper["authors"])
+    return (f"@article{{{paper['authors'][0]['family-names']}{paper['year']},\n"
+            f"  author  = {{{authors}}},\n  title   = {{{paper['title']}}},\n"
+            f"  journal = {{{paper['journal']}}},\n  year    = {{{paper['year']}}},\n"
+            f"  volume  = {{{paper['volume']}}},\n  pages   = {{{paper['start']}}},\n"
+            f"  doi     = {{{paper['doi']}}}\n}}\n\n"
+            f"@software{{mcsweep,\n  author  = {{{{{cff['authors'][0]['name']}}}}},\n"
+            f"  title   = {{{cff['title']}}},\n  version = {{{cff['version']}}},\n"
+            f"  note    = {{commit {commit}; licence {cff['license']}}}\n}}\n")
+
+
+def write_citation(app):
+    """docs/citation.bib from CITATION.cff, for the citing page (a build product, not in git)."""
+    import subprocess
+
+    try:
+        commit = subprocess.run(["git", "-C", str(DOCS), "rev-parse", "--short", "HEAD"], capture_output=True,
+                                text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        commit = "unknown (not built from a git checkout)"
+    (DOCS / "citation.bib").write_text(citation_bibtex(DOCS.parent / "CITATION.cff", commit))
+
+
 def setup(app):
+    app.connect("builder-inited", write_citation)
     app.connect("autodoc-process-docstring", require_docstrings)
     app.connect("autodoc-process-docstring", validate_numpydoc)

@@ -34,6 +34,6 @@ def test_a_sky_the_config_refuses_is_refused_in_a_runs_record_in_the_same_words(
     assert str(record_error.value) == f"{path}: the run's {message}"
 
 
-def test_a_listed_sky_is_read_as_floats_in_both():
+def test_a_listed_skys_directions_are_read_as_floats():
     sky = {"kind": "list", "frame": "galactic", "directions": [[10, 20], [200.5, -30]]}
     assert SkyConf(**sky).directions == [[10.0, 20.0], [200.5, -30.0]]

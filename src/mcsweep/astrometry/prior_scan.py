@@ -46,6 +46,7 @@ test (error and covariance, above) are ``y_j + sum_k X_jk w_k`` with per-star
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -143,7 +144,7 @@ class PriorScan:
         if m and n:
             from .scan_kernel import inside_flags_grid
 
-            inside_flags_grid(*self._kernel_arrays(), ts, chi2_threshold(P, 2), inside, valid)
+            inside_flags_grid(*self._kernel_arrays, ts, chi2_threshold(P, 2), inside, valid)
         return inside, valid
 
     def inside_counts(self, priors_mas, P, *, keys: bool = False):
@@ -167,7 +168,7 @@ class PriorScan:
         if m and n:
             from .scan_kernel import inside_counts_grid
 
-            inside_counts_grid(*self._kernel_arrays(), ts, chi2_threshold(P, 2), n_in, n_val, k_in, k_val)
+            inside_counts_grid(*self._kernel_arrays, ts, chi2_threshold(P, 2), n_in, n_val, k_in, k_val)
         return n_in, n_val, (k_in, k_val) if keys else None
 
     def position_statistics(self, priors_mas, P) -> tuple[np.ndarray, np.ndarray]:
@@ -189,7 +190,7 @@ class PriorScan:
         if len(ts) and self.n:
             from .scan_kernel import position_statistics_grid
 
-            position_statistics_grid(*self._kernel_arrays(), ts, chi2_threshold(P, 2), err, semi)
+            position_statistics_grid(*self._kernel_arrays, ts, chi2_threshold(P, 2), err, semi)
         return err, semi
 
     def _ts(self, priors_mas) -> np.ndarray:
@@ -197,10 +198,12 @@ class PriorScan:
         priors = np.atleast_1d(np.asarray(priors_mas, float))
         return np.ascontiguousarray(prior_diagonal(priors, self.ratio_R)[:, 2]) if priors.size else np.zeros(0)
 
+    @cached_property
     def _kernel_arrays(self) -> tuple:
-        """The scan's arrays as the inside kernels take them, and ``worst``: the rule of
+        """The scan's arrays as the compiled passes take them, and ``worst``: the rule of
         :meth:`_bad` as one comparison per star and prior (no reliable solution where
-        min(lam) + t <= 0, or where the star is not ok: then -inf)."""
+        min(lam) + t <= 0, or where the star is not ok: then -inf). Made once per scan: a
+        cell's case asks for them at the grid and again at sigma_F90."""
         worst = np.where(self.ok, np.min(self.lam, axis=0), -np.inf)
         return tuple(np.ascontiguousarray(a) for a in (self.x0, self.ainv, self.g, self.c, self.lam)) + (worst,)
 

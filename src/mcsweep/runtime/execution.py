@@ -9,6 +9,7 @@ the number of workers or the completion order.
 
 from __future__ import annotations
 
+import functools
 import os
 import logging
 import signal
@@ -20,7 +21,7 @@ from joblib import Parallel, delayed, parallel_config
 
 from ..errors import UserInputError
 
-__all__ = ["executor", "in_process", "dask_client", "release_free_memory"]
+__all__ = ["executor", "in_process", "dask_client", "release_free_memory", "keep_freed_arrays"]
 
 # BLAS threads per worker: the workers already use every core (Hydra/joblib trap:
 # oversubscribing 2 cores with n_jobs x BLAS threads).
@@ -162,6 +163,47 @@ def executor(conf, *,
             _shutdown_loky(kill=False)
 
 
+def _libc_function(name: str):
+    """A function of the C library by name, or None (not glibc, or no such function)."""
+    import ctypes
+    import ctypes.util
+
+    lib = ctypes.util.find_library("c")
+    try:
+        return getattr(ctypes.CDLL(lib), name, None) if lib else None
+    except OSError:
+        return None
+
+
+#: glibc's ``mallopt`` parameters (malloc.h): M_TRIM_THRESHOLD and M_MMAP_THRESHOLD.
+_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3
+#: Arrays below this size come from the heap and are reused once freed (glibc's largest
+#: dynamic mmap threshold on 64-bit, DEFAULT_MMAP_THRESHOLD_MAX).
+_KEEP_BELOW_BYTES = 32 * 2**20
+#: Free memory the heap keeps at its top before returning it.
+_TRIM_ABOVE_BYTES = 64 * 2**20
+
+
+@functools.cache
+def keep_freed_arrays() -> bool:
+    """Let this process reuse the memory of freed arrays up to 32 MB instead of returning it
+    to the operating system (glibc ``mallopt``); returns whether the setting was made (False
+    where glibc is not the C library).
+
+    For a worker that makes and frees arrays of a few megabytes task after task (a sweep
+    cell's noise, normal equations and scan buffers). By default glibc maps every array above
+    its mmap threshold (raised only to the largest array freed so far) as fresh pages, which
+    the kernel must map and zero on first touch, and unmaps it when freed; and it returns
+    free heap above twice that threshold. The sweep's workers then spent a large share of
+    their time in the kernel (docs/performance.md). The cost is at most
+    ``_TRIM_ABOVE_BYTES`` of free heap kept per process.
+    """
+    mallopt = _libc_function("mallopt")
+    if mallopt is None:
+        return False
+    return bool(mallopt(_M_MMAP_THRESHOLD, _KEEP_BELOW_BYTES)) and bool(mallopt(_M_TRIM_THRESHOLD, _TRIM_ABOVE_BYTES))
+
+
 def release_free_memory() -> None:
     """Hand the heap's free pages back to the operating system (glibc ``malloc_trim``).
 
@@ -171,14 +213,6 @@ def release_free_memory() -> None:
     (the measured saving is in docs/research_notes_moved.md). A no-op where glibc is not the
     C library.
     """
-    import ctypes
-    import ctypes.util
-
-    name = ctypes.util.find_library("c")
-    try:
-        libc = ctypes.CDLL(name) if name else None
-        trim = getattr(libc, "malloc_trim", None)
-    except OSError:
-        trim = None
+    trim = _libc_function("malloc_trim")
     if trim is not None:
         trim(0)

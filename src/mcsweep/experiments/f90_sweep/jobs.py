@@ -12,6 +12,7 @@ import dataclasses
 from functools import lru_cache
 
 from ...population import make_source
+from ...runtime.execution import keep_freed_arrays
 from .pencil_beam import run_cell
 
 __all__ = ["population_key", "population_source", "cell_task", "direction_g_jobs"]
@@ -39,6 +40,7 @@ def cell_task(job):
     which share their batches of stars); returns (cell_id, showcase, table bytes) per cell."""
     # The store travels with the job so a worker stamps the parent's code version.
     cells, transits, pop_key, settings, store, keep_scatter, radii = job
+    keep_freed_arrays()  # every cell makes and frees the same megabyte arrays
     source = population_source(pop_key)
     draws: dict = {}
     out = []

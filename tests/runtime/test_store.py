@@ -1,13 +1,17 @@
 """Cell files: atomic, verified, and never mistaken for finished when damaged or foreign."""
 
 import io
+import json
 import os
 from pathlib import Path
 
 import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
 import pytest
 
-from mcsweep.runtime.store import ResultStore, atomic_write_bytes, concat_parquet, current_umask
+from mcsweep.runtime.store import (ResultStore, arrow_checksum, atomic_write_bytes, concat_parquet, current_umask,
+                                   table_checksum)
 
 
 def _table():
@@ -185,3 +189,59 @@ def test_concatenated_tables_are_the_concatenated_frames(tmp_path):
     tables.append(store.read_table("c2"))
     pd.testing.assert_frame_equal(pd.read_parquet(io.BytesIO(concat_parquet(tables))),
                                   pd.concat(frames, ignore_index=True), check_exact=True)
+
+
+def _awkward_frame():
+    """Columns whose Arrow form a Parquet round trip may change: a categorical (its
+    dictionary's string width), NaN and None (nulls, and what lies under them), nullable
+    integers and booleans."""
+    n = 12
+    return pd.DataFrame({
+        "x": [float(i) if i % 3 else float("nan") for i in range(n)],
+        "label": [None if i % 4 == 0 else f"v{i}" for i in range(n)],
+        "population": pd.Categorical(["thin_disc", "halo"] * (n // 2), categories=["thin_disc", "halo", "bulge"]),
+        "count": pd.array([i if i % 5 else None for i in range(n)], dtype="Int64"),
+        "flag": pd.array([True, None, False] * (n // 3), dtype="boolean"),
+        "all_nan": [float("nan")] * n,
+    })
+
+
+def test_checksum_of_a_table_is_the_checksum_of_its_file(tmp_path):
+    table = pa.Table.from_pandas(_awkward_frame(), preserve_index=False)
+    pq.write_table(table, tmp_path / "t.parquet")
+    assert arrow_checksum(pq.read_table(tmp_path / "t.parquet")) == arrow_checksum(table)
+    store = ResultStore(tmp_path, "abc")
+    store.write("frame", _awkward_frame())
+    store.write("slice", table.slice(3, 6))  # a slice's offsets are not its values
+    pd.testing.assert_frame_equal(store.read("frame"), _awkward_frame())
+    pd.testing.assert_frame_equal(store.read("slice"), table.slice(3, 6).to_pandas())
+
+
+@pytest.mark.parametrize("change", ["value", "null", "order"])
+def test_a_changed_table_does_not_pass_for_the_written_one(tmp_path, change):
+    store = ResultStore(tmp_path, "abc")
+    store.write("cell_1", _awkward_frame())
+    table = pq.read_table(store.path("cell_1"))
+    x = table.column("x").to_pylist()
+    x = {"value": [x[0]] + [x[1] + 1e-12] + x[2:], "null": [x[0], None] + x[2:], "order": x[::-1]}[change]
+    changed = table.set_column(0, "x", pa.array(x, pa.float64())).replace_schema_metadata(table.schema.metadata)
+    pq.write_table(changed, store.path("cell_1"))
+    with pytest.warns(UserWarning, match="checksum does not match"):
+        assert store.read("cell_1") is None
+
+
+def test_files_of_the_former_pandas_checksum_are_still_verified(tmp_path):
+    # Files written before arrow_checksum carry table_checksum's value and no "checksum_of":
+    # a resumed run keeps them, and still refuses a damaged one.
+    df = _table()
+    meta = {"config_hash": "abc", "cell_id": "cell_1", "checksum": table_checksum(df), "n_rows": len(df),
+            "code_version": ResultStore(tmp_path, "abc").version}
+    table = pa.Table.from_pandas(df, preserve_index=False)
+    pq.write_table(table.replace_schema_metadata({**table.schema.metadata, b"mcsweep": json.dumps(meta).encode()}),
+                   tmp_path / "cell_1.parquet")
+    pd.testing.assert_frame_equal(ResultStore(tmp_path, "abc").read("cell_1"), df)
+    meta["checksum"] = table_checksum(df.assign(fraction_inside=0.5))
+    pq.write_table(table.replace_schema_metadata({**table.schema.metadata, b"mcsweep": json.dumps(meta).encode()}),
+                   tmp_path / "cell_1.parquet")
+    with pytest.warns(UserWarning, match="checksum does not match"):
+        assert ResultStore(tmp_path, "abc").read("cell_1") is None

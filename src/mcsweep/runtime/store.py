@@ -7,7 +7,7 @@ leaves either no file or a whole one, and at most a temporary, which the next wr
 the same file removes (:func:`atomic_write_via`: the writer's ``flock`` on it tells a
 live write's from a killed one's). A file counts as finished only if it parses as
 Parquet, carries this run's config hash and the entry's identity in its metadata, and
-its table checksum matches; anything else (truncated, foreign, from another config)
+its table checksum (:func:`arrow_checksum`) matches; anything else (truncated, foreign, from another config)
 is recomputed with a warning.
 
 Each file also records the code version that wrote it (:func:`mcsweep.runtime.version.code_version`).
@@ -37,13 +37,62 @@ from ..errors import UserInputError
 from .version import code_version
 
 __all__ = ["ResultStore", "concat_parquet", "atomic_write_bytes", "atomic_write_via", "current_umask",
-           "remove_temporaries", "table_checksum"]
+           "remove_temporaries", "table_checksum", "arrow_checksum"]
 
 _META_KEY = b"mcsweep"
 
 
+#: Metadata ``checksum_of`` of a file whose checksum is :func:`arrow_checksum`'s; files without
+#: it (written before) carry :func:`table_checksum`'s and are verified with it.
+_ARROW_CHECKSUM = "arrow"
+
+
+def arrow_checksum(table: pa.Table) -> str:
+    """SHA-256 over an Arrow table's column names, types and values, row order included.
+
+    Taken over the uncompressed Arrow IPC stream of a canonical copy: per column its null
+    flags and its values with nulls set to zero, dictionaries decoded, strings as large
+    strings, in one record batch, without metadata. A Parquet round trip keeps these (it may
+    change a dictionary's string width and what lies under a null), so the value of a table
+    when written is the value of the table read back. Computed without pandas, so a task that
+    builds its result as Arrow never makes a DataFrame.
+    """
+    names, arrays = [], []
+    for name, column in zip(table.column_names, table.columns):
+        arr = column.combine_chunks()
+        if pa.types.is_dictionary(arr.type):
+            arr = arr.dictionary_decode()
+        if pa.types.is_string(arr.type) or pa.types.is_large_string(arr.type):
+            arr = arr.cast(pa.large_string())
+        names += [name, name + "\0null"]
+        arrays += [_nulls_as_zero(arr), arr.is_null()]
+    plain = pa.Table.from_arrays(arrays, names=names)
+    sink = pa.BufferOutputStream()
+    with pa.ipc.new_stream(sink, plain.schema) as writer:
+        writer.write_table(plain, max_chunksize=max(plain.num_rows, 1))
+    return hashlib.sha256(sink.getvalue()).hexdigest()
+
+
+def _nulls_as_zero(arr: pa.Array) -> pa.Array:
+    if not arr.null_count:
+        return arr
+    import pyarrow.compute as pc
+
+    t = arr.type
+    if pa.types.is_large_string(t):
+        zero = pa.scalar("", t)
+    elif pa.types.is_boolean(t):
+        zero = pa.scalar(False)
+    elif pa.types.is_null(t):
+        return arr
+    else:
+        zero = pa.scalar(0).cast(t)
+    return pc.fill_null(arr, zero)
+
+
 def table_checksum(df: pd.DataFrame) -> str:
-    """SHA-256 over the table's values (row order and column names included)."""
+    """SHA-256 over the table's values (row order and column names included): the checksum
+    of files written before :func:`arrow_checksum` (metadata without ``checksum_of``)."""
     h = hashlib.sha256()
     h.update(json.dumps(list(map(str, df.columns))).encode())
     h.update(pd.util.hash_pandas_object(df, index=False).values.tobytes())
@@ -247,14 +296,14 @@ class ResultStore:
     def path(self, entry_id: str) -> Path:
         return self.directory / f"{entry_id}.parquet"
 
-    def write(self, entry_id: str, df: pd.DataFrame) -> bytes:
-        """Write the entry atomically; returns the table as Arrow IPC bytes (:meth:`decode`
-        gives it back without going to the disk, in microseconds rather than the
-        milliseconds of reading Parquet)."""
-        df = df.reset_index(drop=True)
-        meta = {"config_hash": self.config_hash, "cell_id": entry_id,
-                "checksum": table_checksum(df), "n_rows": len(df), "code_version": self.version}
-        table = pa.Table.from_pandas(df, preserve_index=False)
+    def write(self, entry_id: str, data: pd.DataFrame | pa.Table) -> bytes:
+        """Write the entry (a DataFrame, or the Arrow table ``pa.Table.from_pandas`` would make
+        of one) atomically; returns the table as Arrow IPC bytes (:meth:`decode` gives it back
+        without going to the disk, in microseconds rather than the milliseconds of reading
+        Parquet)."""
+        table = pa.Table.from_pandas(data, preserve_index=False) if isinstance(data, pd.DataFrame) else data
+        meta = {"config_hash": self.config_hash, "cell_id": entry_id, "checksum": arrow_checksum(table),
+                "checksum_of": _ARROW_CHECKSUM, "n_rows": table.num_rows, "code_version": self.version}
         table = table.replace_schema_metadata({**(table.schema.metadata or {}),
                                                _META_KEY: json.dumps(meta).encode()})
         sink = pa.BufferOutputStream()
@@ -327,7 +376,8 @@ class ResultStore:
                 problem = f"it belongs to entry {meta.get('cell_id')!r}"
             elif meta.get("config_hash") != self.config_hash:
                 problem = "it was computed with a different config"
-            elif meta.get("n_rows") != len(df) or meta.get("checksum") != table_checksum(df):
+            elif meta.get("n_rows") != len(df) or meta.get("checksum") != (
+                    arrow_checksum(table) if meta.get("checksum_of") == _ARROW_CHECKSUM else table_checksum(df)):
                 problem = "its checksum does not match its content"
         except Exception as exc:  # truncated, not Parquet, no metadata
             problem = f"it is unreadable ({type(exc).__name__})"

@@ -275,3 +275,20 @@ def test_colour_cells_are_the_same_bits_with_their_batches_shared_or_not(galaxy_
     for a, b in zip(alone, shared):
         pd.testing.assert_frame_equal(a, b, check_exact=True)
     assert len(draws) == 1
+
+
+@pytest.mark.parametrize("model", [{}, {"colour_axis": True}, {"colour_axis": True, "mean": True}])
+def test_the_arrow_table_a_worker_writes_is_pandas_conversion_of_the_cell(galaxy_beam, model):
+    # The sweep's workers build a cell's table as Arrow with the schema of the first cell they
+    # converted from pandas; every later cell (flagged ones too: a colour bin without stars)
+    # must be what pandas would have made of it, types and pandas metadata included.
+    import pyarrow as pa
+
+    config, d, transits = galaxy_beam
+    s = _settings(config, **model)
+    bins = ((None, None), (0.56, 1.23), (5.9, 6.0)) if model else ((None, None),)
+    cells = [Cell(d, g, g + 1.0, c0, c1) for g in (13.5, 14.5) for c0, c1 in bins]
+    for cell in cells:
+        arrow, _ = run_cell(cell, transits, GalaxyModel(), s, arrow=True)
+        frame, _ = run_cell(cell, transits, GalaxyModel(), s)
+        assert arrow.equals(pa.Table.from_pandas(frame, preserve_index=False), check_metadata=True), cell.cell_id

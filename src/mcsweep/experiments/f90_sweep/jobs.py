@@ -47,7 +47,7 @@ def cell_task(job):
     for cell, radius in zip(cells, radii):
         # The showcase cell (keep_scatter) feeds Figs. 1 and 3: statistics on its whole grid.
         table, scatter = run_cell(cell, transits, source, settings, keep_scatter=keep_scatter, radius_deg=radius,
-                                  grid_statistics=True if keep_scatter else None, draws=draws)
+                                  grid_statistics=True if keep_scatter else None, draws=draws, arrow=True)
         if scatter is not None:
             store.write(cell.cell_id + "_scatter", scatter)
         # The written bytes travel back: the aggregate reads them instead of the file (1.5 ms of

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
+import pyarrow as pa
 
 from ...astrometry.confidence import ellipse_semi_axes, inside, inside_counts, mahalanobis_sq
 from ...astrometry.design import JULIAN_YEAR_DAYS, design_matrix, reference_epoch
@@ -347,8 +348,8 @@ def prior_curve(n0, b0, priors_mas, s: CellSettings, *, method: str = "scan", re
 
 def run_cell(cell, transits: pd.DataFrame, source, s: CellSettings,
              *, keep_scatter: bool = False, radius_deg: float | None = None,
-             grid_statistics: bool | None = None, draws: dict | None = None,
-             ) -> tuple[pd.DataFrame, pd.DataFrame | None]:
+             grid_statistics: bool | None = None, draws: dict | None = None, arrow: bool = False,
+             ) -> tuple[pd.DataFrame | pa.Table, pd.DataFrame | None]:
     """Run one cell; returns its curve table and (optionally) per-star errors (Fig. 2).
 
     ``cell`` is a :class:`mcsweep.experiments.f90_sweep.cells.Cell`; ``transits`` the FoV transits of
@@ -359,6 +360,8 @@ def run_cell(cell, transits: pd.DataFrame, source, s: CellSettings,
     follows ``s.grid_statistics``. The fraction inside is always on the whole grid.
     ``draws``: a dict shared by the colour cells of one direction x G bin run together, so
     they draw its batches once (:func:`cell_stars`); the results do not depend on it.
+    ``arrow``: return the curve table as the Arrow table ``pa.Table.from_pandas`` makes of the
+    DataFrame, built without one (what the sweep's workers write).
     """
     d = cell.direction
     # Streams keyed by content (cell, and case *name* for the noise), never by position in
@@ -391,7 +394,8 @@ def run_cell(cell, transits: pd.DataFrame, source, s: CellSettings,
                     enough_stars=len(stars) >= _min_stars(cell))
     if centre is not None:
         base.update(_quasars(cell, columns, stars, centre, f90["sigma_f90_mas"], s))
-    table = _cell_table(grid, curves, scans, s, dict(base, **f90))
+    columns = _cell_columns(grid, curves, scans, s, dict(base, **f90))
+    table = _arrow_table(columns) if arrow else pd.DataFrame(columns)
     scatter = None
     if keep_scatter and s.f90_case in normals:
         scatter = _scatter(normals[s.f90_case], stars, f90["sigma_f90_mas"], s)
@@ -542,10 +546,9 @@ def _cell_f90(cell, grid, curves: dict, f90_patterns, s: CellSettings, *, has_st
                 ill_determined=ill_determined(grid, c["fraction_inside"], c["n_valid"], s.confidence))
 
 
-def _cell_table(grid, curves: dict, scans: dict, s: CellSettings, scalars: dict) -> pd.DataFrame:
-    """The cell's rows (:data:`CURVE_COLUMNS`): every case on the grid, then at sigma_F90."""
-    # One DataFrame for the whole cell, built from numpy columns (pandas per case costs
-    # more than a cell's arithmetic).
+def _cell_columns(grid, curves: dict, scans: dict, s: CellSettings, scalars: dict) -> dict:
+    """The cell's rows (:data:`CURVE_COLUMNS`) as numpy columns: every case on the grid, then
+    at sigma_F90."""
     f90 = scalars["sigma_f90_mas"]
     empty = _curve_arrays(grid, np.zeros(len(grid)), np.zeros(len(grid)), None, None, s)
     empty["fraction_inside"] = np.full(len(grid), np.nan)
@@ -569,7 +572,27 @@ def _cell_table(grid, curves: dict, scans: dict, s: CellSettings, scalars: dict)
     cols["case"] = np.array(case_col, dtype=object)
     for k, v in scalars.items():
         cols[k] = np.full(n_rows, v, dtype=object if isinstance(v, str) else None)
-    return pd.DataFrame({k: cols[k] for k in curve_columns(s)})
+    return {k: cols[k] for k in curve_columns(s)}
+
+
+#: The Arrow schema of a cell table per column list, taken from the first cell's
+#: ``pa.Table.from_pandas`` in this process (types and pandas metadata as pandas makes them).
+_CELL_SCHEMAS: dict[tuple[str, ...], pa.Schema] = {}
+
+
+def _arrow_table(columns: dict) -> pa.Table:
+    """``pa.Table.from_pandas(pd.DataFrame(columns), preserve_index=False)`` without the
+    DataFrame: a cell's table has the same column types in every cell, so the schema
+    pandas gives the first one is reused (a DataFrame and its conversion cost more than
+    a cell's arithmetic of the prior grid)."""
+    names = tuple(columns)
+    schema = _CELL_SCHEMAS.get(names)
+    if schema is None:
+        table = pa.Table.from_pandas(pd.DataFrame(columns), preserve_index=False)
+        _CELL_SCHEMAS[names] = table.schema
+        return table
+    return pa.Table.from_arrays([pa.array(columns[f.name], type=f.type, from_pandas=True) for f in schema],
+                                schema=schema)
 
 
 def _scatter(normals, stars: pd.DataFrame, f90: float, s: CellSettings) -> pd.DataFrame:

@@ -202,15 +202,25 @@ def case_geometry(transits: pd.DataFrame | dict, groups: tuple[int, ...]) -> Cas
     return CaseGeometry(tcb_jd=tcb[order], psi_deg=cols["scan_angle_deg"][idx], obs_au=cols["obs_au"][idx])
 
 
+def _star_weights(stars: pd.DataFrame, s: CellSettings) -> tuple[list, np.ndarray]:
+    """Each star's 1 / sigma per block of rows (AL, then AC; the noise model's, by G) and its
+    true parallax and proper motion (3, n): the same in every observation case of a cell."""
+    g = stars["phot_g_mean_mag"].to_numpy(float)
+    weights = [1.0 / s.noise.sigma_al_mas(g)] + ([1.0 / s.noise.sigma_ac_mas(g)] if s.noise.use_ac else [])
+    truth = np.stack([stars[c].to_numpy(float) for c in ("parallax", "pmra", "pmdec")])  # x_true[2:], Sect. 3.2
+    return weights, truth
+
+
 def cell_normals(geom: CaseGeometry, ra_deg, dec_deg, stars: pd.DataFrame, s: CellSettings,
-                 rng: np.random.Generator) -> SharedDesignNormals:
+                 rng: np.random.Generator, *, star_weights: tuple | None = None) -> SharedDesignNormals:
     """Normal equations (Eqs. 2-3) of every star of the cell, in factored form.
 
     All stars of a cell are observed with the transits of the beam centre, so their
     design matrices differ only by the per-star uncertainties, and the measurement noise
     is drawn in the normal equations' own space (:mod:`mcsweep.astrometry.shared_design`):
     ``N0`` equals ``design_matrix`` + ``normal_equations`` to rounding, and ``b0 - N0 x``
-    has the distribution that ``simulate`` gives it.
+    has the distribution that ``simulate`` gives it. ``star_weights``: what
+    ``_star_weights(stars, s)`` gives, if the caller has it (one cell's cases share it).
     """
     k = len(geom.tcb_jd)
     tcb = geom.tcb_jd[None, :]
@@ -222,9 +232,7 @@ def cell_normals(geom: CaseGeometry, ra_deg, dec_deg, stars: pd.DataFrame, s: Ce
     use_ac = s.noise.use_ac
     a1 = design_matrix(np.array([ra_deg], float), np.array([dec_deg], float), t_yr, geom.psi_deg[None, :],
                        geom.obs_au[None, :, :], sigma_al_mas=1.0, sigma_ac_mas=1.0 if use_ac else None)[0]
-    g = stars["phot_g_mean_mag"].to_numpy(float)
-    weights = [1.0 / s.noise.sigma_al_mas(g)] + ([1.0 / s.noise.sigma_ac_mas(g)] if use_ac else [])
-    truth = np.stack([stars[c].to_numpy(float) for c in ("parallax", "pmra", "pmdec")])  # x_true[2:], Sect. 3.2
+    weights, truth = _star_weights(stars, s) if star_weights is None else star_weights
     return SharedDesignNormals.simulate(a1, weights, truth, rng)
 
 
@@ -520,13 +528,14 @@ def _case_normals(cell, columns: dict, stars: pd.DataFrame, s: CellSettings) -> 
     """The normal equations of every observation case with transits (and stars), by case;
     ``columns``: the direction's transits as :func:`_transit_columns` gives them."""
     normals = {}
+    star_weights = _star_weights(stars, s) if len(stars) else None
     for case, groups in s.cases.items():
         geom = case_geometry(columns, tuple(groups))
         if geom is not None and len(stars) > 0:
             case_ss = np.random.SeedSequence(s.seed, spawn_key=(*cell.key, _NOISE_STREAM,
                                                                 zlib.crc32(case.encode())))
             normals[case] = cell_normals(geom, cell.direction.ra_deg, cell.direction.dec_deg, stars, s,
-                                                  np.random.default_rng(case_ss))
+                                         np.random.default_rng(case_ss), star_weights=star_weights)
     return normals
 
 

@@ -383,24 +383,23 @@ class ColourTable:
         """(BP - RP)_0 of stars of components ``k`` (indices) at absolute magnitudes ``m_g``,
         the part chosen with the uniform numbers ``u`` in [0, 1) by the parts' densities at
         ``m_g``. Returns (colours [mag], part indices into :data:`COLOUR_PARTS`)."""
-        i = np.clip(np.searchsorted(self.mg, m_g, side="right") - 1, 0, self.mg.size - 2)
-        w = self.density[k, :, i]                       # (n, parts)
-        cum = np.cumsum(w, axis=1)
-        total = cum[:, -1]
-        part = (u[:, None] * total[:, None] >= cum).sum(axis=1)
-        # a star outside every part's bins (rounding at a bin edge) is taken as a dwarf
-        part = np.where(total > 0, np.minimum(part, len(COLOUR_PARTS) - 1), 0)
-        c = np.empty(m_g.size)
-        dw = part == 0
-        c[dw] = dwarf_bp_rp(m_g[dw] + self.shift[k[dw]])
-        # an evolved giant's quantile level: its uniform number rescaled within the part's own
-        # interval [cum_0, cum_1) of the cumulated densities, uniform again on [0, 1)
-        gi = np.flatnonzero(part == 1)
-        c[gi] = self.giant_bp_rp(k[gi], m_g[gi], (u[gi] * total[gi] - cum[gi, 0]) / w[gi, 1])
-        ms = part == 2
-        c[ms] = main_sequence_bp_rp(m_g[ms] - P.GIANT_G_MINUS_V)
-        c[part == 3] = SUBGIANT_BP_RP
-        return c, part
+        from .draw_kernel import intrinsic_colours  # numba where stars are drawn
+
+        k = np.ascontiguousarray(k, dtype=np.intp)
+        m_g = np.ascontiguousarray(m_g, dtype=float)
+        colour = np.empty(m_g.size)
+        part = np.empty(m_g.size, dtype=np.intp)
+        seq_mv, seq_mg, seq_c = load_dwarf_colours()
+        # Per star: its bin of M_G, the part whose interval of the cumulated densities holds
+        # u * total (a star outside every part's bins, by rounding at a bin edge, is taken as a
+        # dwarf), then the part's colour: the dwarf sequence at M_G + the component's shift; an
+        # evolved giant's quantile (giant_bp_rp) at its uniform number rescaled within the
+        # part's own interval, uniform again on [0, 1); the main sequence at M_V; or the
+        # subgiants' colour.
+        intrinsic_colours(k, m_g, np.ascontiguousarray(u, dtype=float), self.mg, self.density, self.shift,
+                          seq_mv, seq_mg, seq_c, self.giant_q, self.giant_mg, GIANT_QUANTILE_LEVELS.size,
+                          float(P.GIANT_G_MINUS_V), float(SUBGIANT_BP_RP), colour, part)
+        return colour, part
 
     def giant_bp_rp(self, k, m_g, level):
         """(BP - RP)_0 of evolved giants of components ``k`` at absolute magnitudes ``m_g``:

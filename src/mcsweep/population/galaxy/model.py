@@ -525,22 +525,13 @@ class GalaxyModel:
         mu = 5.0 * np.log10(d_pc) - 5.0
         frac = (mu - los.mu_edges[j]) / MU_STEP
         a_g = los.a_nodes[cell, j] + frac * (los.a_nodes[cell, j + 1] - los.a_nodes[cell, j])
-        # M_G from each component's luminosity function, the stars taken component by
-        # component in one stable sort (a boolean mask per component cost ~20 passes over all
-        # stars); every star's arithmetic is unchanged.
-        by_k = np.argsort(k, kind="stable")
-        k_sorted = k[by_k]
-        off = (mu + a_g)[by_k]
-        u_m = uni[2][by_k]
-        m_sorted = np.empty(mu.size)
-        starts = np.flatnonzero(np.r_[True, k_sorted[1:] != k_sorted[:-1]])
-        for a, z in zip(starts, np.r_[starts[1:], k_sorted.size]):
-            cdf = self.lf.cdf[k_sorted[a]]
-            c_lo = np.interp(g_min - off[a:z], self.lf.mg, cdf)
-            c_hi = np.interp(g_max - off[a:z], self.lf.mg, cdf)
-            m_sorted[a:z] = np.interp(c_lo + u_m[a:z] * (c_hi - c_lo), cdf, self.lf.mg)
+        # M_G from each star's component's luminosity function, restricted to the G range at
+        # its distance modulus and extinction and inverted at a uniform number (compiled,
+        # the numpy arithmetic star by star: draw_kernel).
+        from .draw_kernel import absolute_magnitudes  # numba where stars are drawn
+
         m_g = np.empty(mu.size)
-        m_g[by_k] = m_sorted
+        absolute_magnitudes(k, mu, a_g, uni[2], float(g_min), float(g_max), self.lf.mg, self.lf.cdf, m_g)
         g = np.clip(m_g + mu + a_g, g_min, np.nextafter(g_max, -np.inf))
         l, b, n_gal = los.grid.sample(cell, uni[3], uni[4], with_vectors=True)
         d_kpc = d_pc * 1e-3

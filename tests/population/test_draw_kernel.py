@@ -1,0 +1,102 @@
+"""The galaxy model's compiled draw loops do numpy's arithmetic star by star: the same stars bit
+for bit as the numpy passes they replaced (kept here as the references)."""
+
+import numpy as np
+import pytest
+
+from mcsweep.population import GalaxyModel
+from mcsweep.population.galaxy import colours as C
+from mcsweep.population.galaxy import parameters as P
+from mcsweep.population.galaxy.draw_kernel import absolute_magnitudes, interp
+from mcsweep.population.galaxy.model import PARAMS_R03_5
+
+
+def _models():
+    # the default model's evolved stars from isochrones, and r03-5's Wielen giant bins (whose
+    # colour table has the main-sequence part)
+    return {"default": GalaxyModel(), "r03_5": GalaxyModel(PARAMS_R03_5)}
+
+
+@pytest.fixture(scope="module")
+def models():
+    return _models()
+
+
+def test_interp_is_numpys_at_nodes_ends_ties_and_nan():
+    rng = np.random.default_rng(3)
+    xp = np.sort(np.r_[rng.uniform(-5, 5, 40), [0.5, 0.5, 0.5, 2.0, 2.0]])  # ties: flat steps of a cdf
+    fp = np.cumsum(rng.uniform(0, 1, xp.size))
+    fp[10:14] = fp[10]  # flat values
+    x = np.r_[rng.uniform(-6, 6, 5000), xp, [-np.inf, np.inf, np.nan, xp[0], xp[-1]]]
+    got = np.array([interp(v, xp, fp) for v in x])
+    np.testing.assert_array_equal(got, np.interp(x, xp, fp))
+    # inverted (a cdf with flat steps as the abscissa), as the luminosity functions are sampled
+    y = rng.uniform(fp[0] - 0.1, fp[-1] + 0.1, 5000)
+    np.testing.assert_array_equal(np.array([interp(v, fp, xp) for v in y]), np.interp(y, fp, xp))
+
+
+def _absolute_magnitudes_numpy(lf, k, mu, a_g, u, g_min, g_max):
+    """The numpy passes, component by component."""
+    m_g = np.empty(mu.size)
+    off = mu + a_g
+    for c in np.unique(k):
+        sel = k == c
+        cdf = lf.cdf[c]
+        c_lo = np.interp(g_min - off[sel], lf.mg, cdf)
+        c_hi = np.interp(g_max - off[sel], lf.mg, cdf)
+        m_g[sel] = np.interp(c_lo + u[sel] * (c_hi - c_lo), cdf, lf.mg)
+    return m_g
+
+
+def _draw_inputs(model, n, seed):
+    rng = np.random.default_rng(seed)
+    k = rng.integers(0, len(model.components), n)
+    mu = rng.uniform(-2.0, 16.0, n)
+    a_g = rng.exponential(0.5, n)
+    return k, mu, a_g, rng.random(n)
+
+
+@pytest.mark.parametrize("name", ["default", "r03_5"])
+@pytest.mark.parametrize("g_range", [(4.0, 5.0), (12.0, 13.0), (19.0, 20.0)])
+def test_absolute_magnitudes_are_the_numpy_passes_bit_for_bit(models, name, g_range):
+    model = models[name]
+    k, mu, a_g, u = _draw_inputs(model, 50_000, 11)
+    got = np.empty(k.size)
+    absolute_magnitudes(k, mu, a_g, u, *g_range, model.lf.mg, model.lf.cdf, got)
+    np.testing.assert_array_equal(got, _absolute_magnitudes_numpy(model.lf, k, mu, a_g, u, *g_range))
+
+
+def _intrinsic_numpy(t, k, m_g, u):
+    """ColourTable.intrinsic as numpy passes over all stars."""
+    i = np.clip(np.searchsorted(t.mg, m_g, side="right") - 1, 0, t.mg.size - 2)
+    w = t.density[k, :, i]
+    cum = np.cumsum(w, axis=1)
+    total = cum[:, -1]
+    part = (u[:, None] * total[:, None] >= cum).sum(axis=1)
+    part = np.where(total > 0, np.minimum(part, len(C.COLOUR_PARTS) - 1), 0)
+    c = np.empty(m_g.size)
+    dw = part == 0
+    c[dw] = C.dwarf_bp_rp(m_g[dw] + t.shift[k[dw]])
+    gi = np.flatnonzero(part == 1)
+    c[gi] = t.giant_bp_rp(k[gi], m_g[gi], (u[gi] * total[gi] - cum[gi, 0]) / w[gi, 1])
+    ms = part == 2
+    c[ms] = C.main_sequence_bp_rp(m_g[ms] - P.GIANT_G_MINUS_V)
+    c[part == 3] = C.SUBGIANT_BP_RP
+    return c, part
+
+
+@pytest.mark.parametrize("name", ["default", "r03_5"])
+def test_intrinsic_colours_are_the_numpy_passes_bit_for_bit(models, name):
+    t = models[name].colours
+    rng = np.random.default_rng(5)
+    n = 200_000
+    k = rng.integers(0, t.density.shape[0], n)
+    # every part of the table, its edges and nodes, and beyond them
+    m_g = np.r_[rng.uniform(t.mg[0] - 1.0, t.mg[-1] + 1.0, n - 2 * t.mg.size), t.mg, t.mg + 1e-13]
+    u = rng.random(n)
+    colour, part = t.intrinsic(k, m_g, u)
+    ref_colour, ref_part = _intrinsic_numpy(t, k, m_g, u)
+    np.testing.assert_array_equal(part, ref_part)
+    np.testing.assert_array_equal(colour, ref_colour)
+    # every part the table holds stars in was drawn
+    assert set(np.unique(part).tolist()) == {p for p in range(len(C.COLOUR_PARTS)) if t.density[:, p].any()}

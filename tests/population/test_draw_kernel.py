@@ -1,7 +1,9 @@
 """The galaxy model's compiled draw loops do numpy's arithmetic star by star: the same stars bit
-for bit as the numpy passes they replaced (kept here as the references)."""
+for bit as the numpy passes they replaced (kept here as the references); and a draw whose rows
+are made on request (draw_cone) gives the rows of the whole draw."""
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from mcsweep.population import GalaxyModel
@@ -100,3 +102,24 @@ def test_intrinsic_colours_are_the_numpy_passes_bit_for_bit(models, name):
     np.testing.assert_array_equal(colour, ref_colour)
     # every part the table holds stars in was drawn
     assert set(np.unique(part).tolist()) == {p for p in range(len(C.COLOUR_PARTS)) if t.density[:, p].any()}
+
+
+@pytest.mark.parametrize("name", ["default", "r03_5"])
+def test_a_draw_made_row_by_request_is_the_whole_draw(models, name):
+    # draw_cone computes the colours of every star and the other columns of the rows asked
+    # for (a colour cell's bin): each row as sample_cone's, bit for bit, whatever the number of
+    # rows asked for (one row takes other numpy and BLAS routes if computed alone).
+    model = models[name]
+    for i, (l, b, g) in enumerate([(0.0, 70.5, 19.0), (120.0, 5.0, 8.0), (280.0, -40.0, 13.0)]):
+        args = (l, b, 1.0, g - 0.5, g + 0.5)
+        table = model.sample_cone(*args, np.random.default_rng(i), max_stars=3000, min_draw=3000)
+        drawn = model.draw_cone(*args, np.random.default_rng(i), max_stars=3000, min_draw=3000)
+        np.testing.assert_array_equal(drawn.bp_rp, table["bp_rp"].to_numpy())
+        assert (drawn.n_in_cone, drawn.expected_count) == (table.attrs["n_in_cone"], table.attrs["expected_count"])
+        pd.testing.assert_frame_equal(drawn.stars(), table, check_exact=True)
+        rng = np.random.default_rng(i)
+        for size in (0, 1, 2, 3, 5, 8, 15, 16, 17, 33, 500):
+            rows = np.sort(rng.choice(len(drawn), size, replace=False))
+            made = drawn.stars(rows)
+            pd.testing.assert_frame_equal(made, table.iloc[rows].reset_index(drop=True), check_exact=True)
+            assert made.attrs == table.attrs

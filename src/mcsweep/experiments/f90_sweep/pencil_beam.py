@@ -438,12 +438,12 @@ def cell_stars(cell, source, s: CellSettings, radius: float, stream: int,
     kept, n_kept, n_in_cone = [], 0, None
     for i in range(COLOUR_DRAW_BATCHES if getattr(source, "draws_from_density", False) else 1):
         batch = batches.batch(i)
-        c = batch["bp_rp"].to_numpy(float)
-        sel = batch[(c >= cell.bp_rp_min) & (c < cell.bp_rp_max)]
+        in_bin = np.flatnonzero((batch.bp_rp >= cell.bp_rp_min) & (batch.bp_rp < cell.bp_rp_max))
         if n_in_cone is None:
-            n_in_cone = int(round(batch.attrs.get("n_in_cone", len(batch)) * len(sel) / max(len(batch), 1)))
-        kept.append(sel)
-        n_kept += len(sel)
+            n_in_cone = int(round(batch.n_in_cone * in_bin.size / max(len(batch), 1)))
+        # only the rows kept are made: beyond max_stars they would be cut off below
+        kept.append(batch.stars(in_bin[:max(s.max_stars - n_kept, 0)]))
+        n_kept += in_bin.size
         if n_kept >= s.min_stars or len(batch) == 0:
             break
     out = pd.concat(kept, ignore_index=True).iloc[:s.max_stars]
@@ -466,19 +466,45 @@ class ColourBatches:
     whichever asks first, and a task that runs them together draws each batch once. The bins
     are disjoint, so the cells' stars are disjoint subsets of one draw: independent
     realisations of the density restricted to each bin (thinning of a Poisson process).
+
+    A batch is drawn as far as its stars' colours (:meth:`GalaxyModel.draw_cone
+    <mcsweep.population.GalaxyModel.draw_cone>`); each cell makes the rows of its own bin only
+    (most of a late batch's stars belong to bins that already have theirs), the values those
+    of the whole draw's table bit for bit. A catalogue's one batch is its table.
     """
 
     def __init__(self, cell, source, s: CellSettings, radius: float, stream: int):
         self._args = (cell, source, s, radius)
         self._key = (*cell.key[:4], stream, COLOUR_BATCH_STREAM)
-        self._drawn: dict[int, pd.DataFrame] = {}
+        self._drawn: dict = {}
 
-    def batch(self, i: int) -> pd.DataFrame:
+    def batch(self, i: int):
+        """Batch ``i``: ``bp_rp`` (array), ``n_in_cone``, ``len`` and ``stars(rows)``."""
         if i not in self._drawn:
             cell, source, s, radius = self._args
             rng = np.random.default_rng(np.random.SeedSequence(s.seed, spawn_key=(*self._key, i)))
-            self._drawn[i] = _draw_cone(cell, source, s, radius, rng)
+            if hasattr(source, "draw_cone"):
+                d = cell.direction
+                self._drawn[i] = source.draw_cone(d.l_deg, d.b_deg, radius, cell.g_min, cell.g_max, rng,
+                                                  max_stars=s.max_stars, min_draw=s.min_stars)
+            else:
+                self._drawn[i] = _TableBatch(_draw_cone(cell, source, s, radius, rng))
         return self._drawn[i]
+
+
+class _TableBatch:
+    """A drawn table with the interface of a :class:`~mcsweep.population.galaxy.model.ConeDraw`."""
+
+    def __init__(self, table: pd.DataFrame):
+        self._table = table
+        self.bp_rp = table["bp_rp"].to_numpy(float)
+        self.n_in_cone = int(table.attrs.get("n_in_cone", len(table)))
+
+    def __len__(self) -> int:
+        return len(self._table)
+
+    def stars(self, index) -> pd.DataFrame:
+        return self._table.iloc[np.asarray(index, dtype=np.intp)]
 
 
 def cell_mean(stars: pd.DataFrame, d) -> dict:

@@ -43,7 +43,7 @@ from .extinction_arenou import ArenouDust
 from .kinematics import AstrometryTransform, draw_velocities, mean_lag_kms
 from .luminosity import EVOLVED_STARS, build_luminosity_table
 
-__all__ = ["GalaxyModel", "DEFAULT_PARAMS", "PARAMS_R03_5", "DRAW_BLOCK_STARS", "COLOUR_STREAM", "COLOUR_COLUMN",
+__all__ = ["GalaxyModel", "ConeDraw", "DEFAULT_PARAMS", "PARAMS_R03_5", "DRAW_BLOCK_STARS", "COLOUR_STREAM", "COLOUR_COLUMN",
            "gcns_faint_scale", "local_sources_per_pc3"]
 
 #: Stars drawn per independently seeded block (block ``i`` from ``SeedSequence(root,
@@ -440,11 +440,66 @@ class GalaxyModel:
         >>> len(stars), stars.attrs['n_in_cone'] > 100
         (100, True)
         """
+        q, (los, shape, cum), n_in, n, root = self._plan(l_deg, b_deg, radius_deg, g_min, g_max, rng, max_stars,
+                                                         min_draw)
+        df = self._draw(los, shape, cum, q.g_min, q.g_max, n, root)
+        df.attrs["n_in_cone"] = n_in
+        df.attrs["expected_count"] = float(cum[-1])
+        return df
+
+    def draw_cone(self, l_deg, b_deg, radius_deg, g_min, g_max, rng, max_stars=None, *, min_draw=None):
+        """The stars of :meth:`sample_cone`, drawn so far as their colours need.
+
+        Parameters
+        ----------
+        l_deg, b_deg : float
+            Cone centre, Galactic coordinates, deg.
+        radius_deg : float
+            Cone radius, deg (>= 180: whole sky).
+        g_min, g_max : float
+            Apparent G range, mag.
+        rng : numpy.random.Generator
+            Source of randomness: the same state gives the stars :meth:`sample_cone` gives.
+        max_stars : int, optional
+            Cap on the number of stars drawn (as for :meth:`sample_cone`).
+        min_draw : int, optional, keyword-only
+            Draw at least this many stars (as for :meth:`sample_cone`).
+
+        Returns
+        -------
+        ConeDraw
+            ``bp_rp`` of every star; ``stars(index)`` the table of :meth:`sample_cone` for the
+            given rows only, the positions and motions of the other stars never computed (a
+            caller keeping the stars of one colour skips the rest of the draw's arithmetic for
+            the others). Each star's values are those of :meth:`sample_cone`, bit for bit.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from mcsweep.population import GalaxyModel
+        >>> model = GalaxyModel()
+        >>> drawn = model.draw_cone(0.0, 0.0, 0.5, 12.0, 13.0, np.random.default_rng(7),
+        ...                         max_stars=100)
+        >>> red = np.flatnonzero(drawn.bp_rp > 1.5)
+        >>> table = model.sample_cone(0.0, 0.0, 0.5, 12.0, 13.0, np.random.default_rng(7),
+        ...                           max_stars=100)
+        >>> drawn.stars(red).equals(table.iloc[red].reset_index(drop=True))
+        True
+        """
+        q, (los, shape, cum), n_in, n, root = self._plan(l_deg, b_deg, radius_deg, g_min, g_max, rng, max_stars,
+                                                         min_draw)
+        uni, nor, u_colour = self._random_numbers(n, 0, n, root)
+        first = self._first_stage(los, shape, cum, q.g_min, q.g_max, uni, u_colour)
+        return ConeDraw(self, los, q.g_min, q.g_max, first, uni, nor, n_in, float(cum[-1]))
+
+    def _plan(self, l_deg, b_deg, radius_deg, g_min, g_max, rng, max_stars, min_draw):
+        """The query, its tabulation, the count of one realisation, the number to draw and the
+        root seed (the only numbers taken from ``rng``)."""
         if not isinstance(rng, np.random.Generator):
             raise UserInputError(f"rng={rng!r} is not accepted; expected a numpy.random.Generator")
         q = ConeQuery.make(l_deg, b_deg, radius_deg, g_min, g_max, max_stars)
-        los, shape, cum = self._cumulative(q)
-        total = float(cum[-1])
+        tab = self._cumulative(q)
+        total = float(tab[2][-1])
         n_in = int(rng.poisson(total)) if self.params["count"] == "poisson" else int(round(total))
         n = n_in if min_draw is None or total <= 0 else max(n_in, int(min_draw))
         n = n if q.max_stars is None else min(n, q.max_stars)
@@ -452,11 +507,7 @@ class GalaxyModel:
             raise UserInputError(f"the query holds {n_in} stars, more than {MAX_DRAW} can be drawn "
                                  "at once; expected max_stars (an unbiased subsample) or a "
                                  "smaller cone / G range")
-        root = int(rng.integers(0, 2 ** 63 - 1))
-        df = self._draw(los, shape, cum, q.g_min, q.g_max, n, root)
-        df.attrs["n_in_cone"] = n_in
-        df.attrs["expected_count"] = total
-        return df
+        return q, tab, n_in, n, int(rng.integers(0, 2 ** 63 - 1))
 
     def sample_sky(self, g_min, g_max, rng, max_stars=None):
         """Draw stars over the whole sky.
@@ -495,24 +546,37 @@ class GalaxyModel:
         for first in range(0, n_blocks, per_chunk):
             start = first * DRAW_BLOCK_STARS
             stop = min(n, (first + per_chunk) * DRAW_BLOCK_STARS)
-            uni = np.empty((5, stop - start))
-            nor = np.empty((3, stop - start))
-            u_colour = np.empty(stop - start)
-            for i in range(first, min(first + per_chunk, n_blocks)):
-                a = i * DRAW_BLOCK_STARS - start
-                m = min(DRAW_BLOCK_STARS, n - i * DRAW_BLOCK_STARS)
-                gen = np.random.default_rng(np.random.SeedSequence(root, spawn_key=(i,)))
-                uni[:, a:a + m] = gen.random((5, m))
-                nor[:, a:a + m] = gen.standard_normal((3, m))
-                u_colour[a:a + m] = np.random.default_rng(
-                    np.random.SeedSequence(root, spawn_key=(i, COLOUR_STREAM))).random(m)
+            uni, nor, u_colour = self._random_numbers(n, start, stop, root)
             part, part_codes = self._stars(los, shape, cum, g_min, g_max, uni, nor, u_colour)
             for c, v in part.items():
                 cols[c][start:stop] = v
             codes[start:stop] = part_codes
         return self._frame(cols, codes)
 
+    @staticmethod
+    def _random_numbers(n, start, stop, root):
+        """The uniform (5, m), normal (3, m) and colour (m,) numbers of stars ``start:stop`` of
+        ``n`` (``start`` on a block boundary), block by block from their own streams."""
+        uni = np.empty((5, stop - start))
+        nor = np.empty((3, stop - start))
+        u_colour = np.empty(stop - start)
+        for i in range(start // DRAW_BLOCK_STARS, -(-stop // DRAW_BLOCK_STARS)):
+            a = i * DRAW_BLOCK_STARS - start
+            m = min(DRAW_BLOCK_STARS, n - i * DRAW_BLOCK_STARS)
+            gen = np.random.default_rng(np.random.SeedSequence(root, spawn_key=(i,)))
+            uni[:, a:a + m] = gen.random((5, m))
+            nor[:, a:a + m] = gen.standard_normal((3, m))
+            u_colour[a:a + m] = np.random.default_rng(
+                np.random.SeedSequence(root, spawn_key=(i, COLOUR_STREAM))).random(m)
+        return uni, nor, u_colour
+
     def _stars(self, los, shape, cum, g_min, g_max, uni, normals, u_colour):
+        first = self._first_stage(los, shape, cum, g_min, g_max, uni, u_colour)
+        return self._second_stage(los, g_min, g_max, first, uni[3], uni[4], normals)
+
+    def _first_stage(self, los, shape, cum, g_min, g_max, uni, u_colour) -> dict:
+        """Each star's grid cell, component, distance, extinction, M_G and colour: what its
+        BP-RP needs (uniform numbers 0-2 and the colour stream's)."""
         # searchsorted is much faster on sorted queries (cache); the result is unchanged
         target = uni[0] * cum[-1]
         order = np.argsort(target)
@@ -532,21 +596,26 @@ class GalaxyModel:
 
         m_g = np.empty(mu.size)
         absolute_magnitudes(k, mu, a_g, uni[2], float(g_min), float(g_max), self.lf.mg, self.lf.cdf, m_g)
-        g = np.clip(m_g + mu + a_g, g_min, np.nextafter(g_max, -np.inf))
-        l, b, n_gal = los.grid.sample(cell, uni[3], uni[4], with_vectors=True)
+        bp_rp0, part = self.colours.intrinsic(k, m_g, u_colour)
+        upper_hrd = (part == 1) if self.colours.upper_hrd_law else None
+        bp_rp = bp_rp0 + reddening_bp_rp(bp_rp0, a_g / float(self.params["ag_over_av"]), upper_hrd)
+        return dict(cell=cell, k=k, d_pc=d_pc, mu=mu, a_g=a_g, m_g=m_g, bp_rp=bp_rp)
+
+    def _second_stage(self, los, g_min, g_max, first: dict, u_cos, u_psi, normals):
+        """The table's columns from :meth:`_first_stage`'s values, the position's uniform
+        numbers (3 and 4) and the velocity's normals, star by star; returns (columns, codes)."""
+        cell, k, d_pc = first["cell"], first["k"], first["d_pc"]
+        g = np.clip(first["m_g"] + first["mu"] + first["a_g"], g_min, np.nextafter(g_max, -np.inf))
+        l, b, n_gal = los.grid.sample(cell, u_cos, u_psi, with_vectors=True)
         d_kpc = d_pc * 1e-3
         x = d_kpc * n_gal[0] - self.params["r0_kpc"]      # same geometry as density.py
         y = d_kpc * n_gal[1]
         v = draw_velocities(x, y, self.lag_kms[k], self.sigma_uvw[k], normals,
                             v_circ_kms=self.params["v_circ_kms"])
         ra, dec, pmra, pmdec = self.transform.astrometry(l, b, d_kpc, v, gal_unit=n_gal)
-        # colour last: it reads what was drawn above and changes none of it
-        bp_rp0, part = self.colours.intrinsic(k, m_g, u_colour)
-        upper_hrd = (part == 1) if self.colours.upper_hrd_law else None
-        bp_rp = bp_rp0 + reddening_bp_rp(bp_rp0, a_g / float(self.params["ag_over_av"]), upper_hrd)
         cols = {"ra": ra, "dec": dec, "l": l, "b": b, "parallax": 1000.0 / d_pc,
                 "pmra": pmra, "pmdec": pmdec, "phot_g_mean_mag": g, "distance_pc": d_pc,
-                COLOUR_COLUMN: bp_rp}
+                COLOUR_COLUMN: first["bp_rp"]}
         return cols, self.label_codes[k]
 
     @staticmethod
@@ -554,3 +623,70 @@ class GalaxyModel:
         data = dict(cols)
         data["population"] = pd.Categorical.from_codes(codes, categories=POPULATION_CATEGORIES)
         return pd.DataFrame(data, columns=[*COLUMNS, COLOUR_COLUMN], copy=False)
+
+
+#: Fewest rows :meth:`ConeDraw.stars` computes at once.
+_MIN_ROWS = 16
+
+
+class ConeDraw:
+    """The stars of one cone draw (:meth:`GalaxyModel.draw_cone`): their colours, and their
+    table made on request for the rows asked for.
+
+    Attributes
+    ----------
+    bp_rp : ndarray
+        Each star's Gaia BP - RP, mag (the ``bp_rp`` column of :meth:`GalaxyModel.sample_cone`).
+    n_in_cone : int
+        The number of stars in one realisation of the cone (``attrs["n_in_cone"]``).
+    expected_count : float
+        Its expectation (``attrs["expected_count"]``).
+    """
+
+    def __init__(self, model, los, g_min, g_max, first, uni, normals, n_in_cone, expected_count):
+        self._args = (model, los, g_min, g_max)
+        self._first, self._uni, self._normals = first, uni, normals
+        self.bp_rp = first["bp_rp"]
+        self.n_in_cone = n_in_cone
+        self.expected_count = expected_count
+
+    def __len__(self) -> int:
+        return self.bp_rp.size
+
+    def stars(self, index=None) -> pd.DataFrame:
+        """The table of :meth:`GalaxyModel.sample_cone` (same columns, attrs and values), of the
+        rows ``index`` (integer positions, in the order given) or of all stars.
+
+        Parameters
+        ----------
+        index : array_like of int, optional
+            Rows to make; all if omitted.
+
+        Returns
+        -------
+        pandas.DataFrame
+            One row per star of ``index``, numbered from 0.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from mcsweep.population import GalaxyModel
+        >>> drawn = GalaxyModel().draw_cone(0.0, 0.0, 0.5, 12.0, 13.0,
+        ...                                 np.random.default_rng(7), max_stars=100)
+        >>> len(drawn.stars([0, 5, 9])), len(drawn.stars())
+        (3, 100)
+        """
+        model, los, g_min, g_max = self._args
+        idx = np.arange(len(self)) if index is None else np.asarray(index, dtype=np.intp)
+        n = idx.size
+        # A handful of rows is computed as at least _MIN_ROWS (repeated): numpy and BLAS take
+        # other routes for arrays of one element (matrix-vector products, scalar loops), whose
+        # last bits differ from the whole draw's.
+        idx = np.resize(idx, _MIN_ROWS) if 0 < n < _MIN_ROWS else idx
+        first = {name: v[idx] for name, v in self._first.items()}
+        cols, codes = model._second_stage(los, g_min, g_max, first, self._uni[3][idx], self._uni[4][idx],
+                                          self._normals[:, idx])
+        df = model._frame({c: v[:n] for c, v in cols.items()}, codes[:n])
+        df.attrs["n_in_cone"] = self.n_in_cone
+        df.attrs["expected_count"] = self.expected_count
+        return df

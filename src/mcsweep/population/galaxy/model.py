@@ -478,10 +478,11 @@ class GalaxyModel:
         >>> import numpy as np
         >>> from mcsweep.population import GalaxyModel
         >>> model = GalaxyModel()
-        >>> drawn = model.draw_cone(0.0, 0.0, 0.5, 12.0, 13.0, np.random.default_rng(7),
+        >>> cone = (0.0, 0.0, 0.5, 12.0, 13.0)  # l, b, radius [deg], G range
+        >>> drawn = model.draw_cone(*cone, np.random.default_rng(7),
         ...                         max_stars=100)
         >>> red = np.flatnonzero(drawn.bp_rp > 1.5)
-        >>> table = model.sample_cone(0.0, 0.0, 0.5, 12.0, 13.0, np.random.default_rng(7),
+        >>> table = model.sample_cone(*cone, np.random.default_rng(7),
         ...                           max_stars=100)
         >>> drawn.stars(red).equals(table.iloc[red].reset_index(drop=True))
         True
@@ -490,7 +491,12 @@ class GalaxyModel:
                                                          min_draw)
         uni, nor, u_colour = self._random_numbers(n, 0, n, root)
         first = self._first_stage(los, shape, cum, q.g_min, q.g_max, uni, u_colour)
-        return ConeDraw(self, los, q.g_min, q.g_max, first, uni, nor, n_in, float(cum[-1]))
+
+        def make_rows(idx):
+            return self._second_stage(los, q.g_min, q.g_max, {k: v[idx] for k, v in first.items()},
+                                      uni[3][idx], uni[4][idx], nor[:, idx])
+
+        return ConeDraw(first["bp_rp"], n_in, float(cum[-1]), make_rows)
 
     def _plan(self, l_deg, b_deg, radius_deg, g_min, g_max, rng, max_stars, min_draw):
         """The query, its tabulation, the count of one realisation, the number to draw and the
@@ -630,32 +636,46 @@ _MIN_ROWS = 16
 
 
 class ConeDraw:
-    """The stars of one cone draw (:meth:`GalaxyModel.draw_cone`): their colours, and their
-    table made on request for the rows asked for.
+    """The stars of one cone draw (:meth:`~mcsweep.population.GalaxyModel.draw_cone`): their
+    colours, and their table made on request for the rows asked for.
 
-    Attributes
+    Parameters
     ----------
     bp_rp : ndarray
-        Each star's Gaia BP - RP, mag (the ``bp_rp`` column of :meth:`GalaxyModel.sample_cone`).
+        Each star's Gaia BP - RP, mag (the ``bp_rp`` column of
+        :meth:`~mcsweep.population.GalaxyModel.sample_cone`).
     n_in_cone : int
         The number of stars in one realisation of the cone (``attrs["n_in_cone"]``).
     expected_count : float
         Its expectation (``attrs["expected_count"]``).
+    make_rows : callable
+        ``make_rows(index)``: the columns (dict of arrays) and population codes of the stars
+        at the integer positions ``index``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from mcsweep.population import GalaxyModel
+    >>> rng = np.random.default_rng(7)
+    >>> drawn = GalaxyModel().draw_cone(0.0, 0.0, 0.5, 12.0, 13.0, rng,
+    ...                                 max_stars=100)
+    >>> len(drawn), drawn.n_in_cone > 100
+    (100, True)
     """
 
-    def __init__(self, model, los, g_min, g_max, first, uni, normals, n_in_cone, expected_count):
-        self._args = (model, los, g_min, g_max)
-        self._first, self._uni, self._normals = first, uni, normals
-        self.bp_rp = first["bp_rp"]
+    def __init__(self, bp_rp, n_in_cone, expected_count, make_rows):
+        self.bp_rp = bp_rp
         self.n_in_cone = n_in_cone
         self.expected_count = expected_count
+        self._make_rows = make_rows
 
     def __len__(self) -> int:
         return self.bp_rp.size
 
     def stars(self, index=None) -> pd.DataFrame:
-        """The table of :meth:`GalaxyModel.sample_cone` (same columns, attrs and values), of the
-        rows ``index`` (integer positions, in the order given) or of all stars.
+        """The table of :meth:`~mcsweep.population.GalaxyModel.sample_cone` (same columns, attrs
+        and values), of the rows ``index`` (integer positions, in the order given) or of all
+        stars.
 
         Parameters
         ----------
@@ -671,22 +691,19 @@ class ConeDraw:
         --------
         >>> import numpy as np
         >>> from mcsweep.population import GalaxyModel
-        >>> drawn = GalaxyModel().draw_cone(0.0, 0.0, 0.5, 12.0, 13.0,
-        ...                                 np.random.default_rng(7), max_stars=100)
+        >>> rng = np.random.default_rng(7)
+        >>> drawn = GalaxyModel().draw_cone(0.0, 0.0, 0.5, 12.0, 13.0, rng,
+        ...                                 max_stars=100)
         >>> len(drawn.stars([0, 5, 9])), len(drawn.stars())
         (3, 100)
         """
-        model, los, g_min, g_max = self._args
         idx = np.arange(len(self)) if index is None else np.asarray(index, dtype=np.intp)
         n = idx.size
         # A handful of rows is computed as at least _MIN_ROWS (repeated): numpy and BLAS take
         # other routes for arrays of one element (matrix-vector products, scalar loops), whose
         # last bits differ from the whole draw's.
-        idx = np.resize(idx, _MIN_ROWS) if 0 < n < _MIN_ROWS else idx
-        first = {name: v[idx] for name, v in self._first.items()}
-        cols, codes = model._second_stage(los, g_min, g_max, first, self._uni[3][idx], self._uni[4][idx],
-                                          self._normals[:, idx])
-        df = model._frame({c: v[:n] for c, v in cols.items()}, codes[:n])
+        cols, codes = self._make_rows(np.resize(idx, _MIN_ROWS) if 0 < n < _MIN_ROWS else idx)
+        df = GalaxyModel._frame({c: v[:n] for c, v in cols.items()}, codes[:n])
         df.attrs["n_in_cone"] = self.n_in_cone
         df.attrs["expected_count"] = self.expected_count
         return df

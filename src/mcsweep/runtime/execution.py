@@ -201,7 +201,8 @@ def keep_freed_arrays() -> bool:
     mallopt = _libc_function("mallopt")
     if mallopt is None:
         return False
-    return bool(mallopt(_M_MMAP_THRESHOLD, _KEEP_BELOW_BYTES)) and bool(mallopt(_M_TRIM_THRESHOLD, _TRIM_ABOVE_BYTES))
+    kept = mallopt(_M_MMAP_THRESHOLD, _KEEP_BELOW_BYTES)
+    return bool(kept) and bool(mallopt(_M_TRIM_THRESHOLD, _TRIM_ABOVE_BYTES))
 
 
 def release_free_memory() -> None:

@@ -7,8 +7,8 @@ leaves either no file or a whole one, and at most a temporary, which the next wr
 the same file removes (:func:`atomic_write_via`: the writer's ``flock`` on it tells a
 live write's from a killed one's). A file counts as finished only if it parses as
 Parquet, carries this run's config hash and the entry's identity in its metadata, and
-its table checksum (:func:`arrow_checksum`) matches; anything else (truncated, foreign, from another config)
-is recomputed with a warning.
+its table checksum (:func:`arrow_checksum`) matches; anything else (truncated, foreign,
+from another config) is recomputed with a warning.
 
 Each file also records the code version that wrote it (:func:`mcsweep.runtime.version.code_version`).
 A finished entry of another version is refused with one line naming both versions
@@ -86,7 +86,12 @@ def _nulls_as_zero(arr: pa.Array) -> pa.Array:
     elif pa.types.is_null(t):
         return arr
     else:
-        zero = pa.scalar(0).cast(t)
+        try:
+            zero = pa.scalar(0).cast(t)
+        except (pa.ArrowInvalid, pa.ArrowNotImplementedError):
+            # no zero of this type: the nulls stay, and a file whose round trip changes what
+            # lies under them is recomputed (never taken unverified)
+            return arr
     return pc.fill_null(arr, zero)
 
 

@@ -43,8 +43,8 @@ from .extinction_arenou import ArenouDust
 from .kinematics import AstrometryTransform, draw_velocities, mean_lag_kms
 from .luminosity import EVOLVED_STARS, build_luminosity_table
 
-__all__ = ["GalaxyModel", "ConeDraw", "DEFAULT_PARAMS", "PARAMS_R03_5", "DRAW_BLOCK_STARS", "COLOUR_STREAM", "COLOUR_COLUMN",
-           "gcns_faint_scale", "local_sources_per_pc3"]
+__all__ = ["GalaxyModel", "ConeDraw", "DEFAULT_PARAMS", "PARAMS_R03_5", "DRAW_BLOCK_STARS", "COLOUR_STREAM",
+           "COLOUR_COLUMN", "gcns_faint_scale", "local_sources_per_pc3"]
 
 #: Stars drawn per independently seeded block (block ``i`` from ``SeedSequence(root,
 #: spawn_key=(i,))``, module notes). Why this size: a block's arrays (~80 bytes per star,
@@ -448,7 +448,7 @@ class GalaxyModel:
         return df
 
     def draw_cone(self, l_deg, b_deg, radius_deg, g_min, g_max, rng, max_stars=None, *, min_draw=None):
-        """The stars of :meth:`sample_cone`, drawn so far as their colours need.
+        """The stars of :meth:`sample_cone`, drawn as far as their colours need.
 
         Parameters
         ----------

@@ -18,7 +18,6 @@ the baseline is the number to compare between machines.
 from __future__ import annotations
 
 import argparse
-import resource
 import subprocess
 import sys
 import tempfile

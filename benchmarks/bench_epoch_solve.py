@@ -31,7 +31,6 @@ import time
 from importlib.resources import files
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
 SAMPLE = files("mcsweep") / "data" / "epoch_astrometry"

@@ -23,7 +23,6 @@ import argparse
 import filecmp
 import json
 import os
-import resource
 import subprocess
 import sys
 import tempfile

@@ -12,7 +12,6 @@ import pandas as pd
 import pytest
 
 from mcsweep.astrometry.design import JULIAN_YEAR_DAYS
-from mcsweep.experiments.primary import CHUNKS_DIR
 from mcsweep.experiments.primary import experiment as P
 from mcsweep.experiments.primary.local import prepare
 from mcsweep.experiments.primary.prior_solution import solve_prior

@@ -13,7 +13,6 @@ complete sky, :mod:`mcsweep.experiments.real_sky.complete`) are written.
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import pandas as pd
 

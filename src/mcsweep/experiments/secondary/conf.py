@@ -2,9 +2,8 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
-from typing import Any, List, Optional
+from typing import List
 
 from ...astrometry.noise import G_MAX
 from ..config_checks import check_reference_epoch, require

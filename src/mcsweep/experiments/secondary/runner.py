@@ -12,7 +12,6 @@ and ``secondary_summary.csv``.
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import pandas as pd
 

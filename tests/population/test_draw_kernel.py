@@ -104,16 +104,17 @@ def test_intrinsic_colours_are_the_numpy_passes_bit_for_bit(models, name):
     assert set(np.unique(part).tolist()) == {p for p in range(len(C.COLOUR_PARTS)) if t.density[:, p].any()}
 
 
-@pytest.mark.parametrize("name", ["default", "r03_5"])
-def test_a_draw_made_row_by_request_is_the_whole_draw(models, name):
+@pytest.mark.parametrize("name, n", [("default", 3000), ("r03_5", 3000), ("default", 20_000)])
+def test_a_draw_made_row_by_request_is_the_whole_draw(models, name, n):
     # draw_cone computes the colours of every star and the other columns of the rows asked
     # for (a colour cell's bin): each row as sample_cone's, bit for bit, whatever the number of
-    # rows asked for (one row takes other numpy and BLAS routes if computed alone).
+    # rows asked for (one row takes other numpy and BLAS routes if computed alone); 20 000 is
+    # a sweep cell's draw.
     model = models[name]
     for i, (l, b, g) in enumerate([(0.0, 70.5, 19.0), (120.0, 5.0, 8.0), (280.0, -40.0, 13.0)]):
         args = (l, b, 1.0, g - 0.5, g + 0.5)
-        table = model.sample_cone(*args, np.random.default_rng(i), max_stars=3000, min_draw=3000)
-        drawn = model.draw_cone(*args, np.random.default_rng(i), max_stars=3000, min_draw=3000)
+        table = model.sample_cone(*args, np.random.default_rng(i), max_stars=n, min_draw=n)
+        drawn = model.draw_cone(*args, np.random.default_rng(i), max_stars=n, min_draw=n)
         np.testing.assert_array_equal(drawn.bp_rp, table["bp_rp"].to_numpy())
         assert (drawn.n_in_cone, drawn.expected_count) == (table.attrs["n_in_cone"], table.attrs["expected_count"])
         pd.testing.assert_frame_equal(drawn.stars(), table, check_exact=True)
@@ -123,3 +124,17 @@ def test_a_draw_made_row_by_request_is_the_whole_draw(models, name):
             made = drawn.stars(rows)
             pd.testing.assert_frame_equal(made, table.iloc[rows].reset_index(drop=True), check_exact=True)
             assert made.attrs == table.attrs
+
+        in_bin = drawn.bp_rp > 1.5  # a mask selects the same rows as their positions
+        pd.testing.assert_frame_equal(drawn.stars(in_bin), drawn.stars(np.flatnonzero(in_bin)), check_exact=True)
+
+
+def test_a_draw_in_one_piece_is_the_chunked_draw(models):
+    # sample_cone draws more than chunk_stars stars chunk by chunk, draw_cone in one piece
+    model = models["default"]
+    n = model.chunk_stars + 5000
+    args = (0.0, 0.0, 2.0, 12.0, 13.0)
+    table = model.sample_cone(*args, np.random.default_rng(1), max_stars=n, min_draw=n)
+    drawn = model.draw_cone(*args, np.random.default_rng(1), max_stars=n, min_draw=n)
+    assert len(table) == n
+    pd.testing.assert_frame_equal(drawn.stars(), table, check_exact=True)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import platform
 import sys
 
 import pytest
@@ -53,8 +54,7 @@ print(resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before)
 """
 
 
-@pytest.mark.skipif(not sys.platform.startswith("linux") or os.confstr("CS_GNU_LIBC_VERSION") is None,
-                    reason="glibc's allocator")
+@pytest.mark.skipif(platform.libc_ver()[0] != "glibc", reason="glibc's allocator")
 def test_a_worker_reuses_the_memory_of_freed_arrays():
     # With glibc's defaults the task's arrays (11.5 MB, 2944 pages) are mapped afresh each
     # time, the kernel faulting in and zeroing their pages; kept, they fault almost nothing.

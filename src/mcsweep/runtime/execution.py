@@ -195,14 +195,18 @@ def keep_freed_arrays() -> bool:
     its mmap threshold (raised only to the largest array freed so far) as fresh pages, which
     the kernel must map and zero on first touch, and unmaps it when freed; and it returns
     free heap above twice that threshold. The sweep's workers then spent a large share of
-    their time in the kernel (docs/performance.md). The cost is at most
-    ``_TRIM_ABOVE_BYTES`` of free heap kept per process.
+    their time in the kernel (docs/performance.md). The setting holds for the rest of the
+    process (a reused worker; the command's own process when it runs the cells itself). The
+    cost: freed arrays up to 32 MB stay in the heap for reuse, and free memory at its top up
+    to ``_TRIM_ABOVE_BYTES``, so a process's resident set can stay higher after a task
+    (a sweep worker's peak: docs/performance.md).
     """
     mallopt = _libc_function("mallopt")
     if mallopt is None:
         return False
-    kept = mallopt(_M_MMAP_THRESHOLD, _KEEP_BELOW_BYTES)
-    return bool(kept) and bool(mallopt(_M_TRIM_THRESHOLD, _TRIM_ABOVE_BYTES))
+    mmap_set = mallopt(_M_MMAP_THRESHOLD, _KEEP_BELOW_BYTES)
+    trim_set = mallopt(_M_TRIM_THRESHOLD, _TRIM_ABOVE_BYTES)
+    return bool(mmap_set) and bool(trim_set)
 
 
 def release_free_memory() -> None:

@@ -202,7 +202,7 @@ def case_geometry(transits: pd.DataFrame | dict, groups: tuple[int, ...]) -> Cas
     return CaseGeometry(tcb_jd=tcb[order], psi_deg=cols["scan_angle_deg"][idx], obs_au=cols["obs_au"][idx])
 
 
-def _star_weights(stars: pd.DataFrame, s: CellSettings) -> tuple[list, np.ndarray]:
+def _weights_and_truth(stars: pd.DataFrame, s: CellSettings) -> tuple[list, np.ndarray]:
     """Each star's 1 / sigma per block of rows (AL, then AC; the noise model's, by G) and its
     true parallax and proper motion (3, n): the same in every observation case of a cell."""
     g = stars["phot_g_mean_mag"].to_numpy(float)
@@ -212,15 +212,15 @@ def _star_weights(stars: pd.DataFrame, s: CellSettings) -> tuple[list, np.ndarra
 
 
 def cell_normals(geom: CaseGeometry, ra_deg, dec_deg, stars: pd.DataFrame, s: CellSettings,
-                 rng: np.random.Generator, *, star_weights: tuple | None = None) -> SharedDesignNormals:
+                 rng: np.random.Generator, *, weights_and_truth: tuple | None = None) -> SharedDesignNormals:
     """Normal equations (Eqs. 2-3) of every star of the cell, in factored form.
 
     All stars of a cell are observed with the transits of the beam centre, so their
     design matrices differ only by the per-star uncertainties, and the measurement noise
     is drawn in the normal equations' own space (:mod:`mcsweep.astrometry.shared_design`):
     ``N0`` equals ``design_matrix`` + ``normal_equations`` to rounding, and ``b0 - N0 x``
-    has the distribution that ``simulate`` gives it. ``star_weights``: what
-    ``_star_weights(stars, s)`` gives, if the caller has it (one cell's cases share it).
+    has the distribution that ``simulate`` gives it. ``weights_and_truth``: what
+    ``_weights_and_truth(stars, s)`` gives, if the caller has it (one cell's cases share it).
     """
     k = len(geom.tcb_jd)
     tcb = geom.tcb_jd[None, :]
@@ -232,7 +232,7 @@ def cell_normals(geom: CaseGeometry, ra_deg, dec_deg, stars: pd.DataFrame, s: Ce
     use_ac = s.noise.use_ac
     a1 = design_matrix(np.array([ra_deg], float), np.array([dec_deg], float), t_yr, geom.psi_deg[None, :],
                        geom.obs_au[None, :, :], sigma_al_mas=1.0, sigma_ac_mas=1.0 if use_ac else None)[0]
-    weights, truth = _star_weights(stars, s) if star_weights is None else star_weights
+    weights, truth = _weights_and_truth(stars, s) if weights_and_truth is None else weights_and_truth
     return SharedDesignNormals.simulate(a1, weights, truth, rng)
 
 
@@ -483,7 +483,7 @@ class ColourBatches:
         if i not in self._drawn:
             cell, source, s, radius = self._args
             rng = np.random.default_rng(np.random.SeedSequence(s.seed, spawn_key=(*self._key, i)))
-            if hasattr(source, "draw_cone"):
+            if getattr(source, "draws_from_density", False) and hasattr(source, "draw_cone"):
                 d = cell.direction
                 self._drawn[i] = source.draw_cone(d.l_deg, d.b_deg, radius, cell.g_min, cell.g_max, rng,
                                                   max_stars=s.max_stars, min_draw=s.min_stars)
@@ -498,7 +498,7 @@ class _TableBatch:
     def __init__(self, table: pd.DataFrame):
         self._table = table
         self.bp_rp = table["bp_rp"].to_numpy(float)
-        self.n_in_cone = int(table.attrs.get("n_in_cone", len(table)))
+        self.n_in_cone = table.attrs.get("n_in_cone", len(table))
 
     def __len__(self) -> int:
         return len(self._table)
@@ -554,14 +554,14 @@ def _case_normals(cell, columns: dict, stars: pd.DataFrame, s: CellSettings) -> 
     """The normal equations of every observation case with transits (and stars), by case;
     ``columns``: the direction's transits as :func:`_transit_columns` gives them."""
     normals = {}
-    star_weights = _star_weights(stars, s) if len(stars) else None
+    weights_and_truth = _weights_and_truth(stars, s) if len(stars) else None
     for case, groups in s.cases.items():
         geom = case_geometry(columns, tuple(groups))
         if geom is not None and len(stars) > 0:
             case_ss = np.random.SeedSequence(s.seed, spawn_key=(*cell.key, _NOISE_STREAM,
                                                                 zlib.crc32(case.encode())))
             normals[case] = cell_normals(geom, cell.direction.ra_deg, cell.direction.dec_deg, stars, s,
-                                         np.random.default_rng(case_ss), star_weights=star_weights)
+                                         np.random.default_rng(case_ss), weights_and_truth=weights_and_truth)
     return normals
 
 
@@ -610,21 +610,29 @@ def _cell_columns(grid, curves: dict, scans: dict, s: CellSettings, scalars: dic
     return {k: cols[k] for k in curve_columns(s)}
 
 
-#: The Arrow schema of a cell table per column list, taken from the first cell's
-#: ``pa.Table.from_pandas`` in this process (types and pandas metadata as pandas makes them).
-_CELL_SCHEMAS: dict[tuple[str, ...], pa.Schema] = {}
+#: The Arrow schema of a cell table per kind of columns (:func:`_column_kinds`), taken from the
+#: first such table's ``pa.Table.from_pandas`` in this process (types and pandas metadata as
+#: pandas makes them).
+_CELL_SCHEMAS: dict[tuple, pa.Schema] = {}
+
+
+def _column_kinds(columns: dict) -> tuple:
+    """What pandas' conversion of the columns depends on: their names, numpy types and, for
+    object columns, the Python types of their values (str, or None among them)."""
+    return tuple((name, v.dtype.str, frozenset(map(type, v)) if v.dtype == object else None)
+                 for name, v in columns.items())
 
 
 def _arrow_table(columns: dict) -> pa.Table:
     """``pa.Table.from_pandas(pd.DataFrame(columns), preserve_index=False)`` without the
-    DataFrame: a cell's table has the same column types in every cell, so the schema
-    pandas gives the first one is reused (a DataFrame and its conversion cost more than
-    a cell's arithmetic of the prior grid)."""
-    names = tuple(columns)
-    schema = _CELL_SCHEMAS.get(names)
+    DataFrame: the cells' tables have the same kinds of columns, so the schema pandas gives
+    the first one is reused (a DataFrame and its conversion cost more than a cell's
+    arithmetic of the prior grid); a table of other kinds is converted by pandas."""
+    kinds = _column_kinds(columns)
+    schema = _CELL_SCHEMAS.get(kinds)
     if schema is None:
         table = pa.Table.from_pandas(pd.DataFrame(columns), preserve_index=False)
-        _CELL_SCHEMAS[names] = table.schema
+        _CELL_SCHEMAS[kinds] = table.schema
         return table
     return pa.Table.from_arrays([pa.array(columns[f.name], type=f.type, from_pandas=True) for f in schema],
                                 schema=schema)

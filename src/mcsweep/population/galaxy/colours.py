@@ -390,12 +390,10 @@ class ColourTable:
         colour = np.empty(m_g.size)
         part = np.empty(m_g.size, dtype=np.intp)
         seq_mv, seq_mg, seq_c = load_dwarf_colours()
-        # Per star: its bin of M_G, the part whose interval of the cumulated densities holds
-        # u * total (a star outside every part's bins, by rounding at a bin edge, is taken as a
-        # dwarf), then the part's colour: the dwarf sequence at M_G + the component's shift; an
-        # evolved giant's quantile (giant_bp_rp) at its uniform number rescaled within the
-        # part's own interval, uniform again on [0, 1); the main sequence at M_V; or the
-        # subgiants' colour.
+        # One compiled pass per star (draw_kernel) in place of a pass per part over all stars.
+        # A star outside every part's bins (rounding at a bin edge) is taken as a dwarf; an
+        # evolved giant's quantile level is its uniform number rescaled within the giants'
+        # interval of the cumulated densities, so it is uniform again on [0, 1).
         intrinsic_colours(k, m_g, np.ascontiguousarray(u, dtype=float), self.mg, self.density, self.shift,
                           seq_mv, seq_mg, seq_c, self.giant_q, self.giant_mg, GIANT_QUANTILE_LEVELS.size,
                           float(P.GIANT_G_MINUS_V), float(SUBGIANT_BP_RP), colour, part)

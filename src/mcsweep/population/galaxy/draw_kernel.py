@@ -23,7 +23,8 @@ _jit = numba.njit(cache=True, nogil=True, fastmath=False, error_model="numpy", b
 
 @numba.njit(inline="always")
 def interp(x, xp, fp):
-    """``np.interp(x, xp, fp)`` of one value (``xp`` increasing, ties allowed)."""
+    """``np.interp(x, xp, fp)`` of one value, for ``xp`` sorted (ties allowed) with at least
+    two nodes, as every table of the model is (numpy treats a single node apart)."""
     n = xp.shape[0]
     if np.isnan(x):
         return x

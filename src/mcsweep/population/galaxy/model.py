@@ -471,7 +471,11 @@ class GalaxyModel:
             ``bp_rp`` of every star; ``stars(index)`` the table of :meth:`sample_cone` for the
             given rows only, the positions and motions of the other stars never computed (a
             caller keeping the stars of one colour skips the rest of the draw's arithmetic for
-            the others). Each star's values are those of :meth:`sample_cone`, bit for bit.
+            the others). Each star's values are those of :meth:`sample_cone`, bit for bit
+            (tested on this platform's numpy and BLAS: tests/population/test_draw_kernel.py).
+            It holds the stars' random numbers and colour-stage values, about 130 bytes per
+            star, and draws them in one piece (``sample_cone`` in chunks): for a whole large
+            cone, ``sample_cone``.
 
         Examples
         --------
@@ -679,8 +683,8 @@ class ConeDraw:
 
         Parameters
         ----------
-        index : array_like of int, optional
-            Rows to make; all if omitted.
+        index : array_like of int or bool, optional
+            Rows to make (integer positions, or a mask over all stars); all if omitted.
 
         Returns
         -------
@@ -697,7 +701,16 @@ class ConeDraw:
         >>> len(drawn.stars([0, 5, 9])), len(drawn.stars())
         (3, 100)
         """
-        idx = np.arange(len(self)) if index is None else np.asarray(index, dtype=np.intp)
+        if index is None:
+            idx = np.arange(len(self))
+        else:
+            idx = np.asarray(index)
+            if idx.dtype == bool:
+                if idx.shape != (len(self),):
+                    raise UserInputError(f"a mask of shape {idx.shape} was given for {len(self)} stars; "
+                                         "expected one flag per star")
+                idx = np.flatnonzero(idx)
+            idx = idx.astype(np.intp, casting="safe" if idx.size else "unsafe")
         n = idx.size
         # A handful of rows is computed as at least _MIN_ROWS (repeated): numpy and BLAS take
         # other routes for arrays of one element (matrix-vector products, scalar loops), whose

@@ -156,7 +156,8 @@ def run_sweep(config, raw_cfg: dict, run_dir: Path, *, prov) -> Path:
                         [radii.get(show.cell_id)]))
     n_all = len(cells) + (show is not None)
     fresh: dict[str, bytes] = {}
-    with prov.stage("cells"), executor(config.execution) as run:
+    # release_workers: the workers' memory is free for the aggregate and the report
+    with prov.stage("cells"), executor(config.execution, release_workers=True) as run:
         bar = progress(n_all, initial=n_all - sum(len(j[0]) for j in jobs), desc="cells", unit="cells",
                        enabled=config.execution.progress)
         for done in run(cell_task, jobs):

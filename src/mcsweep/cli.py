@@ -16,6 +16,7 @@ saying how many results are kept and to rerun the same command to resume, exit s
 from __future__ import annotations
 
 import contextlib
+import gc
 import logging
 import os
 import sys
@@ -168,6 +169,11 @@ def main() -> None:
         for line in ignored_settings(sys.argv[1:], configs):
             print(f"mcsweep: warning: {line}", file=sys.stderr)
         _hydra_entry()
+        # The run is written and closed. At exit the interpreter would run a full garbage
+        # collection over every object the run left (0.6 s after a sweep); frozen objects are
+        # skipped, and the operating system takes their memory back. Module teardown, atexit
+        # handlers and the flushing of files and logs still run.
+        gc.freeze()
     except KeyboardInterrupt:
         # Before a job started (or between the jobs of a multirun): no result of it exists yet.
         print("mcsweep: interrupted before a run started; run the same command to start it", file=sys.stderr)

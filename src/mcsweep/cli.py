@@ -39,7 +39,7 @@ from .command.validate import ignored_settings, preflight, to_config
 # (run_job): a mistyped override ends before scipy.stats, matplotlib and astropy are loaded,
 # which take seconds.
 
-__all__ = ["main"]
+__all__ = ["main", "console_main"]
 
 register_configs()
 
@@ -152,6 +152,17 @@ def _hydra_entry(cfg: DictConfig) -> None:
     print(f"mcsweep: results in {run_dir} (report: {report})", file=sys.stderr)
 
 
+def console_main() -> None:
+    """The ``mcsweep`` command: :func:`main`, then the process ends."""
+    main()
+    # The run is written and closed. At exit the interpreter would run a full garbage
+    # collection over every object the run left (0.6 s after a sweep); frozen objects are
+    # skipped, and the operating system takes their memory back. Module teardown, atexit
+    # handlers and the flushing of files and logs still run. (Not in main: a process that
+    # calls it and goes on, a test's, would keep those objects for good.)
+    gc.freeze()
+
+
 def main() -> None:
     # Hydra prints any exception escaping its own code (its .hydra/*.yaml on a full disk)
     # as a traceback and exits 1; with this it is raised instead, so a full disk gets its
@@ -169,11 +180,6 @@ def main() -> None:
         for line in ignored_settings(sys.argv[1:], configs):
             print(f"mcsweep: warning: {line}", file=sys.stderr)
         _hydra_entry()
-        # The run is written and closed. At exit the interpreter would run a full garbage
-        # collection over every object the run left (0.6 s after a sweep); frozen objects are
-        # skipped, and the operating system takes their memory back. Module teardown, atexit
-        # handlers and the flushing of files and logs still run.
-        gc.freeze()
     except KeyboardInterrupt:
         # Before a job started (or between the jobs of a multirun): no result of it exists yet.
         print("mcsweep: interrupted before a run started; run the same command to start it", file=sys.stderr)

@@ -11,7 +11,7 @@ import pyarrow.parquet as pq
 import pytest
 
 from mcsweep.runtime.store import (ResultStore, arrow_checksum, atomic_write_bytes, concat_parquet, current_umask,
-                                   table_checksum)
+                                   table_checksum, table_from_columns)
 
 
 def _table():
@@ -245,3 +245,17 @@ def test_files_of_the_former_pandas_checksum_are_still_verified(tmp_path):
                    tmp_path / "cell_1.parquet")
     with pytest.warns(UserWarning, match="checksum does not match"):
         assert ResultStore(tmp_path, "abc").read("cell_1") is None
+
+
+def test_tables_from_columns_are_what_pandas_makes_of_them():
+    # The schema pandas gave one kind of table is reused only for tables of the same kinds of
+    # columns: an int scalar where a float was, or a None among strings, is converted anew
+    # (pandas would give them other Arrow types).
+    import numpy as np
+
+    def columns(scalar, flag):
+        return {"x": np.arange(3.0), "n": np.full(3, scalar), "flag": np.array([flag, "ok", "ok"], dtype=object)}
+
+    for cols in (columns(1.5, "ok"), columns(2, "ok"), columns(np.nan, None), columns(1.5, "ok"), columns(3, "a")):
+        assert table_from_columns(cols).equals(pa.Table.from_pandas(pd.DataFrame(cols), preserve_index=False),
+                                               check_metadata=True)

@@ -37,7 +37,7 @@ from ..errors import UserInputError
 from .version import code_version
 
 __all__ = ["ResultStore", "concat_parquet", "atomic_write_bytes", "atomic_write_via", "current_umask",
-           "remove_temporaries", "table_checksum", "arrow_checksum"]
+           "remove_temporaries", "table_checksum", "arrow_checksum", "table_from_columns"]
 
 _META_KEY = b"mcsweep"
 
@@ -104,6 +104,34 @@ def _nulls_as_zero(arr: pa.Array) -> pa.Array:
         # no zero of this type: the nulls stay, and a file whose round trip changes what lies
         # under them is recomputed (never taken unverified)
         return arr
+
+
+#: The Arrow schema pandas gave a table, per kind of columns (:func:`_column_kinds`), in this
+#: process (types and pandas metadata as pandas makes them).
+_SCHEMAS: dict[tuple, pa.Schema] = {}
+
+
+def _column_kinds(columns: dict) -> tuple:
+    """What pandas' conversion of the columns depends on: their names, numpy types and, for
+    object columns, the Python types of their values (str, or None among them)."""
+    return tuple((name, v.dtype.str, frozenset(map(type, v)) if v.dtype == object else None)
+                 for name, v in columns.items())
+
+
+def table_from_columns(columns: dict) -> pa.Table:
+    """``pa.Table.from_pandas(pd.DataFrame(columns), preserve_index=False)`` without the
+    DataFrame, for many tables of the same kinds of columns (``columns``: name -> 1-d numpy
+    array): the schema pandas gives the first is reused (a sweep cell's DataFrame and its
+    conversion cost more than the cell's arithmetic of the prior grid); a table of other
+    kinds is converted by pandas."""
+    kinds = _column_kinds(columns)
+    schema = _SCHEMAS.get(kinds)
+    if schema is None:
+        table = pa.Table.from_pandas(pd.DataFrame(columns), preserve_index=False)
+        _SCHEMAS[kinds] = table.schema
+        return table
+    return pa.Table.from_arrays([pa.array(columns[f.name], type=f.type, from_pandas=True) for f in schema],
+                                schema=schema)
 
 
 def table_checksum(df: pd.DataFrame) -> str:

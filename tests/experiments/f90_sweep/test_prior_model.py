@@ -293,18 +293,3 @@ def test_the_arrow_table_a_worker_writes_is_pandas_conversion_of_the_cell(galaxy
         frame, _ = run_cell(cell, transits, GalaxyModel(), s)
         assert arrow.equals(pa.Table.from_pandas(frame, preserve_index=False), check_metadata=True), cell.cell_id
 
-
-def test_a_cell_table_of_other_column_types_is_converted_as_pandas_would():
-    # The schema pandas gave one kind of cell table is reused only for tables of the same
-    # kinds of columns: an int scalar where a float was, or a None among strings, is
-    # converted anew (pandas would give them other Arrow types).
-    import pyarrow as pa
-
-    from mcsweep.experiments.f90_sweep.pencil_beam import _arrow_table
-
-    def table(scalar, flag):
-        return {"x": np.arange(3.0), "n": np.full(3, scalar), "flag": np.array([flag, "ok", "ok"], dtype=object)}
-
-    for cols in (table(1.5, "ok"), table(2, "ok"), table(np.nan, None), table(1.5, "ok")):
-        assert _arrow_table(cols).equals(pa.Table.from_pandas(pd.DataFrame(cols), preserve_index=False),
-                                         check_metadata=True)

@@ -33,6 +33,7 @@ from ...astrometry.shared_design import SharedDesignNormals
 from ...astrometry.solve import solve_with_prior
 from ...galactic import pm_galactic_from_icrs, pm_icrs_from_galactic
 from ...renamed_names import old_names
+from ...runtime.store import table_from_columns
 from ...scanning import observer_position_au
 from ..f90_curve import flag_patterns, ill_determined, key_patterns, pattern_interval, sigma_f90_from_curve
 
@@ -403,7 +404,7 @@ def run_cell(cell, transits: pd.DataFrame, source, s: CellSettings,
     if centre is not None:
         base.update(_quasars(cell, columns, stars, centre, f90["sigma_f90_mas"], s))
     columns = _cell_columns(grid, curves, scans, s, dict(base, **f90))
-    table = _arrow_table(columns) if arrow else pd.DataFrame(columns)
+    table = table_from_columns(columns) if arrow else pd.DataFrame(columns)
     scatter = None
     if keep_scatter and s.f90_case in normals:
         scatter = _scatter(normals[s.f90_case], stars, f90["sigma_f90_mas"], s)
@@ -608,34 +609,6 @@ def _cell_columns(grid, curves: dict, scans: dict, s: CellSettings, scalars: dic
     for k, v in scalars.items():
         cols[k] = np.full(n_rows, v, dtype=object if isinstance(v, str) else None)
     return {k: cols[k] for k in curve_columns(s)}
-
-
-#: The Arrow schema of a cell table per kind of columns (:func:`_column_kinds`), taken from the
-#: first such table's ``pa.Table.from_pandas`` in this process (types and pandas metadata as
-#: pandas makes them).
-_CELL_SCHEMAS: dict[tuple, pa.Schema] = {}
-
-
-def _column_kinds(columns: dict) -> tuple:
-    """What pandas' conversion of the columns depends on: their names, numpy types and, for
-    object columns, the Python types of their values (str, or None among them)."""
-    return tuple((name, v.dtype.str, frozenset(map(type, v)) if v.dtype == object else None)
-                 for name, v in columns.items())
-
-
-def _arrow_table(columns: dict) -> pa.Table:
-    """``pa.Table.from_pandas(pd.DataFrame(columns), preserve_index=False)`` without the
-    DataFrame: the cells' tables have the same kinds of columns, so the schema pandas gives
-    the first one is reused (a DataFrame and its conversion cost more than a cell's
-    arithmetic of the prior grid); a table of other kinds is converted by pandas."""
-    kinds = _column_kinds(columns)
-    schema = _CELL_SCHEMAS.get(kinds)
-    if schema is None:
-        table = pa.Table.from_pandas(pd.DataFrame(columns), preserve_index=False)
-        _CELL_SCHEMAS[kinds] = table.schema
-        return table
-    return pa.Table.from_arrays([pa.array(columns[f.name], type=f.type, from_pandas=True) for f in schema],
-                                schema=schema)
 
 
 def _scatter(normals, stars: pd.DataFrame, f90: float, s: CellSettings) -> pd.DataFrame:

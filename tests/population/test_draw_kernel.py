@@ -80,7 +80,13 @@ def _intrinsic_numpy(t, k, m_g, u):
     dw = part == 0
     c[dw] = C.dwarf_bp_rp(m_g[dw] + t.shift[k[dw]])
     gi = np.flatnonzero(part == 1)
-    c[gi] = t.giant_bp_rp(k[gi], m_g[gi], (u[gi] * total[gi] - cum[gi, 0]) / w[gi, 1])
+    level = (u[gi] * total[gi] - cum[gi, 0]) / w[gi, 1]
+    nodes = t.giant_mg
+    node = np.clip(np.rint((m_g[gi] - nodes[0]) / (nodes[1] - nodes[0])).astype(np.intp), 0, nodes.size - 1)
+    x = np.clip(level, 0.0, 1.0) * (C.GIANT_QUANTILE_LEVELS.size - 1)
+    j = np.minimum(x.astype(np.intp), C.GIANT_QUANTILE_LEVELS.size - 2)
+    f = x - j
+    c[gi] = t.giant_q[k[gi], node, j] * (1.0 - f) + t.giant_q[k[gi], node, j + 1] * f
     ms = part == 2
     c[ms] = C.main_sequence_bp_rp(m_g[ms] - P.GIANT_G_MINUS_V)
     c[part == 3] = C.SUBGIANT_BP_RP

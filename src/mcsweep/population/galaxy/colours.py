@@ -382,7 +382,11 @@ class ColourTable:
     def intrinsic(self, k, m_g, u):
         """(BP - RP)_0 of stars of components ``k`` (indices) at absolute magnitudes ``m_g``,
         the part chosen with the uniform numbers ``u`` in [0, 1) by the parts' densities at
-        ``m_g``. Returns (colours [mag], part indices into :data:`COLOUR_PARTS`)."""
+        ``m_g``. Returns (colours [mag], part indices into :data:`COLOUR_PARTS`).
+
+        An evolved giant's colour is the quantile at its level of its isochrone's colours at
+        the nearest M_G node (:attr:`giant_q`), interpolated linearly between tabulated
+        levels."""
         from .draw_kernel import intrinsic_colours  # numba where stars are drawn
 
         k = np.ascontiguousarray(k, dtype=np.intp)
@@ -398,16 +402,3 @@ class ColourTable:
                           seq_mv, seq_mg, seq_c, self.giant_q, self.giant_mg, GIANT_QUANTILE_LEVELS.size,
                           float(P.GIANT_G_MINUS_V), float(SUBGIANT_BP_RP), colour, part)
         return colour, part
-
-    def giant_bp_rp(self, k, m_g, level):
-        """(BP - RP)_0 of evolved giants of components ``k`` at absolute magnitudes ``m_g``:
-        the quantile at ``level`` (in [0, 1]) of their isochrone's colours at the nearest M_G
-        node (:attr:`giant_q`), interpolated linearly between tabulated levels."""
-        nodes = self.giant_mg
-        step = nodes[1] - nodes[0]
-        node = np.clip(np.rint((m_g - nodes[0]) / step).astype(np.intp), 0, nodes.size - 1)
-        x = np.clip(level, 0.0, 1.0) * (GIANT_QUANTILE_LEVELS.size - 1)
-        j = np.minimum(x.astype(np.intp), GIANT_QUANTILE_LEVELS.size - 2)
-        f = x - j
-        # two gathers, not the (n, levels) rows of every star
-        return self.giant_q[k, node, j] * (1.0 - f) + self.giant_q[k, node, j + 1] * f

@@ -3,7 +3,9 @@
 import numpy as np
 import pytest
 
+from mcsweep.astrometry.linalg import PIVOT_TOLERANCE
 from mcsweep.astrometry.prior_scan import prior_scan
+from mcsweep.astrometry.scan_kernel import reduce_normals
 from mcsweep.astrometry.shared_design import SharedDesignNormals
 from mcsweep.astrometry.solve import prior_diagonal
 
@@ -62,3 +64,42 @@ def test_shapes_that_do_not_fit_are_refused():
     with pytest.raises(ValueError, match="multiple of the number of weight blocks"):
         SharedDesignNormals.simulate(np.zeros((5, 5)), [np.ones(3), np.ones(3)], np.zeros((3, 3)),
                                      np.random.default_rng(0))
+
+
+@pytest.mark.parametrize("blocks", [1, 2])
+@pytest.mark.parametrize("k", [1, 4, 9])
+def test_fused_formation_is_the_reduction_of_the_same_sums_bit_for_bit(blocks, k):
+    """The compiled pass forms each star's N and b in registers; formed here in numpy in the
+    same order (blocks summed from zero, U' e summed over the rows from zero) and reduced by
+    reduce_normals, every output is the same bit for bit, signed zeros included."""
+    rng = np.random.default_rng(10 * k + blocks)
+    n = 600  # more than two of the kernel's blocks of stars
+    weights = [rng.uniform(0.5, 5.0, n), rng.uniform(0.1, 1.0, n)][:blocks]
+    truth = rng.normal(size=(3, n)) * np.array([[2.0], [20.0], [20.0]])
+    truth[:, :5] = 0.0  # stars with zero signal
+    normals = SharedDesignNormals.simulate(_design(rng, k)[:blocks * k], weights, truth, np.random.default_rng(4))
+    N = np.zeros((5, 5, n))
+    b = np.zeros((5, n))
+    for u, w, z in zip(normals.unit, normals.weight, normals.noise):
+        nu = np.zeros((5, 5))
+        for row in u:
+            nu = nu + row[:, None] * row[None, :]
+        proj = np.zeros((5, n))
+        for row, zr in zip(u, z):
+            proj = proj + row[:, None] * zr[None, :]
+        N = N + nu[:, :, None] * (w * w)
+        signal = (nu[:, 2, None] * truth[0] + nu[:, 3, None] * truth[1]) + nu[:, 4, None] * truth[2]
+        b = b + (signal * (w * w) + proj * w)
+    ref = [np.empty((2, n)), np.empty((3, n)), np.empty((2, 3, n)), np.empty((3, n)), np.empty((3, n)),
+           np.empty(n, dtype=bool)]
+    reduce_normals(N, b, 10.0, PIVOT_TOLERANCE, *ref)
+    fused = normals.prior_scan(10.0)
+    for name, r in zip(("x0", "ainv", "g", "c", "lam", "ok"), ref):
+        got = getattr(fused, name)
+        np.testing.assert_array_equal(got, r, err_msg=name)
+        np.testing.assert_array_equal(np.signbit(got), np.signbit(r), err_msg=name)
+
+
+def test_more_than_two_blocks_are_refused():
+    with pytest.raises(ValueError, match="3 blocks of weights"):
+        SharedDesignNormals.simulate(np.zeros((6, 5)), [np.ones(3)] * 3, np.zeros((3, 3)), np.random.default_rng(0))

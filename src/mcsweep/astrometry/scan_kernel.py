@@ -5,10 +5,12 @@ inside test over the whole prior grid.
 :mod:`mcsweep.astrometry.prior_scan` (Schur complement of the position block, 3 x 3 Jacobi
 eigen-decomposition) for blocks of :data:`REDUCE_BLOCK` stars: every step is one loop over
 the block's stars with no branch, so it compiles to SIMD over stars, and the block's
-vectors stay in cache. :func:`reduce_shared_design` forms each star's normal equations in the
-same pass from the factored form of stars observed with one design
-(:class:`mcsweep.astrometry.shared_design.SharedDesignNormals`), so no ``(n, 5, 5)`` array
-is written.
+vectors stay in cache. :func:`reduce_shared_design` forms each star's normal equations in
+registers, in the loop that takes its Schur complement, from the factored form of stars
+observed with one design (:class:`mcsweep.astrometry.shared_design.SharedDesignNormals`): no
+normal matrix is written, not even a block's (the sums in the order the explicit matrices
+have them, so the outputs are :func:`reduce_normals`' of those, bit for bit;
+tests/astrometry/test_shared_design.py).
 
 :func:`inside_flags_grid` evaluates, for every star and every prior t of the grid, the five
 quantities ``y_j = base_j + sum_k X_jk w_k`` (position error and covariance,
@@ -80,79 +82,100 @@ def _rotate(m, app, aqq, apq, arp, arq, v0p, v1p, v2p, v0q, v1q, v2q):
     return active
 
 
+@numba.njit(inline="always")
+def _schur_star(s, lo, nn, bb, r_, pivot, w, x0, ainv, ok):
+    """Star ``s`` of a block (output column ``lo + s``): the position block's inverse, x0, and
+    into the scratch ``w`` the scaled Schur complement T, r and A^-1 B (the first step of
+    :func:`_reduce_block`); ``nij``: the elements of its normal matrix, ``bi`` of its
+    right-hand side."""
+    n00, n01, n10, n11, n02, n03, n04, n12, n13, n14, n22, n33, n44, n23, n32, n24, n42, n34, n43 = nn
+    b0, b1, b2, b3, b4 = bb
+    sc1 = r_
+    sc2 = r_ * r_
+    a11 = n00
+    a12 = 0.5 * (n01 + n10)
+    a22 = n11
+    det = a11 * a22 - a12 * a12
+    good = (a11 > 0.0) & (a22 > 0.0) & (det > pivot * a11 * a22) & (abs(det) < np.inf)
+    ds = det if good else 1.0
+    i0 = a22 / ds
+    i1 = -a12 / ds
+    i2 = a11 / ds
+    b00 = n02
+    b01 = n03
+    b02 = n04
+    b10 = n12
+    b11 = n13
+    b12 = n14
+    # A^-1 B (2 x 3) and x0 = A^-1 b_p
+    q00 = i0 * b00 + i1 * b10
+    q01 = i0 * b01 + i1 * b11
+    q02 = i0 * b02 + i1 * b12
+    q10 = i1 * b00 + i2 * b10
+    q11 = i1 * b01 + i2 * b11
+    q12 = i1 * b02 + i2 * b12
+    x_a = i0 * b0 + i1 * b1
+    x_d = i1 * b0 + i2 * b1
+    # T = W3^-1/2 S W3^-1/2, S = C - B' A^-1 B symmetrised, W3^-1/2 = diag(1, R, R)
+    s00 = n22 - (b00 * q00 + b10 * q10)
+    s11 = n33 - (b01 * q01 + b11 * q11)
+    s22 = n44 - (b02 * q02 + b12 * q12)
+    s01 = 0.5 * ((n23 - (b00 * q01 + b10 * q11)) + (n32 - (b01 * q00 + b11 * q10)))
+    s02 = 0.5 * ((n24 - (b00 * q02 + b10 * q12)) + (n42 - (b02 * q00 + b12 * q10)))
+    s12 = 0.5 * ((n34 - (b01 * q02 + b11 * q12)) + (n43 - (b02 * q01 + b12 * q11)))
+    # NaN of a singular star kept out of the rotations
+    w[0, s] = s00 if good else 0.0
+    w[1, s] = s11 * sc2 if good else 0.0
+    w[2, s] = s22 * sc2 if good else 0.0
+    w[3, s] = s01 * sc1 if good else 0.0
+    w[4, s] = s02 * sc1 if good else 0.0
+    w[5, s] = s12 * sc2 if good else 0.0
+    w[21, s] = b2 - (b00 * x_a + b10 * x_d)
+    w[22, s] = b3 - (b01 * x_a + b11 * x_d)
+    w[23, s] = b4 - (b02 * x_a + b12 * x_d)
+    w[15, s] = q00
+    w[16, s] = q01
+    w[17, s] = q02
+    w[18, s] = q10
+    w[19, s] = q11
+    w[20, s] = q12
+    w[6, s] = 1.0
+    w[7, s] = 0.0
+    w[8, s] = 0.0
+    w[9, s] = 0.0
+    w[10, s] = 1.0
+    w[11, s] = 0.0
+    w[12, s] = 0.0
+    w[13, s] = 0.0
+    w[14, s] = 1.0
+    x0[0, lo + s] = x_a
+    x0[1, lo + s] = x_d
+    ainv[0, lo + s] = i0
+    ainv[1, lo + s] = i1
+    ainv[2, lo + s] = i2
+    ok[lo + s] = good
+
+
 @_jit
 def _reduce_block(N, b, m, r_, pivot, w, lo, x0, ainv, g, c, lam, ok):
     """The reduction of the first ``m`` stars of ``N (5, 5, B)``, ``b (5, B)`` into the output
     arrays at ``lo``; ``w (24, B)``: scratch."""
+    for s in range(m):
+        nn = (N[0, 0, s], N[0, 1, s], N[1, 0, s], N[1, 1, s], N[0, 2, s], N[0, 3, s], N[0, 4, s], N[1, 2, s],
+              N[1, 3, s], N[1, 4, s], N[2, 2, s], N[3, 3, s], N[4, 4, s], N[2, 3, s], N[3, 2, s], N[2, 4, s],
+              N[4, 2, s], N[3, 4, s], N[4, 3, s])
+        _schur_star(s, lo, nn, (b[0, s], b[1, s], b[2, s], b[3, s], b[4, s]), r_, pivot, w, x0, ainv, ok)
+    _eigen_block(m, r_, w, lo, g, c, lam)
+
+
+@_jit
+def _eigen_block(m, r_, w, lo, g, c, lam):
+    """The Jacobi eigen-decomposition of the block's T (scratch ``w`` as :func:`_schur_star`
+    leaves it) and the outputs G, c and lam at ``lo``."""
     t00, t11, t22, t01, t02, t12 = w[0], w[1], w[2], w[3], w[4], w[5]
     v00, v01, v02, v10, v11, v12, v20, v21, v22 = w[6], w[7], w[8], w[9], w[10], w[11], w[12], w[13], w[14]
     h00, h01, h02, h10, h11, h12 = w[15], w[16], w[17], w[18], w[19], w[20]
     r0, r1, r2 = w[21], w[22], w[23]
-    sc1 = r_
-    sc2 = r_ * r_
-    for s in range(m):
-        a11 = N[0, 0, s]
-        a12 = 0.5 * (N[0, 1, s] + N[1, 0, s])
-        a22 = N[1, 1, s]
-        det = a11 * a22 - a12 * a12
-        good = (a11 > 0.0) & (a22 > 0.0) & (det > pivot * a11 * a22) & (abs(det) < np.inf)
-        ds = det if good else 1.0
-        i0 = a22 / ds
-        i1 = -a12 / ds
-        i2 = a11 / ds
-        b00 = N[0, 2, s]
-        b01 = N[0, 3, s]
-        b02 = N[0, 4, s]
-        b10 = N[1, 2, s]
-        b11 = N[1, 3, s]
-        b12 = N[1, 4, s]
-        # A^-1 B (2 x 3) and x0 = A^-1 b_p
-        q00 = i0 * b00 + i1 * b10
-        q01 = i0 * b01 + i1 * b11
-        q02 = i0 * b02 + i1 * b12
-        q10 = i1 * b00 + i2 * b10
-        q11 = i1 * b01 + i2 * b11
-        q12 = i1 * b02 + i2 * b12
-        x_a = i0 * b[0, s] + i1 * b[1, s]
-        x_d = i1 * b[0, s] + i2 * b[1, s]
-        # T = W3^-1/2 S W3^-1/2, S = C - B' A^-1 B symmetrised, W3^-1/2 = diag(1, R, R)
-        s00 = N[2, 2, s] - (b00 * q00 + b10 * q10)
-        s11 = N[3, 3, s] - (b01 * q01 + b11 * q11)
-        s22 = N[4, 4, s] - (b02 * q02 + b12 * q12)
-        s01 = 0.5 * ((N[2, 3, s] - (b00 * q01 + b10 * q11)) + (N[3, 2, s] - (b01 * q00 + b11 * q10)))
-        s02 = 0.5 * ((N[2, 4, s] - (b00 * q02 + b10 * q12)) + (N[4, 2, s] - (b02 * q00 + b12 * q10)))
-        s12 = 0.5 * ((N[3, 4, s] - (b01 * q02 + b11 * q12)) + (N[4, 3, s] - (b02 * q01 + b12 * q11)))
-        # NaN of a singular star kept out of the rotations
-        t00[s] = s00 if good else 0.0
-        t11[s] = s11 * sc2 if good else 0.0
-        t22[s] = s22 * sc2 if good else 0.0
-        t01[s] = s01 * sc1 if good else 0.0
-        t02[s] = s02 * sc1 if good else 0.0
-        t12[s] = s12 * sc2 if good else 0.0
-        r0[s] = b[2, s] - (b00 * x_a + b10 * x_d)
-        r1[s] = b[3, s] - (b01 * x_a + b11 * x_d)
-        r2[s] = b[4, s] - (b02 * x_a + b12 * x_d)
-        h00[s] = q00
-        h01[s] = q01
-        h02[s] = q02
-        h10[s] = q10
-        h11[s] = q11
-        h12[s] = q12
-        v00[s] = 1.0
-        v01[s] = 0.0
-        v02[s] = 0.0
-        v10[s] = 0.0
-        v11[s] = 1.0
-        v12[s] = 0.0
-        v20[s] = 0.0
-        v21[s] = 0.0
-        v22[s] = 1.0
-        x0[0, lo + s] = x_a
-        x0[1, lo + s] = x_d
-        ainv[0, lo + s] = i0
-        ainv[1, lo + s] = i1
-        ainv[2, lo + s] = i2
-        ok[lo + s] = good
     for _ in range(JACOBI_SWEEPS):
         active = _rotate(m, t00, t11, t01, t02, t12, v00, v10, v20, v01, v11, v21)   # (p, q) = (0, 1)
         active += _rotate(m, t00, t22, t02, t01, t12, v00, v10, v20, v02, v12, v22)  # (0, 2)
@@ -202,20 +225,55 @@ def reduce_normals(N, b, r_, pivot, x0, ainv, g, c, lam, ok):
         _reduce_block(Nb, bb, m, r_, pivot, w, lo, x0, ainv, g, c, lam, ok)
 
 
+#: The upper triangle of a symmetric 5 x 5 matrix, in the order :func:`_upper` lists it.
+_UPPER = ((0, 0), (0, 1), (1, 1), (0, 2), (0, 3), (0, 4), (1, 2), (1, 3), (1, 4), (2, 2), (3, 3), (4, 4),
+          (2, 3), (2, 4), (3, 4))
+
+
+@numba.njit(inline="always")
+def _upper(nu, q):
+    """Block ``q``'s matrix ``nu[q]`` as the 15-tuple of :data:`_UPPER` (loads the loop over
+    stars does not repeat)."""
+    m = nu[q]
+    return (m[0, 0], m[0, 1], m[1, 1], m[0, 2], m[0, 3], m[0, 4], m[1, 2], m[1, 3], m[1, 4], m[2, 2], m[3, 3],
+            m[4, 4], m[2, 3], m[2, 4], m[3, 4])
+
+
+@numba.njit(inline="always")
+def _element(e0, e1, i, w0sq, w1sq, two):
+    # Element i of _UPPER of a star's normal matrix, summed over the blocks from zero as
+    # reduce_normals' callers form it (the same value bit for bit, signed zeros included).
+    acc = 0.0 + e0[i] * w0sq
+    return acc + e1[i] * w1sq if two else acc
+
+
+@numba.njit(inline="always")
+def _rhs(e0, e1, i2, i3, i4, p0, p1, x_plx, x_pmra, x_pmdec, w0, w1, two):
+    # An element of a star's right-hand side: per block, the true signal (the elements i2, i3,
+    # i4 of _UPPER: the row's parallax and proper-motion columns, times x) plus U' e / sigma (p).
+    acc = 0.0 + ((e0[i2] * x_plx + e0[i3] * x_pmra + e0[i4] * x_pmdec) * (w0 * w0) + p0 * w0)
+    if two:
+        acc = acc + ((e1[i2] * x_plx + e1[i3] * x_pmra + e1[i4] * x_pmdec) * (w1 * w1) + p1 * w1)
+    return acc
+
+
 @_jit
 def reduce_shared_design(unit, weight, truth, noise, r_, pivot, x0, ainv, g, c, lam, ok):
     """:func:`reduce_normals` of stars observed with one design up to per-star weights.
 
-    ``unit (n_blk, k, 5)``: the rows of each block at unit weight (AL, then AC), the design
-    or its triangular factor; ``weight (n_blk, n)``: each star's 1 / sigma per block;
-    ``truth (3, n)``: parallax and proper motion (the position's truth is zero);
-    ``noise (n_blk, k, n)``: standard normals. Star i's normal equations (Eqs. 2-3) are
-    ``N_i = sum_blk w_blk,i^2 U_blk' U_blk`` and
-    ``b_i = sum_blk (w_blk,i^2 U_blk' U_blk x_i + w_blk,i U_blk' e_blk,i)``.
+    ``unit (n_blk, k, 5)``: the rows of each block at unit weight (AL, then AC if used:
+    ``n_blk`` is 1 or 2), the design or its triangular factor; ``weight (n_blk, n)``: each
+    star's 1 / sigma per block; ``truth (3, n)``: parallax and proper motion (the position's
+    truth is zero); ``noise (n_blk, k, n)``: standard normals. Star i's normal equations
+    (Eqs. 2-3) are ``N_i = sum_blk w_blk,i^2 U_blk' U_blk`` and
+    ``b_i = sum_blk (w_blk,i^2 U_blk' U_blk x_i + w_blk,i U_blk' e_blk,i)``, formed star by
+    star in registers on the way into the Schur step: the values :func:`reduce_normals` gives
+    for the explicit matrices, bit for bit, without writing them.
     """
     n_blk, k = unit.shape[0], unit.shape[1]
     n = truth.shape[1]
-    nu = np.zeros((n_blk, 5, 5))
+    two = n_blk == 2
+    nu = np.zeros((2, 5, 5))
     for q in range(n_blk):
         for i in range(5):
             for j in range(5):
@@ -223,37 +281,59 @@ def reduce_shared_design(unit, weight, truth, noise, r_, pivot, x0, ainv, g, c, 
                 for r in range(k):
                     acc += unit[q, r, i] * unit[q, r, j]
                 nu[q, i, j] = acc
-    Nb = np.empty((5, 5, REDUCE_BLOCK))
-    bb = np.empty((5, REDUCE_BLOCK))
-    proj = np.empty((5, REDUCE_BLOCK))
+    proj = np.empty((2, 5, REDUCE_BLOCK))
     w = np.empty((24, REDUCE_BLOCK))
     for lo in range(0, n, REDUCE_BLOCK):
         m = min(REDUCE_BLOCK, n - lo)
-        Nb[:] = 0.0
-        bb[:] = 0.0
+        # U_blk' e_blk of each star, its rows summed in order from zero
         for q in range(n_blk):
             for i in range(5):
                 for s in range(m):
-                    proj[i, s] = 0.0
+                    proj[q, i, s] = 0.0
             for r in range(k):
                 for i in range(5):
                     u = unit[q, r, i]
                     for s in range(m):
-                        proj[i, s] += u * noise[q, r, lo + s]
-            for i in range(5):
-                for j in range(5):
-                    nij = nu[q, i, j]
-                    for s in range(m):
-                        wt = weight[q, lo + s]
-                        Nb[i, j, s] += nij * (wt * wt)
-                n2 = nu[q, i, 2]
-                n3 = nu[q, i, 3]
-                n4 = nu[q, i, 4]
-                for s in range(m):
-                    wt = weight[q, lo + s]
-                    sig = n2 * truth[0, lo + s] + n3 * truth[1, lo + s] + n4 * truth[2, lo + s]
-                    bb[i, s] += sig * (wt * wt) + proj[i, s] * wt
-        _reduce_block(Nb, bb, m, r_, pivot, w, lo, x0, ainv, g, c, lam, ok)
+                        proj[q, i, s] += u * noise[q, r, lo + s]
+        e0 = _upper(nu, 0)
+        e1 = _upper(nu, 1)
+        for s in range(m):
+            w0 = weight[0, lo + s]
+            w1 = weight[1, lo + s] if two else 0.0
+            w0sq = w0 * w0
+            w1sq = w1 * w1
+            x_plx = truth[0, lo + s]
+            x_pmra = truth[1, lo + s]
+            x_pmdec = truth[2, lo + s]
+            n00 = _element(e0, e1, 0, w0sq, w1sq, two)
+            n01 = _element(e0, e1, 1, w0sq, w1sq, two)
+            n11 = _element(e0, e1, 2, w0sq, w1sq, two)
+            n02 = _element(e0, e1, 3, w0sq, w1sq, two)
+            n03 = _element(e0, e1, 4, w0sq, w1sq, two)
+            n04 = _element(e0, e1, 5, w0sq, w1sq, two)
+            n12 = _element(e0, e1, 6, w0sq, w1sq, two)
+            n13 = _element(e0, e1, 7, w0sq, w1sq, two)
+            n14 = _element(e0, e1, 8, w0sq, w1sq, two)
+            n22 = _element(e0, e1, 9, w0sq, w1sq, two)
+            n33 = _element(e0, e1, 10, w0sq, w1sq, two)
+            n44 = _element(e0, e1, 11, w0sq, w1sq, two)
+            n23 = _element(e0, e1, 12, w0sq, w1sq, two)
+            n24 = _element(e0, e1, 13, w0sq, w1sq, two)
+            n34 = _element(e0, e1, 14, w0sq, w1sq, two)
+            b0 = _rhs(e0, e1, 3, 4, 5, proj[0, 0, s], proj[1, 0, s] if two else 0.0, x_plx,
+                      x_pmra, x_pmdec, w0, w1, two)
+            b1 = _rhs(e0, e1, 6, 7, 8, proj[0, 1, s], proj[1, 1, s] if two else 0.0, x_plx,
+                      x_pmra, x_pmdec, w0, w1, two)
+            b2 = _rhs(e0, e1, 9, 12, 13, proj[0, 2, s], proj[1, 2, s] if two else 0.0, x_plx,
+                      x_pmra, x_pmdec, w0, w1, two)
+            b3 = _rhs(e0, e1, 12, 10, 14, proj[0, 3, s], proj[1, 3, s] if two else 0.0, x_plx,
+                      x_pmra, x_pmdec, w0, w1, two)
+            b4 = _rhs(e0, e1, 13, 14, 11, proj[0, 4, s], proj[1, 4, s] if two else 0.0, x_plx,
+                      x_pmra, x_pmdec, w0, w1, two)
+            # nu is symmetric bit for bit (each element the same products in the same order)
+            nn = (n00, n01, n01, n11, n02, n03, n04, n12, n13, n14, n22, n33, n44, n23, n23, n24, n24, n34, n34)
+            _schur_star(s, lo, nn, (b0, b1, b2, b3, b4), r_, pivot, w, x0, ainv, ok)
+        _eigen_block(m, r_, w, lo, g, c, lam)
 
 
 @numba.njit(inline="always")

@@ -53,13 +53,15 @@ class SharedDesignNormals:
     @classmethod
     def simulate(cls, unit_design, weights, truth, rng: np.random.Generator) -> "SharedDesignNormals":
         """Draw every star's measurement noise for the design ``unit_design (m, 5)`` at unit
-        uncertainty, its ``len(weights)`` blocks of rows stacked (AL rows, then AC rows);
+        uncertainty, its ``len(weights)`` blocks of rows stacked (AL rows, then AC rows: one or two);
         ``weights``: a sequence of (n,) arrays of 1 / sigma, ``truth (3, n)``. The noise is one
         ``(n_blk * r, n)`` array of standard normals from ``rng`` (module notes)."""
         a = np.asarray(unit_design, dtype=float)
         w = np.ascontiguousarray(np.stack([np.asarray(x, float) for x in weights]))
         x = np.ascontiguousarray(truth, dtype=float)
         n_blk, n = w.shape
+        if n_blk not in (1, 2):
+            raise ValueError(f"{n_blk} blocks of weights; expected 1 (AL) or 2 (AL, then AC)")
         if a.ndim != 2 or a.shape[1] != 5 or a.shape[0] % n_blk or x.shape != (3, n):
             raise ValueError(f"unit_design {a.shape}, weights {w.shape}, truth {x.shape}: expected (m, 5) with m a "
                              "multiple of the number of weight blocks, and truth (3, n)")

@@ -5,7 +5,7 @@ import pytest
 
 from mcsweep.astrometry.linalg import PIVOT_TOLERANCE
 from mcsweep.astrometry.prior_scan import prior_scan
-from mcsweep.astrometry.scan_kernel import reduce_normals
+from mcsweep.astrometry.scan_kernel import normal_noise, reduce_normals
 from mcsweep.astrometry.shared_design import SharedDesignNormals
 from mcsweep.astrometry.solve import prior_diagonal
 
@@ -29,7 +29,7 @@ def test_factored_reduction_equals_the_reduction_of_the_matrices(k):
     weights = [rng.uniform(0.5, 5.0, n), rng.uniform(0.1, 1.0, n)]
     truth = rng.normal(size=(3, n)) * np.array([[2.0], [20.0], [20.0]])
     normals = SharedDesignNormals.simulate(_design(rng, k), weights, truth, np.random.default_rng(3))
-    assert normals.unit.shape == (2, min(k, 5), 5) and normals.noise.shape == (2, min(k, 5), n)
+    assert normals.unit.shape == (2, min(k, 5), 5) and normals.noise.shape == (5, n)
     fused = normals.prior_scan(10.0)
     ref = prior_scan(*normals.matrices(), 10.0)
     np.testing.assert_array_equal(fused.ok, ref.ok)
@@ -70,8 +70,8 @@ def test_shapes_that_do_not_fit_are_refused():
 @pytest.mark.parametrize("k", [1, 4, 9])
 def test_fused_formation_is_the_reduction_of_the_same_sums_bit_for_bit(blocks, k):
     """The compiled pass forms each star's N and b in registers; formed here in numpy in the
-    same order (blocks summed from zero, U' e summed over the rows from zero) and reduced by
-    reduce_normals, every output is the same bit for bit, signed zeros included."""
+    same order (blocks summed from zero; the signal N x, then the noise of normal_noise) and
+    reduced by reduce_normals, every output is the same bit for bit, signed zeros included."""
     rng = np.random.default_rng(10 * k + blocks)
     n = 600  # more than two of the kernel's blocks of stars
     weights = [rng.uniform(0.5, 5.0, n), rng.uniform(0.1, 1.0, n)][:blocks]
@@ -80,24 +80,52 @@ def test_fused_formation_is_the_reduction_of_the_same_sums_bit_for_bit(blocks, k
     normals = SharedDesignNormals.simulate(_design(rng, k)[:blocks * k], weights, truth, np.random.default_rng(4))
     N = np.zeros((5, 5, n))
     b = np.zeros((5, n))
-    for u, w, z in zip(normals.unit, normals.weight, normals.noise):
+    for u, w in zip(normals.unit, normals.weight):
         nu = np.zeros((5, 5))
         for row in u:
             nu = nu + row[:, None] * row[None, :]
-        proj = np.zeros((5, n))
-        for row, zr in zip(u, z):
-            proj = proj + row[:, None] * zr[None, :]
         N = N + nu[:, :, None] * (w * w)
-        signal = (nu[:, 2, None] * truth[0] + nu[:, 3, None] * truth[1]) + nu[:, 4, None] * truth[2]
-        b = b + (signal * (w * w) + proj * w)
+        b = b + ((nu[:, 2, None] * truth[0] + nu[:, 3, None] * truth[1]) + nu[:, 4, None] * truth[2]) * (w * w)
+    noise = np.empty((5, n))
+    normal_noise(N, normals.noise, PIVOT_TOLERANCE, noise)
     ref = [np.empty((2, n)), np.empty((3, n)), np.empty((2, 3, n)), np.empty((3, n)), np.empty((3, n)),
            np.empty(n, dtype=bool)]
-    reduce_normals(N, b, 10.0, PIVOT_TOLERANCE, *ref)
+    reduce_normals(N, b + noise, 10.0, PIVOT_TOLERANCE, *ref)
     fused = normals.prior_scan(10.0)
     for name, r in zip(("x0", "ainv", "g", "c", "lam", "ok"), ref):
         got = getattr(fused, name)
         np.testing.assert_array_equal(got, r, err_msg=name)
         np.testing.assert_array_equal(np.signbit(got), np.signbit(r), err_msg=name)
+
+
+#: Standard deviations of a sample covariance element allowed before a test fails (a
+#: correct draw fails one element in ~1e6 at 5 sigma).
+COVARIANCE_SIGMAS = 5.0
+
+
+@pytest.mark.parametrize("k", [1, 2, 3, 8])
+def test_noise_has_the_covariance_of_the_normal_matrix(k):
+    """b - N x is Gaussian with covariance N (the distribution of sum U' e / sigma over the
+    measurements): the sample covariance of many stars with the same N against N, element by
+    element within COVARIANCE_SIGMAS of the Wishart spread, and no noise outside N's range
+    (one transit: N singular, a null direction of S)."""
+    rng = np.random.default_rng(k)
+    n = 40_000
+    a = _design(rng, k)
+    weights = [np.full(n, 2.0), np.full(n, 0.5)]
+    normals = SharedDesignNormals.simulate(a, weights, np.zeros((3, n)), np.random.default_rng(5 + k))
+    n0, b0 = normals.matrices()
+    cov = n0[0]
+    sample = b0.T @ b0 / n
+    # Var of a sample covariance element of a Gaussian: (C_ii C_jj + C_ij^2) / n
+    sd = np.sqrt((np.outer(np.diag(cov), np.diag(cov)) + cov ** 2) / n)
+    assert np.all(np.abs(sample - cov) <= COVARIANCE_SIGMAS * sd + 1e-12 * np.abs(cov).max())
+    evals, evecs = np.linalg.eigh(cov)
+    null = evecs[:, evals <= 1e-9 * evals.max()]
+    if k == 1:
+        assert null.shape[1] == 3  # one transit: AL and AC rows only
+    if null.size:
+        assert np.abs(b0 @ null).max() <= 1e-9 * np.sqrt(evals.max())
 
 
 def test_more_than_two_blocks_are_refused():

@@ -31,7 +31,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["REDUCE_BLOCK", "JACOBI_SWEEPS", "JACOBI_NEGLIGIBLE", "reduce_normals", "reduce_shared_design",
+__all__ = ["REDUCE_BLOCK", "JACOBI_SWEEPS", "JACOBI_NEGLIGIBLE", "NULL_PIVOT", "reduce_normals", "reduce_shared_design", "normal_noise",
            "inside_flags_grid", "inside_counts_grid", "position_statistics_grid"]
 
 _jit = numba.njit(cache=True, nogil=True, fastmath=False, error_model="numpy", boundscheck=False)
@@ -46,6 +46,10 @@ JACOBI_SWEEPS = 8
 #: two orders of magnitude below the rounding of the diagonal elements, so skipping it
 #: changes no eigenvalue or eigenvector beyond rounding.
 JACOBI_NEGLIGIBLE = 1e-18
+#: An LDL' pivot of a star's Schur complement at or below this fraction of its diagonal
+#: element is a null direction (:func:`_star_noise`): the rounding of a singular complement is
+#: ~1e-16 of it, a direction measured with 1e-5 of the diagonal's precision is still kept.
+NULL_PIVOT = 1e-10
 
 
 @numba.njit(inline="always")
@@ -248,13 +252,87 @@ def _element(e0, e1, i, w0sq, w1sq, two):
 
 
 @numba.njit(inline="always")
-def _rhs(e0, e1, i2, i3, i4, p0, p1, x_plx, x_pmra, x_pmdec, w0, w1, two):
-    # An element of a star's right-hand side: per block, the true signal (the elements i2, i3,
-    # i4 of _UPPER: the row's parallax and proper-motion columns, times x) plus U' e / sigma (p).
-    acc = 0.0 + ((e0[i2] * x_plx + e0[i3] * x_pmra + e0[i4] * x_pmdec) * (w0 * w0) + p0 * w0)
+def _signal(e0, e1, i2, i3, i4, x_plx, x_pmra, x_pmdec, w0sq, w1sq, two):
+    # An element of a star's noise-free right-hand side N x: per block, the elements i2, i3, i4
+    # of _UPPER (the row's parallax and proper-motion columns) times the truth.
+    acc = 0.0 + (e0[i2] * x_plx + e0[i3] * x_pmra + e0[i4] * x_pmdec) * w0sq
     if two:
-        acc = acc + ((e1[i2] * x_plx + e1[i3] * x_pmra + e1[i4] * x_pmdec) * (w1 * w1) + p1 * w1)
+        acc = acc + (e1[i2] * x_plx + e1[i3] * x_pmra + e1[i4] * x_pmdec) * w1sq
     return acc
+
+
+@numba.njit(inline="always")
+def _pivot(d, diag):
+    # A pivot of a positive semi-definite matrix's LDL' at or below rounding of its diagonal
+    # element is a null direction (one or two transits): zero, and no noise along it.
+    return d if d > NULL_PIVOT * diag else 0.0
+
+
+@numba.njit(inline="always")
+def _star_noise(nn, z, pivot):
+    """The noise of a star's right-hand side, Gaussian of covariance N, from five standard
+    normals ``z`` (module :mod:`~mcsweep.astrometry.shared_design`); ``nn``: N's upper
+    triangle in the order of :data:`_UPPER`. Zero where the position block is singular."""
+    n00, n01, n11, n02, n03, n04, n12, n13, n14, n22, n33, n44, n23, n24, n34 = nn
+    z0, z1, z2, z3, z4 = z
+    det = n00 * n11 - n01 * n01
+    good = (n00 > 0.0) & (n11 > 0.0) & (det > pivot * n00 * n11) & (abs(det) < np.inf)
+    a11 = n00 if good else 1.0
+    ds = det if good else 1.0
+    # position block: n_p = L_A z[:2], L_A L_A' = A
+    l11 = np.sqrt(a11)
+    p0 = l11 * z0
+    p1 = (n01 / l11) * z0 + np.sqrt(ds / a11) * z1
+    # A^-1 B, and the Schur complement S = C - B' A^-1 B (as _schur_star forms it)
+    i0 = n11 / ds
+    i1 = -n01 / ds
+    i2 = n00 / ds
+    q00 = i0 * n02 + i1 * n12
+    q01 = i0 * n03 + i1 * n13
+    q02 = i0 * n04 + i1 * n14
+    q10 = i1 * n02 + i2 * n12
+    q11 = i1 * n03 + i2 * n13
+    q12 = i1 * n04 + i2 * n14
+    s00 = n22 - (n02 * q00 + n12 * q10)
+    s11 = n33 - (n03 * q01 + n13 * q11)
+    s22 = n44 - (n04 * q02 + n14 * q12)
+    s01 = n23 - (n02 * q01 + n12 * q11)
+    s02 = n24 - (n02 * q02 + n12 * q12)
+    s12 = n34 - (n03 * q02 + n13 * q12)
+    # S = L D L': the noise of r = b_q - B' A^-1 b_p is L sqrt(D) z[2:], independent of n_p
+    d0 = _pivot(s00, s00)
+    f10 = s01 / d0 if d0 > 0.0 else 0.0
+    f20 = s02 / d0 if d0 > 0.0 else 0.0
+    d1 = _pivot(s11 - f10 * s01, s11)
+    f21 = (s12 - f20 * s01) / d1 if d1 > 0.0 else 0.0
+    d2 = _pivot((s22 - f20 * s02) - f21 * (f21 * d1), s22)
+    e0 = np.sqrt(d0) * z2
+    e1 = np.sqrt(d1) * z3
+    e2 = np.sqrt(d2) * z4
+    # n_q = B' A^-1 n_p + r's noise
+    y0 = i0 * p0 + i1 * p1
+    y1 = i1 * p0 + i2 * p1
+    m2 = (n02 * y0 + n12 * y1) + e0
+    m3 = (n03 * y0 + n13 * y1) + (f10 * e0 + e1)
+    m4 = (n04 * y0 + n14 * y1) + ((f20 * e0 + f21 * e1) + e2)
+    if not good:
+        return 0.0, 0.0, 0.0, 0.0, 0.0
+    return p0, p1, m2, m3, m4
+
+
+@_jit
+def normal_noise(N, z, pivot, out):
+    """Fill ``out (5, n)`` with each star's right-hand-side noise of covariance ``N (5, 5, n)``
+    from the standard normals ``z (5, n)``, as :func:`reduce_shared_design` adds it."""
+    for s in range(z.shape[1]):
+        nn = (N[0, 0, s], N[0, 1, s], N[1, 1, s], N[0, 2, s], N[0, 3, s], N[0, 4, s], N[1, 2, s], N[1, 3, s],
+              N[1, 4, s], N[2, 2, s], N[3, 3, s], N[4, 4, s], N[2, 3, s], N[2, 4, s], N[3, 4, s])
+        m0, m1, m2, m3, m4 = _star_noise(nn, (z[0, s], z[1, s], z[2, s], z[3, s], z[4, s]), pivot)
+        out[0, s] = m0
+        out[1, s] = m1
+        out[2, s] = m2
+        out[3, s] = m3
+        out[4, s] = m4
 
 
 @_jit
@@ -264,11 +342,11 @@ def reduce_shared_design(unit, weight, truth, noise, r_, pivot, x0, ainv, g, c, 
     ``unit (n_blk, k, 5)``: the rows of each block at unit weight (AL, then AC if used:
     ``n_blk`` is 1 or 2), the design or its triangular factor; ``weight (n_blk, n)``: each
     star's 1 / sigma per block; ``truth (3, n)``: parallax and proper motion (the position's
-    truth is zero); ``noise (n_blk, k, n)``: standard normals. Star i's normal equations
-    (Eqs. 2-3) are ``N_i = sum_blk w_blk,i^2 U_blk' U_blk`` and
-    ``b_i = sum_blk (w_blk,i^2 U_blk' U_blk x_i + w_blk,i U_blk' e_blk,i)``, formed star by
-    star in registers on the way into the Schur step: the values :func:`reduce_normals` gives
-    for the explicit matrices, bit for bit, without writing them.
+    truth is zero); ``noise (5, n)``: standard normals. Star i's normal matrix (Eq. 2) is
+    ``N_i = sum_blk w_blk,i^2 U_blk' U_blk`` and its right-hand side (Eq. 3) ``N_i x_i``
+    plus the noise of :func:`normal_noise`, both formed star by star in registers on the way
+    into the Schur step: the outputs are :func:`reduce_normals`' of those sums, bit for bit,
+    and no normal matrix is written.
     """
     n_blk, k = unit.shape[0], unit.shape[1]
     n = truth.shape[1]
@@ -281,22 +359,11 @@ def reduce_shared_design(unit, weight, truth, noise, r_, pivot, x0, ainv, g, c, 
                 for r in range(k):
                     acc += unit[q, r, i] * unit[q, r, j]
                 nu[q, i, j] = acc
-    proj = np.empty((2, 5, REDUCE_BLOCK))
     w = np.empty((24, REDUCE_BLOCK))
+    e0 = _upper(nu, 0)
+    e1 = _upper(nu, 1)
     for lo in range(0, n, REDUCE_BLOCK):
         m = min(REDUCE_BLOCK, n - lo)
-        # U_blk' e_blk of each star, its rows summed in order from zero
-        for q in range(n_blk):
-            for i in range(5):
-                for s in range(m):
-                    proj[q, i, s] = 0.0
-            for r in range(k):
-                for i in range(5):
-                    u = unit[q, r, i]
-                    for s in range(m):
-                        proj[q, i, s] += u * noise[q, r, lo + s]
-        e0 = _upper(nu, 0)
-        e1 = _upper(nu, 1)
         for s in range(m):
             w0 = weight[0, lo + s]
             w1 = weight[1, lo + s] if two else 0.0
@@ -320,16 +387,14 @@ def reduce_shared_design(unit, weight, truth, noise, r_, pivot, x0, ainv, g, c, 
             n23 = _element(e0, e1, 12, w0sq, w1sq, two)
             n24 = _element(e0, e1, 13, w0sq, w1sq, two)
             n34 = _element(e0, e1, 14, w0sq, w1sq, two)
-            b0 = _rhs(e0, e1, 3, 4, 5, proj[0, 0, s], proj[1, 0, s] if two else 0.0, x_plx,
-                      x_pmra, x_pmdec, w0, w1, two)
-            b1 = _rhs(e0, e1, 6, 7, 8, proj[0, 1, s], proj[1, 1, s] if two else 0.0, x_plx,
-                      x_pmra, x_pmdec, w0, w1, two)
-            b2 = _rhs(e0, e1, 9, 12, 13, proj[0, 2, s], proj[1, 2, s] if two else 0.0, x_plx,
-                      x_pmra, x_pmdec, w0, w1, two)
-            b3 = _rhs(e0, e1, 12, 10, 14, proj[0, 3, s], proj[1, 3, s] if two else 0.0, x_plx,
-                      x_pmra, x_pmdec, w0, w1, two)
-            b4 = _rhs(e0, e1, 13, 14, 11, proj[0, 4, s], proj[1, 4, s] if two else 0.0, x_plx,
-                      x_pmra, x_pmdec, w0, w1, two)
+            upper = (n00, n01, n11, n02, n03, n04, n12, n13, n14, n22, n33, n44, n23, n24, n34)
+            m0, m1, m2, m3, m4 = _star_noise(upper, (noise[0, lo + s], noise[1, lo + s], noise[2, lo + s],
+                                                     noise[3, lo + s], noise[4, lo + s]), pivot)
+            b0 = _signal(e0, e1, 3, 4, 5, x_plx, x_pmra, x_pmdec, w0sq, w1sq, two) + m0
+            b1 = _signal(e0, e1, 6, 7, 8, x_plx, x_pmra, x_pmdec, w0sq, w1sq, two) + m1
+            b2 = _signal(e0, e1, 9, 12, 13, x_plx, x_pmra, x_pmdec, w0sq, w1sq, two) + m2
+            b3 = _signal(e0, e1, 12, 10, 14, x_plx, x_pmra, x_pmdec, w0sq, w1sq, two) + m3
+            b4 = _signal(e0, e1, 13, 14, 11, x_plx, x_pmra, x_pmdec, w0sq, w1sq, two) + m4
             # nu is symmetric bit for bit (each element the same products in the same order)
             nn = (n00, n01, n01, n11, n02, n03, n04, n12, n13, n14, n22, n33, n44, n23, n23, n24, n24, n34, n34)
             _schur_star(s, lo, nn, (b0, b1, b2, b3, b4), r_, pivot, w, x0, ainv, ok)

@@ -6,21 +6,30 @@ uncertainties: ``A_i = diag(1/sigma_i) U`` with ``U`` the design at unit uncerta
 (AL rows, then AC rows). Hence (Eqs. 2-3)
 
     N_i = sum_blk U_blk' U_blk / sigma_blk,i^2,
-    b_i = N_i x_i + sum_blk U_blk' e_blk,i / sigma_blk,i,
+    b_i = N_i x_i + n_i,   n_i = sum_blk U_blk' e_blk,i / sigma_blk,i ~ Gaussian(0, N_i),
 
-with ``e`` the standard normal measurement noise of the ``k`` rows of a block. The
-normal equations are all a least-squares solution with any prior uses (they are
-sufficient statistics of the linear Gaussian model), and ``U_blk' e_blk`` is Gaussian with
-covariance ``U_blk' U_blk = R_blk' R_blk`` (``R_blk``: the triangular factor of the QR
-decomposition of ``U_blk``, ``min(k, 5)`` rows). So each block's noise is drawn as
-``R_blk' z`` with ``min(k, 5)`` standard normals per star instead of ``k``: the same
-distribution, with 2.4 x fewer draws over the sweep's observation cases.
+with ``e`` the standard normal measurement noise. The normal equations are all a
+least-squares solution with any prior uses (they are sufficient statistics of the linear
+Gaussian model), so a star's noise is drawn as a Gaussian vector of covariance ``N_i``
+directly, with five standard normals per star instead of one per measurement. Partition
+``n = (n_p, n_q)`` like ``N`` into the position block ``A`` (2 x 2), the coupling ``B`` and the
+rest ``C``; with ``z`` five standard normals
 
-:class:`SharedDesignNormals` holds the factors, the weights, the truths and the noise;
+    n_p = L_A z[:2],                           L_A L_A' = A (Cholesky),
+    n_q = B' A^-1 n_p + L sqrt(D) z[2:],       L D L' = S = C - B' A^-1 B,
+
+so ``n_p`` has covariance ``A``, and ``n_q - B' A^-1 n_p`` (what the prior scan's reduction
+keeps of ``b_q``, :mod:`mcsweep.astrometry.prior_scan`) covariance ``S``, independent of
+``n_p``: ``n`` has covariance ``N``, exactly the distribution of the per-measurement draw.
+A singular ``S`` (one or two transits) has a zero pivot in its null space and no noise there
+(:data:`mcsweep.astrometry.scan_kernel.NULL_PIVOT`). The factors depend on ``N`` alone, so a
+star's noise is the same whatever prior ratio R the scan then uses.
+
+:class:`SharedDesignNormals` holds the factors, the weights, the truths and the normals;
 :meth:`~SharedDesignNormals.prior_scan` reduces every star for the prior scan in one
 compiled pass that forms each star's normal equations on the way
 (:func:`mcsweep.astrometry.scan_kernel.reduce_shared_design`), and
-:meth:`~SharedDesignNormals.matrices` gives them explicitly.
+:meth:`~SharedDesignNormals.matrices` gives them explicitly, with the same noise.
 """
 
 from __future__ import annotations
@@ -47,7 +56,7 @@ class SharedDesignNormals:
     weight: np.ndarray
     #: (3, n): true parallax [mas] and proper motion [mas/yr]; the true position offsets are zero.
     truth: np.ndarray
-    #: (n_blk, r, n): standard normals; a block's noise in the normal equations is ``R' z`` (module notes).
+    #: (5, n): standard normals, the noise of the reduced normal equations (module notes).
     noise: np.ndarray
 
     @classmethod
@@ -55,7 +64,7 @@ class SharedDesignNormals:
         """Draw every star's measurement noise for the design ``unit_design (m, 5)`` at unit
         uncertainty, its ``len(weights)`` blocks of rows stacked (AL rows, then AC rows: one or two);
         ``weights``: a sequence of (n,) arrays of 1 / sigma, ``truth (3, n)``. The noise is one
-        ``(n_blk * r, n)`` array of standard normals from ``rng`` (module notes)."""
+        ``(5, n)`` array of standard normals from ``rng`` (module notes)."""
         a = np.asarray(unit_design, dtype=float)
         w = np.ascontiguousarray(np.stack([np.asarray(x, float) for x in weights]))
         x = np.ascontiguousarray(truth, dtype=float)
@@ -67,24 +76,29 @@ class SharedDesignNormals:
                              "multiple of the number of weight blocks, and truth (3, n)")
         k = a.shape[0] // n_blk
         r = np.ascontiguousarray(np.stack([np.linalg.qr(blk, mode="r") for blk in a.reshape(n_blk, k, 5)]))
-        z = rng.standard_normal((n_blk * r.shape[1], n))
-        return cls(unit=r, weight=w, truth=x, noise=z.reshape(n_blk, r.shape[1], n))
+        return cls(unit=r, weight=w, truth=x, noise=rng.standard_normal((5, n)))
 
     @property
     def n(self) -> int:
         return self.truth.shape[1]
 
     def matrices(self) -> tuple[np.ndarray, np.ndarray]:
-        """Each star's normal equations, ``N0 (n, 5, 5)`` and ``b0 (n, 5)`` (star-last views)."""
+        """Each star's normal equations, ``N0 (n, 5, 5)`` and ``b0 (n, 5)`` (star-last views),
+        with the noise :meth:`prior_scan` adds (module notes): solved with any prior they give
+        its solutions to rounding. A star whose position block is singular gets no noise."""
+        from .scan_kernel import normal_noise  # numba only where it runs (prior_scan notes)
+
         n = self.n
         w2 = self.weight * self.weight
         N0 = np.zeros((5, 5, n))
         b0 = np.zeros((5, n))
-        for u, w, w2_blk, e in zip(self.unit, self.weight, w2, self.noise):
+        for u, w2_blk in zip(self.unit, w2):
             n_blk = u.T @ u
             N0 += n_blk[:, :, None] * w2_blk
-            b0 += (n_blk[:, 2:] @ self.truth) * w2_blk + (u.T @ e) * w
-        return np.moveaxis(N0, -1, 0), b0.T
+            b0 += (n_blk[:, 2:] @ self.truth) * w2_blk
+        noise = np.empty((5, n))
+        normal_noise(N0, np.ascontiguousarray(self.noise), PIVOT_TOLERANCE, noise)
+        return np.moveaxis(N0, -1, 0), (b0 + noise).T
 
     def prior_scan(self, ratio_R: float) -> PriorScan:
         """The prior-scan reduction of every star (:func:`mcsweep.astrometry.prior_scan.prior_scan`),

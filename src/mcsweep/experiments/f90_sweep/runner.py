@@ -242,8 +242,8 @@ def _aggregate(run_dir: Path, tables, store: ResultStore, prov, *, nside: int, s
     atomic_write_bytes(out, data)
     # The fit reads the cells as cells.parquet holds them (what a later reader gets).
     write_fit(run_dir, fit_rows(data, settings.f90_case), nside=nside, f90_case=settings.f90_case)
-    prov.seeds["cells"] = ("stars: SeedSequence(seed, spawn_key=(*key, 0)); noise of a case (min(k, 5) "
-                           "standard normals per star and block of k rows, astrometry.shared_design): "
+    prov.seeds["cells"] = ("stars: SeedSequence(seed, spawn_key=(*key, 0)); noise of a case (five "
+                           "standard normals per star, astrometry.shared_design): "
                            "SeedSequence(seed, spawn_key=(*key, 1, crc32(case name))); bootstrap of "
                            "sigma_F90: SeedSequence(seed, spawn_key=(*key, 2)); "
                            "key = (l*1e4, (b+90)*1e4, 100*g_min, 100*g_max)")

@@ -1,6 +1,7 @@
 """Progress in logs that are not a terminal: whole lines every few per cent, no carriage returns."""
 
 import io
+import threading
 
 from mcsweep.runtime.progress import STEP_PERCENT, LineProgress, progress, stage_line
 
@@ -89,3 +90,17 @@ def test_a_long_solution_gets_a_line_a_minute_saying_where_it_stands():
     off = SolveLines("x", str, "y", every=0.0, enabled=False, file=quiet, clock=lambda: now[0])
     off(SimpleNamespace(iteration=1, seconds=1.0))
     assert quiet.getvalue() == ""
+
+
+def test_no_thread_outlives_a_bar():
+    # A thread left running (tqdm's monitor) would make the report draw its figures in line
+    # (mcsweep.runtime.drawing forks only a single-threaded process).
+    def monitors():
+        return [t for t in threading.enumerate() if t.name == "tqdm_monitor" and t.is_alive()]
+
+    before = monitors()  # another library's bar in this process is not ours to judge
+    for enabled, file in ((False, io.StringIO()), (True, _Tty())):
+        bar = progress(10, desc="cells", enabled=enabled, file=file)
+        bar.update(10)
+        bar.close()
+        assert monitors() == before

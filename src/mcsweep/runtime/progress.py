@@ -66,15 +66,36 @@ class LineProgress:
             self._line()  # the last, partial step (once: close may be called again)
 
 
+class _Bar(tqdm):
+    """tqdm's bar without its monitor thread, which outlives the bar (tqdm 4.70) and would make
+    the report draw its figures in line (mcsweep.runtime.drawing forks only a single-threaded
+    process); the monitor only adjusts ``miniters`` of bars that stall."""
+
+    monitor_interval = 0
+
+
+class _Silent:
+    """The reporter of a disabled progress: counts, says nothing."""
+
+    def __init__(self, total: int, initial: int = 0):
+        self.total, self.n = total, initial
+
+    def update(self, n: int = 1) -> None:
+        self.n += n
+
+    def close(self) -> None:
+        pass
+
+
 def progress(total: int, *, initial: int = 0, desc: str = "", unit: str = "it", enabled: bool = True,
              file: TextIO | None = None):
     """A progress reporter with ``update(n)`` and ``close()``: tqdm on a terminal, lines otherwise."""
     file = file if file is not None else sys.stderr
     if not enabled:
-        return tqdm(total=total, initial=initial, disable=True)
+        return _Silent(total, initial)  # no tqdm at all: even a disabled one starts the monitor
     isatty = getattr(file, "isatty", lambda: False)()
     if isatty:
-        return tqdm(total=total, initial=initial, desc=desc, unit=unit, file=file)
+        return _Bar(total=total, initial=initial, desc=desc, unit=unit, file=file)
     return LineProgress(total, initial=initial, desc=desc, unit=unit, file=file)
 
 

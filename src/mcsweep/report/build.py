@@ -18,6 +18,7 @@ import pandas as pd
 from ..errors import UserInputError
 from ..experiments.registry import EXPERIMENTS
 from ..runtime.document import Document, plain
+from ..runtime.drawing import FigureDrawer
 
 __all__ = ["build_report", "provenance_section"]
 
@@ -86,8 +87,9 @@ def build_report(run_dir) -> Path:
         raise UserInputError(
             f"{run_dir} is an unfinished {kind} run: {', '.join(missing)} not written yet; expected a "
             f"finished run (run mcsweep again with hydra.run.dir={run_dir} and the same config to resume)")
-    doc = Document(f"mcsweep report: {kind} ({run_dir.name})")
-    experiment.report(doc, run_dir, prov)
-    provenance_section(doc, run_dir, prov)
-    md, _ = doc.write(run_dir)
+    with FigureDrawer() as drawer:
+        doc = Document(f"mcsweep report: {kind} ({run_dir.name})", drawer=drawer)
+        experiment.report(doc, run_dir, prov)
+        provenance_section(doc, run_dir, prov)
+        md, _ = doc.write(run_dir)
     return md

@@ -101,6 +101,17 @@ def _no_ticks(text: str) -> str:
 class Document:
     title: str
     blocks: list = field(default_factory=list)
+    #: Where :meth:`draw` runs figure calls (a :class:`~mcsweep.runtime.drawing.FigureDrawer`);
+    #: None: in line.
+    drawer: object = None
+
+    def draw(self, fn, *args, **kwargs) -> None:
+        """Draw a figure file with ``fn(*args, **kwargs)``, in line or by :attr:`drawer`; the
+        document's :meth:`write` waits for it."""
+        if self.drawer is None:
+            fn(*args, **kwargs)
+        else:
+            self.drawer.draw(fn, *args, **kwargs)
 
     def heading(self, text: str, level: int = 2) -> None:
         self.blocks.append(("h", level, text))
@@ -198,6 +209,8 @@ class Document:
     def write(self, directory: Path, stem: str = "report") -> tuple[Path, Path]:
         from .store import atomic_write_bytes
 
+        if self.drawer is not None:
+            self.drawer.wait()  # the figures the text refers to exist before it is written
         md, ht = Path(directory) / f"{stem}.md", Path(directory) / f"{stem}.html"
         atomic_write_bytes(md, self.to_markdown().encode())
         atomic_write_bytes(ht, self.to_html().encode())

@@ -115,10 +115,10 @@ def colour_section(doc: Document, run_dir: Path, prov: dict, figdir: Path) -> No
     doc.para(forms_sentence(run))
     ok = _ok(run.cells)
     stats = bin_stats(ok, "sigma_f90_mas", [*run.labels, COLOUR_BLIND])
-    colour_figures.plot_sigma_by_colour(stats, fitted_curves(run), figdir / "colour_sigma_f90.png")
+    doc.draw(colour_figures.plot_sigma_by_colour, stats, fitted_curves(run), figdir / "colour_sigma_f90.png")
     frac, frac_blind = _fraction_stats(run)
-    colour_figures.plot_fraction_by_colour(frac, frac_blind, TARGET_BAND, run.confidence,
-                                           figdir / "colour_fraction.png")
+    doc.draw(colour_figures.plot_fraction_by_colour, frac, frac_blind, TARGET_BAND, run.confidence,
+             figdir / "colour_fraction.png")
     doc.figure_row([(f"{FIG_DIR}/colour_sigma_f90.png", "sigma_F90 against G per BP-RP bin: median over the "
                      "directions of the cells with a sigma_F90, bars 16-84 % across directions; black: the "
                      "colour-blind cells; lines: the run's prior per bin (per_bin_g form) and colour-blind, median "
@@ -409,10 +409,9 @@ def quasar_sentence(run: ColourRun) -> str:
 def _mean_part(doc: Document, run: ColourRun, figdir: Path) -> None:
     ok = _ok(run.cells)
     labels = [*run.labels, COLOUR_BLIND]
-    colour_figures.plot_mean_errors(bin_stats(ok, "star_p_error_mas", labels),
-                                    bin_stats(ok, "quasar_p_error_mas", labels),
-                                    bin_stats(ok, "quasar_fraction_inside", labels), TARGET_BAND, run.confidence,
-                                    figdir / "colour_mean_quasars.png")
+    doc.draw(colour_figures.plot_mean_errors, bin_stats(ok, "star_p_error_mas", labels),
+             bin_stats(ok, "quasar_p_error_mas", labels), bin_stats(ok, "quasar_fraction_inside", labels),
+             TARGET_BAND, run.confidence, figdir / "colour_mean_quasars.png")
     doc.figure(f"{FIG_DIR}/colour_mean_quasars.png", f"Mean-centred prior at each cell's sigma_F90 ('{run.case}' "
                f"case): left, the {100 * run.confidence:g}th-percentile position error of the stars (solid) and of "
                "zero-truth sources, quasars (dashed), per BP-RP bin and for the colour-blind cells (black); right, "

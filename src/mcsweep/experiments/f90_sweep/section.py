@@ -78,7 +78,7 @@ def _headline(doc: Document, run_dir: Path, prov: dict, fit, noise: np.ndarray, 
             ("fig4_coefficients.png", figures.plot_fig4_coefficients, "s0, s1, s2 against G (Fig. 4 middle)"),
             ("fig4_magnitude.png", figures.plot_fig4_magnitude, "sigma_F90 against G at b = 0, 30, 90 deg (Fig. 4 right)"),
         ):
-            fn(fit, figdir / name)
+            doc.draw(fn, fit, figdir / name)
             row.append((f"{FIG_DIR}/{name}", cap))
         doc.figure_row(row)
     # The conclusion before the numbers behind it, so both fit under the figures on one screen.
@@ -93,12 +93,12 @@ def _headline(doc: Document, run_dir: Path, prov: dict, fit, noise: np.ndarray, 
     except UserInputError:  # coefficients not determined: prior_maps.fits holds NaN maps
         has_prior = False
     if has_prior:
-        figures.plot_prior_mollweide(run_dir / MAPS_FILE, Prior.paper(), figdir / "prior_maps.png")
+        doc.draw(figures.plot_prior_mollweide, run_dir / MAPS_FILE, Prior.paper(), figdir / "prior_maps.png")
         maps.append((f"{FIG_DIR}/prior_maps.png", "sigma_F90 over the sky (galactic Mollweide, l = 0 at the "
                      "centre, increasing to the left) at a few G bin centres: this run's fit (prior_maps.fits) "
                      "and the paper's Eqs. 14-17"))
     if fitted:
-        figures.plot_sky_difference(fit, figdir / "sky_difference.png")
+        doc.draw(figures.plot_sky_difference, fit, figdir / "sky_difference.png")
         maps.append((f"{FIG_DIR}/sky_difference.png", "Sky map of log10(ours / paper) per cell"))
     if maps:
         doc.figure_row(maps)
@@ -313,13 +313,13 @@ def _showcase_section(doc: Document, run_dir: Path, figdir: Path, p: float, cfg:
     doc.table(at, "Every case evaluated at the two-transit sigma_F90 (Fig. 3's vertical line)",
               {"sigma_prior_mas": ".3g", "fraction_inside": ".3f", "p_error_mas": ".3g",
                "median_semi_major_mas": ".3g"})
-    figures.plot_showcase_curves(curves, case, f90, figdir / "fig1_curves.png", p)
+    doc.draw(figures.plot_showcase_curves, curves, case, f90, figdir / "fig1_curves.png", p)
     doc.figure(f"{FIG_DIR}/fig1_curves.png", "Actual errors and formal uncertainty against the prior (Fig. 1)")
     if scatter_file.exists():
-        figures.plot_showcase_scatter(pd.read_parquet(scatter_file), figdir / "fig2_scatter.png", p)
+        doc.draw(figures.plot_showcase_scatter, pd.read_parquet(scatter_file), figdir / "fig2_scatter.png", p)
         doc.figure(f"{FIG_DIR}/fig2_scatter.png", "Actual position errors and the confidence ellipse for a "
                    "tight prior, sigma_F90 and a loose prior (Fig. 2)")
-    figures.plot_showcase_cases(curves, f90, figdir / "fig3_cases.png", p)
+    doc.draw(figures.plot_showcase_cases, curves, f90, figdir / "fig3_cases.png", p)
     doc.figure(f"{FIG_DIR}/fig3_cases.png", "1, 2, 2 diluted, 4 and 8 distinct transits (Fig. 3)")
     groups_file = run_dir / "showcase" / "groups.csv"
     if groups_file.exists():

@@ -1,0 +1,105 @@
+"""A report's figures drawn side by side in forked processes while the report is built.
+
+A sweep's report is mostly matplotlib drawing its figures one after the other (2.6 of the
+default report's 3.1 s, docs/performance.md), and each figure is a file that nothing else in
+the report reads. :class:`FigureDrawer` runs each ``draw`` call in a child forked from this
+process (it starts with matplotlib and the figure's data already in memory: nothing is
+imported or pickled) and :meth:`~FigureDrawer.wait` collects them: a figure's error is
+raised there, with the child's traceback.
+
+Drawing stays in this process where forking is not safe or not possible: on platforms
+without ``fork`` (macOS and Windows start processes afresh), while other threads run (a
+child forked then could inherit a lock another thread holds), or with one core.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import threading
+import traceback
+from collections.abc import Callable
+
+__all__ = ["FigureDrawer", "drawing_processes"]
+
+#: At most this many drawing processes at once: a report has about ten figures.
+MAX_DRAWING_PROCESSES = 4
+
+
+def drawing_processes() -> int:
+    """How many processes :class:`FigureDrawer` would draw in at once now: 0 where it draws in
+    line (module notes), else the cores this process may use, at most
+    :data:`MAX_DRAWING_PROCESSES`."""
+    if "fork" not in multiprocessing.get_all_start_methods() or threading.active_count() > 1:
+        return 0
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    return min(cores, MAX_DRAWING_PROCESSES) if cores > 1 else 0
+
+
+class FigureDrawer:
+    """Runs figure-drawing calls in forked processes (module notes); use as a context.
+
+    ``processes``: how many at once (None: :func:`drawing_processes`; 0 draws in line).
+    """
+
+    def __init__(self, processes: int | None = None):
+        self._processes = drawing_processes() if processes is None else int(processes)
+        self._running: dict[int, tuple[int, str]] = {}  # pid -> (read end of its pipe, figure)
+        self._failures: list[str] = []
+
+    def draw(self, fn: Callable, *args, **kwargs) -> None:
+        """Call ``fn(*args, **kwargs)``, which writes a figure file, now or in a child
+        process; its return value is dropped."""
+        if self._processes <= 0:
+            fn(*args, **kwargs)
+            return
+        while len(self._running) >= self._processes:
+            self._reap_oldest()
+        read, write = os.pipe()
+        pid = os.fork()
+        if pid == 0:  # the child: draw, report an error through the pipe, never return
+            status = 1
+            try:
+                os.close(read)
+                fn(*args, **kwargs)
+                status = 0
+            except BaseException:
+                message = traceback.format_exc().encode()
+                while message:
+                    message = message[os.write(write, message):]
+            finally:
+                os._exit(status)
+        os.close(write)
+        self._running[pid] = (read, getattr(fn, "__name__", repr(fn)))
+
+    def _reap_oldest(self) -> None:
+        pid = next(iter(self._running))
+        read, name = self._running.pop(pid)
+        chunks = []
+        with os.fdopen(read, "rb") as pipe:  # to its end first: a long traceback fills the pipe
+            chunks.append(pipe.read())
+        _, status = os.waitpid(pid, 0)
+        code = os.waitstatus_to_exitcode(status)
+        if code != 0:
+            text = b"".join(chunks).decode(errors="replace").strip() or f"exit status {code}"
+            self._failures.append(f"drawing {name} failed in process {pid}:\n{text}")
+
+    def wait(self) -> None:
+        """Wait for every figure; raises RuntimeError with the failed figures' tracebacks."""
+        while self._running:
+            self._reap_oldest()
+        failures, self._failures = self._failures, []
+        if failures:
+            raise RuntimeError("\n".join(failures))
+
+    def __enter__(self) -> "FigureDrawer":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if exc[0] is None:
+            self.wait()
+        else:  # the report failed: no child outlives it, none is left a zombie
+            for pid, (read, _) in list(self._running.items()):
+                os.close(read)
+                os.waitpid(pid, 0)
+            self._running.clear()

@@ -10,6 +10,7 @@ workers get it too.
 
 import errno
 import logging
+import multiprocessing
 import os
 import re
 import shutil
@@ -26,6 +27,7 @@ from omegaconf import OmegaConf
 
 from mcsweep import cli, prior_cli
 from mcsweep.report import cli as report_cli
+from mcsweep.runtime import drawing as drawing_mod
 from mcsweep.runtime import store as store_mod
 # The command modules, imported before any test patches the store's writes (mcsweep.cli
 # imports them only when a job runs): those that import atomic_write_bytes by name keep the real one.
@@ -277,19 +279,26 @@ def test_global_experiments_say_what_is_kept(monkeypatch, capsys, tmp_path, expe
 @pytest.mark.parametrize("exc,code,start", [(DISK_FULL, 1, "mcsweep-report: error: no space left on device "
                                                            "writing {run}/figures/"),
                                             (KeyboardInterrupt(), 130, "mcsweep-report: interrupted: ")])
+@pytest.mark.parametrize("processes", [0, 2], ids=["in-line", "forked"])
 def test_report_stopped_while_writing_leaves_whole_files_and_one_line(monkeypatch, capsys, tmp_path, reference,
-                                                                      exc, code, start):
+                                                                      exc, code, start, processes):
+    if processes and "fork" not in multiprocessing.get_all_start_methods():
+        pytest.skip("figures are drawn in line here")
     run = tmp_path / "run"
     shutil.copytree(reference, run)
     cells = _sorted(run / "cells.parquet")
-    _fail_store_write(monkeypatch, after=1, exc=exc, match=lambda p: p.suffix == ".png")
+    # A forked child counts the writes from where its parent stood (none): the first figure
+    # of each child fails; drawn in line, the second figure.
+    after = 0 if processes else 1
+    monkeypatch.setattr(drawing_mod, "drawing_processes", lambda: processes)
+    _fail_store_write(monkeypatch, after=after, exc=exc, match=lambda p: p.suffix == ".png")
     assert report_cli.main([str(run)]) == code
     lines = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
     assert len(lines) == 1 and lines[0].startswith(start.format(run=run)), lines
     assert lines[0].endswith("the run's computed results in " + str(run) + " are untouched and every file the "
                              "report writes is whole (the old or the new one); "
                              + ("free space, then " if code == 1 else "") + "run the same command again"), lines[0]
-    assert _temporaries(run) == [] and len(list((run / "figures").glob("*.png"))) == 1
+    assert _temporaries(run) == [] and len(list((run / "figures").glob("*.png"))) == after
     pd.testing.assert_frame_equal(_sorted(run / "cells.parquet"), cells)
 
 

@@ -1,5 +1,6 @@
 """Figures drawn in forked processes: the same files as in line, errors raised at the end."""
 
+import errno
 import multiprocessing
 import os
 import threading
@@ -29,14 +30,36 @@ def test_each_figure_is_drawn_in_a_child_and_waited_for(tmp_path):
     assert os.getpid() not in pids and len(pids) == 5
 
 
+def _disk_full(path):
+    raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
+
+
+class _Unpicklable(Exception):
+    def __reduce__(self):
+        raise TypeError("not this one")
+
+
+def _fail_unpicklably():
+    raise _Unpicklable("a lambda in the exception")
+
+
 @fork_only
-def test_a_figure_error_is_raised_with_the_child_traceback(tmp_path):
+def test_a_figure_error_is_the_childs_exception_with_its_traceback(tmp_path):
     drawer = FigureDrawer(processes=2)
     drawer.draw(_write_pid, tmp_path / "ok.txt")
     drawer.draw(_fail, "the axes are empty")
-    with pytest.raises(RuntimeError, match=r"drawing _fail failed(.|\n)*ValueError: the axes are empty"):
+    with pytest.raises(ValueError, match="the axes are empty") as info:
         drawer.wait()
+    assert any("drawing _fail in process" in note and "Traceback" in note for note in info.value.__notes__)
     assert (tmp_path / "ok.txt").exists()
+    # what the commands turn into one line and an exit status: the same as drawn in line
+    drawer.draw(_disk_full, tmp_path / "fig.png")
+    with pytest.raises(OSError) as info:
+        drawer.wait()
+    assert info.value.errno == errno.ENOSPC and info.value.filename == str(tmp_path / "fig.png")
+    drawer.draw(_fail_unpicklably)
+    with pytest.raises(RuntimeError, match=r"drawing _fail_unpicklably in process \d+ failed(.|\n)*a lambda"):
+        drawer.wait()
 
 
 def test_no_processes_draws_in_line(tmp_path):

@@ -5,7 +5,8 @@ default report's 3.1 s, docs/performance.md), and each figure is a file that not
 the report reads. :class:`FigureDrawer` runs each ``draw`` call in a child forked from this
 process (it starts with matplotlib and the figure's data already in memory: nothing is
 imported or pickled) and :meth:`~FigureDrawer.wait` collects them: a figure's error is
-raised there, with the child's traceback.
+raised there as the exception the child met (a full disk is the same ``OSError`` as in line,
+a Ctrl-C the same ``KeyboardInterrupt``), with the child's traceback as a note.
 
 Drawing stays in this process where forking is not safe or not possible: on platforms
 without ``fork`` (macOS and Windows start processes afresh), while other threads run (a
@@ -16,6 +17,7 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import pickle
 import threading
 import traceback
 from collections.abc import Callable
@@ -63,8 +65,8 @@ class FigureDrawer:
                 os.close(read)
                 fn(*args, **kwargs)
                 status = 0
-            except BaseException:
-                message = traceback.format_exc().encode()
+            except BaseException as exc:
+                message = _failure_message(exc)
                 while message:
                     message = message[os.write(write, message):]
             finally:
@@ -81,16 +83,18 @@ class FigureDrawer:
         _, status = os.waitpid(pid, 0)
         code = os.waitstatus_to_exitcode(status)
         if code != 0:
-            text = b"".join(chunks).decode(errors="replace").strip() or f"exit status {code}"
-            self._failures.append(f"drawing {name} failed in process {pid}:\n{text}")
+            self._failures.append(_failure(b"".join(chunks), f"drawing {name} in process {pid}", code))
 
     def wait(self) -> None:
-        """Wait for every figure; raises RuntimeError with the failed figures' tracebacks."""
+        """Wait for every figure; raises the first failed figure's exception (module notes)."""
         while self._running:
             self._reap_oldest()
         failures, self._failures = self._failures, []
         if failures:
-            raise RuntimeError("\n".join(failures))
+            first = failures[0]
+            for other in failures[1:]:
+                first.add_note(f"also failed: {type(other).__name__}: {other}")
+            raise first
 
     def __enter__(self) -> "FigureDrawer":
         return self
@@ -103,3 +107,27 @@ class FigureDrawer:
                 os.close(read)
                 os.waitpid(pid, 0)
             self._running.clear()
+
+
+def _failure_message(exc: BaseException) -> bytes:
+    """What a failed child sends its parent: the exception and its traceback, pickled (the
+    traceback's text alone if the exception does not pickle)."""
+    text = traceback.format_exc()
+    try:
+        return pickle.dumps((exc, text))
+    except Exception:
+        return pickle.dumps((None, text))
+
+
+def _failure(message: bytes, what: str, code: int) -> BaseException:
+    """The exception a failed child reported, with its traceback as a note (RuntimeError if
+    it sent none: killed by a signal, or its exception did not pickle)."""
+    try:
+        exc, text = pickle.loads(message)
+    except Exception:
+        exc, text = None, ""
+    if exc is None:
+        exc = RuntimeError(f"{what} failed (exit status {code})" + (f":\n{text}" if text else ""))
+    elif text:
+        exc.add_note(f"{what}:\n{text}")
+    return exc

@@ -64,3 +64,29 @@ def test_a_worker_reuses_the_memory_of_freed_arrays():
                                       check=True).stdout) for how in ("default", "keep")}
     assert faults["default"] > 50 * 1000
     assert faults["keep"] < 100
+
+
+def _mark_worker(directory: str) -> None:
+    open(os.path.join(directory, str(os.getpid())), "w").close()
+
+
+def _pid(_: int) -> int:
+    return os.getpid()
+
+
+def test_warm_up_runs_on_the_workers_the_tasks_then_use(tmp_path):
+    conf = ExecutionConf(backend="loky", n_jobs=2)
+    with executor(conf, release_workers=True, warm_up=(_mark_worker, str(tmp_path))) as run:
+        used = set(run(_pid, range(8)))
+    warmed = {int(p.name) for p in tmp_path.iterdir()}
+    assert warmed and os.getpid() not in warmed
+    assert used <= warmed  # the tasks ran on the workers warmed before them, none restarted
+
+
+def test_warm_up_is_not_run_in_process_nor_waited_for_without_tasks(tmp_path):
+    with executor(ExecutionConf(backend="loky", n_jobs=1), warm_up=(_mark_worker, str(tmp_path))) as run:
+        assert list(run(_pid, range(2))) == [os.getpid()] * 2
+    assert not any(tmp_path.iterdir())
+    with executor(ExecutionConf(backend="loky", n_jobs=2), release_workers=True,
+                  warm_up=(_mark_worker, str(tmp_path))) as run:
+        assert list(run(_pid, [])) == []

@@ -14,10 +14,11 @@ import os
 import logging
 import signal
 import threading
+import warnings
 from contextlib import contextmanager
 from typing import Callable, Iterable, Iterator
 
-from joblib import Parallel, delayed, parallel_config
+from joblib import Parallel, delayed, effective_n_jobs, parallel_config
 
 from ..errors import UserInputError
 
@@ -112,9 +113,14 @@ def in_process(conf) -> bool:
 
 
 @contextmanager
-def executor(conf, *,
-             release_workers: bool = False) -> Iterator[Callable[[Callable, Iterable], Iterator]]:
+def executor(conf, *, release_workers: bool = False,
+             warm_up: tuple[Callable, object] | None = None) -> Iterator[Callable[[Callable, Iterable], Iterator]]:
     """Context giving ``run(fn, items)``: an iterator of ``fn(item)`` in completion order.
+
+    ``warm_up``: ``(fn, item)`` to run once per local worker as the context opens, so the
+    workers start (import, build what the tasks share) while this process goes on with what
+    comes before the first ``run``; their results are dropped, the first ``run`` waits for them.
+    Only loky's local workers are warmed: in this process and on Dask it is not run.
 
     ``release_workers``: on leaving, end the local worker processes (joblib keeps loky's
     workers for reuse) so they do not hold their memory through what comes next; they are
@@ -128,26 +134,35 @@ def executor(conf, *,
 
     here = in_process(conf)
 
+    def dispatch(backend: str, n_jobs: int, fn, items):
+        extra = {"initializer": ignore_sigint} if backend == "loky" else {}
+        with parallel_config(backend=backend, n_jobs=n_jobs, **extra):
+            # joblib starts dispatching (and loky spawns its workers) inside this call:
+            # spawned with SIGINT ignored, a worker ignores it from its first instruction,
+            # not only once its initializer has run (a Ctrl-C while a worker was still
+            # starting under load gave it a traceback; seen in CI).
+            previous = (signal.signal(signal.SIGINT, signal.SIG_IGN)
+                        if backend == "loky" and threading.current_thread() is threading.main_thread() else None)
+            try:
+                return Parallel(return_as="generator_unordered")(delayed(fn)(i) for i in items)
+            finally:
+                if previous is not None:
+                    signal.signal(signal.SIGINT, previous)
+
+    warming = []
+
     def make_run(backend: str, n_jobs: int):
         def run(fn, items):
             items = list(items)
+            if not items:
+                _close(warming)  # no task to warm up for: not waited for
+            while warming:  # consumed, not dropped: an abandoned joblib generator ends the workers
+                for _ in warming.pop():
+                    pass
             if here:
                 yield from (fn(item) for item in items)
                 return
-            extra = {"initializer": ignore_sigint} if backend == "loky" else {}
-            with parallel_config(backend=backend, n_jobs=n_jobs, **extra):
-                # joblib starts dispatching (and loky spawns its workers) inside this call:
-                # spawned with SIGINT ignored, a worker ignores it from its first instruction,
-                # not only once its initializer has run (a Ctrl-C while a worker was still
-                # starting under load gave it a traceback; seen in CI).
-                previous = (signal.signal(signal.SIGINT, signal.SIG_IGN)
-                            if backend == "loky" and threading.current_thread() is threading.main_thread() else None)
-                try:
-                    results = Parallel(return_as="generator_unordered")(delayed(fn)(i) for i in items)
-                finally:
-                    if previous is not None:
-                        signal.signal(signal.SIGINT, previous)
-                yield from results
+            yield from dispatch(backend, n_jobs, fn, items)
         return run
 
     if conf.backend == "dask":
@@ -155,14 +170,28 @@ def executor(conf, *,
             yield make_run("dask", -1)
         return
     try:
+        if warm_up is not None and not here and conf.backend == "loky":
+            fn, item = warm_up
+            warming.append(dispatch("loky", conf.n_jobs, fn, [item] * effective_n_jobs(conf.n_jobs)))
         yield make_run(conf.backend, conf.n_jobs)
     except BaseException:
         if conf.backend == "loky":
+            _close(warming)
             _shutdown_loky(kill=True)
         raise
     else:
         if release_workers and conf.backend == "loky":
+            _close(warming)
             _shutdown_loky(kill=True)
+
+
+def _close(generators: list) -> None:
+    """Close the warm-ups no ``run`` waited for: joblib cancels their tasks (and would warn of
+    cancelled work that was never wanted)."""
+    while generators:
+        with warnings.catch_warnings():
+            warnings.filterwarnings("ignore", message=".*tasks which were still being processed", category=UserWarning)
+            generators.pop().close()
 
 
 def _libc_function(name: str):

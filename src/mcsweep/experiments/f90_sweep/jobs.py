@@ -15,7 +15,7 @@ from ...population import make_source
 from ...runtime.execution import keep_freed_arrays
 from .pencil_beam import run_cell
 
-__all__ = ["population_key", "population_source", "cell_task", "direction_g_jobs"]
+__all__ = ["population_key", "population_source", "warm_worker", "cell_task", "direction_g_jobs"]
 
 
 def _freeze(d: dict) -> tuple:
@@ -33,6 +33,28 @@ def population_source(key: tuple):
     """The population source of a :func:`population_key`: one per process and config
     (a catalogue is read once, the galaxy model's isochrones summed once)."""
     return make_source(dict(key))
+
+
+def warm_worker(job) -> None:
+    """What a worker does before its first cell, while the parent computes the transits
+    (:func:`mcsweep.runtime.execution.executor`'s ``warm_up``): build the population source
+    and load the compiled passes a cell runs, on a few stars whose results are dropped (each
+    cell's streams are its own, so this changes none)."""
+    import numpy as np
+
+    from ...astrometry.shared_design import SharedDesignNormals
+
+    pop_key, settings = job
+    keep_freed_arrays()
+    source = population_source(pop_key)
+    rng = np.random.default_rng(0)
+    if getattr(source, "draws_from_density", False):
+        source.sample_cone(0.0, 0.0, 1.0, 12.0, 13.0, rng, max_stars=16, min_draw=16)
+    design = rng.normal(size=(4, 5))
+    normals = SharedDesignNormals.simulate(design, [np.ones(16), np.ones(16)], np.zeros((3, 16)), rng)
+    scan = normals.prior_scan(settings.ratio_R)
+    scan.inside_counts(settings.prior_grid_mas, settings.confidence, keys=True)
+    scan.position_statistics(settings.prior_grid_mas[:1], settings.confidence)
 
 
 def cell_task(job):

@@ -27,7 +27,7 @@ from ...astrometry.noise_models import noise_model
 from ...errors import UserInputError
 from .colour_fit import colour_tables, means_table
 from .fit import colour_blind, f90_table, fit_all, fit_tables, prior_maps_for_run
-from .jobs import cell_task, direction_g_jobs, population_key, population_source
+from .jobs import cell_task, direction_g_jobs, population_key, population_source, warm_worker
 from .pencil_beam import CellSettings, cell_radius
 from ...population import CatalogueSource
 from ...prior.maps import MAPS_FILE
@@ -121,51 +121,54 @@ def run_sweep(config, raw_cfg: dict, run_dir: Path, *, prov) -> Path:
     the path of ``cells.parquet``."""
     run_dir = Path(run_dir)
     prov.check_compatible()
-    with prov.stage("population_source"):
-        # Built here first so a bad catalogue fails before any file is written.
-        source = population_source(population_key(config))
     settings = build_settings(config)
-    _check_colours(config, source)
-    law = _scanning_law(config, prov)
-    cells = enumerate_cells(config.sky, config.magnitudes, config.prior_model.colour_edges)
-    keep = config.resume.accept_other_versions
-    store = ResultStore(run_dir / CELLS_DIR, prov.hash, accept_other_versions=keep)
-    show = showcase_cell(config) if config.experiment.showcase.enabled else None
-    show_store = ResultStore(run_dir / SHOWCASE_DIR, prov.hash, accept_other_versions=keep)
-    for st in (store, show_store):  # run start: no other writer may be active in run_dir
-        st.remove_stale_temporaries()
-
-    # Cells kept from an earlier run, read and verified once (the aggregate reuses them).
-    kept = {c.cell_id: t for c in cells if (t := store.read_table(c.cell_id)) is not None}
-    todo = [c for c in cells if c.cell_id not in kept]
-    radii = _catalogue_radii(source, todo + ([show] if show is not None else []), settings)
-    show_todo = show is not None and (show_store.read(show.cell_id) is None
-                                      or show_store.read(show.cell_id + "_scatter") is None)
-    # Inputs are valid: claim the run directory for this config before any cell is written,
-    # so a killed run is resumed (and guarded against other configs) like a finished one.
-    prov.write(with_manifest=False)
-    transits = _transits_of(config, prov, todo + ([show] if show_todo else []), law)
-    if show_todo:
-        (run_dir / SHOWCASE_DIR).mkdir(exist_ok=True)
-        atomic_write_bytes(run_dir / SHOWCASE_DIR / SHOWCASE_GROUPS_FILE,
-                           showcase_groups(transits[show.direction.index], law).to_csv(index=False).encode())
     pop = population_key(config)
-    jobs = direction_g_jobs(todo, transits, pop, settings, store, radii)
-    if show_todo:
-        jobs.insert(0, ([show], transits[show.direction.index], pop, settings, show_store, True,
-                        [radii.get(show.cell_id)]))
-    n_all = len(cells) + (show is not None)
-    fresh: dict[str, bytes] = {}
-    # release_workers: the workers' memory is free for the aggregate and the report
-    with prov.stage("cells"), executor(config.execution, release_workers=True) as run:
-        bar = progress(n_all, initial=n_all - sum(len(j[0]) for j in jobs), desc="cells", unit="cells",
-                       enabled=config.execution.progress)
-        for done in run(cell_task, jobs):
-            for cell_id, showcase, data in done:
-                if not showcase:
-                    fresh[cell_id] = data
-            bar.update(len(done))
-        bar.close()
+    # The workers start (imports, the population source, the compiled passes) while this
+    # process computes the transits; release_workers: their memory is free for the aggregate
+    # and the report.
+    with executor(config.execution, release_workers=True, warm_up=(warm_worker, (pop, settings))) as run:
+        with prov.stage("population_source"):
+            # Built here first so a bad catalogue fails before any file is written.
+            source = population_source(pop)
+        _check_colours(config, source)
+        law = _scanning_law(config, prov)
+        cells = enumerate_cells(config.sky, config.magnitudes, config.prior_model.colour_edges)
+        keep = config.resume.accept_other_versions
+        store = ResultStore(run_dir / CELLS_DIR, prov.hash, accept_other_versions=keep)
+        show = showcase_cell(config) if config.experiment.showcase.enabled else None
+        show_store = ResultStore(run_dir / SHOWCASE_DIR, prov.hash, accept_other_versions=keep)
+        for st in (store, show_store):  # run start: no other writer may be active in run_dir
+            st.remove_stale_temporaries()
+
+        # Cells kept from an earlier run, read and verified once (the aggregate reuses them).
+        kept = {c.cell_id: t for c in cells if (t := store.read_table(c.cell_id)) is not None}
+        todo = [c for c in cells if c.cell_id not in kept]
+        radii = _catalogue_radii(source, todo + ([show] if show is not None else []), settings)
+        show_todo = show is not None and (show_store.read(show.cell_id) is None
+                                          or show_store.read(show.cell_id + "_scatter") is None)
+        # Inputs are valid: claim the run directory for this config before any cell is written,
+        # so a killed run is resumed (and guarded against other configs) like a finished one.
+        prov.write(with_manifest=False)
+        transits = _transits_of(config, prov, todo + ([show] if show_todo else []), law)
+        if show_todo:
+            (run_dir / SHOWCASE_DIR).mkdir(exist_ok=True)
+            atomic_write_bytes(run_dir / SHOWCASE_DIR / SHOWCASE_GROUPS_FILE,
+                               showcase_groups(transits[show.direction.index], law).to_csv(index=False).encode())
+        jobs = direction_g_jobs(todo, transits, pop, settings, store, radii)
+        if show_todo:
+            jobs.insert(0, ([show], transits[show.direction.index], pop, settings, show_store, True,
+                            [radii.get(show.cell_id)]))
+        n_all = len(cells) + (show is not None)
+        fresh: dict[str, bytes] = {}
+        with prov.stage("cells"):
+            bar = progress(n_all, initial=n_all - sum(len(j[0]) for j in jobs), desc="cells", unit="cells",
+                           enabled=config.execution.progress)
+            for done in run(cell_task, jobs):
+                for cell_id, showcase, data in done:
+                    if not showcase:
+                        fresh[cell_id] = data
+                bar.update(len(done))
+            bar.close()
     with prov.stage("aggregate"):
         missing = [c.cell_id for c in cells if c.cell_id not in kept and c.cell_id not in fresh]
         if missing:  # pragma: no cover - would mean a worker returned no table

@@ -33,6 +33,8 @@ ROOT = Path(__file__).resolve().parents[1]
 TABLES = ("cells.parquet", "f90_cells.csv", "coefficients.csv", "rms_dex.csv")
 SWEEPS = {"default": [], "colour": ["prior_model=colour"], "colour_mean": ["prior_model=colour_mean"]}
 
+ENTRY = "from mcsweep import cli; getattr(cli, 'console_main', cli.main)()"
+
 RUNNER = r"""
 import json, resource, subprocess, sys, time
 cmd, env = json.loads(sys.argv[1]), json.loads(sys.argv[2])
@@ -48,7 +50,9 @@ print(json.dumps({"wall": dt, "peak_mb": resource.getrusage(resource.RUSAGE_CHIL
 def run(src: Path, overrides: list[str], out: Path) -> dict:
     """Wall time, peak memory and stage times of one sweep with the package at ``src``."""
     env = dict(os.environ, PYTHONPATH=str(src), OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1")
-    cmd = [str(Path(sys.executable).parent / "mcsweep"), *overrides, f"hydra.run.dir={out}"]
+    # The command's entry point as the checkout at ``src`` defines it (the installed script
+    # names the working tree's, which an older baseline may not have).
+    cmd = [sys.executable, "-c", ENTRY, *overrides, f"hydra.run.dir={out}"]
     # A fresh interpreter per sweep: RUSAGE_CHILDREN then holds that sweep's peak alone.
     r = subprocess.run([sys.executable, "-c", RUNNER, json.dumps(cmd), json.dumps(env)], capture_output=True,
                        text=True)

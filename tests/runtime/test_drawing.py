@@ -79,3 +79,15 @@ def test_no_fork_while_another_thread_runs():
     finally:
         stop.set()
         other.join()
+
+
+@fork_only
+def test_preloaded_modules_are_imported_before_the_children_fork(tmp_path, monkeypatch):
+    import sys
+
+    monkeypatch.delitem(sys.modules, "colorsys", raising=False)
+    FigureDrawer(processes=0, preload=("colorsys",))
+    assert "colorsys" not in sys.modules  # drawn in line: nothing to import ahead
+    with FigureDrawer(processes=2, preload=("colorsys",)) as drawer:
+        assert "colorsys" in sys.modules
+        drawer.draw(_write_pid, tmp_path / "fig.txt")

@@ -87,7 +87,7 @@ def build_report(run_dir) -> Path:
         raise UserInputError(
             f"{run_dir} is an unfinished {kind} run: {', '.join(missing)} not written yet; expected a "
             f"finished run (run mcsweep again with hydra.run.dir={run_dir} and the same config to resume)")
-    with FigureDrawer() as drawer:
+    with FigureDrawer(preload=("matplotlib.pyplot",)) as drawer:
         doc = Document(f"mcsweep report: {kind} ({run_dir.name})", drawer=drawer)
         experiment.report(doc, run_dir, prov)
         provenance_section(doc, run_dir, prov)

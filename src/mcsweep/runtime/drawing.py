@@ -15,6 +15,7 @@ child forked then could inherit a lock another thread holds), or with one core.
 
 from __future__ import annotations
 
+import importlib
 import multiprocessing
 import os
 import pickle
@@ -24,28 +25,34 @@ from collections.abc import Callable
 
 __all__ = ["FigureDrawer", "drawing_processes"]
 
-#: At most this many drawing processes at once: a report has about ten figures.
+#: At most this many drawing processes at once: a report has about ten figures, each child
+#: holds its figure's memory.
 MAX_DRAWING_PROCESSES = 4
 
 
 def drawing_processes() -> int:
     """How many processes :class:`FigureDrawer` would draw in at once now: 0 where it draws in
-    line (module notes), else the cores this process may use, at most
-    :data:`MAX_DRAWING_PROCESSES`."""
+    line (module notes), else twice the cores this process may use (a figure waits for no
+    other to finish; the cores share the figures), at most :data:`MAX_DRAWING_PROCESSES`."""
     if "fork" not in multiprocessing.get_all_start_methods() or threading.active_count() > 1:
         return 0
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-    return min(cores, MAX_DRAWING_PROCESSES) if cores > 1 else 0
+    return min(2 * cores, MAX_DRAWING_PROCESSES) if cores > 1 else 0
 
 
 class FigureDrawer:
     """Runs figure-drawing calls in forked processes (module notes); use as a context.
 
     ``processes``: how many at once (None: :func:`drawing_processes`; 0 draws in line).
+    ``preload``: modules to import here before the first child is forked, so that no child
+    imports them again (matplotlib's pyplot: half a second each).
     """
 
-    def __init__(self, processes: int | None = None):
+    def __init__(self, processes: int | None = None, *, preload: tuple[str, ...] = ()):
         self._processes = drawing_processes() if processes is None else int(processes)
+        if self._processes > 0:
+            for name in preload:
+                importlib.import_module(name)
         self._running: dict[int, tuple[int, str]] = {}  # pid -> (read end of its pipe, figure)
         self._failures: list[str] = []
 

@@ -163,11 +163,17 @@ def run_sweep(config, raw_cfg: dict, run_dir: Path, *, prov) -> Path:
         with prov.stage("cells"):
             bar = progress(n_all, initial=n_all - sum(len(j[0]) for j in jobs), desc="cells", unit="cells",
                            enabled=config.execution.progress)
+            report_imported = False
             for done in run(cell_task, jobs):
                 for cell_id, showcase, data in done:
                     if not showcase:
                         fresh[cell_id] = data
                 bar.update(len(done))
+                if not report_imported:
+                    # This process only waits while the workers run the cells: it imports the
+                    # report's modules (matplotlib, the prior; a second) now, not after them.
+                    from . import section  # noqa: F401
+                    report_imported = True
             bar.close()
     with prov.stage("aggregate"):
         missing = [c.cell_id for c in cells if c.cell_id not in kept and c.cell_id not in fresh]

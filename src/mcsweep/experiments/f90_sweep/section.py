@@ -51,10 +51,14 @@ def sweep_section(doc: Document, run_dir: Path, prov: dict) -> None:
     cfg = prov.get("config", {})
     p = float(cfg.get("confidence", 0.9))
     noise = _cell_noise_dex(f90)
+    # The Table 1 beam's figures first: the slowest to draw (Fig. 3's ten log axes), they are
+    # drawn (runtime.drawing) while the rest of the report is built.
+    showcase = _showcase_figures(doc, run_dir, figdir, p, cfg)
     _headline(doc, run_dir, prov, fit, noise, figdir)
     colour_section(doc, run_dir, prov, figdir)  # only for a run with a colour axis (prior_model)
     _long_tables(doc, fit, noise)
-    _showcase_section(doc, run_dir, figdir, p, cfg)
+    if showcase is not None:
+        _showcase_section(doc, run_dir, *showcase, cfg)
 
 
 def _headline(doc: Document, run_dir: Path, prov: dict, fit, noise: np.ndarray, figdir: Path) -> None:
@@ -293,15 +297,26 @@ def _difference_sentence(fit, noise: np.ndarray, cfg: dict, prov: dict) -> str:
             + f", whose star counts and distances differ from GUMS ({_DOCS_DIFFERENCES}; {_DOCS_MODEL}).")
 
 
-def _showcase_section(doc: Document, run_dir: Path, figdir: Path, p: float, cfg: dict) -> None:
+def _showcase_figures(doc: Document, run_dir: Path, figdir: Path, p: float, cfg: dict):
+    """Draw Figs. 1-3 of the showcase cell; returns its curves, sigma_F90 and whether Fig. 2
+    was drawn, or None without a showcase cell."""
     show = sorted((run_dir / "showcase").glob("cell_*.parquet")) if (run_dir / "showcase").exists() else []
     curves_files = [f for f in show if not f.stem.endswith("_scatter")]
     if not curves_files:
-        return
+        return None
     curves = pd.read_parquet(curves_files[0])
     scatter_file = curves_files[0].with_name(curves_files[0].stem + "_scatter.parquet")
     f90 = float(curves["sigma_f90_mas"].iloc[0])
     case = cfg.get("observations", {}).get("f90_case", "two")
+    doc.draw(figures.plot_showcase_cases, curves, f90, figdir / "fig3_cases.png", p)
+    doc.draw(figures.plot_showcase_curves, curves, case, f90, figdir / "fig1_curves.png", p)
+    if scatter_file.exists():
+        doc.draw(figures.plot_showcase_scatter, pd.read_parquet(scatter_file), figdir / "fig2_scatter.png", p)
+    return curves, f90, scatter_file.exists()
+
+
+def _showcase_section(doc: Document, run_dir: Path, curves: pd.DataFrame, f90: float, with_scatter: bool,
+                      cfg: dict) -> None:
     r = curves.iloc[0]
     doc.heading("Single direction: the paper's Table 1 beam (Figs. 1-3)")
     doc.para(f"(ra, dec) = ({r['ra_deg']:.1f}, {r['dec_deg']:.1f}) deg, (l, b) = ({r['l_deg']:.1f}, "
@@ -313,13 +328,10 @@ def _showcase_section(doc: Document, run_dir: Path, figdir: Path, p: float, cfg:
     doc.table(at, "Every case evaluated at the two-transit sigma_F90 (Fig. 3's vertical line)",
               {"sigma_prior_mas": ".3g", "fraction_inside": ".3f", "p_error_mas": ".3g",
                "median_semi_major_mas": ".3g"})
-    doc.draw(figures.plot_showcase_curves, curves, case, f90, figdir / "fig1_curves.png", p)
     doc.figure(f"{FIG_DIR}/fig1_curves.png", "Actual errors and formal uncertainty against the prior (Fig. 1)")
-    if scatter_file.exists():
-        doc.draw(figures.plot_showcase_scatter, pd.read_parquet(scatter_file), figdir / "fig2_scatter.png", p)
+    if with_scatter:
         doc.figure(f"{FIG_DIR}/fig2_scatter.png", "Actual position errors and the confidence ellipse for a "
                    "tight prior, sigma_F90 and a loose prior (Fig. 2)")
-    doc.draw(figures.plot_showcase_cases, curves, f90, figdir / "fig3_cases.png", p)
     doc.figure(f"{FIG_DIR}/fig3_cases.png", "1, 2, 2 diluted, 4 and 8 distinct transits (Fig. 3)")
     groups_file = run_dir / "showcase" / "groups.csv"
     if groups_file.exists():

@@ -162,7 +162,12 @@ def executor(conf, *, release_workers: bool = False,
             if here:
                 yield from (fn(item) for item in items)
                 return
-            yield from dispatch(backend, n_jobs, fn, items)
+            results = dispatch(backend, n_jobs, fn, items)
+            try:
+                for r in results:  # not `yield from`: closing this generator must not close that one
+                    yield r
+            finally:
+                _close([results])  # left early (Ctrl-C, an error): joblib cancels the rest quietly
         return run
 
     if conf.backend == "dask":
@@ -186,11 +191,13 @@ def executor(conf, *, release_workers: bool = False,
 
 
 def _close(generators: list) -> None:
-    """Close the warm-ups no ``run`` waited for: joblib cancels their tasks (and would warn of
-    cancelled work that was never wanted)."""
+    """Close joblib result generators: the tasks still running are cancelled, and joblib's
+    warning of results or tasks left unused (advice for a program that stops reading early on
+    purpose) is not shown: a run left early was interrupted or failed, and says so itself."""
     while generators:
         with warnings.catch_warnings():
-            warnings.filterwarnings("ignore", message=".*tasks which were still being processed", category=UserWarning)
+            warnings.filterwarnings("ignore", message=".*tasks (have been successfully executed|which were still "
+                                    "being processed)", category=UserWarning)
             generators.pop().close()
 
 

@@ -119,8 +119,9 @@ def executor(conf, *, release_workers: bool = False,
 
     ``warm_up``: ``(fn, item)`` to run once per local worker as the context opens, so the
     workers start (import, build what the tasks share) while this process goes on with what
-    comes before the first ``run``; their results are dropped, the first ``run`` waits for them.
-    Only loky's local workers are warmed: in this process and on Dask it is not run.
+    comes before the first ``run``; their results are dropped, the first ``run`` waits for them
+    (even with no task). Only loky's local workers are warmed: in this process and on Dask it is
+    not run.
 
     ``release_workers``: on leaving, end the local worker processes (joblib keeps loky's
     workers for reuse) so they do not hold their memory through what comes next; they are
@@ -154,9 +155,9 @@ def executor(conf, *, release_workers: bool = False,
     def make_run(backend: str, n_jobs: int):
         def run(fn, items):
             items = list(items)
-            if not items:
-                _close(warming)  # no task to warm up for: not waited for
-            while warming:  # consumed, not dropped: an abandoned joblib generator ends the workers
+            # Consumed, even without tasks: closing a joblib generator early aborts its executor
+            # (joblib then terminates and restarts the workers).
+            while warming:
                 for _ in warming.pop():
                     pass
             if here:
@@ -181,13 +182,13 @@ def executor(conf, *, release_workers: bool = False,
         yield make_run(conf.backend, conf.n_jobs)
     except BaseException:
         if conf.backend == "loky":
-            _close(warming)
             _shutdown_loky(kill=True)
+            _close(warming)  # their workers killed first: joblib has nothing left to abort
         raise
     else:
         if release_workers and conf.backend == "loky":
-            _close(warming)
             _shutdown_loky(kill=True)
+            _close(warming)
 
 
 def _close(generators: list) -> None:

@@ -16,6 +16,7 @@ from __future__ import annotations
 import logging
 
 import dataclasses
+import gc
 import io
 from pathlib import Path
 
@@ -121,16 +122,16 @@ def run_sweep(config, raw_cfg: dict, run_dir: Path, *, prov) -> Path:
     the path of ``cells.parquet``."""
     run_dir = Path(run_dir)
     prov.check_compatible()
-    settings = build_settings(config)
     pop = population_key(config)
+    with prov.stage("population_source"):
+        # Built here first so a bad catalogue fails before any file is written (or worker started).
+        source = population_source(pop)
+    settings = build_settings(config)
+    _check_colours(config, source)
     # The workers start (imports, the population source, the compiled passes) while this
     # process computes the transits; release_workers: their memory is free for the aggregate
     # and the report.
     with executor(config.execution, release_workers=True, warm_up=(warm_worker, (pop, settings))) as run:
-        with prov.stage("population_source"):
-            # Built here first so a bad catalogue fails before any file is written.
-            source = population_source(pop)
-        _check_colours(config, source)
         law = _scanning_law(config, prov)
         cells = enumerate_cells(config.sky, config.magnitudes, config.prior_model.colour_edges)
         keep = config.resume.accept_other_versions
@@ -171,8 +172,14 @@ def run_sweep(config, raw_cfg: dict, run_dir: Path, *, prov) -> Path:
                 bar.update(len(done))
                 if not report_imported:
                     # This process only waits while the workers run the cells: it imports the
-                    # report's modules (matplotlib, the prior; a second) now, not after them.
-                    from . import section  # noqa: F401
+                    # report's modules (matplotlib, the prior; a second) now, not after them,
+                    # without the collector (no callback of another library runs meanwhile
+                    # to catch a Ctrl-C in it and swallow it).
+                    gc.disable()
+                    try:
+                        from . import section  # noqa: F401
+                    finally:
+                        gc.enable()
                     report_imported = True
             bar.close()
     with prov.stage("aggregate"):

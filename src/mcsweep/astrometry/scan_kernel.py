@@ -87,6 +87,28 @@ def _rotate(m, app, aqq, apq, arp, arq, v0p, v1p, v2p, v0q, v1q, v2q):
 
 
 @numba.njit(inline="always")
+def _position_inverse(n00, n01, n10, n11, pivot):
+    """Whether a star's position block A (its normal matrix's first 2 x 2, symmetrised) is
+    regular, and A^-1's elements (i0, i1, i2) = (aa, ad, dd); of a singular block, its
+    adjugate (finite, unused: the star is not ok)."""
+    a11 = n00
+    a12 = 0.5 * (n01 + n10)
+    a22 = n11
+    det = a11 * a22 - a12 * a12
+    good = (a11 > 0.0) & (a22 > 0.0) & (det > pivot * a11 * a22) & (abs(det) < np.inf)
+    ds = det if good else 1.0
+    return good, a22 / ds, -a12 / ds, a11 / ds
+
+
+@numba.njit(inline="always")
+def _inverse_times(i0, i1, i2, b):
+    """A^-1 B (2 x 3, row-major) of A^-1's elements and B's (b00, b01, b02, b10, b11, b12)."""
+    b00, b01, b02, b10, b11, b12 = b
+    return (i0 * b00 + i1 * b10, i0 * b01 + i1 * b11, i0 * b02 + i1 * b12,
+            i1 * b00 + i2 * b10, i1 * b01 + i2 * b11, i1 * b02 + i2 * b12)
+
+
+@numba.njit(inline="always")
 def _schur_star(s, lo, nn, bb, r_, pivot, w, x0, ainv, ok):
     """Star ``s`` of a block (output column ``lo + s``): the position block's inverse, x0, and
     into the scratch ``w`` the scaled Schur complement T, r and A^-1 B (the first step of
@@ -96,15 +118,7 @@ def _schur_star(s, lo, nn, bb, r_, pivot, w, x0, ainv, ok):
     b0, b1, b2, b3, b4 = bb
     sc1 = r_
     sc2 = r_ * r_
-    a11 = n00
-    a12 = 0.5 * (n01 + n10)
-    a22 = n11
-    det = a11 * a22 - a12 * a12
-    good = (a11 > 0.0) & (a22 > 0.0) & (det > pivot * a11 * a22) & (abs(det) < np.inf)
-    ds = det if good else 1.0
-    i0 = a22 / ds
-    i1 = -a12 / ds
-    i2 = a11 / ds
+    good, i0, i1, i2 = _position_inverse(n00, n01, n10, n11, pivot)
     b00 = n02
     b01 = n03
     b02 = n04
@@ -112,12 +126,7 @@ def _schur_star(s, lo, nn, bb, r_, pivot, w, x0, ainv, ok):
     b11 = n13
     b12 = n14
     # A^-1 B (2 x 3) and x0 = A^-1 b_p
-    q00 = i0 * b00 + i1 * b10
-    q01 = i0 * b01 + i1 * b11
-    q02 = i0 * b02 + i1 * b12
-    q10 = i1 * b00 + i2 * b10
-    q11 = i1 * b01 + i2 * b11
-    q12 = i1 * b02 + i2 * b12
+    q00, q01, q02, q10, q11, q12 = _inverse_times(i0, i1, i2, (b00, b01, b02, b10, b11, b12))
     x_a = i0 * b0 + i1 * b1
     x_d = i1 * b0 + i2 * b1
     # T = W3^-1/2 S W3^-1/2, S = C - B' A^-1 B symmetrised, W3^-1/2 = diag(1, R, R)
@@ -275,24 +284,14 @@ def _star_noise(nn, z, pivot):
     triangle in the order of :data:`_UPPER`. Zero where the position block is singular."""
     n00, n01, n11, n02, n03, n04, n12, n13, n14, n22, n33, n44, n23, n24, n34 = nn
     z0, z1, z2, z3, z4 = z
-    det = n00 * n11 - n01 * n01
-    good = (n00 > 0.0) & (n11 > 0.0) & (det > pivot * n00 * n11) & (abs(det) < np.inf)
+    good, i0, i1, i2 = _position_inverse(n00, n01, n01, n11, pivot)
     a11 = n00 if good else 1.0
-    ds = det if good else 1.0
     # position block: n_p = L_A z[:2], L_A L_A' = A
     l11 = np.sqrt(a11)
     p0 = l11 * z0
-    p1 = (n01 / l11) * z0 + np.sqrt(ds / a11) * z1
-    # A^-1 B, and the Schur complement S = C - B' A^-1 B (as _schur_star forms it)
-    i0 = n11 / ds
-    i1 = -n01 / ds
-    i2 = n00 / ds
-    q00 = i0 * n02 + i1 * n12
-    q01 = i0 * n03 + i1 * n13
-    q02 = i0 * n04 + i1 * n14
-    q10 = i1 * n02 + i2 * n12
-    q11 = i1 * n03 + i2 * n13
-    q12 = i1 * n04 + i2 * n14
+    p1 = (n01 / l11) * z0 + np.sqrt((n00 * n11 - n01 * n01 if good else 1.0) / a11) * z1
+    # A^-1 B, and the Schur complement S = C - B' A^-1 B
+    q00, q01, q02, q10, q11, q12 = _inverse_times(i0, i1, i2, (n02, n03, n04, n12, n13, n14))
     s00 = n22 - (n02 * q00 + n12 * q10)
     s11 = n33 - (n03 * q01 + n13 * q11)
     s22 = n44 - (n04 * q02 + n14 * q12)

@@ -46,10 +46,16 @@ JACOBI_SWEEPS = 8
 #: two orders of magnitude below the rounding of the diagonal elements, so skipping it
 #: changes no eigenvalue or eigenvector beyond rounding.
 JACOBI_NEGLIGIBLE = 1e-18
-#: An LDL' pivot of a star's Schur complement at or below this fraction of its diagonal
-#: element is a null direction (:func:`_star_noise`): the rounding of a singular complement is
-#: ~1e-16 of it, a direction measured with 1e-5 of the diagonal's precision is still kept.
+#: An LDL' pivot of a star's Schur complement S at or below this fraction of the normal
+#: matrix's diagonal element (C's, not S's: a singular S is all rounding, and its own diagonal
+#: would keep it) is a null direction (:func:`_star_noise`); a direction measured with 1e-5 of
+#: C's precision is still kept. Where the position block A is ill-conditioned, S's rounding is
+#: eps cond(A) of C: the fraction is then NULL_ROUNDING eps cond(A) if larger.
 NULL_PIVOT = 1e-10
+#: The rounding of S = C - B' A^-1 B, in units of eps cond(A) C (the few dozen roundings of its
+#: formation, with margin).
+NULL_ROUNDING = 64.0
+_EPS = float(np.finfo(np.float64).eps)
 
 
 @numba.njit(inline="always")
@@ -271,10 +277,58 @@ def _signal(e0, e1, i2, i3, i4, x_plx, x_pmra, x_pmdec, w0sq, w1sq, two):
 
 
 @numba.njit(inline="always")
-def _pivot(d, diag):
-    # A pivot of a positive semi-definite matrix's LDL' at or below rounding of its diagonal
-    # element is a null direction (one or two transits): zero, and no noise along it.
-    return d if d > NULL_PIVOT * diag else 0.0
+def _pivot(d, floor):
+    # A pivot of the Schur complement's LDL' at or below ``floor`` (NULL_PIVOT's rule) is a
+    # null direction (one or two transits): zero, no noise along it.
+    return d if d > floor else 0.0
+
+
+@numba.njit(inline="always")
+def _semidefinite_noise(s00, s11, s22, s01, s02, s12, c0, c1, c2, za, zb, zc):
+    """``L sqrt(D) z`` with ``S = L D L'`` (S positive semi-definite, 3 x 3): Gaussian noise of
+    covariance S from three standard normals. Diagonal pivoting, the largest remaining diagonal
+    element first, so every multiplier is at most 1 and a null direction's pivot is rounding
+    of the order of the largest, and dropped (:func:`_pivot`, against ``c``: the normal
+    matrix's diagonal elements times NULL_PIVOT's fraction); the first pivot takes ``za``, the
+    second ``zb``."""
+    # first pivot p: the order (p, then the other two in index order)
+    p1 = (s11 > s00) & (s11 >= s22)
+    p2 = (s22 > s00) & (s22 > s11)
+    m00 = s22 if p2 else (s11 if p1 else s00)
+    m11 = s00 if (p1 or p2) else s11
+    m22 = s11 if p2 else s22
+    m01 = s02 if p2 else s01
+    m02 = s12 if (p1 or p2) else s02
+    m12 = s01 if p2 else (s02 if p1 else s12)
+    k0 = c2 if p2 else (c1 if p1 else c0)
+    k1 = c0 if (p1 or p2) else c1
+    k2 = c1 if p2 else c2
+    d0 = _pivot(m00, k0)
+    f10 = m01 / d0 if d0 > 0.0 else 0.0
+    f20 = m02 / d0 if d0 > 0.0 else 0.0
+    t11 = m11 - f10 * m01
+    t22 = m22 - f20 * m02
+    t12 = m12 - f20 * m01
+    # second pivot: the larger of the two left (swap them if it is the last)
+    sw = t22 > t11
+    u11 = t22 if sw else t11
+    u22 = t11 if sw else t22
+    g10 = f20 if sw else f10
+    g20 = f10 if sw else f20
+    d1 = _pivot(u11, k2 if sw else k1)
+    f21 = t12 / d1 if d1 > 0.0 else 0.0
+    d2 = _pivot(u22 - f21 * t12, k1 if sw else k2)
+    e0 = np.sqrt(d0) * za
+    e1 = np.sqrt(d1) * zb
+    y1 = g10 * e0 + e1
+    y2 = (g20 * e0 + f21 * e1) + np.sqrt(d2) * zc
+    # back to the order of the pivots, then of S
+    v1 = y2 if sw else y1
+    v2 = y1 if sw else y2
+    r0 = v1 if (p1 or p2) else e0
+    r1 = e0 if p1 else (v2 if p2 else v1)
+    r2 = e0 if p2 else v2
+    return r0, r1, r2
 
 
 @numba.njit(inline="always")
@@ -298,22 +352,17 @@ def _star_noise(nn, z, pivot):
     s01 = n23 - (n02 * q01 + n12 * q11)
     s02 = n24 - (n02 * q02 + n12 * q12)
     s12 = n34 - (n03 * q02 + n13 * q12)
-    # S = L D L': the noise of r = b_q - B' A^-1 b_p is L sqrt(D) z[2:], independent of n_p
-    d0 = _pivot(s00, s00)
-    f10 = s01 / d0 if d0 > 0.0 else 0.0
-    f20 = s02 / d0 if d0 > 0.0 else 0.0
-    d1 = _pivot(s11 - f10 * s01, s11)
-    f21 = (s12 - f20 * s01) / d1 if d1 > 0.0 else 0.0
-    d2 = _pivot((s22 - f20 * s02) - f21 * (f21 * d1), s22)
-    e0 = np.sqrt(d0) * z2
-    e1 = np.sqrt(d1) * z3
-    e2 = np.sqrt(d2) * z4
+    # The noise of r = b_q - B' A^-1 b_p, independent of n_p, with covariance S; (a11 + a22)^2
+    # / det A bounds cond(A) from above
+    trace = n00 + n11
+    null = max(NULL_PIVOT, NULL_ROUNDING * _EPS * (trace * (trace / (n00 * n11 - n01 * n01 if good else 1.0))))
+    e0, e1, e2 = _semidefinite_noise(s00, s11, s22, s01, s02, s12, null * n22, null * n33, null * n44, z2, z3, z4)
     # n_q = B' A^-1 n_p + r's noise
     y0 = i0 * p0 + i1 * p1
     y1 = i1 * p0 + i2 * p1
     m2 = (n02 * y0 + n12 * y1) + e0
-    m3 = (n03 * y0 + n13 * y1) + (f10 * e0 + e1)
-    m4 = (n04 * y0 + n14 * y1) + ((f20 * e0 + f21 * e1) + e2)
+    m3 = (n03 * y0 + n13 * y1) + e1
+    m4 = (n04 * y0 + n14 * y1) + e2
     if not good:
         return 0.0, 0.0, 0.0, 0.0, 0.0
     return p0, p1, m2, m3, m4

@@ -57,9 +57,43 @@ def test_a_figure_error_is_the_childs_exception_with_its_traceback(tmp_path):
     with pytest.raises(OSError) as info:
         drawer.wait()
     assert info.value.errno == errno.ENOSPC and info.value.filename == str(tmp_path / "fig.png")
-    drawer.draw(_fail_unpicklably)
-    with pytest.raises(RuntimeError, match=r"drawing _fail_unpicklably in process \d+ failed(.|\n)*a lambda"):
-        drawer.wait()
+    for fn, text in ((_fail_unpicklably, "a lambda"), (_fail_to_unpickle, "two arguments"),
+                     (_exit_quietly, "SystemExit")):
+        drawer.draw(fn)
+        with pytest.raises(RuntimeError, match=rf"drawing {fn.__name__} in process \d+ failed(.|\n)*{text}"):
+            drawer.wait()
+
+
+class _TwoArguments(Exception):
+    def __init__(self, path, why):  # pickles, but does not unpickle: args is one string
+        super().__init__(f"{path}: {why}")
+
+
+def _fail_to_unpickle():
+    raise _TwoArguments("fig.png", "two arguments")
+
+
+def _exit_quietly():
+    raise SystemExit(0)  # not the parent's exit status to take
+
+
+@fork_only
+def test_the_slowest_figure_holds_up_no_other(tmp_path):
+    # one slot: the second figure is forked once the first has finished; with two slots, the
+    # fast ones pass the slow one (the drawer waits for whichever child ends)
+    with FigureDrawer(processes=2) as drawer:
+        drawer.draw(_sleep_then_write, 1.0, tmp_path / "slow.txt")
+        for i in range(3):
+            drawer.draw(_write_pid, tmp_path / f"fast{i}.txt")
+        assert all((tmp_path / f"fast{i}.txt").exists() for i in range(2))
+        assert not (tmp_path / "slow.txt").exists()
+
+
+def _sleep_then_write(seconds, path):
+    import time
+
+    time.sleep(seconds)
+    path.write_text("done")
 
 
 def test_no_processes_draws_in_line(tmp_path):

@@ -83,7 +83,7 @@ def test_warm_up_runs_on_the_workers_the_tasks_then_use(tmp_path):
     assert used <= warmed  # the tasks ran on the workers warmed before them, none restarted
 
 
-def test_warm_up_is_not_run_in_process_and_leaves_no_warning(tmp_path, recwarn):
+def test_warm_up_is_not_run_in_process_and_leaves_no_warning(tmp_path, recwarn, capfd):
     with executor(ExecutionConf(backend="loky", n_jobs=1), warm_up=(_mark_worker, str(tmp_path))) as run:
         assert list(run(_pid, range(2))) == [os.getpid()] * 2
     assert not any(tmp_path.iterdir())
@@ -94,4 +94,10 @@ def test_warm_up_is_not_run_in_process_and_leaves_no_warning(tmp_path, recwarn):
         with executor(ExecutionConf(backend="loky", n_jobs=2), release_workers=True,
                       warm_up=(_mark_worker, str(tmp_path))):
             raise ValueError("a bad catalogue")  # before any run: the warmed workers are killed
+    # kept for reuse without a run: the warm-ups are waited for, and the next context works
+    with executor(ExecutionConf(backend="loky", n_jobs=2), warm_up=(_mark_worker, str(tmp_path))):
+        pass
+    with executor(ExecutionConf(backend="loky", n_jobs=2), release_workers=True) as run:
+        assert sorted(run(abs, [-1, 2])) == [1, 2]
     assert [str(w.message) for w in recwarn] == []
+    assert "Traceback" not in capfd.readouterr().err  # nor a thread's (loky's manager)

@@ -1,7 +1,8 @@
 """Progress in logs that are not a terminal: whole lines every few per cent, no carriage returns."""
 
 import io
-import threading
+import subprocess
+import sys
 
 from mcsweep.runtime.progress import STEP_PERCENT, LineProgress, progress, stage_line
 
@@ -92,15 +93,23 @@ def test_a_long_solution_gets_a_line_a_minute_saying_where_it_stands():
     assert quiet.getvalue() == ""
 
 
+_BARS_THEN_THREADS = """
+import io, threading
+from mcsweep.runtime.progress import progress
+class Tty(io.StringIO):
+    def isatty(self):
+        return True
+for enabled, file in ((False, io.StringIO()), (True, Tty())):
+    bar = progress(10, desc="cells", enabled=enabled, file=file)
+    bar.update(10)
+    bar.close()
+print(threading.active_count())
+"""
+
+
 def test_no_thread_outlives_a_bar():
     # A thread left running (tqdm's monitor) would make the report draw its figures in line
-    # (mcsweep.runtime.drawing forks only a single-threaded process).
-    def monitors():
-        return [t for t in threading.enumerate() if t.name == "tqdm_monitor" and t.is_alive()]
-
-    before = monitors()  # another library's bar in this process is not ours to judge
-    for enabled, file in ((False, io.StringIO()), (True, _Tty())):
-        bar = progress(10, desc="cells", enabled=enabled, file=file)
-        bar.update(10)
-        bar.close()
-        assert monitors() == before
+    # (mcsweep.runtime.drawing forks only a single-threaded process); a fresh interpreter, so
+    # no other test's bar is counted.
+    out = subprocess.run([sys.executable, "-c", _BARS_THEN_THREADS], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "1", out

@@ -16,14 +16,19 @@ directly, with five standard normals per star instead of one per measurement. Pa
 rest ``C``; with ``z`` five standard normals
 
     n_p = L_A z[:2],                           L_A L_A' = A (Cholesky),
-    n_q = B' A^-1 n_p + L sqrt(D) z[2:],       L D L' = S = C - B' A^-1 B,
+    n_q = B' A^-1 n_p + L sqrt(D) z[2:],       L D L' = S = C - B' A^-1 B (pivoted),
 
 so ``n_p`` has covariance ``A``, and ``n_q - B' A^-1 n_p`` (what the prior scan's reduction
 keeps of ``b_q``, :mod:`mcsweep.astrometry.prior_scan`) covariance ``S``, independent of
 ``n_p``: ``n`` has covariance ``N``, exactly the distribution of the per-measurement draw.
-A singular ``S`` (one or two transits) has a zero pivot in its null space and no noise there
-(:data:`mcsweep.astrometry.scan_kernel.NULL_PIVOT`). The factors depend on ``N`` alone, so a
-star's noise is the same whatever prior ratio R the scan then uses.
+A singular ``S`` (one or two transits) has zero pivots in its null space and no noise there
+(the LDL' takes the largest remaining diagonal element first, and a pivot at the rounding of
+S's formation counts as zero: :data:`mcsweep.astrometry.scan_kernel.NULL_PIVOT`). The factors
+depend on ``N`` alone, so a star's noise is the same whatever prior ratio R the scan then
+uses. Unlike a draw per measurement, the construction goes through ``A^-1``: its rounding is
+eps cond(A) of N in the worst direction (with AC rows A is well conditioned: a transit's AL
+and AC position derivatives are orthogonal; AL data alone from nearly one scan direction
+make it ill-conditioned, and then the rounding is larger).
 
 :class:`SharedDesignNormals` holds the factors, the weights, the truths and the normals;
 :meth:`~SharedDesignNormals.prior_scan` reduces every star for the prior scan in one

@@ -15,10 +15,13 @@ child forked then could inherit a lock another thread holds), or with one core.
 
 from __future__ import annotations
 
+import gc
 import importlib
 import multiprocessing
 import os
 import pickle
+import select
+import sys
 import threading
 import traceback
 from collections.abc import Callable
@@ -32,8 +35,8 @@ MAX_DRAWING_PROCESSES = 4
 
 def drawing_processes() -> int:
     """How many processes :class:`FigureDrawer` would draw in at once now: 0 where it draws in
-    line (module notes), else twice the cores this process may use (a figure waits for no
-    other to finish; the cores share the figures), at most :data:`MAX_DRAWING_PROCESSES`."""
+    line (module notes), else twice the cores this process may use (a figure is forked while
+    a slower one still draws; the cores share them), at most :data:`MAX_DRAWING_PROCESSES`."""
     if "fork" not in multiprocessing.get_all_start_methods() or threading.active_count() > 1:
         return 0
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
@@ -59,16 +62,24 @@ class FigureDrawer:
     def draw(self, fn: Callable, *args, **kwargs) -> None:
         """Call ``fn(*args, **kwargs)``, which writes a figure file, now or in a child
         process; its return value is dropped."""
-        if self._processes <= 0:
+        if self._processes <= 0 or threading.active_count() > 1:  # a thread may have started since
             fn(*args, **kwargs)
             return
         while len(self._running) >= self._processes:
-            self._reap_oldest()
+            self._reap(block=True)
+        for stream in (sys.stdout, sys.stderr):  # or the child would write it out again
+            stream.flush()
         read, write = os.pipe()
-        pid = os.fork()
+        try:
+            pid = os.fork()
+        except BaseException:
+            os.close(read)
+            os.close(write)
+            raise
         if pid == 0:  # the child: draw, report an error through the pipe, never return
             status = 1
             try:
+                gc.disable()  # no finalizer of the parent's garbage runs here
                 os.close(read)
                 fn(*args, **kwargs)
                 status = 0
@@ -77,25 +88,36 @@ class FigureDrawer:
                 while message:
                     message = message[os.write(write, message):]
             finally:
+                for stream in (sys.stdout, sys.stderr):
+                    try:
+                        stream.flush()
+                    except BaseException:
+                        pass
                 os._exit(status)
         os.close(write)
         self._running[pid] = (read, getattr(fn, "__name__", repr(fn)))
 
-    def _reap_oldest(self) -> None:
-        pid = next(iter(self._running))
-        read, name = self._running.pop(pid)
-        chunks = []
-        with os.fdopen(read, "rb") as pipe:  # to its end first: a long traceback fills the pipe
-            chunks.append(pipe.read())
-        _, status = os.waitpid(pid, 0)
-        code = os.waitstatus_to_exitcode(status)
-        if code != 0:
-            self._failures.append(_failure(b"".join(chunks), f"drawing {name} in process {pid}", code))
+    def _reap(self, *, block: bool) -> None:
+        """Collect the children that have finished; with ``block``, wait until one has."""
+        reads = {read: pid for pid, (read, _) in self._running.items()}
+        # A child's pipe reaches its end when the child exits: read to it first (a long
+        # traceback fills the pipe), then reap; a child leaves the list once reaped.
+        ready, _, _ = select.select(list(reads), [], [], None if block else 0)
+        for read in ready:
+            pid = reads[read]
+            with os.fdopen(os.dup(read), "rb") as pipe:
+                message = pipe.read()
+            _, status = os.waitpid(pid, 0)
+            _, name = self._running.pop(pid)
+            os.close(read)
+            code = os.waitstatus_to_exitcode(status)
+            if code != 0:
+                self._failures.append(_failure(message, f"drawing {name} in process {pid}", code))
 
     def wait(self) -> None:
         """Wait for every figure; raises the first failed figure's exception (module notes)."""
         while self._running:
-            self._reap_oldest()
+            self._reap(block=True)
         failures, self._failures = self._failures, []
         if failures:
             first = failures[0]
@@ -109,32 +131,39 @@ class FigureDrawer:
     def __exit__(self, *exc) -> None:
         if exc[0] is None:
             self.wait()
-        else:  # the report failed: no child outlives it, none is left a zombie
-            for pid, (read, _) in list(self._running.items()):
-                os.close(read)
-                os.waitpid(pid, 0)
-            self._running.clear()
+            return
+        # The report failed (or was interrupted): no child outlives it, none is left a zombie.
+        for pid, (read, _) in list(self._running.items()):
+            for step in (lambda: os.close(read), lambda: os.waitpid(pid, 0)):
+                try:
+                    step()
+                except OSError:  # closed or reaped already (an interrupt mid-way)
+                    pass
+            self._running.pop(pid, None)
 
 
 def _failure_message(exc: BaseException) -> bytes:
-    """What a failed child sends its parent: the exception and its traceback, pickled (the
-    traceback's text alone if the exception does not pickle)."""
+    """What a failed child sends its parent: its traceback's text and, pickled apart, the
+    exception (left out if it does not pickle; a SystemExit is not the parent's to raise)."""
     text = traceback.format_exc()
     try:
-        return pickle.dumps((exc, text))
+        pickled = b"" if isinstance(exc, SystemExit) else pickle.dumps(exc)
     except Exception:
-        return pickle.dumps((None, text))
+        pickled = b""
+    return pickle.dumps((text, pickled))
 
 
 def _failure(message: bytes, what: str, code: int) -> BaseException:
-    """The exception a failed child reported, with its traceback as a note (RuntimeError if
-    it sent none: killed by a signal, or its exception did not pickle)."""
+    """The exception a failed child reported, with its traceback as a note; a RuntimeError
+    with the traceback where there is no exception to raise (killed by a signal, or an
+    exception that does not pickle or unpickle)."""
+    text, exc = "", None
     try:
-        exc, text = pickle.loads(message)
+        text, pickled = pickle.loads(message)
+        exc = pickle.loads(pickled) if pickled else None
     except Exception:
-        exc, text = None, ""
-    if exc is None:
-        exc = RuntimeError(f"{what} failed (exit status {code})" + (f":\n{text}" if text else ""))
-    elif text:
-        exc.add_note(f"{what}:\n{text}")
+        pass
+    if not isinstance(exc, BaseException):
+        return RuntimeError(f"{what} failed (exit status {code})" + (f":\n{text}" if text else ""))
+    exc.add_note(f"{what}:\n{text}")
     return exc

@@ -117,11 +117,12 @@ def executor(conf, *, release_workers: bool = False,
              warm_up: tuple[Callable, object] | None = None) -> Iterator[Callable[[Callable, Iterable], Iterator]]:
     """Context giving ``run(fn, items)``: an iterator of ``fn(item)`` in completion order.
 
-    ``warm_up``: ``(fn, item)`` to run once per local worker as the context opens, so the
-    workers start (import, build what the tasks share) while this process goes on with what
-    comes before the first ``run``; their results are dropped, the first ``run`` waits for them
-    (even with no task). Only loky's local workers are warmed: in this process and on Dask it is
-    not run.
+    ``warm_up``: ``(fn, item)``, run as the context opens as many times as there are local
+    workers (loky hands one to each idle worker as it starts; that is likely, not promised), so
+    the workers start (import, build what the tasks share) while this process goes on with what
+    comes before the first ``run``; their results are dropped, and iterating the first ``run``
+    (or leaving the context) waits for them. Only loky's local workers are warmed: in this
+    process and on Dask it is not run.
 
     ``release_workers``: on leaving, end the local worker processes (joblib keeps loky's
     workers for reuse) so they do not hold their memory through what comes next; they are
@@ -189,6 +190,10 @@ def executor(conf, *, release_workers: bool = False,
         if release_workers and conf.backend == "loky":
             _shutdown_loky(kill=True)
             _close(warming)
+        else:  # kept for reuse: a warm-up left running would abort their executor when collected
+            while warming:
+                for _ in warming.pop():
+                    pass
 
 
 def _close(generators: list) -> None:

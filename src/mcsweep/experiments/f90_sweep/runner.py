@@ -99,6 +99,22 @@ def showcase_cell(config) -> Cell:
     return Cell(dataclasses.replace(d, index=-1), sc.g_min, sc.g_max)
 
 
+def _import_report_modules() -> None:
+    """Import the report's modules (matplotlib, the prior; a second) while the workers run the
+    cells, when this process only waits, rather than after them; without the collector (no
+    callback of another library runs meanwhile to catch a Ctrl-C in it and swallow it). A
+    failure is left to the report, which imports them again."""
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        from . import section  # noqa: F401
+    except Exception:
+        pass
+    finally:
+        if enabled:
+            gc.enable()
+
+
 def direction_transits(config, directions: list[Direction], law: ScanningLaw | None = None
                        ) -> dict[int, pd.DataFrame]:
     """FoV transits of every direction, keyed by Direction.index (``law``: the configured
@@ -128,25 +144,26 @@ def run_sweep(config, raw_cfg: dict, run_dir: Path, *, prov) -> Path:
         source = population_source(pop)
     settings = build_settings(config)
     _check_colours(config, source)
-    # The workers start (imports, the population source, the compiled passes) while this
-    # process computes the transits; release_workers: their memory is free for the aggregate
-    # and the report.
-    with executor(config.execution, release_workers=True, warm_up=(warm_worker, (pop, settings))) as run:
-        law = _scanning_law(config, prov)
-        cells = enumerate_cells(config.sky, config.magnitudes, config.prior_model.colour_edges)
-        keep = config.resume.accept_other_versions
-        store = ResultStore(run_dir / CELLS_DIR, prov.hash, accept_other_versions=keep)
-        show = showcase_cell(config) if config.experiment.showcase.enabled else None
-        show_store = ResultStore(run_dir / SHOWCASE_DIR, prov.hash, accept_other_versions=keep)
-        for st in (store, show_store):  # run start: no other writer may be active in run_dir
-            st.remove_stale_temporaries()
+    law = _scanning_law(config, prov)
+    cells = enumerate_cells(config.sky, config.magnitudes, config.prior_model.colour_edges)
+    keep = config.resume.accept_other_versions
+    store = ResultStore(run_dir / CELLS_DIR, prov.hash, accept_other_versions=keep)
+    show = showcase_cell(config) if config.experiment.showcase.enabled else None
+    show_store = ResultStore(run_dir / SHOWCASE_DIR, prov.hash, accept_other_versions=keep)
+    for st in (store, show_store):  # run start: no other writer may be active in run_dir
+        st.remove_stale_temporaries()
 
-        # Cells kept from an earlier run, read and verified once (the aggregate reuses them).
-        kept = {c.cell_id: t for c in cells if (t := store.read_table(c.cell_id)) is not None}
-        todo = [c for c in cells if c.cell_id not in kept]
+    # Cells kept from an earlier run, read and verified once (the aggregate reuses them).
+    kept = {c.cell_id: t for c in cells if (t := store.read_table(c.cell_id)) is not None}
+    todo = [c for c in cells if c.cell_id not in kept]
+    show_todo = show is not None and (show_store.read(show.cell_id) is None
+                                      or show_store.read(show.cell_id + "_scatter") is None)
+    # The workers start (imports, the population source, the compiled passes) while this
+    # process computes the transits, if there are cells to compute; release_workers: their
+    # memory is free for the aggregate and the report.
+    warm = (warm_worker, (pop, settings)) if todo or show_todo else None
+    with executor(config.execution, release_workers=True, warm_up=warm) as run:
         radii = _catalogue_radii(source, todo + ([show] if show is not None else []), settings)
-        show_todo = show is not None and (show_store.read(show.cell_id) is None
-                                          or show_store.read(show.cell_id + "_scatter") is None)
         # Inputs are valid: claim the run directory for this config before any cell is written,
         # so a killed run is resumed (and guarded against other configs) like a finished one.
         prov.write(with_manifest=False)
@@ -171,15 +188,7 @@ def run_sweep(config, raw_cfg: dict, run_dir: Path, *, prov) -> Path:
                         fresh[cell_id] = data
                 bar.update(len(done))
                 if not report_imported:
-                    # This process only waits while the workers run the cells: it imports the
-                    # report's modules (matplotlib, the prior; a second) now, not after them,
-                    # without the collector (no callback of another library runs meanwhile
-                    # to catch a Ctrl-C in it and swallow it).
-                    gc.disable()
-                    try:
-                        from . import section  # noqa: F401
-                    finally:
-                        gc.enable()
+                    _import_report_modules()
                     report_imported = True
             bar.close()
     with prov.stage("aggregate"):

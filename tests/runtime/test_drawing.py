@@ -125,3 +125,14 @@ def test_preloaded_modules_are_imported_before_the_children_fork(tmp_path, monke
     with FigureDrawer(processes=2, preload=("colorsys",)) as drawer:
         assert "colorsys" in sys.modules
         drawer.draw(_write_pid, tmp_path / "fig.txt")
+
+
+def test_an_automatic_drawer_draws_in_line_once_a_thread_runs(tmp_path, monkeypatch):
+    import mcsweep.runtime.drawing as drawing
+
+    monkeypatch.setattr(drawing.threading, "active_count", lambda: 1)
+    drawer = FigureDrawer()  # automatic: forks while this process has one thread
+    monkeypatch.setattr(drawing.threading, "active_count", lambda: 2)
+    with drawer:
+        drawer.draw(_write_pid, tmp_path / "fig.txt")
+        assert int((tmp_path / "fig.txt").read_text()) == os.getpid()

@@ -46,13 +46,15 @@ def drawing_processes() -> int:
 class FigureDrawer:
     """Runs figure-drawing calls in forked processes (module notes); use as a context.
 
-    ``processes``: how many at once (None: :func:`drawing_processes`; 0 draws in line).
+    ``processes``: how many at once (None: :func:`drawing_processes`, and in line whenever a
+    thread has started since; 0 draws in line).
     ``preload``: modules to import here before the first child is forked, so that no child
     imports them again (matplotlib's pyplot: half a second each).
     """
 
     def __init__(self, processes: int | None = None, *, preload: tuple[str, ...] = ()):
         self._processes = drawing_processes() if processes is None else int(processes)
+        self._watch_threads = processes is None  # an explicit number is the caller's judgement
         if self._processes > 0:
             for name in preload:
                 importlib.import_module(name)
@@ -62,7 +64,7 @@ class FigureDrawer:
     def draw(self, fn: Callable, *args, **kwargs) -> None:
         """Call ``fn(*args, **kwargs)``, which writes a figure file, now or in a child
         process; its return value is dropped."""
-        if self._processes <= 0 or threading.active_count() > 1:  # a thread may have started since
+        if self._processes <= 0 or (self._watch_threads and threading.active_count() > 1):  # one started since
             fn(*args, **kwargs)
             return
         while len(self._running) >= self._processes:

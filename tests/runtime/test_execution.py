@@ -7,6 +7,7 @@ import platform
 import sys
 
 import pytest
+from joblib import wrap_non_picklable_objects
 
 from mcsweep.runtime.execution import executor
 from mcsweep.command.schema import ExecutionConf
@@ -66,10 +67,14 @@ def test_a_worker_reuses_the_memory_of_freed_arrays():
     assert faults["keep"] < 100
 
 
+# Sent to loky's workers by value: a worker cannot import this test module (the tests are
+# not a package on its path in a fresh clone's virtualenv).
+@wrap_non_picklable_objects
 def _mark_worker(directory: str) -> None:
     open(os.path.join(directory, str(os.getpid())), "w").close()
 
 
+@wrap_non_picklable_objects
 def _pid(_: int) -> int:
     return os.getpid()
 

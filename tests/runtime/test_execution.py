@@ -85,7 +85,9 @@ def test_warm_up_runs_on_the_workers_the_tasks_then_use(tmp_path):
         used = set(run(_pid, range(8)))
     warmed = {int(p.name) for p in tmp_path.iterdir()}
     assert warmed and os.getpid() not in warmed
-    assert used <= warmed  # the tasks ran on the workers warmed before them, none restarted
+    # The tasks ran on the executor the warm-up started (not restarted: a restart would give all
+    # new workers); which worker took which warm-up is loky's choice (both may go to one).
+    assert used & warmed
 
 
 def test_warm_up_is_not_run_in_process_and_leaves_no_warning(tmp_path, recwarn, capfd):

@@ -244,15 +244,11 @@ def reduce_normals(N, b, r_, pivot, x0, ainv, g, c, lam, ok):
         _reduce_block(Nb, bb, m, r_, pivot, w, lo, x0, ainv, g, c, lam, ok)
 
 
-#: The upper triangle of a symmetric 5 x 5 matrix, in the order :func:`_upper` lists it.
-_UPPER = ((0, 0), (0, 1), (1, 1), (0, 2), (0, 3), (0, 4), (1, 2), (1, 3), (1, 4), (2, 2), (3, 3), (4, 4),
-          (2, 3), (2, 4), (3, 4))
-
-
 @numba.njit(inline="always")
 def _upper(nu, q):
-    """Block ``q``'s matrix ``nu[q]`` as the 15-tuple of :data:`_UPPER` (loads the loop over
-    stars does not repeat)."""
+    """Block ``q``'s matrix ``nu[q]`` as its upper triangle, the 15-tuple (00, 01, 11, 02, 03,
+    04, 12, 13, 14, 22, 33, 44, 23, 24, 34) that the per-star helpers index (loads the loop
+    over stars does not repeat)."""
     m = nu[q]
     return (m[0, 0], m[0, 1], m[1, 1], m[0, 2], m[0, 3], m[0, 4], m[1, 2], m[1, 3], m[1, 4], m[2, 2], m[3, 3],
             m[4, 4], m[2, 3], m[2, 4], m[3, 4])
@@ -260,7 +256,7 @@ def _upper(nu, q):
 
 @numba.njit(inline="always")
 def _element(e0, e1, i, w0sq, w1sq, two):
-    # Element i of _UPPER of a star's normal matrix, summed over the blocks from zero as
+    # Element i of _upper's order of a star's normal matrix, summed over the blocks from zero as
     # reduce_normals' callers form it (the same value bit for bit, signed zeros included).
     acc = 0.0 + e0[i] * w0sq
     return acc + e1[i] * w1sq if two else acc
@@ -269,7 +265,7 @@ def _element(e0, e1, i, w0sq, w1sq, two):
 @numba.njit(inline="always")
 def _signal(e0, e1, i2, i3, i4, x_plx, x_pmra, x_pmdec, w0sq, w1sq, two):
     # An element of a star's noise-free right-hand side N x: per block, the elements i2, i3, i4
-    # of _UPPER (the row's parallax and proper-motion columns) times the truth.
+    # of _upper's order (the row's parallax and proper-motion columns) times the truth.
     acc = 0.0 + (e0[i2] * x_plx + e0[i3] * x_pmra + e0[i4] * x_pmdec) * w0sq
     if two:
         acc = acc + (e1[i2] * x_plx + e1[i3] * x_pmra + e1[i4] * x_pmdec) * w1sq
@@ -335,7 +331,7 @@ def _semidefinite_noise(s00, s11, s22, s01, s02, s12, c0, c1, c2, za, zb, zc):
 def _star_noise(nn, z, pivot):
     """The noise of a star's right-hand side, Gaussian of covariance N, from five standard
     normals ``z`` (module :mod:`~mcsweep.astrometry.shared_design`); ``nn``: N's upper
-    triangle in the order of :data:`_UPPER`. Zero where the position block is singular."""
+    triangle in the order of :func:`_upper`. Zero where the position block is singular."""
     n00, n01, n11, n02, n03, n04, n12, n13, n14, n22, n33, n44, n23, n24, n34 = nn
     z0, z1, z2, z3, z4 = z
     good, i0, i1, i2 = _position_inverse(n00, n01, n01, n11, pivot)

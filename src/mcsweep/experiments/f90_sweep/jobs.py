@@ -13,7 +13,7 @@ from functools import lru_cache
 
 from ...population import make_source
 from ...runtime.execution import keep_freed_arrays
-from .pencil_beam import run_cell
+from .pencil_beam import run_cell, transit_columns
 
 __all__ = ["population_key", "population_source", "warm_worker", "cell_task", "direction_g_jobs"]
 
@@ -80,9 +80,14 @@ def cell_task(job):
 
 def direction_g_jobs(cells, transits, pop_key, settings, store, radii) -> list[tuple]:
     """One job per direction x G bin: its cells in the order given (a resumed run's kept cells
-    left out)."""
+    left out), with the direction's :func:`~.pencil_beam.transit_columns` (made once here)."""
     groups: dict[tuple, list] = {}
     for c in cells:
         groups.setdefault(c.key[:4], []).append(c)
-    return [(group, transits[group[0].direction.index], pop_key, settings, store, False,
+    columns: dict[int, dict] = {}
+    for group in groups.values():
+        index = group[0].direction.index
+        if index not in columns:
+            columns[index] = transit_columns(transits[index])
+    return [(group, columns[group[0].direction.index], pop_key, settings, store, False,
              [radii.get(c.cell_id) for c in group]) for group in groups.values()]

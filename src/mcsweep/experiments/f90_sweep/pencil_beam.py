@@ -46,6 +46,7 @@ __all__ = [
     "prior_curve",
     "scan_curve",
     "run_cell",
+    "transit_columns",
     "cell_stars",
     "cell_normals",
     "cell_mean",
@@ -173,8 +174,12 @@ def cell_radius(source, cell, s: CellSettings) -> tuple[float, float]:
                        min_stars=s.min_stars, max_radius_deg=s.max_radius_deg)
 
 
-def _transit_columns(transits: pd.DataFrame) -> dict:
-    """The columns the cases need, as numpy arrays (extracted once per cell)."""
+def transit_columns(transits: pd.DataFrame | dict) -> dict:
+    """The columns of a direction's transits the cases need, as numpy arrays; what
+    :func:`run_cell` takes in place of the table (the sweep makes them once per direction, not
+    per cell: the observer positions cost 0.9 ms). Given such a dict, returns it."""
+    if isinstance(transits, dict):
+        return transits
     return {"group": transits["group"].to_numpy(), "tcb_jd": transits["tcb_jd"].to_numpy(float),
             "scan_angle_deg": transits["scan_angle_deg"].to_numpy(float),
             "obs_au": observer_position_au(transits)}
@@ -184,10 +189,10 @@ def case_geometry(transits: pd.DataFrame | dict, groups: tuple[int, ...]) -> Cas
     """Transits of the requested distinct-transit groups (negative = from the last).
 
     ``transits``: the FoV transits of a direction, or the arrays of
-    :func:`_transit_columns` made from them. Returns None when the direction has fewer
+    :func:`transit_columns` made from them. Returns None when the direction has fewer
     groups than the case asks for.
     """
-    cols = transits if isinstance(transits, dict) else _transit_columns(transits)
+    cols = transit_columns(transits)
     group = cols["group"]
     available = np.unique(group)
     try:
@@ -355,15 +360,15 @@ def prior_curve(n0, b0, priors_mas, s: CellSettings, *, method: str = "scan", re
     return (table, inside_flags, valid_flags) if return_inside else table
 
 
-def run_cell(cell, transits: pd.DataFrame, source, s: CellSettings,
+def run_cell(cell, transits: pd.DataFrame | dict, source, s: CellSettings,
              *, keep_scatter: bool = False, radius_deg: float | None = None,
              grid_statistics: bool | None = None, draws: dict | None = None, arrow: bool = False,
              ) -> tuple[pd.DataFrame | pa.Table, pd.DataFrame | None]:
     """Run one cell; returns its curve table and (optionally) per-star errors (Fig. 2).
 
     ``cell`` is a :class:`mcsweep.experiments.f90_sweep.cells.Cell`; ``transits`` the FoV transits of
-    its direction (columns of :func:`mcsweep.scanning.find_transits`). ``radius_deg``
-    skips the beam widening when the caller has already computed it (:func:`cell_radius`).
+    its direction (columns of :func:`mcsweep.scanning.find_transits`, or :func:`transit_columns` of
+    them). ``radius_deg`` skips the beam widening when the caller has already computed it (:func:`cell_radius`).
     ``grid_statistics``: compute ``p_error_mas`` and ``median_semi_major_mas`` at every
     prior of the grid (True) or only at sigma_F90 (False; NaN on the grid rows); None
     follows ``s.grid_statistics``. The fraction inside is always on the whole grid.
@@ -377,12 +382,13 @@ def run_cell(cell, transits: pd.DataFrame, source, s: CellSettings,
     # a list, so adding, removing or reordering cases or cells changes no other result.
     radius = cell_radius(source, cell, s)[0] if radius_deg is None else radius_deg
     stars = cell_stars(cell, source, s, radius, _STAR_STREAM, draws)
+    columns = transit_columns(transits)
     grid = np.asarray(s.prior_grid_mas, float)
     stats_on_grid = s.grid_statistics if grid_statistics is None else bool(grid_statistics)
     base = dict(cell_id=cell.cell_id, l_deg=d.l_deg, b_deg=d.b_deg, ra_deg=d.ra_deg,
                 dec_deg=d.dec_deg, g_min=cell.g_min, g_max=cell.g_max, n_stars=len(stars),
                 n_in_cone=int(stars.attrs.get("n_in_cone", len(stars))), radius_deg=radius,
-                n_groups=int(transits["group"].nunique()) if len(transits) else 0)
+                n_groups=len(np.unique(columns["group"])))
     if s.colour_axis:
         base.update(bp_rp_min=np.nan if cell.bp_rp_min is None else cell.bp_rp_min,
                     bp_rp_max=np.nan if cell.bp_rp_max is None else cell.bp_rp_max)
@@ -391,7 +397,6 @@ def run_cell(cell, transits: pd.DataFrame, source, s: CellSettings,
         centre = cell_mean(cell_stars(cell, source, s, radius, _MEAN_STREAM, draws), d)
         base.update(centre)
     solved = stars if centre is None else _shifted(stars, centre)
-    columns = _transit_columns(transits)
     normals = _case_normals(cell, columns, solved, s) if len(stars) >= _min_stars(cell) else {}
     scans = {case: nrm.prior_scan(s.ratio_R) for case, nrm in normals.items()}
     curves, f90_patterns = {}, None
@@ -553,7 +558,7 @@ def _quasars(cell, columns: dict, stars: pd.DataFrame, centre: dict, f90: float,
 
 def _case_normals(cell, columns: dict, stars: pd.DataFrame, s: CellSettings) -> dict:
     """The normal equations of every observation case with transits (and stars), by case;
-    ``columns``: the direction's transits as :func:`_transit_columns` gives them."""
+    ``columns``: the direction's transits as :func:`transit_columns` gives them."""
     normals = {}
     weights_and_truth = _weights_and_truth(stars, s) if len(stars) else None
     for case, groups in s.cases.items():

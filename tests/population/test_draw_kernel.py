@@ -144,3 +144,18 @@ def test_a_draw_in_one_piece_is_the_chunked_draw(models):
     drawn = model.draw_cone(*args, np.random.default_rng(1), max_stars=n, min_draw=n)
     assert len(table) == n
     pd.testing.assert_frame_equal(drawn.stars(), table, check_exact=True)
+
+
+@pytest.mark.parametrize("name", ["default", "r03_5"])
+def test_a_draw_without_colours_is_the_draw_with_them_but_bp_rp(models, name):
+    # the colour stage draws from a stream of its own: skipping it (the sweep's colour-blind
+    # cells) leaves every other column as it was, bit for bit, over more than one chunk too
+    model = models[name]
+    n = model.chunk_stars + 3000
+    for i, (l, b, g) in enumerate([(0.0, 70.5, 19.0), (120.0, 5.0, 8.0)]):
+        args = (l, b, 1.0, g - 0.5, g + 0.5)
+        table = model.sample_cone(*args, np.random.default_rng(i), max_stars=n, min_draw=n)
+        plain = model.sample_cone(*args, np.random.default_rng(i), max_stars=n, min_draw=n, colours=False)
+        assert plain["bp_rp"].isna().all() and table["bp_rp"].notna().all()
+        pd.testing.assert_frame_equal(plain.drop(columns="bp_rp"), table.drop(columns="bp_rp"), check_exact=True)
+        assert plain.attrs == table.attrs

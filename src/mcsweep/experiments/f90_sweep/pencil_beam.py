@@ -434,7 +434,7 @@ def cell_stars(cell, source, s: CellSettings, radius: float, stream: int,
     """
     if not cell.has_colour:
         rng = np.random.default_rng(np.random.SeedSequence(s.seed, spawn_key=(*cell.key, stream)))
-        return _draw_cone(cell, source, s, radius, rng)
+        return _draw_cone(cell, source, s, radius, rng, colours=False)
     slot = (cell.key[:4], stream, radius)
     batches = draws.get(slot) if draws is not None else None
     if batches is None:
@@ -457,9 +457,14 @@ def cell_stars(cell, source, s: CellSettings, radius: float, stream: int,
     return out
 
 
-def _draw_cone(cell, source, s: CellSettings, radius: float, rng: np.random.Generator) -> pd.DataFrame:
+def _draw_cone(cell, source, s: CellSettings, radius: float, rng: np.random.Generator, *,
+               colours: bool = True) -> pd.DataFrame:
+    """The stars of a cell's beam and G bin; without ``colours`` from a source that can skip
+    them, their BP-RP may be NaN (a colour-blind cell never reads it)."""
     d = cell.direction
     more = {"min_draw": s.min_stars} if getattr(source, "draws_from_density", False) else {}
+    if not colours and getattr(source, "colours_optional", False):
+        more["colours"] = False
     return source.sample_cone(d.l_deg, d.b_deg, radius, cell.g_min, cell.g_max, rng, max_stars=s.max_stars, **more)
 
 

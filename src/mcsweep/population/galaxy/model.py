@@ -398,8 +398,11 @@ class GalaxyModel:
     #: More stars of a cone can be drawn from the model's density than one realisation
     #: holds (``min_draw`` of :meth:`sample_cone`); catalogues cannot do this.
     draws_from_density = True
+    #: :meth:`sample_cone` can skip the colours (``colours=False``).
+    colours_optional = True
 
-    def sample_cone(self, l_deg, b_deg, radius_deg, g_min, g_max, rng, max_stars=None, *, min_draw=None):
+    def sample_cone(self, l_deg, b_deg, radius_deg, g_min, g_max, rng, max_stars=None, *, min_draw=None,
+                    colours=True):
         """Draw the stars of a cone and G range.
 
         Parameters
@@ -420,13 +423,19 @@ class GalaxyModel:
             draws from the same density, so the cone keeps its size (the pencil-beam rule
             of ``mcsweep.experiments.f90_sweep.pencil_beam``). ``n_in_cone`` stays the count of
             one realisation.
+        colours : bool, keyword-only
+            False: skip the colour stage (``bp_rp`` is NaN), for a caller that does not use the
+            colours (the sweep's colour-blind cells; 2 ms of a 20 000-star draw). The colours
+            draw from a stream of their own (module notes), so every other column is the same
+            bit for bit.
 
         Returns
         -------
         pandas.DataFrame
             Columns ``ra, dec, l, b`` [deg], ``parallax`` [mas], ``pmra, pmdec`` [mas/yr],
             ``phot_g_mean_mag`` [mag], ``distance_pc`` [pc], ``population`` (categorical),
-            ``bp_rp`` [mag] (Gaia BP - RP with reddening, ``mcsweep.population.galaxy.colours``).
+            ``bp_rp`` [mag] (Gaia BP - RP with reddening, ``mcsweep.population.galaxy.colours``;
+            NaN with ``colours=False``).
             ``attrs["n_in_cone"]`` is the number of stars in the cone (before the cap) and
             ``attrs["expected_count"]`` its expectation.
 
@@ -442,7 +451,7 @@ class GalaxyModel:
         """
         q, (los, shape, cum), n_in, n, root = self._plan(l_deg, b_deg, radius_deg, g_min, g_max, rng, max_stars,
                                                          min_draw)
-        df = self._draw(los, shape, cum, q.g_min, q.g_max, n, root)
+        df = self._draw(los, shape, cum, q.g_min, q.g_max, n, root, colours=bool(colours))
         df.attrs["n_in_cone"] = n_in
         df.attrs["expected_count"] = float(cum[-1])
         return df
@@ -548,7 +557,7 @@ class GalaxyModel:
         return self.sample_cone(0.0, 90.0, sky.WHOLE_SKY_DEG, g_min, g_max, rng, max_stars)
 
     # ----------------------------------------------------------------- drawing
-    def _draw(self, los, shape, cum, g_min, g_max, n, root):
+    def _draw(self, los, shape, cum, g_min, g_max, n, root, *, colours=True):
         cols = {c: np.empty(n) for c in COLUMNS[:-1] + (COLOUR_COLUMN,)}
         codes = np.empty(n, dtype=np.int64)
         n_blocks = -(-n // DRAW_BLOCK_STARS)
@@ -556,7 +565,7 @@ class GalaxyModel:
         for first in range(0, n_blocks, per_chunk):
             start = first * DRAW_BLOCK_STARS
             stop = min(n, (first + per_chunk) * DRAW_BLOCK_STARS)
-            uni, nor, u_colour = self._random_numbers(n, start, stop, root)
+            uni, nor, u_colour = self._random_numbers(n, start, stop, root, colours=colours)
             part, part_codes = self._stars(los, shape, cum, g_min, g_max, uni, nor, u_colour)
             for c, v in part.items():
                 cols[c][start:stop] = v
@@ -564,20 +573,22 @@ class GalaxyModel:
         return self._frame(cols, codes)
 
     @staticmethod
-    def _random_numbers(n, start, stop, root):
+    def _random_numbers(n, start, stop, root, *, colours=True):
         """The uniform (5, m), normal (3, m) and colour (m,) numbers of stars ``start:stop`` of
-        ``n`` (``start`` on a block boundary), block by block from their own streams."""
+        ``n`` (``start`` on a block boundary), block by block from their own streams; without
+        ``colours`` the colour numbers are None (their stream is not drawn)."""
         uni = np.empty((5, stop - start))
         nor = np.empty((3, stop - start))
-        u_colour = np.empty(stop - start)
+        u_colour = np.empty(stop - start) if colours else None
         for i in range(start // DRAW_BLOCK_STARS, -(-stop // DRAW_BLOCK_STARS)):
             a = i * DRAW_BLOCK_STARS - start
             m = min(DRAW_BLOCK_STARS, n - i * DRAW_BLOCK_STARS)
             gen = np.random.default_rng(np.random.SeedSequence(root, spawn_key=(i,)))
             uni[:, a:a + m] = gen.random((5, m))
             nor[:, a:a + m] = gen.standard_normal((3, m))
-            u_colour[a:a + m] = np.random.default_rng(
-                np.random.SeedSequence(root, spawn_key=(i, COLOUR_STREAM))).random(m)
+            if colours:
+                u_colour[a:a + m] = np.random.default_rng(
+                    np.random.SeedSequence(root, spawn_key=(i, COLOUR_STREAM))).random(m)
         return uni, nor, u_colour
 
     def _stars(self, los, shape, cum, g_min, g_max, uni, normals, u_colour):
@@ -586,7 +597,8 @@ class GalaxyModel:
 
     def _first_stage(self, los, shape, cum, g_min, g_max, uni, u_colour) -> dict:
         """Each star's grid cell, component, distance, extinction, M_G and colour: what its
-        BP-RP needs (uniform numbers 0-2 and the colour stream's)."""
+        BP-RP needs (uniform numbers 0-2 and the colour stream's; ``u_colour`` None: no colour,
+        BP-RP NaN)."""
         # searchsorted is much faster on sorted queries (cache); the result is unchanged
         target = uni[0] * cum[-1]
         order = np.argsort(target)
@@ -606,9 +618,12 @@ class GalaxyModel:
 
         m_g = np.empty(mu.size)
         absolute_magnitudes(k, mu, a_g, uni[2], float(g_min), float(g_max), self.lf.mg, self.lf.cdf, m_g)
-        bp_rp0, part = self.colours.intrinsic(k, m_g, u_colour)
-        upper_hrd = (part == 1) if self.colours.upper_hrd_law else None
-        bp_rp = bp_rp0 + reddening_bp_rp(bp_rp0, a_g / float(self.params["ag_over_av"]), upper_hrd)
+        if u_colour is None:
+            bp_rp = np.full(m_g.size, np.nan)
+        else:
+            bp_rp0, part = self.colours.intrinsic(k, m_g, u_colour)
+            upper_hrd = (part == 1) if self.colours.upper_hrd_law else None
+            bp_rp = bp_rp0 + reddening_bp_rp(bp_rp0, a_g / float(self.params["ag_over_av"]), upper_hrd)
         return dict(cell=cell, k=k, d_pc=d_pc, mu=mu, a_g=a_g, m_g=m_g, bp_rp=bp_rp)
 
     def _second_stage(self, los, g_min, g_max, first: dict, u_cos, u_psi, normals):

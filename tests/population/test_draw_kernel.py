@@ -35,6 +35,15 @@ def test_interp_is_numpys_at_nodes_ends_ties_and_nan():
     # inverted (a cdf with flat steps as the abscissa), as the luminosity functions are sampled
     y = rng.uniform(fp[0] - 0.1, fp[-1] + 0.1, 5000)
     np.testing.assert_array_equal(np.array([interp(v, fp, xp) for v in y]), np.interp(y, fp, xp))
+    # with a step (the luminosity functions' evenly spaced nodes): numpy's interval too, whether
+    # the step is the nodes' spacing, about it, or far from it (uneven nodes, ties)
+    even = np.linspace(-12.0, 19.0, 621)
+    x_even = np.r_[rng.uniform(-13, 20, 5000), even, even + 1e-15, even - 1e-15, [np.nan, -np.inf, np.inf]]
+    for nodes, values, step in [(even, fp[0] + np.sort(rng.uniform(0, 9, even.size)), 0.05),
+                                (even, np.sin(even), 0.05 * (1 + 1e-9)), (xp, fp, 0.05), (xp, fp, 3.0)]:
+        xs = x_even if nodes is even else x
+        got = np.array([interp(v, nodes, values, step) for v in xs])
+        np.testing.assert_array_equal(got, np.interp(xs, nodes, values))
 
 
 def _absolute_magnitudes_numpy(lf, k, mu, a_g, u, g_min, g_max):

@@ -22,9 +22,25 @@ _jit = numba.njit(cache=True, nogil=True, fastmath=False, error_model="numpy", b
 
 
 @numba.njit(inline="always")
-def interp(x, xp, fp):
+def _last_node_at_or_below(x, xp):
+    """The last index j with ``xp[j] <= x``, for ``xp`` sorted (ties allowed) and
+    ``xp[0] <= x``: a bisection whose step is a select, not a branch (the table's nodes are
+    read in an order the branch predictor cannot learn; the index found is the same)."""
+    base = 0
+    size = xp.shape[0]
+    while size > 1:
+        half = size >> 1
+        base = base + half if xp[base + half] <= x else base
+        size -= half
+    return base
+
+
+@numba.njit(inline="always")
+def interp(x, xp, fp, step=0.0):
     """``np.interp(x, xp, fp)`` of one value, for ``xp`` sorted (ties allowed) with at least
-    two nodes, as every table of the model is (numpy treats a single node apart)."""
+    two nodes, as every table of the model is (numpy treats a single node apart). ``step`` > 0:
+    the nodes are about evenly spaced by it, and the interval is found from it and checked
+    against the nodes (the same interval as numpy's bisection, in two or three reads)."""
     n = xp.shape[0]
     if np.isnan(x):
         return x
@@ -32,15 +48,14 @@ def interp(x, xp, fp):
         return fp[n - 1]
     if x < xp[0]:
         return fp[0]
-    lo = 0
-    hi = n
-    while lo < hi:  # the last node <= x
-        mid = lo + ((hi - lo) >> 1)
-        if x >= xp[mid]:
-            lo = mid + 1
-        else:
-            hi = mid
-    j = lo - 1
+    if step > 0.0:
+        j = min(max(np.intp((x - xp[0]) / step), 0), n - 1)
+        while j > 0 and xp[j] > x:
+            j -= 1
+        while j < n - 1 and xp[j + 1] <= x:
+            j += 1
+    else:
+        j = _last_node_at_or_below(x, xp)
     if j == n - 1 or xp[j] == x:
         return fp[j]
     slope = (fp[j + 1] - fp[j]) / (xp[j + 1] - xp[j])
@@ -57,11 +72,13 @@ def absolute_magnitudes(k, mu, a_g, u, g_min, g_max, mg, cdf, out):
     """Fill ``out`` with each star's M_G: its component's luminosity function ``cdf[k]`` (on
     the nodes ``mg``) restricted to the apparent range [g_min, g_max) at distance modulus
     ``mu`` and extinction ``a_g``, inverted at the uniform number ``u``."""
+    # the nodes' mean spacing: an evenly spaced table's interval in two or three reads (interp)
+    step = (mg[mg.shape[0] - 1] - mg[0]) / (mg.shape[0] - 1)
     for s in range(out.shape[0]):
         row = cdf[k[s]]
         off = mu[s] + a_g[s]
-        c_lo = interp(g_min - off, mg, row)
-        c_hi = interp(g_max - off, mg, row)
+        c_lo = interp(g_min - off, mg, row, step)
+        c_hi = interp(g_max - off, mg, row, step)
         out[s] = interp(c_lo + u[s] * (c_hi - c_lo), row, mg)
 
 
@@ -83,17 +100,13 @@ def intrinsic_colours(k, m_g, u, mg, density, shift, seq_mv, seq_mg, seq_c, gian
         kk = k[s]
         # the bin of m: the last node <= m (NaN after every node, as numpy sorts it), kept
         # within the table
-        lo = 0
-        hi = mg.shape[0]
         if np.isnan(m):
-            lo = hi
-        while lo < hi:
-            mid = lo + ((hi - lo) >> 1)
-            if m >= mg[mid]:
-                lo = mid + 1
-            else:
-                hi = mid
-        i = min(max(lo - 1, 0), n_bins - 1)
+            last = mg.shape[0] - 1
+        elif m < mg[0]:
+            last = -1
+        else:
+            last = _last_node_at_or_below(m, mg)
+        i = min(max(last, 0), n_bins - 1)
         w0 = density[kk, 0, i]
         w1 = density[kk, 1, i]
         c0 = w0

@@ -272,3 +272,26 @@ def test_scan_arrays_counts_and_patterns_are_those_of_the_flags(table1, n_priors
     np.testing.assert_array_equal(arrays["n_valid"], valid.sum(axis=1))
     assert patterns == flag_patterns(inside, valid)
     assert pb.scan_arrays(scan, priors, s, statistics=False)[1] is None
+
+
+def test_a_worker_warmed_with_the_parents_model_draws_the_cells_stars(table1, tmp_path):
+    # The warm-up ships the parent's galaxy model (its pickle) instead of building it again in
+    # the worker: the worker's source is then that model, and a cell drawn from it is the cell
+    # drawn from a freshly built model, bit for bit. A catalogue is not shipped.
+    import pickle
+
+    from mcsweep.experiments.f90_sweep import jobs
+    from mcsweep.population.catalogue import CatalogueSource
+
+    config, cell, transits = table1
+    settings = build_settings(config)
+    key = ("test-shipped-model", id(tmp_path))
+    parent = GalaxyModel()
+    shipped = pickle.loads(pickle.dumps(jobs.shipped_source(parent)))
+    jobs.warm_worker((key, settings, shipped))
+    assert jobs.population_source(key) is shipped
+    assert jobs.population_source(key, GalaxyModel()) is shipped  # the first one kept
+    got, _ = run_cell(cell, transits, jobs.population_source(key), settings)
+    want, _ = run_cell(cell, transits, GalaxyModel(), settings)
+    pd.testing.assert_frame_equal(got, want, check_exact=True)
+    assert jobs.shipped_source(CatalogueSource.__new__(CatalogueSource)) is None

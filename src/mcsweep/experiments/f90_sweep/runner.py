@@ -28,7 +28,7 @@ from ...astrometry.noise_models import noise_model
 from ...errors import UserInputError
 from .colour_fit import colour_tables, means_table
 from .fit import colour_blind, f90_table, fit_all, fit_tables, prior_maps_for_run
-from .jobs import cell_task, direction_g_jobs, population_key, population_source, warm_worker
+from .jobs import cell_task, direction_g_jobs, population_key, population_source, shipped_source, warm_worker
 from .pencil_beam import CellSettings, cell_radius
 from ...population import CatalogueSource
 from ...prior.maps import MAPS_FILE
@@ -161,7 +161,7 @@ def run_sweep(config, raw_cfg: dict, run_dir: Path, *, prov) -> Path:
     # The workers start (imports, the population source, the compiled passes) while this
     # process computes the transits, if there are cells to compute; release_workers: their
     # memory is free for the aggregate and the report.
-    warm = (warm_worker, (pop, settings)) if todo or show_todo else None
+    warm = (warm_worker, (pop, settings, shipped_source(source))) if todo or show_todo else None
     with executor(config.execution, release_workers=True, warm_up=warm) as run:
         radii = _catalogue_radii(source, todo + ([show] if show is not None else []), settings)
         # Inputs are valid: claim the run directory for this config before any cell is written,

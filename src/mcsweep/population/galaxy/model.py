@@ -27,7 +27,7 @@ from __future__ import annotations
 
 from collections import OrderedDict
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cache, lru_cache
 
 import numpy as np
 import pandas as pd
@@ -646,8 +646,15 @@ class GalaxyModel:
     @staticmethod
     def _frame(cols, codes):
         data = dict(cols)
-        data["population"] = pd.Categorical.from_codes(codes, categories=POPULATION_CATEGORIES)
+        data["population"] = pd.Categorical.from_codes(codes, dtype=_population_dtype())
         return pd.DataFrame(data, columns=[*COLUMNS, COLOUR_COLUMN], copy=False)
+
+
+@cache
+def _population_dtype() -> pd.CategoricalDtype:
+    # One dtype for every table: pandas builds and checks the categories' index for each new
+    # one (50 us, and a colour cell makes a table per batch it takes stars from).
+    return pd.CategoricalDtype(POPULATION_CATEGORIES)
 
 
 #: Fewest rows :meth:`ConeDraw.stars` computes at once.

@@ -146,10 +146,9 @@ def _inverse_times(i0, i1, i2, b):
 @numba.njit(inline="always")
 def _schur_star(s, k, nn, bb, r_, pivot, w, x0, ainv, ok):
     """Star ``s`` of a block (output column ``k``, unsigned: see :func:`_column`): the position
-    block's inverse, x0, and
-    into the scratch ``w`` the scaled Schur complement T, r and A^-1 B (the first step of
-    :func:`_reduce_block`); ``nij``: the elements of its normal matrix, ``bi`` of its
-    right-hand side."""
+    block's inverse, x0, and into the scratch ``w`` the scaled Schur complement T, r and
+    A^-1 B (the first step of :func:`_reduce_block`); ``nij``: the elements of its normal
+    matrix, ``bi`` of its right-hand side."""
     n00, n01, n10, n11, n02, n03, n04, n12, n13, n14, n22, n33, n44, n23, n32, n24, n42, n34, n43 = nn
     b0, b1, b2, b3, b4 = bb
     sc1 = r_

@@ -168,3 +168,31 @@ def test_a_draw_without_colours_is_the_draw_with_them_but_bp_rp(models, name):
         assert plain["bp_rp"].isna().all() and table["bp_rp"].notna().all()
         pd.testing.assert_frame_equal(plain.drop(columns="bp_rp"), table.drop(columns="bp_rp"), check_exact=True)
         assert plain.attrs == table.attrs
+
+
+@pytest.mark.parametrize("name", ["default", "r03_5"])
+def test_rows_of_several_draws_in_one_pass_are_their_tables_concatenated(models, name):
+    # a colour cell takes its bin's rows from several batches of one cone and G range:
+    # ConeDraw.stars_of makes them in one pass, the values and attrs of the batches' tables
+    # concatenated, bit for bit, whatever the parts' sizes (empty, fewer than _MIN_ROWS, many)
+    from mcsweep.population.galaxy.model import ConeDraw
+
+    model = models[name]
+    args = (120.0, 5.0, 1.0, 13.5, 14.5)
+    draws = [model.draw_cone(*args, np.random.default_rng(i), max_stars=3000, min_draw=3000) for i in range(4)]
+    rng = np.random.default_rng(9)
+    for sizes in [(500, 3, 0, 1200), (1, 2, 3, 4), (0, 2000, 7, 0), (3000, 3000, 3000, 3000), (40,)]:
+        parts = [(d, np.sort(rng.choice(len(d), size, replace=False))) for d, size in zip(draws, sizes)]
+        want = pd.concat([d.stars(rows) for d, rows in parts], ignore_index=True)
+        got = ConeDraw.stars_of(parts)
+        pd.testing.assert_frame_equal(got, want, check_exact=True)
+        assert got.attrs == want.attrs
+    # masks are taken as stars() takes them; a draw of another query is not finished with these
+    mask = draws[0].bp_rp > 1.0
+    other = model.draw_cone(0.0, 60.0, 1.0, 13.5, 14.5, np.random.default_rng(5), max_stars=500, min_draw=500)
+    parts = [(draws[0], mask), (other, np.arange(200)), (draws[1], None)]
+    want = pd.concat([d.stars(rows) for d, rows in parts], ignore_index=True)
+    pd.testing.assert_frame_equal(ConeDraw.stars_of(parts), want, check_exact=True)
+    # one query's draws with equal attrs keep them, as pd.concat does
+    same = [(draws[2], np.arange(100)), (draws[2], np.arange(100, 300))]
+    assert ConeDraw.stars_of(same).attrs == draws[2].stars([0]).attrs

@@ -448,11 +448,12 @@ def cell_stars(cell, source, s: CellSettings, radius: float, stream: int,
         if n_in_cone is None:
             n_in_cone = int(round(batch.n_in_cone * in_bin.size / max(len(batch), 1)))
         # only the rows kept are made: beyond max_stars they would be cut off below
-        kept.append(batch.stars(in_bin[:max(s.max_stars - n_kept, 0)]))
+        kept.append((batch, in_bin[:max(s.max_stars - n_kept, 0)]))
         n_kept += in_bin.size
         if n_kept >= s.min_stars or len(batch) == 0:
             break
-    out = pd.concat(kept, ignore_index=True).iloc[:s.max_stars]
+    # the batches' rows in one table (a galaxy model's draws: made in one pass)
+    out = type(kept[0][0]).stars_of(kept).iloc[:s.max_stars]
     out.attrs["n_in_cone"] = n_in_cone
     return out
 
@@ -490,7 +491,8 @@ class ColourBatches:
         self._drawn: dict = {}
 
     def batch(self, i: int):
-        """Batch ``i``: ``bp_rp`` (array), ``n_in_cone``, ``len`` and ``stars(rows)``."""
+        """Batch ``i``: ``bp_rp`` (array), ``n_in_cone``, ``len``, ``stars(rows)`` and
+        ``stars_of(parts)`` (the rows of several batches in one table)."""
         if i not in self._drawn:
             cell, source, s, radius = self._args
             rng = np.random.default_rng(np.random.SeedSequence(s.seed, spawn_key=(*self._key, i)))
@@ -504,7 +506,8 @@ class ColourBatches:
 
 
 class _TableBatch:
-    """A drawn table with the interface of a :class:`~mcsweep.population.galaxy.model.ConeDraw`."""
+    """A drawn table with the interface of a :class:`~mcsweep.population.galaxy.model.ConeDraw`
+    (``bp_rp``, ``n_in_cone``, ``len``, ``stars`` and ``stars_of``)."""
 
     def __init__(self, table: pd.DataFrame):
         self._table = table
@@ -516,6 +519,10 @@ class _TableBatch:
 
     def stars(self, index) -> pd.DataFrame:
         return self._table.iloc[np.asarray(index, dtype=np.intp)]
+
+    @staticmethod
+    def stars_of(parts) -> pd.DataFrame:
+        return pd.concat([batch.stars(index) for batch, index in parts], ignore_index=True)
 
 
 def cell_mean(stars: pd.DataFrame, d) -> dict:

@@ -505,11 +505,13 @@ class GalaxyModel:
         uni, nor, u_colour = self._random_numbers(n, 0, n, root)
         first = self._first_stage(los, shape, cum, q.g_min, q.g_max, uni, u_colour)
 
-        def make_rows(idx):
-            return self._second_stage(los, q.g_min, q.g_max, {k: v[idx] for k, v in first.items()},
-                                      uni[3][idx], uni[4][idx], nor[:, idx])
+        def gather(idx):
+            return {k: v[idx] for k, v in first.items()}, uni[3][idx], uni[4][idx], nor[:, idx]
 
-        return ConeDraw(first["bp_rp"], n_in, float(cum[-1]), make_rows)
+        def finish(first_rows, u_cos, u_psi, normals):
+            return self._second_stage(los, q.g_min, q.g_max, first_rows, u_cos, u_psi, normals)
+
+        return ConeDraw(first["bp_rp"], n_in, float(cum[-1]), gather, finish, query=(self, los, q.g_min, q.g_max))
 
     def _plan(self, l_deg, b_deg, radius_deg, g_min, g_max, rng, max_stars, min_draw):
         """The query, its tabulation, the count of one realisation, the number to draw and the
@@ -657,6 +659,11 @@ def _population_dtype() -> pd.CategoricalDtype:
     return pd.CategoricalDtype(POPULATION_CATEGORIES)
 
 
+def _same_query(a: tuple, b: tuple) -> bool:
+    # the same model and line of sight (objects), the same G range (values)
+    return a[0] is b[0] and a[1] is b[1] and a[2:] == b[2:]
+
+
 #: Fewest rows :meth:`ConeDraw.stars` computes at once.
 _MIN_ROWS = 16
 
@@ -674,9 +681,17 @@ class ConeDraw:
         The number of stars in one realisation of the cone (``attrs["n_in_cone"]``).
     expected_count : float
         Its expectation (``attrs["expected_count"]``).
-    make_rows : callable
-        ``make_rows(index)``: the columns (dict of arrays) and population codes of the stars
-        at the integer positions ``index``.
+    gather : callable
+        ``gather(index)``: what the rest of the draw needs of the stars at the integer
+        positions ``index``, a tuple of arrays over those stars (each star's values in its own
+        element).
+    finish : callable
+        ``finish(*gathered)``: the columns (dict of arrays) and population codes of the stars
+        gathered, computed element by element.
+    query : tuple, optional
+        What ``finish`` depends on besides the stars (model, line of sight, G range): draws
+        with the same model and line of sight (objects) and G range can be finished together
+        (:meth:`stars_of`).
 
     Examples
     --------
@@ -689,11 +704,13 @@ class ConeDraw:
     (100, True)
     """
 
-    def __init__(self, bp_rp, n_in_cone, expected_count, make_rows):
+    def __init__(self, bp_rp, n_in_cone, expected_count, gather, finish, *, query=None):
         self.bp_rp = bp_rp
         self.n_in_cone = n_in_cone
         self.expected_count = expected_count
-        self._make_rows = make_rows
+        self._gather = gather
+        self._finish = finish
+        self._query = query
 
     def __len__(self) -> int:
         return self.bp_rp.size
@@ -723,22 +740,65 @@ class ConeDraw:
         >>> len(drawn.stars([0, 5, 9])), len(drawn.stars())
         (3, 100)
         """
-        if index is None:
-            idx = np.arange(len(self))
-        else:
-            idx = np.asarray(index)
-            if idx.dtype == bool:
-                if idx.shape != (len(self),):
-                    raise UserInputError(f"a mask of shape {idx.shape} was given for {len(self)} stars; "
-                                         "expected one flag per star")
-                idx = np.flatnonzero(idx)
-            idx = idx.astype(np.intp, casting="safe" if idx.size else "unsafe")
+        idx = self._positions(index)
         n = idx.size
         # A handful of rows is computed as at least _MIN_ROWS (repeated): numpy and BLAS take
         # other routes for arrays of one element (matrix-vector products, scalar loops), whose
         # last bits differ from the whole draw's.
-        cols, codes = self._make_rows(np.resize(idx, _MIN_ROWS) if 0 < n < _MIN_ROWS else idx)
+        cols, codes = self._finish(*self._gather(np.resize(idx, _MIN_ROWS) if 0 < n < _MIN_ROWS else idx))
         df = GalaxyModel._frame({c: v[:n] for c, v in cols.items()}, codes[:n])
-        df.attrs["n_in_cone"] = self.n_in_cone
-        df.attrs["expected_count"] = self.expected_count
+        df.attrs.update(self._attrs())
         return df
+
+    @staticmethod
+    def stars_of(parts) -> pd.DataFrame:
+        """The rows of several draws as one table: ``pd.concat([draw.stars(index) for draw, index
+        in parts], ignore_index=True)``, the same values and attrs, bit for bit.
+
+        Draws of one query (:meth:`~mcsweep.population.GalaxyModel.draw_cone` of one model, cone
+        and G range: a colour cell's batches) are finished in one pass over all their rows: one
+        table instead of one per draw (0.5 ms each) and their concatenation.
+
+        Parameters
+        ----------
+        parts : sequence of (ConeDraw, index)
+            At least one; ``index`` as for :meth:`stars`.
+
+        Returns
+        -------
+        pandas.DataFrame
+        """
+        parts = [(draw, draw._positions(index)) for draw, index in parts]
+        first = parts[0][0]._query
+        together = first is not None and all(d._query is not None and _same_query(d._query, first) for d, _ in parts)
+        n = sum(idx.size for _, idx in parts)
+        if not together or n < _MIN_ROWS:
+            return pd.concat([d.stars(idx) for d, idx in parts], ignore_index=True)
+        gathered = [d._gather(idx) for d, idx in parts]
+        rows, u_cos, u_psi, normals = gathered[0]
+        rows = {k: np.concatenate([g[0][k] for g in gathered]) for k in rows}
+        u_cos = np.concatenate([g[1] for g in gathered])
+        u_psi = np.concatenate([g[2] for g in gathered])
+        normals = np.concatenate([g[3] for g in gathered], axis=1)
+        cols, codes = parts[0][0]._finish(rows, u_cos, u_psi, normals)
+        df = GalaxyModel._frame(cols, codes)
+        # pd.concat keeps the attrs only where all its tables have the same
+        attrs = [d._attrs() for d, _ in parts]
+        if all(a == attrs[0] for a in attrs):
+            df.attrs.update(attrs[0])
+        return df
+
+    def _attrs(self) -> dict:
+        return {"n_in_cone": self.n_in_cone, "expected_count": self.expected_count}
+
+    def _positions(self, index) -> np.ndarray:
+        """``index`` of :meth:`stars` as integer positions (all stars if None)."""
+        if index is None:
+            return np.arange(len(self))
+        idx = np.asarray(index)
+        if idx.dtype == bool:
+            if idx.shape != (len(self),):
+                raise UserInputError(f"a mask of shape {idx.shape} was given for {len(self)} stars; "
+                                     "expected one flag per star")
+            idx = np.flatnonzero(idx)
+        return idx.astype(np.intp, casting="safe" if idx.size else "unsafe")

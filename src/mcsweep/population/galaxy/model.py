@@ -767,6 +767,22 @@ class ConeDraw:
         Returns
         -------
         pandas.DataFrame
+            The rows of every part in order, numbered from 0.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> import pandas as pd
+        >>> from mcsweep.population import GalaxyModel
+        >>> from mcsweep.population.galaxy.model import ConeDraw
+        >>> model = GalaxyModel()
+        >>> cone = (0.0, 0.0, 0.5, 12.0, 13.0)  # l, b, radius [deg], G range
+        >>> a, b = (model.draw_cone(*cone, np.random.default_rng(i), max_stars=100)
+        ...         for i in (1, 2))
+        >>> parts = [(a, a.bp_rp > 1.5), (b, b.bp_rp > 1.5)]  # one colour bin
+        >>> ConeDraw.stars_of(parts).equals(
+        ...     pd.concat([d.stars(i) for d, i in parts], ignore_index=True))
+        True
         """
         parts = [(draw, draw._positions(index)) for draw, index in parts]
         first = parts[0][0]._query

@@ -583,6 +583,8 @@ def _block_counts(X, x0, ainv, lam, worst, lo, hi, t, k_threshold):
 
 @_jit
 def _block_counts_and_keys(X, x0, ainv, lam, worst, lo, hi, t, k_threshold, bit, key_inside, key_valid):
+    # _block_counts' loop that also writes the keys: kept apart, not merged behind a flag,
+    # because LLVM vectorised only one form of the merged loop (inside_counts_grid)
     n_in = 0
     n_ok = 0
     for j in range(hi - lo):
